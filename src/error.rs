@@ -1,0 +1,137 @@
+//! The library's error type.
+//!
+//! Errors split into two kinds that the command line treats differently: input a user can fix
+//! (a malformed file, an unknown field, impossible geometry, a missing file), which ends with exit
+//! status 2, and everything else (a failed write, a numerical breakdown), which ends with 1.
+
+use std::fmt;
+use std::path::{Path, PathBuf};
+
+/// Where in an input a problem sits: the file, the 1-based line and column, and the field.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct Location {
+    pub file: Option<PathBuf>,
+    pub line: Option<usize>,
+    pub column: Option<usize>,
+    pub field: Option<String>,
+}
+
+impl fmt::Display for Location {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let mut parts = Vec::new();
+        if let Some(file) = &self.file {
+            parts.push(file.display().to_string());
+        }
+        match (self.line, self.column) {
+            (Some(l), Some(c)) => parts.push(format!("line {l}, column {c}")),
+            (Some(l), None) => parts.push(format!("line {l}")),
+            _ => {}
+        }
+        if let Some(field) = &self.field {
+            parts.push(format!("field `{field}`"));
+        }
+        write!(f, "{}", parts.join(", "))
+    }
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    /// Input a user can fix. The message is one sentence or paragraph without the location.
+    #[error("{}{message}", if .location == &Location::default() { String::new() } else { format!("{location}: ") })]
+    Input { location: Location, message: String },
+
+    /// A file that could not be read or written.
+    #[error("cannot {action} {}: {source}", .path.display())]
+    Io {
+        action: &'static str,
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+
+    /// A computation that cannot go on (for example a singular system); never bad input.
+    #[error("{0}")]
+    Numerical(String),
+}
+
+pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+impl Error {
+    /// Bad input with no location yet; add it with [`Error::in_file`] and [`Error::at_field`].
+    pub fn input(message: impl Into<String>) -> Self {
+        Error::Input {
+            location: Location::default(),
+            message: message.into(),
+        }
+    }
+
+    /// Bad input in a named field.
+    pub fn field(field: impl Into<String>, message: impl Into<String>) -> Self {
+        Error::input(message).at_field(field)
+    }
+
+    pub fn in_file(mut self, path: &Path) -> Self {
+        if let Error::Input { location, .. } = &mut self {
+            if location.file.is_none() {
+                location.file = Some(path.to_path_buf());
+            }
+        }
+        self
+    }
+
+    pub fn at_field(mut self, name: impl Into<String>) -> Self {
+        if let Error::Input { location, .. } = &mut self {
+            if location.field.is_none() {
+                location.field = Some(name.into());
+            }
+        }
+        self
+    }
+
+    pub fn at_line(mut self, line: usize, column: usize) -> Self {
+        if let Error::Input { location, .. } = &mut self {
+            location.line = Some(line);
+            location.column = Some(column);
+        }
+        self
+    }
+
+    pub fn read(path: &Path, source: std::io::Error) -> Self {
+        Error::Io {
+            action: "read",
+            path: path.to_path_buf(),
+            source,
+        }
+    }
+
+    pub fn write(path: &Path, source: std::io::Error) -> Self {
+        Error::Io {
+            action: "write",
+            path: path.to_path_buf(),
+            source,
+        }
+    }
+
+    /// True for problems the user caused and can fix (exit status 2 at the command line).
+    pub fn is_user_error(&self) -> bool {
+        matches!(self, Error::Input { .. } | Error::Io { action: "read", .. })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn input_error_names_file_line_and_field() {
+        let e = Error::field("ratio", "must be in (0, 1], got 0")
+            .in_file(Path::new("fig1.ron"))
+            .at_line(4, 12);
+        assert_eq!(
+            e.to_string(),
+            "fig1.ron, line 4, column 12, field `ratio`: must be in (0, 1], got 0"
+        );
+        assert!(e.is_user_error());
+        assert!(!Error::Numerical("x".into()).is_user_error());
+    }
+}

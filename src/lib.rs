@@ -1,0 +1,24 @@
+//! spibench: a physically based optical-bench simulator for DMD single-pixel imaging with
+//! complementary and balanced detection.
+//!
+//! The pipeline is a chain of plain functions over data:
+//! scene (RON) → bench → trace → transport (T maps, k±, b±) → detector → acquisition (schemes)
+//! → reconstruction → metrics → report. See ARCHITECTURE.md for the code map and invariants.
+
+pub mod acquisition;
+pub mod cli;
+pub mod detector;
+pub mod error;
+pub mod metrics;
+pub mod objects;
+pub mod optics;
+pub mod raster;
+pub mod reconstruction;
+pub mod report;
+pub mod rng;
+pub mod scene;
+pub mod trace;
+pub mod transport;
+
+pub use error::{Error, Result};
+pub use raster::Raster;

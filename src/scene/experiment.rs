@@ -1,0 +1,1 @@
+//! Experiment files for `spibench simulate` (the paper's idealised simulations).
