@@ -1,1 +1,3 @@
-//! acquisition
+//! Patterns (random, Hadamard with orderings) and the four acquisition schemes.
+
+pub mod patterns;
