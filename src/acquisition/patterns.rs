@@ -11,13 +11,13 @@ use crate::rng::SplitMix64;
 /// reproduces their pattern matrix exactly.
 pub fn random(rows: usize, cols: usize, seed: u64) -> BitMatrix {
     let mut m = BitMatrix::zeros(rows, cols);
-    let mut gen = SplitMix64::new(seed);
+    let mut bits = SplitMix64::new(seed);
     let mut word = 0u64;
     let mut avail = 0u32;
     for r in 0..rows {
         for c in 0..cols {
             if avail == 0 {
-                word = gen.next_u64();
+                word = bits.next_u64();
                 avail = 64;
             }
             if word & 1 == 1 {

@@ -112,8 +112,14 @@ impl HadamardOperator {
     /// Panics if `order` is not a power of two or a row index is out of range; callers validate
     /// user sizes first and report them as input errors.
     pub fn new(order: usize, rows: Vec<usize>, form: PatternForm) -> Self {
-        assert!(order.is_power_of_two(), "Hadamard order {order} is not a power of two");
-        assert!(rows.iter().all(|&r| r < order), "Hadamard row index out of range");
+        assert!(
+            order.is_power_of_two(),
+            "Hadamard order {order} is not a power of two"
+        );
+        assert!(
+            rows.iter().all(|&r| r < order),
+            "Hadamard row index out of range"
+        );
         HadamardOperator { order, rows, form }
     }
 
