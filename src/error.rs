@@ -71,19 +71,19 @@ impl Error {
     }
 
     pub fn in_file(mut self, path: &Path) -> Self {
-        if let Error::Input { location, .. } = &mut self {
-            if location.file.is_none() {
-                location.file = Some(path.to_path_buf());
-            }
+        if let Error::Input { location, .. } = &mut self
+            && location.file.is_none()
+        {
+            location.file = Some(path.to_path_buf());
         }
         self
     }
 
     pub fn at_field(mut self, name: impl Into<String>) -> Self {
-        if let Error::Input { location, .. } = &mut self {
-            if location.field.is_none() {
-                location.field = Some(name.into());
-            }
+        if let Error::Input { location, .. } = &mut self
+            && location.field.is_none()
+        {
+            location.field = Some(name.into());
         }
         self
     }
