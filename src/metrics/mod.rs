@@ -1,1 +1,125 @@
-//! metrics
+//! Image-quality scores (PSNR, MSSIM) and the rule that brings a reconstruction to the ground
+//! truth's scale before it is scored.
+//!
+//! # Normalisation rule (the same for every scheme)
+//!
+//! A reconstruction x̃ carries an unknown gain (for example k' = k₊ + k₋ after secondary
+//! complementary balancing, or the detector's responsivity and transimpedance) and sometimes an
+//! offset (for example the uncancelled DC term of imbalanced double-arm detection). Before
+//! scoring, every reconstruction is mapped onto the ground truth x (on [0, 255]) by the affine
+//! map with the least squared error,
+//!
+//! > g, o = argmin Σᵢ (g·x̃ᵢ + o − xᵢ)², i.e. g = cov(x̃, x) / var(x̃), o = mean(x) − g·mean(x̃),
+//!
+//! and the mapped image g·x̃ + o is clipped to [0, 255]. A constant reconstruction
+//! (var(x̃) = 0) gets g = 0 and o = mean(x). PSNR (peak 255) and MSSIM are then computed between
+//! the ground truth and the clipped image ([`score`]).
+//!
+//! Why this rule: it removes exactly the two unknowns that the measurement model leaves free
+//! (gain and offset), whatever the scheme, so the scores compare image structure rather than
+//! calibration. It uses the truth, so it is the best any affine calibration could do (an
+//! upper bound for a real bench), and it cannot make an image better than its structure
+//! allows: a reconstruction uncorrelated with the truth maps to a near-constant image.
+//!
+//! # Scores
+//!
+//! - PSNR = 10·log₁₀(peak² / MSE), MSE = mean((x − y)²); +∞ for identical images.
+//! - MSSIM = the mean of the SSIM map of Wang, Bovik, Sheikh and Simoncelli, IEEE Trans. Image
+//!   Process. 13(4):600–612 (2004), exactly as their reference `ssim_index.m`: 11×11 Gaussian
+//!   window with σ = 1.5 normalised to sum 1, K1 = 0.01, K2 = 0.03, L = 255, local statistics
+//!   by 'valid' filtering (an (H − 10) × (W − 10) map), biased window-weighted variances
+//!   (σ² = E[x²] − μ²). Not the multi-scale MS-SSIM. See [`ssim`].
+//!
+//! Both are validated against scikit-image in `validation/metrics/` (see the README-style
+//! header of `make_reference.py` there).
+
+pub mod normalize;
+pub mod ssim;
+
+pub use normalize::{Normalized, normalize_to_truth};
+pub use ssim::{mssim, ssim_map};
+
+use crate::error::{Error, Result};
+use crate::raster::Raster;
+
+/// The normalisation rule in one sentence, for summaries and reports.
+pub const NORMALIZATION_RULE: &str = "least-squares gain and offset mapping the reconstruction onto the ground truth, then clipping to [0, 255]; PSNR with peak 255, MSSIM as Wang et al. 2004";
+
+/// The peak value of objects and normalised reconstructions (the paper's 255²/MSE).
+pub const PEAK_255: f64 = 255.0;
+
+/// An input error unless the two images have the same size.
+pub fn check_same_size(truth: &Raster, test: &Raster) -> Result<()> {
+    if (truth.width, truth.height) != (test.width, test.height)
+        || truth.data.len() != test.data.len()
+    {
+        return Err(Error::input(format!(
+            "cannot compare a {}×{} image with a {}×{} image",
+            truth.width, truth.height, test.width, test.height
+        )));
+    }
+    Ok(())
+}
+
+/// Mean squared error, summed in index order (deterministic).
+///
+/// # Panics
+/// If the sizes differ (a programming error: callers build both images at one size; use
+/// [`check_same_size`] first when sizes come from input).
+pub fn mse(truth: &Raster, test: &Raster) -> f64 {
+    assert!(
+        check_same_size(truth, test).is_ok(),
+        "mse of a {}×{} and a {}×{} image",
+        truth.width,
+        truth.height,
+        test.width,
+        test.height
+    );
+    let sum: f64 = truth
+        .data
+        .iter()
+        .zip(&test.data)
+        .map(|(a, b)| (a - b) * (a - b))
+        .sum();
+    sum / truth.data.len() as f64
+}
+
+/// PSNR = 10·log₁₀(peak² / MSE) in dB; +∞ when the images are identical.
+///
+/// # Panics
+/// If the sizes differ (see [`mse`]).
+pub fn psnr(truth: &Raster, test: &Raster, peak: f64) -> f64 {
+    let mse = mse(truth, test);
+    if mse == 0.0 {
+        f64::INFINITY
+    } else {
+        10.0 * (peak * peak / mse).log10()
+    }
+}
+
+/// The scores of one reconstruction after the normalisation rule.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct Scores {
+    /// PSNR with peak 255, in dB (+∞ for a perfect match, serialised by serde_json as null).
+    pub psnr_db: f64,
+    /// Mean of the SSIM map (Wang et al. 2004).
+    pub mssim: f64,
+    /// The least-squares gain applied to the reconstruction.
+    pub gain: f64,
+    /// The least-squares offset applied after the gain.
+    pub offset: f64,
+}
+
+/// Normalises `recon` to `truth` (module rule) and scores it: PSNR (peak 255) and MSSIM.
+pub fn score(truth: &Raster, recon: &Raster) -> Result<Scores> {
+    let n = normalize_to_truth(recon, truth)?;
+    Ok(Scores {
+        psnr_db: psnr(truth, &n.image, PEAK_255),
+        mssim: mssim(truth, &n.image)?,
+        gain: n.gain,
+        offset: n.offset,
+    })
+}
+
+#[cfg(test)]
+mod tests;
