@@ -17,6 +17,7 @@ pub mod reconstruction;
 pub mod report;
 pub mod rng;
 pub mod scene;
+pub mod simulation;
 pub mod trace;
 pub mod transport;
 

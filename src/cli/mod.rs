@@ -1,6 +1,70 @@
 //! The command line: subcommands over the library. `anyhow` lives only here.
+//!
+//! Exit status: 0 on success, 2 for input a user can fix (a malformed file, an unknown field,
+//! impossible values, a missing file; also clap's usage errors), 1 for anything else.
+
+mod progress;
+mod reconstruct;
+mod simulate;
+
+use clap::{Parser, Subcommand};
+
+#[derive(Debug, Parser)]
+#[command(
+    name = "spibench",
+    version,
+    about = "Optical-bench simulator for DMD single-pixel imaging with complementary and balanced detection"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Run one of the paper's idealised simulations (scalar k±, b±, additive noise, no optics).
+    Simulate(simulate::SimulateArgs),
+    /// Reconstruct measurements that came from elsewhere (a real bench or another simulator).
+    Reconstruct(reconstruct::ReconstructArgs),
+}
 
 /// Runs the command line and returns the process exit status.
 pub fn main() -> i32 {
-    0
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) => {
+            let _ = e.print();
+            return if e.use_stderr() { 2 } else { 0 };
+        }
+    };
+    let result = match &cli.command {
+        Command::Simulate(a) => simulate::run(a),
+        Command::Reconstruct(a) => reconstruct::run(a),
+    };
+    match result {
+        Ok(()) => 0,
+        Err(e) => {
+            eprintln!("error: {}", render_error(&e));
+            exit_status(&e)
+        }
+    }
+}
+
+/// One paragraph: the error and its causes.
+fn render_error(e: &anyhow::Error) -> String {
+    let mut parts: Vec<String> = vec![e.to_string()];
+    for cause in e.chain().skip(1) {
+        let s = cause.to_string();
+        if !parts.iter().any(|p| p.contains(&s)) {
+            parts.push(s);
+        }
+    }
+    parts.join(": ")
+}
+
+fn exit_status(e: &anyhow::Error) -> i32 {
+    match e.chain().find_map(|c| c.downcast_ref::<crate::Error>()) {
+        Some(err) if err.is_user_error() => 2,
+        _ => 1,
+    }
 }

@@ -1,1 +1,471 @@
-//! Experiment files for `spibench simulate` (the paper's idealised simulations).
+//! Experiment files for `spibench simulate`: the paper's idealised simulations (scalar k±, b±,
+//! additive noise, no optics).
+//!
+//! An experiment is the Cartesian product objects × sampling ratios × cases, where a case is one
+//! acquisition scheme with its arm gains, offsets and noise. Each product cell is simulated,
+//! reconstructed and scored; a montage and curves summarise the grid the way the paper's figures
+//! do. Values are in the object's units (grey levels 0–255 per unit), so k± are dimensionless
+//! and b± and noise standard deviations are in grey-level sums, as in the paper's Eqs. (6)–(9).
+//!
+//! ```ron
+//! Experiment(
+//!     title: "Fig. 1",
+//!     width: 128, height: 128,
+//!     objects: [(name: "phantom", object: Phantom)],
+//!     sampling_ratios: [0.25],
+//!     cases: [(label: "SCB", scheme: SecondaryComplementaryBalancing,
+//!              arms: (k_plus: 1.01, k_minus: 1.02, b_plus: 1, b_minus: 5))],
+//! )
+//! ```
+
+use std::path::{Path, PathBuf};
+
+use serde::Deserialize;
+
+use crate::acquisition::{AdditiveNoise, HadamardOrdering, ScalarArms, Scheme};
+use crate::error::{Error, Result};
+use crate::objects::ObjectSpec;
+use crate::reconstruction::tval3::Tval3Options;
+
+/// The largest image an experiment may ask for, in pattern units (a 1024×1024 grid: the whole
+/// DMD at one mirror per unit). Larger grids are almost certainly a typing error.
+pub const MAX_UNITS: usize = 1 << 20;
+
+/// The file as written. Every field is documented because the file is the user interface.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields, rename = "Experiment")]
+pub struct ExperimentFile {
+    /// Shown on plots and montages.
+    pub title: String,
+    /// Image width in pattern units (pixels of the reconstruction).
+    pub width: usize,
+    /// Image height in pattern units.
+    pub height: usize,
+    /// The objects, each with a short name used in file names.
+    pub objects: Vec<ObjectEntry>,
+    /// The base patterns; random 0/1 by default.
+    #[serde(default)]
+    pub patterns: PatternsSpec,
+    /// Sampling ratios M/N, each in (0, 1] (M base patterns for N units).
+    pub sampling_ratios: Vec<Ratio>,
+    /// The acquisition cases (scheme, arms, noise).
+    pub cases: Vec<CaseSpec>,
+    /// TVAL3 options; unset fields take TVAL3's defaults.
+    #[serde(default)]
+    pub solver: Tval3Options,
+    /// DMD binary pattern rate used for acquisition times, Hz (22 727 Hz = 44 µs frames).
+    #[serde(default = "default_dmd_rate")]
+    pub dmd_rate_hz: f64,
+    /// Seed of the noise streams (one stream per cell).
+    #[serde(default)]
+    pub seed: u64,
+    /// How the reconstructions are laid out in `montage.png`.
+    #[serde(default)]
+    pub montage: Option<MontageSpec>,
+    /// Curves to plot (mean and standard deviation over objects).
+    #[serde(default)]
+    pub curves: Vec<CurveSpec>,
+}
+
+fn default_dmd_rate() -> f64 {
+    crate::acquisition::DEFAULT_DMD_RATE_HZ
+}
+
+/// A sampling ratio in (0, 1], validated while parsing so that errors carry line and column.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(try_from = "f64")]
+pub struct Ratio(pub f64);
+
+impl TryFrom<f64> for Ratio {
+    type Error = String;
+    fn try_from(v: f64) -> std::result::Result<Self, String> {
+        if v.is_finite() && v > 0.0 && v <= 1.0 {
+            Ok(Ratio(v))
+        } else {
+            Err(format!("a sampling ratio must lie in (0, 1], got {v}"))
+        }
+    }
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ObjectEntry {
+    /// Short name, used in file names and tables (letters, digits, `-` and `_`).
+    pub name: String,
+    pub object: ObjectSpec,
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub enum PatternsSpec {
+    /// Random 0/1 patterns from a seeded SplitMix64 sequence; the same patterns serve every
+    /// case of an object, so cases differ only by scheme, arms and noise.
+    Random { seed: u64 },
+    /// Sylvester Hadamard patterns (2^m × 2^m images only) in the given ordering.
+    Hadamard { ordering: HadamardOrdering },
+}
+
+impl Default for PatternsSpec {
+    fn default() -> Self {
+        PatternsSpec::Random { seed: 1 }
+    }
+}
+
+/// One acquisition case.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CaseSpec {
+    /// Label on montages, curves and in summary.json.
+    pub label: String,
+    pub scheme: Scheme,
+    /// Arm gains and offsets (Eqs. 6–9); ideal arms by default.
+    #[serde(default)]
+    pub arms: ArmsSpec,
+    /// Additive noise on every recorded detector sample; none by default.
+    #[serde(default)]
+    pub noise: Option<NoiseSpec>,
+}
+
+/// k± (dimensionless) and b± (object units) of the two arms, validated while parsing so that
+/// an error points at the case that holds it.
+#[derive(Debug, Clone, Copy, Deserialize)]
+#[serde(try_from = "ArmsFields")]
+pub struct ArmsSpec(pub ScalarArms);
+
+/// The arms as written: every field optional, ideal arms by default.
+#[derive(Debug, Clone, Copy, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ArmsFields {
+    pub k_plus: f64,
+    pub k_minus: f64,
+    pub b_plus: f64,
+    pub b_minus: f64,
+}
+
+impl Default for ArmsFields {
+    fn default() -> Self {
+        ArmsFields {
+            k_plus: 1.0,
+            k_minus: 1.0,
+            b_plus: 0.0,
+            b_minus: 0.0,
+        }
+    }
+}
+
+impl Default for ArmsSpec {
+    fn default() -> Self {
+        ArmsSpec(ScalarArms::ideal())
+    }
+}
+
+impl TryFrom<ArmsFields> for ArmsSpec {
+    type Error = String;
+    fn try_from(a: ArmsFields) -> std::result::Result<Self, String> {
+        let arms = ScalarArms {
+            k_plus: a.k_plus,
+            k_minus: a.k_minus,
+            b_plus: a.b_plus,
+            b_minus: a.b_minus,
+        };
+        arms.validate().map_err(|e| e.to_string())?;
+        Ok(ArmsSpec(arms))
+    }
+}
+
+/// Additive noise on every recorded detector sample, validated while parsing.
+#[derive(Debug, Clone, Copy, Deserialize)]
+#[serde(try_from = "AdditiveNoise")]
+pub struct NoiseSpec(pub AdditiveNoise);
+
+impl TryFrom<AdditiveNoise> for NoiseSpec {
+    type Error = String;
+    fn try_from(n: AdditiveNoise) -> std::result::Result<Self, String> {
+        n.validate().map_err(|e| e.to_string())?;
+        Ok(NoiseSpec(n))
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, serde::Serialize)]
+pub enum Axis {
+    Object,
+    Case,
+    Ratio,
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MontageSpec {
+    pub rows: Axis,
+    pub columns: Axis,
+    /// Side of one tile in screen pixels.
+    #[serde(default = "default_tile_px")]
+    pub tile_px: u32,
+}
+
+fn default_tile_px() -> u32 {
+    128
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, serde::Serialize)]
+pub enum CurveX {
+    /// Sampling ratio M/N.
+    Ratio,
+    /// k' = k₊ + k₋ of the case.
+    KPrime,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, serde::Serialize)]
+pub enum Metric {
+    Psnr,
+    Mssim,
+}
+
+/// One plot: the metric against x, one series per scheme, mean ± standard deviation over the
+/// objects, using only the cells at the given ratio or k' when those are set.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CurveSpec {
+    /// File stem of the plot (`NAME.svg`, `NAME.png`).
+    pub name: String,
+    pub x: CurveX,
+    pub metric: Metric,
+    #[serde(default)]
+    pub at_ratio: Option<f64>,
+    #[serde(default)]
+    pub at_k_prime: Option<f64>,
+    /// Plot x on a logarithmic axis.
+    #[serde(default)]
+    pub log_x: bool,
+}
+
+/// A validated experiment: every field checked, ready to run.
+#[derive(Debug, Clone)]
+pub struct Experiment {
+    pub title: String,
+    pub width: usize,
+    pub height: usize,
+    pub objects: Vec<ObjectEntry>,
+    pub patterns: PatternsSpec,
+    pub sampling_ratios: Vec<f64>,
+    pub cases: Vec<Case>,
+    pub solver: Tval3Options,
+    pub dmd_rate_hz: f64,
+    pub seed: u64,
+    pub montage: Option<MontageSpec>,
+    pub curves: Vec<CurveSpec>,
+    /// Folder that relative object paths resolve against.
+    pub base_dir: PathBuf,
+}
+
+#[derive(Debug, Clone)]
+pub struct Case {
+    pub label: String,
+    pub scheme: Scheme,
+    pub arms: ScalarArms,
+    pub noise: Option<AdditiveNoise>,
+}
+
+/// The experiments shipped with spibench, one per figure of the paper's simulation section.
+pub const BUILT_IN: &[(&str, &str)] = &[
+    ("fig1", include_str!("../../scenes/fig1.ron")),
+    ("fig2", include_str!("../../scenes/fig2.ron")),
+    ("fig3", include_str!("../../scenes/fig3.ron")),
+    ("fig4", include_str!("../../scenes/fig4.ron")),
+];
+
+/// Loads an experiment from a file, or a built-in one by name (`fig1` … `fig4`).
+pub fn load(name_or_path: &str) -> Result<Experiment> {
+    let path = Path::new(name_or_path);
+    // A built-in name wins only when no file of that name exists. Built-ins use embedded test
+    // images, so relative paths in them (there are none) would resolve against the working folder.
+    if !path.exists()
+        && let Some((name, text)) = BUILT_IN.iter().find(|(n, _)| *n == name_or_path)
+    {
+        return parse(
+            text,
+            &PathBuf::from(format!("<built-in {name}>")),
+            Path::new("."),
+        );
+    }
+    let text = std::fs::read_to_string(path).map_err(|e| {
+        let names: Vec<&str> = BUILT_IN.iter().map(|(n, _)| *n).collect();
+        match e.kind() {
+            std::io::ErrorKind::NotFound => Error::input(format!(
+                "no experiment file {} (built-in experiments: {})",
+                path.display(),
+                names.join(", ")
+            )),
+            _ => Error::read(path, e),
+        }
+    })?;
+    let base = path
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    parse(&text, path, base)
+}
+
+/// Parses and validates experiment text; `path` names it in errors, `base_dir` resolves files.
+pub fn parse(text: &str, path: &Path, base_dir: &Path) -> Result<Experiment> {
+    let file: ExperimentFile = super::parse_ron(text, path)?;
+    validate(file, base_dir).map_err(|e| locate(e, text, path))
+}
+
+/// Adds the file and, for a named field, the line of its first occurrence.
+fn locate(e: Error, text: &str, path: &Path) -> Error {
+    let e = e.in_file(path);
+    let field = match &e {
+        Error::Input { location, .. } if location.line.is_none() => location.field.clone(),
+        _ => None,
+    };
+    if let Some(field) = field {
+        let key = field.split(['[', '.']).next().unwrap_or(&field).to_string();
+        if let Some((line, col)) = find_key(text, &key) {
+            return e.at_line(line, col);
+        }
+    }
+    e
+}
+
+/// Line and column (1-based) of the first `key:` in the text.
+fn find_key(text: &str, key: &str) -> Option<(usize, usize)> {
+    for (i, line) in text.lines().enumerate() {
+        let trimmed = line.trim_start();
+        if trimmed.starts_with("//") {
+            continue;
+        }
+        if let Some(pos) = line.find(&format!("{key}:")) {
+            let before = line[..pos].chars().last();
+            if before.is_none_or(|c| !(c.is_alphanumeric() || c == '_')) {
+                return Some((i + 1, pos + 1));
+            }
+        }
+    }
+    None
+}
+
+fn validate(f: ExperimentFile, base_dir: &Path) -> Result<Experiment> {
+    if f.width == 0 || f.height == 0 {
+        return Err(Error::field(
+            "width",
+            format!("the image must have pixels, got {}×{}", f.width, f.height),
+        ));
+    }
+    if f.width.saturating_mul(f.height) > MAX_UNITS {
+        return Err(Error::field(
+            "width",
+            format!(
+                "{}×{} units is more than the {} units of a 1024×1024 grid",
+                f.width, f.height, MAX_UNITS
+            ),
+        ));
+    }
+    if f.objects.is_empty() {
+        return Err(Error::field("objects", "at least one object is needed"));
+    }
+    for (i, o) in f.objects.iter().enumerate() {
+        let ok = !o.name.is_empty()
+            && o.name
+                .chars()
+                .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_');
+        if !ok {
+            return Err(Error::field(
+                format!("objects[{i}].name"),
+                format!(
+                    "object name {:?} must be non-empty letters, digits, '-' or '_'",
+                    o.name
+                ),
+            ));
+        }
+        if f.objects[..i].iter().any(|p| p.name == o.name) {
+            return Err(Error::field(
+                format!("objects[{i}].name"),
+                format!("object name {:?} is used twice", o.name),
+            ));
+        }
+    }
+    if f.sampling_ratios.is_empty() {
+        return Err(Error::field(
+            "sampling_ratios",
+            "at least one sampling ratio is needed",
+        ));
+    }
+    if f.cases.is_empty() {
+        return Err(Error::field("cases", "at least one case is needed"));
+    }
+    let mut cases = Vec::with_capacity(f.cases.len());
+    for (i, c) in f.cases.iter().enumerate() {
+        if f.cases[..i].iter().any(|p| p.label == c.label) {
+            return Err(Error::field(
+                format!("cases[{i}].label"),
+                format!("case label {:?} is used twice", c.label),
+            ));
+        }
+        cases.push(Case {
+            label: c.label.clone(),
+            scheme: c.scheme,
+            arms: c.arms.0,
+            noise: c.noise.map(|n| n.0),
+        });
+    }
+    if !(f.dmd_rate_hz.is_finite() && f.dmd_rate_hz > 0.0) {
+        return Err(Error::field(
+            "dmd_rate_hz",
+            format!("the DMD rate must be positive, got {}", f.dmd_rate_hz),
+        ));
+    }
+    if let PatternsSpec::Hadamard { .. } = f.patterns {
+        let side = f.width;
+        if f.width != f.height || !side.is_power_of_two() {
+            return Err(Error::field(
+                "patterns",
+                format!(
+                    "Hadamard patterns need a 2^m × 2^m image, got {}×{}; use Random patterns for other sizes",
+                    f.width, f.height
+                ),
+            ));
+        }
+    }
+    if let Some(m) = &f.montage {
+        if m.rows == m.columns {
+            return Err(Error::field(
+                "montage",
+                "montage rows and columns must be different axes",
+            ));
+        }
+        if m.tile_px == 0 || m.tile_px > 1024 {
+            return Err(Error::field(
+                "montage",
+                format!("tile_px must be 1..=1024, got {}", m.tile_px),
+            ));
+        }
+    }
+    for (i, c) in f.curves.iter().enumerate() {
+        let ok = !c.name.is_empty()
+            && c.name
+                .chars()
+                .all(|ch| ch.is_ascii_alphanumeric() || ch == '-' || ch == '_');
+        if !ok {
+            return Err(Error::field(
+                format!("curves[{i}].name"),
+                format!("curve name {:?} is not a file stem", c.name),
+            ));
+        }
+    }
+    Ok(Experiment {
+        title: f.title,
+        width: f.width,
+        height: f.height,
+        objects: f.objects,
+        patterns: f.patterns,
+        sampling_ratios: f.sampling_ratios.iter().map(|r| r.0).collect(),
+        cases,
+        solver: f.solver,
+        dmd_rate_hz: f.dmd_rate_hz,
+        seed: f.seed,
+        montage: f.montage,
+        curves: f.curves,
+        base_dir: base_dir.to_path_buf(),
+    })
+}

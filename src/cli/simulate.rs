@@ -1,0 +1,380 @@
+//! `spibench simulate EXPERIMENT [--out DIR]`.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use anyhow::Result;
+use clap::Args;
+use serde::Serialize;
+
+use crate::metrics::NORMALIZATION_RULE;
+use crate::report::csv::write_csv;
+use crate::report::json::write_json;
+use crate::report::montage::{Montage, write_montage};
+use crate::report::output::OutputDir;
+use crate::report::plot::{LinePlot, Series, write_plot};
+use crate::report::png::write_gray8;
+use crate::scene::experiment::{self, Axis, CurveX, Experiment, Metric};
+use crate::simulation::{self, Cell, CurveSeries, SimulationOutput};
+
+#[derive(Debug, Args)]
+pub struct SimulateArgs {
+    /// An experiment file (RON), or a built-in experiment: fig1, fig2, fig3, fig4.
+    pub experiment: String,
+    /// Output folder (created; files of the same name are replaced). Default: out/<experiment>.
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+}
+
+/// summary.json of `simulate`. Units: PSNR in dB, times in s, k± dimensionless, b± and noise
+/// standard deviations in object units (grey levels summed over units).
+#[derive(Serialize)]
+struct Summary<'a> {
+    /// Always "simulate".
+    command: &'static str,
+    spibench_version: &'static str,
+    /// Experiment title and source (a path or `<built-in NAME>`).
+    title: &'a str,
+    source: &'a str,
+    width: usize,
+    height: usize,
+    /// Units N = width × height.
+    units: usize,
+    sampling_ratios: &'a [f64],
+    dmd_rate_hz: f64,
+    seed: u64,
+    /// How reconstructions were brought to the truth's scale before scoring.
+    normalization: &'static str,
+    /// Every cell: object × ratio × case.
+    cells: &'a [Cell],
+    /// Curves by name: one series per scheme, mean and standard deviation over objects.
+    curves: Vec<NamedCurve<'a>>,
+    /// Wall time of the whole run, s.
+    wall_time_s: f64,
+}
+
+#[derive(Serialize)]
+struct NamedCurve<'a> {
+    name: &'a str,
+    x: CurveX,
+    metric: Metric,
+    series: Vec<CurveSeries>,
+}
+
+pub fn run(args: &SimulateArgs) -> Result<()> {
+    let exp = experiment::load(&args.experiment)?;
+    let stem = std::path::Path::new(&args.experiment)
+        .file_stem()
+        .map_or_else(
+            || "experiment".to_string(),
+            |s| s.to_string_lossy().into_owned(),
+        );
+    let out_dir = args
+        .out
+        .clone()
+        .unwrap_or_else(|| PathBuf::from("out").join(&stem));
+    let out = OutputDir::create(&out_dir)?;
+
+    let start = Instant::now();
+    let total = exp.objects.len() * exp.sampling_ratios.len() * exp.cases.len();
+    let pb = super::progress::bar(total as u64, "simulate");
+    let result = simulation::run(&exp, &|done, _| pb.set_position(done as u64))?;
+    pb.finish_and_clear();
+    let wall = start.elapsed().as_secs_f64();
+
+    write_outputs(&exp, &args.experiment, &result, &out, wall)?;
+    let dir = out.commit()?;
+    print_table(&exp, &result.cells);
+    println!(
+        "wrote {} ({} cells, {:.1} s)",
+        dir.display(),
+        result.cells.len(),
+        wall
+    );
+    Ok(())
+}
+
+fn cell_file(c: &Cell) -> String {
+    format!(
+        "images/{}__{}__r{:.3}.png",
+        c.object,
+        sanitize(&c.case),
+        c.ratio
+    )
+}
+
+/// A case label as a file-name fragment.
+fn sanitize(s: &str) -> String {
+    s.chars()
+        .map(|ch| {
+            if ch.is_ascii_alphanumeric() || ch == '-' || ch == '.' {
+                ch
+            } else {
+                '_'
+            }
+        })
+        .collect()
+}
+
+fn write_outputs(
+    exp: &Experiment,
+    source: &str,
+    res: &SimulationOutput,
+    out: &OutputDir,
+    wall: f64,
+) -> Result<()> {
+    for (o, truth) in exp.objects.iter().zip(&res.truths) {
+        write_gray8(
+            &out.path(&format!("images/{}__truth.png", o.name)),
+            truth,
+            0.0,
+            255.0,
+        )?;
+    }
+    for (c, img) in res.cells.iter().zip(&res.reconstructions) {
+        write_gray8(&out.path(&cell_file(c)), img, 0.0, 255.0)?;
+    }
+
+    let header = [
+        "object",
+        "case",
+        "scheme",
+        "ratio",
+        "measurements",
+        "k_plus",
+        "k_minus",
+        "b_plus",
+        "b_minus",
+        "k_prime",
+        "noise",
+        "noise_std",
+        "psnr_db",
+        "mssim",
+        "iterations",
+        "operator_applications",
+        "converged",
+        "solver_time_s",
+        "dmd_frames",
+        "detector_samples",
+        "acquisition_time_s",
+    ];
+    let rows: Vec<Vec<String>> = res
+        .cells
+        .iter()
+        .map(|c| {
+            vec![
+                c.object.clone(),
+                c.case.clone(),
+                c.scheme.label().to_string(),
+                format!("{}", c.ratio),
+                c.measurements.to_string(),
+                format!("{}", c.k_plus),
+                format!("{}", c.k_minus),
+                format!("{}", c.b_plus),
+                format!("{}", c.b_minus),
+                format!("{}", c.k_prime),
+                c.noise.map_or(String::new(), |n| format!("{n:?}")),
+                format!("{}", c.noise_std),
+                format!("{:.4}", c.psnr_db),
+                format!("{:.6}", c.mssim),
+                c.iterations.to_string(),
+                c.operator_applications.to_string(),
+                c.converged.to_string(),
+                format!("{:.4}", c.solver_time_s),
+                c.dmd_frames.to_string(),
+                c.detector_samples.to_string(),
+                format!("{:.6}", c.acquisition_time_s),
+            ]
+        })
+        .collect();
+    write_csv(&out.path("cells.csv"), &header, &rows)?;
+
+    let mut curves = Vec::new();
+    for spec in &exp.curves {
+        let series = simulation::curve(spec, &res.cells);
+        let mut rows = Vec::new();
+        for s in &series {
+            for p in &s.points {
+                rows.push(vec![
+                    s.scheme.label().to_string(),
+                    format!("{}", p.x),
+                    format!("{:.6}", p.mean),
+                    format!("{:.6}", p.std),
+                    p.count.to_string(),
+                ]);
+            }
+        }
+        let (x_label, metric_label) = axis_labels(spec.x, spec.metric);
+        write_csv(
+            &out.path(&format!("{}.csv", spec.name)),
+            &["scheme", "x", "mean", "std", "objects"],
+            &rows,
+        )?;
+        let plot = LinePlot {
+            title: format!("{}: {} against {}", exp.title, metric_label, x_label),
+            x_label: x_label.to_string(),
+            y_label: metric_label.to_string(),
+            series: series
+                .iter()
+                .map(|s| Series {
+                    label: s.scheme.label().to_string(),
+                    x: s.points.iter().map(|p| p.x).collect(),
+                    y: s.points.iter().map(|p| p.mean).collect(),
+                    y_err: Some(s.points.iter().map(|p| p.std).collect()),
+                })
+                .collect(),
+            log_x: spec.log_x,
+        };
+        write_plot(
+            &plot,
+            &out.path(&format!("{}.svg", spec.name)),
+            &out.path(&format!("{}.png", spec.name)),
+        )?;
+        curves.push(NamedCurve {
+            name: &spec.name,
+            x: spec.x,
+            metric: spec.metric,
+            series,
+        });
+    }
+
+    if let Some(m) = &exp.montage {
+        for (suffix, montage) in montages(exp, res, m.rows, m.columns) {
+            write_montage(
+                &montage,
+                m.tile_px,
+                &out.path(&format!("montage{suffix}.png")),
+            )?;
+        }
+    }
+
+    let summary = Summary {
+        command: "simulate",
+        spibench_version: env!("CARGO_PKG_VERSION"),
+        title: &exp.title,
+        source,
+        width: exp.width,
+        height: exp.height,
+        units: exp.width * exp.height,
+        sampling_ratios: &exp.sampling_ratios,
+        dmd_rate_hz: exp.dmd_rate_hz,
+        seed: exp.seed,
+        normalization: NORMALIZATION_RULE,
+        cells: &res.cells,
+        curves,
+        wall_time_s: wall,
+    };
+    write_json(&out.path("summary.json"), &summary)?;
+    Ok(())
+}
+
+fn axis_labels(x: CurveX, metric: Metric) -> (&'static str, &'static str) {
+    (
+        match x {
+            CurveX::Ratio => "sampling ratio M/N",
+            CurveX::KPrime => "imbalance coefficient k' = k+ + k-",
+        },
+        match metric {
+            Metric::Psnr => "PSNR (dB)",
+            Metric::Mssim => "MSSIM",
+        },
+    )
+}
+
+/// Montages laid out with `rows` × `cols` axes; one montage per value of the third axis when it
+/// has more than one value (file suffix `_<value>`).
+fn montages(
+    exp: &Experiment,
+    res: &SimulationOutput,
+    rows: Axis,
+    cols: Axis,
+) -> Vec<(String, Montage)> {
+    let (n_obj, n_ratio, n_case) = (
+        exp.objects.len(),
+        exp.sampling_ratios.len(),
+        exp.cases.len(),
+    );
+    let count = |a: Axis| match a {
+        Axis::Object => n_obj,
+        Axis::Ratio => n_ratio,
+        Axis::Case => n_case,
+    };
+    let label = |a: Axis, i: usize| match a {
+        Axis::Object => exp.objects[i].name.clone(),
+        Axis::Ratio => format!("{:.0} %", exp.sampling_ratios[i] * 100.0),
+        Axis::Case => exp.cases[i].label.clone(),
+    };
+    let third = [Axis::Object, Axis::Ratio, Axis::Case]
+        .into_iter()
+        .find(|a| *a != rows && *a != cols)
+        .expect("three axes, two used");
+    let mut out = Vec::new();
+    for t in 0..count(third) {
+        let mut tiles = Vec::new();
+        let mut captions = Vec::new();
+        for r in 0..count(rows) {
+            let mut trow = Vec::new();
+            let mut crow = Vec::new();
+            for c in 0..count(cols) {
+                let mut idx = [0usize; 3]; // object, ratio, case
+                for (axis, i) in [(rows, r), (cols, c), (third, t)] {
+                    match axis {
+                        Axis::Object => idx[0] = i,
+                        Axis::Ratio => idx[1] = i,
+                        Axis::Case => idx[2] = i,
+                    }
+                }
+                let k = (idx[0] * n_ratio + idx[1]) * n_case + idx[2];
+                let cell = &res.cells[k];
+                trow.push(Some(res.reconstructions[k].clone()));
+                crow.push(format!("{:.2} dB / {:.3}", cell.psnr_db, cell.mssim));
+            }
+            tiles.push(trow);
+            captions.push(crow);
+        }
+        let suffix = if count(third) > 1 {
+            format!("_{}", sanitize(&label(third, t)))
+        } else {
+            String::new()
+        };
+        let title = if count(third) > 1 {
+            format!("{} ({})", exp.title, label(third, t))
+        } else {
+            exp.title.clone()
+        };
+        out.push((
+            suffix,
+            Montage {
+                title,
+                row_labels: (0..count(rows)).map(|i| label(rows, i)).collect(),
+                col_labels: (0..count(cols)).map(|i| label(cols, i)).collect(),
+                tiles,
+                captions,
+            },
+        ));
+    }
+    out
+}
+
+fn print_table(exp: &Experiment, cells: &[Cell]) {
+    println!(
+        "{} — {}×{} units, PSNR (dB) / MSSIM after normalisation",
+        exp.title, exp.width, exp.height
+    );
+    println!(
+        "{:<16} {:<28} {:>6} {:>9} {:>8} {:>6}",
+        "object", "case", "ratio", "PSNR", "MSSIM", "iter"
+    );
+    for c in cells {
+        println!(
+            "{:<16} {:<28} {:>5.0}% {:>9.2} {:>8.4} {:>6}{}",
+            c.object,
+            c.case,
+            c.ratio * 100.0,
+            c.psnr_db,
+            c.mssim,
+            c.iterations,
+            if c.converged { "" } else { " (iteration cap)" }
+        );
+    }
+}

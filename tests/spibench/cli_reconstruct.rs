@@ -1,0 +1,200 @@
+use spibench::acquisition::patterns;
+use spibench::reconstruction::{LinearOperator, PackedOperator, PatternForm};
+use spibench::report::npy;
+
+use crate::common::*;
+
+/// A 32×32 test object and its ±1 measurements with 40 % random patterns.
+fn problem(
+    dir: &TempDir,
+    packbits: bool,
+) -> (
+    Vec<f64>,
+    std::path::PathBuf,
+    std::path::PathBuf,
+    std::path::PathBuf,
+) {
+    let (w, h, m) = (32usize, 32usize, 410usize);
+    let x: Vec<f64> = (0..w * h)
+        .map(|i| {
+            let (r, c) = (i / w, i % w);
+            if (8..24).contains(&r) && (10..20).contains(&c) {
+                200.0
+            } else if r > 26 {
+                80.0
+            } else {
+                20.0
+            }
+        })
+        .collect();
+    let p = patterns::random(m, w * h, 99);
+    let op = PackedOperator::new(p.clone(), PatternForm::PlusMinusOne);
+    let mut y = vec![0.0; m];
+    op.apply(&x, &mut y);
+    let pp = dir.join("P.npy");
+    if packbits {
+        let bpr = (w * h).div_ceil(8);
+        let mut bytes = vec![0u8; m * bpr];
+        for r in 0..m {
+            for c in 0..w * h {
+                if p.get(r, c) {
+                    bytes[r * bpr + c / 8] |= 0x80 >> (c % 8);
+                }
+            }
+        }
+        npy::write_u8(&pp, &[m, bpr], &bytes).unwrap();
+    } else {
+        let bytes: Vec<u8> = (0..m).flat_map(|r| p.row_bytes01(r)).collect();
+        npy::write_u8(&pp, &[m, w * h], &bytes).unwrap();
+    }
+    let yp = dir.join("y.npy");
+    npy::write_f64(&yp, &[m], &y).unwrap();
+    let xp = dir.join("x.npy");
+    npy::write_f64(&xp, &[h, w], &x).unwrap();
+    (y, pp, yp, xp)
+}
+
+#[test]
+fn reconstruct_bytes_and_packbits() {
+    for packbits in [false, true] {
+        let dir = TempDir::new(if packbits {
+            "rec-packbits"
+        } else {
+            "rec-bytes"
+        });
+        let (_, pp, yp, xp) = problem(&dir, packbits);
+        let out = dir.join("out");
+        let o = spibench(
+            &[
+                "reconstruct",
+                "--patterns",
+                pp.to_str().unwrap(),
+                "--measurements",
+                yp.to_str().unwrap(),
+                "--size",
+                "32x32",
+                "--form",
+                "pm1",
+                "--truth",
+                xp.to_str().unwrap(),
+                "--out",
+                out.to_str().unwrap(),
+            ],
+            &[],
+        );
+        assert!(o.status.success(), "{}", stderr(&o));
+        for f in [
+            "reconstruction.npy",
+            "reconstruction.png",
+            "reconstruction16.png",
+            "reconstruction.exr",
+            "summary.json",
+        ] {
+            assert!(out.join(f).is_file(), "missing {f}");
+        }
+        let s = read_json(&out.join("summary.json"));
+        assert_eq!(
+            s["patterns_encoding"],
+            if packbits { "packbits" } else { "uint8_01" }
+        );
+        // A piecewise-constant object at 40 % noiseless sampling is recovered almost exactly.
+        assert!(s["psnr_db"].as_f64().unwrap() > 40.0, "{s}");
+        assert!(s["mssim"].as_f64().unwrap() > 0.98, "{s}");
+        for key in [
+            "iterations",
+            "forward_applications",
+            "adjoint_applications",
+            "relative_residual",
+            "time_s",
+        ] {
+            assert!(!s[key].is_null(), "summary lacks {key}");
+        }
+        let img = npy::read(&out.join("reconstruction.npy")).unwrap();
+        assert_eq!(img.shape, vec![32, 32]);
+    }
+}
+
+#[test]
+fn reconstruct_rejects_bad_input() {
+    let dir = TempDir::new("rec-bad");
+    let (y, pp, yp, _) = problem(&dir, false);
+    let out = dir.join("out");
+    let run = |args: &[&str]| {
+        let mut a = vec!["reconstruct"];
+        a.extend_from_slice(args);
+        a.extend_from_slice(&["--out", out.to_str().unwrap()]);
+        spibench(&a, &[])
+    };
+    // Size mismatch between patterns and image.
+    let o = run(&[
+        "--patterns",
+        pp.to_str().unwrap(),
+        "--measurements",
+        yp.to_str().unwrap(),
+        "--size",
+        "16x16",
+    ]);
+    assert_input_error(&o, &["P.npy", "columns"], &out);
+    // Fewer measurements than patterns.
+    let short = dir.join("short.npy");
+    npy::write_f64(&short, &[y.len() - 1], &y[1..]).unwrap();
+    let o = run(&[
+        "--patterns",
+        pp.to_str().unwrap(),
+        "--measurements",
+        short.to_str().unwrap(),
+        "--size",
+        "32x32",
+    ]);
+    assert_input_error(
+        &o,
+        &["short.npy", "409 measurements for 410 patterns"],
+        &out,
+    );
+    // NaN in the measurements.
+    let mut ynan = y.clone();
+    ynan[7] = f64::NAN;
+    let nan = dir.join("nan.npy");
+    npy::write_f64(&nan, &[ynan.len()], &ynan).unwrap();
+    let o = run(&[
+        "--patterns",
+        pp.to_str().unwrap(),
+        "--measurements",
+        nan.to_str().unwrap(),
+        "--size",
+        "32x32",
+    ]);
+    assert_input_error(&o, &["nan.npy", "element 7", "not finite"], &out);
+    // Missing file.
+    let o = run(&[
+        "--patterns",
+        dir.join("absent.npy").to_str().unwrap(),
+        "--measurements",
+        yp.to_str().unwrap(),
+        "--size",
+        "32x32",
+    ]);
+    assert_input_error(&o, &["absent.npy"], &out);
+    // Not a .npy file.
+    let junk = dir.join("junk.npy");
+    std::fs::write(&junk, b"not numpy at all").unwrap();
+    let o = run(&[
+        "--patterns",
+        junk.to_str().unwrap(),
+        "--measurements",
+        yp.to_str().unwrap(),
+        "--size",
+        "32x32",
+    ]);
+    assert_input_error(&o, &["junk.npy", ".npy"], &out);
+    // Absurd size (clap's usage error, also exit status 2).
+    let o = run(&[
+        "--patterns",
+        pp.to_str().unwrap(),
+        "--measurements",
+        yp.to_str().unwrap(),
+        "--size",
+        "100000x100000",
+    ]);
+    assert_input_error(&o, &["size"], &out);
+}

@@ -1,0 +1,219 @@
+use crate::common::*;
+
+const SMALL: &str = r#"
+Experiment(
+    title: "small",
+    width: 32,
+    height: 32,
+    objects: [(name: "phantom", object: Phantom)],
+    sampling_ratios: [0.3, 0.6],
+    cases: [
+        (label: "traditional", scheme: Traditional),
+        (label: "scb", scheme: SecondaryComplementaryBalancing,
+         arms: (k_plus: 1.01, k_minus: 1.02, b_plus: 1.0, b_minus: 5.0),
+         noise: (distribution: Gaussian, std: 20.0)),
+    ],
+    solver: (tol: 1e-4, maxit: 200, nonneg: true),
+    seed: 5,
+    montage: (rows: Ratio, columns: Case, tile_px: 32),
+    curves: [(name: "psnr", x: Ratio, metric: Psnr)],
+)
+"#;
+
+#[test]
+fn simulate_writes_every_output() {
+    let dir = TempDir::new("sim-ok");
+    let file = dir.join("small.ron");
+    std::fs::write(&file, SMALL).unwrap();
+    let out = dir.join("out");
+    let o = spibench(
+        &[
+            "simulate",
+            file.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        &[],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    for f in [
+        "summary.json",
+        "cells.csv",
+        "psnr.svg",
+        "psnr.png",
+        "psnr.csv",
+        "montage.png",
+        "images/phantom__truth.png",
+    ] {
+        assert!(out.join(f).is_file(), "missing {f}");
+    }
+    let s = read_json(&out.join("summary.json"));
+    let cells = s["cells"].as_array().unwrap();
+    assert_eq!(cells.len(), 4);
+    for c in cells {
+        for key in [
+            "scheme",
+            "object",
+            "ratio",
+            "k_plus",
+            "k_minus",
+            "b_plus",
+            "b_minus",
+            "psnr_db",
+            "mssim",
+            "iterations",
+            "dmd_frames",
+            "acquisition_time_s",
+        ] {
+            assert!(!c[key].is_null(), "cell lacks {key}: {c}");
+        }
+        let psnr = c["psnr_db"].as_f64().unwrap();
+        assert!(
+            psnr > 15.0,
+            "a 32×32 phantom at 30–60 % should reconstruct: {psnr} dB"
+        );
+    }
+    // Complementary schemes show two DMD frames per base pattern.
+    let scb = cells.iter().find(|c| c["case"] == "scb").unwrap();
+    assert_eq!(
+        scb["dmd_frames"].as_u64().unwrap(),
+        2 * scb["measurements"].as_u64().unwrap()
+    );
+    assert!(stdout(&o).contains("PSNR"));
+}
+
+#[test]
+fn simulate_is_identical_on_one_and_two_threads() {
+    let dir = TempDir::new("sim-threads");
+    let file = dir.join("small.ron");
+    std::fs::write(&file, SMALL).unwrap();
+    let mut results = Vec::new();
+    for threads in ["1", "2"] {
+        let out = dir.join(&format!("out{threads}"));
+        let o = spibench(
+            &[
+                "simulate",
+                file.to_str().unwrap(),
+                "--out",
+                out.to_str().unwrap(),
+            ],
+            &[("RAYON_NUM_THREADS", threads)],
+        );
+        assert!(o.status.success(), "{}", stderr(&o));
+        let mut s = read_json(&out.join("summary.json"));
+        // Timings differ between runs; everything else must be bit-identical.
+        s["wall_time_s"] = serde_json::Value::Null;
+        for c in s["cells"].as_array_mut().unwrap() {
+            c["solver_time_s"] = serde_json::Value::Null;
+        }
+        results.push(s.to_string());
+    }
+    assert_eq!(results[0], results[1]);
+}
+
+#[test]
+fn unknown_field_names_file_line_and_field() {
+    let dir = TempDir::new("sim-unknown");
+    let file = dir.join("bad.ron");
+    std::fs::write(&file, SMALL.replace("seed: 5,", "seed: 5,\n    sead: 6,")).unwrap();
+    let out = dir.join("out");
+    let o = spibench(
+        &[
+            "simulate",
+            file.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        &[],
+    );
+    assert_input_error(&o, &["bad.ron", "line 16", "sead"], &out);
+}
+
+#[test]
+fn sampling_ratio_out_of_range_is_rejected() {
+    let dir = TempDir::new("sim-ratio");
+    for bad in ["0.0", "1.5"] {
+        let file = dir.join("bad.ron");
+        std::fs::write(&file, SMALL.replace("[0.3, 0.6]", &format!("[0.3, {bad}]"))).unwrap();
+        let out = dir.join("out");
+        let o = spibench(
+            &[
+                "simulate",
+                file.to_str().unwrap(),
+                "--out",
+                out.to_str().unwrap(),
+            ],
+            &[],
+        );
+        assert_input_error(
+            &o,
+            &["bad.ron", "line 7", "sampling_ratios", "(0, 1]"],
+            &out,
+        );
+    }
+}
+
+#[test]
+fn missing_experiment_and_missing_object_file() {
+    let dir = TempDir::new("sim-missing");
+    let out = dir.join("out");
+    let o = spibench(
+        &[
+            "simulate",
+            dir.join("nope.ron").to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        &[],
+    );
+    assert_input_error(&o, &["nope.ron"], &out);
+
+    let file = dir.join("obj.ron");
+    std::fs::write(
+        &file,
+        SMALL.replace("object: Phantom", "object: File(path: \"missing.png\")"),
+    )
+    .unwrap();
+    let o = spibench(
+        &[
+            "simulate",
+            file.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        &[],
+    );
+    assert_input_error(&o, &["missing.png"], &out);
+}
+
+#[test]
+fn hadamard_needs_a_power_of_two() {
+    let dir = TempDir::new("sim-hadamard");
+    let file = dir.join("h.ron");
+    let text = SMALL
+        .replace("width: 32", "width: 48")
+        .replace("height: 32", "height: 48")
+        .replace(
+            "seed: 5,",
+            "seed: 5,\n    patterns: Hadamard(ordering: CakeCutting),",
+        );
+    std::fs::write(&file, text).unwrap();
+    let out = dir.join("out");
+    let o = spibench(
+        &[
+            "simulate",
+            file.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        &[],
+    );
+    assert_input_error(&o, &["h.ron", "patterns", "48"], &out);
+}
+
+#[test]
+fn built_in_experiments_parse() {
+    for name in ["fig1", "fig2", "fig3", "fig4"] {
+        spibench::scene::experiment::load(name).unwrap_or_else(|e| panic!("{name}: {e}"));
+    }
+}
