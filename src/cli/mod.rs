@@ -6,6 +6,7 @@
 mod progress;
 mod reconstruct;
 mod simulate;
+mod trace;
 
 use clap::{Parser, Subcommand};
 
@@ -26,6 +27,8 @@ enum Command {
     Simulate(simulate::SimulateArgs),
     /// Reconstruct measurements that came from elsewhere (a real bench or another simulator).
     Reconstruct(reconstruct::ReconstructArgs),
+    /// Trace a bench: k±, b±, the per-unit transport maps and the flux ledger.
+    Trace(trace::TraceArgs),
 }
 
 /// Runs the command line and returns the process exit status.
@@ -40,6 +43,7 @@ pub fn main() -> i32 {
     let result = match &cli.command {
         Command::Simulate(a) => simulate::run(a),
         Command::Reconstruct(a) => reconstruct::run(a),
+        Command::Trace(a) => trace::run(a),
     };
     match result {
         Ok(()) => 0,

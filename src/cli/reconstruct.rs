@@ -197,11 +197,9 @@ pub fn run(args: &ReconstructArgs) -> Result<()> {
     let mut opts = Tval3Options::reference();
     if let Some(mu) = args.mu {
         opts.mu = mu;
-        opts.mu0 = mu;
     }
     if let Some(beta) = args.beta {
         opts.beta = beta;
-        opts.beta0 = beta;
     }
     if let Some(maxit) = args.maxit {
         opts.maxit = maxit;

@@ -1,1 +1,15 @@
-//! optics
+//! The optics of the bench, pure and in SI units (metres, watts, amperes): spectra, glasses,
+//! Fresnel and thin-film coatings, analytic surfaces, meshes (obvhs), the DMD, the chart masks,
+//! the lamp and the assembled [`bench::Bench`]. Knows nothing of files, threads or serde.
+
+pub mod bench;
+pub mod chart;
+pub mod dmd;
+pub mod fresnel;
+pub mod geometry;
+pub mod glass;
+pub mod lamp;
+pub mod mesh;
+pub mod spectrum;
+
+pub use bench::Bench;

@@ -9,19 +9,25 @@
 //! method groups the input in runs of 8 elements and tabulates, per run, all 256 subset sums; one
 //! byte of a pattern row then selects its partial sum with a single load, replacing 8 masked
 //! additions (rust-notes §9 measured 8.3 ms against 33.6 ms for iterating set bits on a
-//! 4096 × 16384 matrix). The adjoint uses the same kernel on a bit-packed transpose that is built
-//! once, at construction.
+//! 4096 × 16384 matrix). The adjoint uses the same kernel on a transposed copy of the bits that is
+//! built once, at construction.
 //!
-//! Two further choices make the kernel several times faster again:
+//! Three further choices bring the 4096 × 16384 product to about 2.3 ms on one thread and 1.2 ms
+//! on two (benches/tval3.rs; a dense f64 product takes about 45 ms):
 //! - Cache blocking. The tables of all groups together are 2 KiB × cols/8 (4 MiB for 16384
 //!   columns), far more than the L1 cache, and a row visits one random line of every table. The
-//!   pattern bytes are therefore stored in blocks of [`BLOCK_GROUPS`] consecutive groups (row by
+//!   pattern bytes are therefore stored in blocks of `BLOCK_GROUPS` consecutive groups (row by
 //!   row inside a block), and a task builds the tables of one block (32 KiB), sweeps all its rows
-//!   through that block and only then moves on. Every lookup then hits L1, and the pattern bytes
-//!   stream through memory in storage order.
+//!   through that block and only then moves on. The lookups then stay in L1, and the pattern
+//!   bytes stream through memory in storage order. Building the tables costs about 5 % of a
+//!   product.
+//! - Balanced byte extraction in the inner loop (see `sweep_block`).
 //! - For `PlusMinusOne` the tables hold signed subset sums Σ ±x directly, which is the
 //!   measurement 2·P·x − Σx evaluated group by group: the same number of lookups as the 0/1
 //!   product, no final correction, and no cancellation between two large sums.
+//!
+//! Entries stay f64: the result equals the bit-by-bit sum to rounding (about 1e-15 relative),
+//! and the kernel is bound by the number of lookups, not by the size of an entry.
 //!
 //! # Determinism
 //!
@@ -56,8 +62,8 @@ pub enum PatternForm {
 
 /// Number of 8-element groups whose tables are built and used together (16 × 2 KiB = 32 KiB of
 /// f64 tables, the L1 data cache of common x86-64 cores). Measured on the 4096 × 16384 product
-/// (benches/tval3.rs): 8, 16 and 32 groups are within a few per cent, 64 and more lose as the
-/// tables spill to L2.
+/// (AMD Zen 3): 8 and 16 groups are equal within noise, 32 and 64 were about 50 % slower as the
+/// tables spill out of L1.
 const BLOCK_GROUPS: usize = 16;
 
 /// The bytes of a 0/1 matrix (8 input elements per byte, bit b of byte g = input 8g + b),
@@ -75,60 +81,74 @@ struct ByteBlocks {
 }
 
 impl ByteBlocks {
-    /// Builds the layout from a function giving byte (row, group).
-    fn from_fn(out_len: usize, in_len: usize, byte: impl Fn(usize, usize) -> u8 + Sync) -> Self {
+    fn zeros(out_len: usize, in_len: usize) -> Self {
         let groups = in_len.div_ceil(8);
-        let mut bytes = vec![0u8; out_len * groups];
-        let mut offset = 0;
-        for g0 in (0..groups).step_by(BLOCK_GROUPS) {
-            let w = BLOCK_GROUPS.min(groups - g0);
-            let block = &mut bytes[offset..offset + out_len * w];
-            block
-                .par_chunks_mut(w.max(1))
-                .enumerate()
-                .for_each(|(r, row)| {
-                    for (j, b) in row.iter_mut().enumerate() {
-                        *b = byte(r, g0 + j);
-                    }
-                });
-            offset += out_len * w;
-        }
         ByteBlocks {
             out_len,
             in_len,
             groups,
-            bytes,
+            bytes: vec![0u8; out_len * groups],
         }
     }
 
-    /// The rows of a row-major bit matrix, 8 columns per byte.
+    /// Position of byte (row, group): every block before the one holding `group` is full width.
+    #[inline]
+    fn index(&self, row: usize, group: usize) -> usize {
+        let g0 = group - group % BLOCK_GROUPS;
+        let w = BLOCK_GROUPS.min(self.groups - g0);
+        g0 * self.out_len + row * w + (group - g0)
+    }
+
+    /// The rows of a row-major bit matrix, 8 columns per byte (byte k of a little-endian word is
+    /// columns 8k .. 8k + 7, least significant bit first, which is exactly a group).
     fn from_rows(m: &BitMatrix) -> Self {
-        let wpr = m.words_per_row();
-        let words = m.words();
-        ByteBlocks::from_fn(m.rows(), m.cols(), |r, g| {
-            (words[r * wpr + g / 8] >> (8 * (g % 8))) as u8
-        })
+        let mut out = ByteBlocks::zeros(m.rows(), m.cols());
+        for r in 0..m.rows() {
+            for (wi, &word) in m.row_words(r).iter().enumerate() {
+                for (k, byte) in word.to_le_bytes().into_iter().enumerate() {
+                    let g = 8 * wi + k;
+                    if g < out.groups {
+                        let i = out.index(r, g);
+                        out.bytes[i] = byte;
+                    }
+                }
+            }
+        }
+        out
     }
 
     /// The columns of a row-major bit matrix (that is, the rows of its transpose), 8 rows of the
-    /// original per byte. Built with 8×8 bit-block transposes rather than bit by bit.
+    /// original per byte, built 8×8 bits at a time: byte k of the words of rows 8g .. 8g + 7 at
+    /// one word index form an 8×8 block whose transpose holds, in byte j, column 8k + j of those
+    /// rows.
     fn from_columns(m: &BitMatrix) -> Self {
-        let wpr = m.words_per_row();
-        let words = m.words();
         let rows = m.rows();
-        ByteBlocks::from_fn(m.cols(), rows, |c, g| {
-            // Byte i of `block` holds the 8 bits of original row 8g + i at columns
-            // 8⌊c/8⌋ .. 8⌊c/8⌋ + 7; after the transpose, byte c % 8 holds column c of those rows.
-            let mut block = 0u64;
-            for i in 0..8 {
-                let r = 8 * g + i;
-                if r < rows {
-                    let byte = (words[r * wpr + c / 64] >> (8 * ((c / 8) % 8))) & 0xFF;
-                    block |= byte << (8 * i);
+        let cols = m.cols();
+        let mut out = ByteBlocks::zeros(cols, rows);
+        for g in 0..out.groups {
+            for wi in 0..m.words_per_row() {
+                let mut words = [0u64; 8];
+                for (i, w) in words.iter_mut().enumerate() {
+                    if 8 * g + i < rows {
+                        *w = m.row_words(8 * g + i)[wi];
+                    }
+                }
+                for k in 0..8 {
+                    let block = words.iter().enumerate().fold(0u64, |acc, (i, &w)| {
+                        acc | (((w >> (8 * k)) & 0xFF) << (8 * i))
+                    });
+                    let t = transpose8(block).to_le_bytes();
+                    for (j, &byte) in t.iter().enumerate() {
+                        let c = 64 * wi + 8 * k + j;
+                        if c < cols {
+                            let i = out.index(c, g);
+                            out.bytes[i] = byte;
+                        }
+                    }
                 }
             }
-            (transpose8(block) >> (8 * (c % 8))) as u8
-        })
+        }
+        out
     }
 }
 
@@ -238,8 +258,8 @@ fn lut_product(m: &ByteBlocks, x: &[f64], out: &mut [f64], form: PatternForm) {
     if m.out_len == 0 {
         return;
     }
-    // One chunk of outputs per thread: every chunk builds all tables once (the build is about 3 %
-    // of a sweep), so more chunks than threads only repeat that work. The chunking does not change
+    // One chunk of outputs per thread: every chunk builds all tables once (about 5 % of a
+    // product), so more chunks than threads only repeat that work. The chunking does not change
     // any output bit (see the module documentation).
     let tasks = rayon::current_num_threads().max(1);
     let chunk = m.out_len.div_ceil(tasks).max(1);
@@ -271,7 +291,8 @@ fn lut_product(m: &ByteBlocks, x: &[f64], out: &mut [f64], form: PatternForm) {
 /// A bit-packed pattern set used as `P` or as `2P − 1`.
 ///
 /// Construction lays the patterns out for the lookup kernel twice, row-wise for `A x` and
-/// column-wise for `Aᵀ y` (together twice the size of the bit matrix, 1 bit per entry each).
+/// column-wise for `Aᵀ y` (1 bit per entry each, so with the bit matrix itself 3 bits per entry:
+/// 24 MiB for 4096 × 16384).
 #[derive(Debug, Clone)]
 pub struct PackedOperator {
     patterns: BitMatrix,

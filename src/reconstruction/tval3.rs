@@ -46,10 +46,12 @@ pub struct Tval3Options {
     pub mu: f64,
     /// Weight of ||Du − w||² (2^5).
     pub beta: f64,
-    /// Starting mu; continuation multiplies by `rate_ctn` per inner loop up to `mu` (2^8).
-    pub mu0: f64,
-    /// Starting beta, as `mu0` (2^5).
-    pub beta0: f64,
+    /// Starting mu; continuation multiplies by `rate_ctn` per inner loop up to `mu`. Unset means
+    /// `mu` (TVAL3 fills `mu0 = mu` when it is not given), so a file that sets only `mu` gets no
+    /// continuation, as in TVAL3.
+    pub mu0: Option<f64>,
+    /// Starting beta, as `mu0` (unset means `beta`).
+    pub beta0: Option<f64>,
     /// Continuation factor (2).
     pub rate_ctn: f64,
     /// Outer tolerance on ||U − U_prev_outer|| / ||Up|| (1e-6).
@@ -83,8 +85,8 @@ impl Default for Tval3Options {
         Tval3Options {
             mu: 256.0,
             beta: 32.0,
-            mu0: 256.0,
-            beta0: 32.0,
+            mu0: None,
+            beta0: None,
             rate_ctn: 2.0,
             tol: 1e-6,
             tol_inn: 1e-3,
@@ -110,8 +112,6 @@ impl Tval3Options {
         Tval3Options {
             mu: 256.0,
             beta: 32.0,
-            mu0: 256.0,
-            beta0: 32.0,
             tol: 1e-4,
             maxit: 300,
             tv_norm: TvNorm::Isotropic,
@@ -125,8 +125,8 @@ impl Tval3Options {
         let positive = [
             ("mu", self.mu),
             ("beta", self.beta),
-            ("mu0", self.mu0),
-            ("beta0", self.beta0),
+            ("mu0", self.mu0.unwrap_or(self.mu)),
+            ("beta0", self.beta0.unwrap_or(self.beta)),
             ("tol", self.tol),
             ("tol_inn", self.tol_inn),
         ];
@@ -277,10 +277,12 @@ pub fn tval3(
     })
 }
 
-/// The operator times a scale (ScaleA), counting the products made.
+/// The operator divided by sqrt(s2) (ScaleA: TVAL3 wraps A as `A(x, mode)/sqrt(s2)`), counting
+/// the products made.
 struct Counted<'a> {
     op: &'a dyn LinearOperator,
-    scale: f64,
+    /// sqrt(s2), or 1 without scaling.
+    divisor: f64,
     forward: usize,
     adjoint: usize,
 }
@@ -289,16 +291,16 @@ impl Counted<'_> {
     fn apply(&mut self, x: &[f64], y: &mut [f64]) {
         self.op.apply(x, y);
         self.forward += 1;
-        if self.scale != 1.0 {
-            y.iter_mut().for_each(|v| *v *= self.scale);
+        if self.divisor != 1.0 {
+            y.iter_mut().for_each(|v| *v /= self.divisor);
         }
     }
 
     fn adjoint(&mut self, y: &[f64], x: &mut [f64]) {
         self.op.apply_adjoint(y, x);
         self.adjoint += 1;
-        if self.scale != 1.0 {
-            x.iter_mut().for_each(|v| *v *= self.scale);
+        if self.divisor != 1.0 {
+            x.iter_mut().for_each(|v| *v /= self.divisor);
         }
     }
 }
@@ -479,7 +481,7 @@ impl<'a> Solver<'a> {
         Solver {
             a: Counted {
                 op,
-                scale: 1.0,
+                divisor: 1.0,
                 forward: 0,
                 adjoint: 0,
             },
@@ -500,7 +502,7 @@ impl<'a> Solver<'a> {
             && s2 > 1.0 + 1e-10
         {
             let s = s2.sqrt();
-            self.a.scale = 1.0 / s;
+            self.a.divisor = s;
             b.iter_mut().for_each(|v| *v /= s);
         }
         let mut scl = 1.0;
@@ -554,8 +556,8 @@ impl<'a> Solver<'a> {
 
         let muf = opts.mu;
         let betaf = opts.beta;
-        let mut mu = opts.mu0.min(muf);
-        let mut beta = opts.beta0.min(betaf);
+        let mut mu = opts.mu0.unwrap_or(muf).min(muf);
+        let mut beta = opts.beta0.unwrap_or(betaf).min(betaf);
         let mut mu_d_beta = mu / beta;
 
         let mut u = match opts.init {
@@ -1332,7 +1334,7 @@ mod tests {
             let op = HadamardOperator::new(256, rows, PatternForm::PlusMinusOne);
             let mut a = Counted {
                 op: &op,
-                scale: 1.0,
+                divisor: 1.0,
                 forward: 0,
                 adjoint: 0,
             };
@@ -1352,7 +1354,7 @@ mod tests {
         };
         let mut a = Counted {
             op: &id,
-            scale: 1.0,
+            divisor: 1.0,
             forward: 0,
             adjoint: 0,
         };
@@ -1370,7 +1372,7 @@ mod tests {
         let op = PackedOperator::new(p, PatternForm::PlusMinusOne);
         let mut a = Counted {
             op: &op,
-            scale: 1.0,
+            divisor: 1.0,
             forward: 0,
             adjoint: 0,
         };
@@ -1393,7 +1395,7 @@ mod tests {
     #[test]
     fn defaults_are_those_of_ftvcs_al_opts() {
         let d = Tval3Options::default();
-        assert_eq!((d.mu, d.beta, d.mu0, d.beta0), (256.0, 32.0, 256.0, 32.0));
+        assert_eq!((d.mu, d.beta, d.mu0, d.beta0), (256.0, 32.0, None, None));
         assert_eq!((d.rate_ctn, d.tol, d.tol_inn), (2.0, 1e-6, 1e-3));
         assert_eq!((d.maxcnt, d.maxit), (10, 1025));
         assert_eq!(
@@ -1430,6 +1432,9 @@ mod tests {
                 ..Tval3Options::default()
             }
         );
+        // mu0 is optional (unset = mu, as TVAL3 fills it); a file writes the plain number.
+        let o: Tval3Options = crate::scene::parse_ron("(mu0: 16.0)", path).expect("valid options");
+        assert_eq!(o.mu0, Some(16.0));
         let e = crate::scene::parse_ron::<Tval3Options>("(mu: 1.0, muu: 2.0)", path)
             .expect_err("unknown field");
         assert!(e.is_user_error());
@@ -1452,6 +1457,13 @@ mod tests {
                     ..Default::default()
                 },
                 "beta",
+            ),
+            (
+                Tval3Options {
+                    mu0: Some(-1.0),
+                    ..Default::default()
+                },
+                "mu0",
             ),
             (
                 Tval3Options {
@@ -1560,8 +1572,8 @@ mod tests {
                 ..base.clone()
             },
             Tval3Options {
-                mu0: 16.0,
-                beta0: 4.0,
+                mu0: Some(16.0),
+                beta0: Some(4.0),
                 ..base.clone()
             },
             Tval3Options::default(),
@@ -1641,6 +1653,26 @@ mod tests {
             assert_eq!(on.image, off.image, "{opts:?}");
             assert_eq!(on.iterations, off.iterations);
         }
+    }
+
+    #[test]
+    fn an_unset_mu0_means_no_continuation() {
+        // TVAL3 fills mu0 = mu and beta0 = beta when they are not given: setting only mu and
+        // beta must run exactly like setting the start values equal to them.
+        let (op, _, b) = small_problem();
+        let only = Tval3Options {
+            mu: 512.0,
+            beta: 64.0,
+            ..Tval3Options::reference()
+        };
+        let both = Tval3Options {
+            mu0: Some(512.0),
+            beta0: Some(64.0),
+            ..only.clone()
+        };
+        let a = tval3(&op, &b, 16, 16, &only).expect("valid");
+        let c = tval3(&op, &b, 16, 16, &both).expect("valid");
+        assert_eq!(a.image, c.image);
     }
 
     #[test]

@@ -5,6 +5,7 @@
 //! downstream holds valid, SI-valued data. Every error names the file, the line and column, and
 //! the field.
 
+pub mod bench;
 pub mod experiment;
 
 use std::path::Path;

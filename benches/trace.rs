@@ -1,0 +1,106 @@
+//! Tracer benchmark (harness = false, std::time only): `cargo bench --bench trace [-- SCENE]`.
+//!
+//! Traces a bench (default scenes/paper_bench.ron) and prints
+//! - rays per second per core on 1 and 2 threads,
+//! - the relative standard errors of k₊ and k₋, the number of rays and the time needed for
+//!   0.1 % (extrapolated with SE ∝ 1/√N from a pilot run, then confirmed by one run at that N),
+//! - the same for a baseline in the same run: the bench without the field importance sampling
+//!   (rays drawn over the whole emission cone only).
+//!
+//! Timings are wall-clock and depend on what else the machine is doing; the ratio to the
+//! baseline, measured in the same run, is the meaningful comparison.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use spibench::optics::Bench;
+use spibench::trace::{TraceOptions, trace};
+use spibench::transport::Transport;
+
+struct Run {
+    seconds: f64,
+    rel_se: [f64; 2],
+    k: [f64; 2],
+}
+
+fn run(bench: &Bench, rays: u64, seed: u64, threads: usize) -> Run {
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .expect("thread pool");
+    let start = Instant::now();
+    let tallies = pool
+        .install(|| trace(bench, &TraceOptions::new(rays, seed)))
+        .expect("trace");
+    let seconds = start.elapsed().as_secs_f64();
+    let t = Transport::from_tallies(bench, &tallies);
+    Run {
+        seconds,
+        rel_se: [t.k[0].relative_stderr(), t.k[1].relative_stderr()],
+        k: [t.k[0].value, t.k[1].value],
+    }
+}
+
+/// Rays needed for 0.1 % on both k₊ and k₋, from a pilot run of `rays`.
+fn rays_for_target(pilot: &Run, rays: u64) -> u64 {
+    let worst = pilot.rel_se[0].max(pilot.rel_se[1]);
+    ((rays as f64) * (worst / 1e-3).powi(2)).ceil() as u64
+}
+
+fn main() {
+    let scene = std::env::args()
+        .skip(1)
+        .find(|a| !a.starts_with('-'))
+        .map(PathBuf::from)
+        .unwrap_or_else(|| {
+            PathBuf::from(concat!(
+                env!("CARGO_MANIFEST_DIR"),
+                "/scenes/paper_bench.ron"
+            ))
+        });
+    let bench = match spibench::scene::bench::read_bench(&scene) {
+        Ok(b) => b,
+        Err(e) => {
+            eprintln!("{e}");
+            std::process::exit(2);
+        }
+    };
+    println!("bench: {}", scene.display());
+
+    let pilot_rays = 500_000;
+    let one = run(&bench, pilot_rays, 1, 1);
+    let two = run(&bench, pilot_rays, 1, 2);
+    println!(
+        "rays/s per core: {:.0} (1 thread), {:.0} (2 threads: {:.0} in total)",
+        pilot_rays as f64 / one.seconds,
+        pilot_rays as f64 / two.seconds / 2.0,
+        pilot_rays as f64 / two.seconds
+    );
+    println!(
+        "pilot {pilot_rays} rays: k+ = {:.5} (rel. SE {:.2e}), k- = {:.5} (rel. SE {:.2e})",
+        two.k[0], two.rel_se[0], two.k[1], two.rel_se[1]
+    );
+    let n = rays_for_target(&two, pilot_rays);
+    let predicted = two.seconds * n as f64 / pilot_rays as f64;
+    println!("0.1 % on k+ and k-: {n} rays, predicted {predicted:.1} s on 2 threads");
+    let confirm = run(&bench, n, 2, 2);
+    println!(
+        "confirmed at {n} rays: {:.1} s, rel. SE k+ {:.2e}, k- {:.2e}",
+        confirm.seconds, confirm.rel_se[0], confirm.rel_se[1]
+    );
+
+    // Baseline: no field importance sampling.
+    let mut plain = bench.clone();
+    plain.lamp.field = None;
+    let base = run(&plain, pilot_rays, 1, 2);
+    let nb = rays_for_target(&base, pilot_rays);
+    let tb = base.seconds * nb as f64 / pilot_rays as f64;
+    println!(
+        "baseline without field sampling: {:.0} rays/s, rel. SE k+ {:.2e}, k- {:.2e} at {pilot_rays} rays \
+         -> 0.1 % needs {nb} rays, ~{tb:.0} s (extrapolated): {:.1}x slower to the target",
+        pilot_rays as f64 / base.seconds,
+        base.rel_se[0],
+        base.rel_se[1],
+        tb / confirm.seconds.max(1e-9)
+    );
+}

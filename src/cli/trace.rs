@@ -1,0 +1,434 @@
+//! `spibench trace SCENE [--rays N] [--seed S] [--out DIR]`: transport only — k±, b±, the
+//! per-unit maps and the flux ledger of a traced bench.
+//!
+//! Output (DIR): `summary.json` (keys documented on [`TraceSummary`]), `maps.exr` (one
+//! multi-channel EXR of the per-unit maps, f32, row-major, row 0 = the top row of the pattern
+//! area) and one PNG per map. Everything is computed in memory and written into a staging
+//! directory that is renamed into place at the end, so bad input or a failed write leaves no
+//! partial output.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use serde::Serialize;
+
+use crate::error::{Error, Result};
+use crate::raster::Raster;
+use crate::report::exr::write_channels;
+use crate::report::output::OutputDir;
+use crate::report::png::write_gray8;
+use crate::scene::bench::read_bench;
+use crate::trace::{TraceOptions, trace};
+use crate::transport::{LedgerWorld, Transport};
+
+/// Arguments of `spibench trace`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct TraceArgs {
+    /// Bench file (RON, millimetres and degrees; see scenes/paper_bench.ron).
+    pub scene: PathBuf,
+    /// Number of lamp rays to trace.
+    #[arg(long, default_value_t = 2_000_000)]
+    pub rays: u64,
+    /// Seed of the random streams (same seed, same output, on any number of threads).
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Output directory (created; existing files of the same names are replaced).
+    #[arg(long, default_value = "out/trace")]
+    pub out: PathBuf,
+}
+
+/// `summary.json`. Currents in A, powers in W, efficiencies in A/W; every estimate has a
+/// `_stderr` twin (Monte Carlo standard error, batch means); NaN is written as null.
+#[derive(Debug, Clone, Serialize)]
+pub struct TraceSummary {
+    /// The bench file as given on the command line.
+    pub scene: String,
+    /// Lamp rays traced and the seed of the random streams.
+    pub rays: u64,
+    pub seed: u64,
+    /// Traced wavelength band [min, max] (nm); every power here is within it.
+    pub band_nm: [f64; 2],
+    /// Pattern units across and down (the maps' width and height).
+    pub units_across: usize,
+    pub units_down: usize,
+    /// Lamp rays whose path reached the pattern area (sampling diagnostic).
+    pub arrivals: u64,
+    /// Lamp power emitted in the traced band (W).
+    pub lamp_band_power_w: f64,
+    /// Σ_j x_j: power incident on the pattern-area mirrors (W).
+    pub x_total_w: f64,
+    pub x_total_w_stderr: f64,
+    /// k± = Σ_j g±_j / Σ_j x_j (A/W).
+    pub k_plus: f64,
+    pub k_plus_stderr: f64,
+    pub k_minus: f64,
+    pub k_minus_stderr: f64,
+    /// b± = c±: pattern-independent current of each arm (A), traced light + ambient + dark.
+    pub b_plus: f64,
+    pub b_plus_stderr: f64,
+    pub b_minus: f64,
+    pub b_minus_stderr: f64,
+    /// k' = k₊ + k₋ (A/W), the SCB image scale.
+    pub k_prime: f64,
+    pub k_prime_stderr: f64,
+    /// (k₊ − k₋)/(k₊ + k₋).
+    pub imbalance: f64,
+    pub imbalance_stderr: f64,
+    /// Parts of b±: traced light (A), ambient (A, from the irradiance on the diode, its area
+    /// and the mean 400–700 nm responsivity), dark current (A).
+    pub b_traced_plus: f64,
+    pub b_traced_minus: f64,
+    pub b_ambient_plus: f64,
+    pub b_ambient_minus: f64,
+    pub b_dark_plus: f64,
+    pub b_dark_minus: f64,
+    /// The flux ledger.
+    pub ledger: LedgerSummary,
+    /// Output files (relative to the output directory).
+    pub files: Vec<String>,
+}
+
+/// The flux ledger in `summary.json` (W).
+#[derive(Debug, Clone, Serialize)]
+pub struct LedgerSummary {
+    /// Emitted in the band: the sampled ray weights plus the analytic power outside the traced
+    /// emission cone (an unbiased estimate of `emitted_nominal_w`).
+    pub emitted_w: f64,
+    /// The lamp's band power.
+    pub emitted_nominal_w: f64,
+    /// Emitted outside the traced cone (booked to `lamp_housing`).
+    pub outside_cone_w: f64,
+    /// The bench with every pattern unit in state + ...
+    pub all_plus: LedgerWorldSummary,
+    /// ... and in state −.
+    pub all_minus: LedgerWorldSummary,
+}
+
+/// Where the power went in one mirror-state world (W).
+#[derive(Debug, Clone, Serialize)]
+pub struct LedgerWorldSummary {
+    /// Absorbed per bench element (element names as in the bench file, plus lamp_housing,
+    /// dmd_mirrors, dmd_gaps, dmd_package, dmd_window, pd_*_housing).
+    pub absorbed_w: BTreeMap<String, f64>,
+    /// Left the bench without meeting anything.
+    pub escaped_w: f64,
+    /// Abandoned at the interaction cap.
+    pub path_cap_w: f64,
+    /// Reached photodiode + and −.
+    pub detected_plus_w: f64,
+    pub detected_minus_w: f64,
+    /// emitted − (absorbed + escaped + path cap + detected): zero up to rounding.
+    pub residual_w: f64,
+}
+
+fn world_summary(w: &LedgerWorld) -> LedgerWorldSummary {
+    LedgerWorldSummary {
+        absorbed_w: w.absorbed_w.iter().cloned().collect(),
+        escaped_w: w.escaped_w,
+        path_cap_w: w.path_cap_w,
+        detected_plus_w: w.detected_w[0],
+        detected_minus_w: w.detected_w[1],
+        residual_w: w.residual_w,
+    }
+}
+
+/// Builds the summary of a transport.
+pub fn summarize(
+    scene: &str,
+    bench: &crate::optics::Bench,
+    t: &Transport,
+    arrivals: u64,
+) -> TraceSummary {
+    TraceSummary {
+        scene: scene.to_string(),
+        rays: t.rays,
+        seed: t.seed,
+        band_nm: [round_nm(bench.band.0), round_nm(bench.band.1)],
+        units_across: t.units_across,
+        units_down: t.units_down,
+        arrivals,
+        lamp_band_power_w: bench.lamp.band_power_w,
+        x_total_w: t.x_total.value,
+        x_total_w_stderr: t.x_total.stderr,
+        k_plus: t.k[0].value,
+        k_plus_stderr: t.k[0].stderr,
+        k_minus: t.k[1].value,
+        k_minus_stderr: t.k[1].stderr,
+        b_plus: t.b[0].value,
+        b_plus_stderr: t.b[0].stderr,
+        b_minus: t.b[1].value,
+        b_minus_stderr: t.b[1].stderr,
+        k_prime: t.k_prime.value,
+        k_prime_stderr: t.k_prime.stderr,
+        imbalance: t.imbalance.value,
+        imbalance_stderr: t.imbalance.stderr,
+        b_traced_plus: t.c_traced[0].value,
+        b_traced_minus: t.c_traced[1].value,
+        b_ambient_plus: t.ambient_a[0],
+        b_ambient_minus: t.ambient_a[1],
+        b_dark_plus: t.dark_a[0],
+        b_dark_minus: t.dark_a[1],
+        ledger: LedgerSummary {
+            emitted_w: t.ledger.emitted_w,
+            emitted_nominal_w: t.ledger.emitted_nominal_w,
+            outside_cone_w: t.ledger.outside_cone_w,
+            all_plus: world_summary(&t.ledger.worlds[0]),
+            all_minus: world_summary(&t.ledger.worlds[1]),
+        },
+        files: Vec::new(),
+    }
+}
+
+/// The per-unit maps written to the EXR (channel name, values).
+pub fn maps(t: &Transport) -> Vec<(&'static str, Vec<f64>)> {
+    vec![
+        ("x_w", t.x_w.clone()),
+        ("g_plus_a", t.g_a[0].clone()),
+        ("g_minus_a", t.g_a[1].clone()),
+        ("k_plus_a_per_w", t.k_map[0].clone()),
+        ("k_minus_a_per_w", t.k_map[1].clone()),
+        ("k_plus_stderr", t.k_map_stderr[0].clone()),
+        ("k_minus_stderr", t.k_map_stderr[1].clone()),
+    ]
+}
+
+/// Runs `spibench trace`.
+pub fn run(args: &TraceArgs) -> anyhow::Result<()> {
+    let bench = read_bench(&args.scene)?;
+    if bench.dmd.is_none() {
+        return Err(Error::field("dmd", "`trace` needs a bench with a DMD")
+            .in_file(&args.scene)
+            .into());
+    }
+    let opts = TraceOptions {
+        progress: true,
+        ..TraceOptions::new(args.rays, args.seed)
+    };
+    let start = std::time::Instant::now();
+    let tallies = trace(&bench, &opts)?;
+    let seconds = start.elapsed().as_secs_f64();
+    let t = Transport::from_tallies(&bench, &tallies);
+    let mut summary = summarize(
+        &args.scene.display().to_string(),
+        &bench,
+        &t,
+        tallies.arrivals,
+    );
+    write_outputs(&args.out, &t, &mut summary)?;
+    print_table(&summary, seconds);
+    Ok(())
+}
+
+fn print_table(s: &TraceSummary, seconds: f64) {
+    let pm = |v: f64, e: f64| format!("{v:.6e} ± {e:.1e}");
+    println!(
+        "{}: {} rays (seed {}) in {seconds:.1} s",
+        s.scene, s.rays, s.seed
+    );
+    println!("  {:<10} {:>28} {:>28}", "", "arm +", "arm −");
+    println!(
+        "  {:<10} {:>28} {:>28}",
+        "k (A/W)",
+        pm(s.k_plus, s.k_plus_stderr),
+        pm(s.k_minus, s.k_minus_stderr)
+    );
+    println!(
+        "  {:<10} {:>28} {:>28}",
+        "b (A)",
+        pm(s.b_plus, s.b_plus_stderr),
+        pm(s.b_minus, s.b_minus_stderr)
+    );
+    println!(
+        "  k' = {} A/W, imbalance = {}",
+        pm(s.k_prime, s.k_prime_stderr),
+        pm(s.imbalance, s.imbalance_stderr)
+    );
+    println!(
+        "  x total = {} W on the pattern; ledger residual {:.1e} / {:.1e} W",
+        pm(s.x_total_w, s.x_total_w_stderr),
+        s.ledger
+            .all_plus
+            .residual_w
+            .abs()
+            .max(s.ledger.all_minus.residual_w.abs()),
+        s.ledger.emitted_w
+    );
+}
+
+/// Writes every output into a staging directory beside `out` ([`OutputDir`]) and moves it into
+/// place only when everything has been written, so a failure leaves no partial output.
+fn write_outputs(out: &Path, t: &Transport, summary: &mut TraceSummary) -> Result<()> {
+    let dir = OutputDir::create(out)?;
+    let mut files = Vec::new();
+    let (w, h) = (t.units_across, t.units_down);
+    let maps = maps(t);
+    let f32s: Vec<Vec<f32>> = maps
+        .iter()
+        .map(|(_, v)| v.iter().map(|&x| x as f32).collect())
+        .collect();
+    let channels: Vec<(&str, &[f32])> = maps
+        .iter()
+        .zip(&f32s)
+        .map(|((n, _), v)| (*n, v.as_slice()))
+        .collect();
+    write_channels(&dir.path("maps.exr"), w, h, &channels)?;
+    files.push("maps.exr".to_string());
+    let kmax = t.k_map[0]
+        .iter()
+        .chain(&t.k_map[1])
+        .copied()
+        .fold(0.0f64, f64::max);
+    for (file, values, lo, hi) in [
+        ("x.png", &t.x_w, 0.0, max_of(&t.x_w)),
+        (
+            "g_plus.png",
+            &t.g_a[0],
+            min_of(&t.g_a[0]).min(0.0),
+            max_of(&t.g_a[0]),
+        ),
+        (
+            "g_minus.png",
+            &t.g_a[1],
+            min_of(&t.g_a[1]).min(0.0),
+            max_of(&t.g_a[1]),
+        ),
+        ("k_plus.png", &t.k_map[0], 0.0, kmax),
+        ("k_minus.png", &t.k_map[1], 0.0, kmax),
+    ] {
+        let raster = Raster::new(w, h, values.clone())?;
+        write_gray8(
+            &dir.path(file),
+            &raster,
+            lo,
+            if hi > lo { hi } else { lo + 1.0 },
+        )?;
+        files.push(file.to_string());
+    }
+    summary.files = files;
+    let json = serde_json::to_string_pretty(summary)
+        .map_err(|e| Error::Numerical(format!("cannot encode summary.json: {e}")))?;
+    let summary_path = dir.path("summary.json");
+    std::fs::write(&summary_path, json + "\n").map_err(|e| Error::write(&summary_path, e))?;
+    dir.commit()?;
+    Ok(())
+}
+
+/// Metres to nanometres, rounded to 1e-6 nm (undoing the nm → m conversion's rounding).
+fn round_nm(m: f64) -> f64 {
+    (m * 1e15).round() / 1e6
+}
+
+fn max_of(v: &[f64]) -> f64 {
+    v.iter().copied().fold(f64::NEG_INFINITY, f64::max)
+}
+
+fn min_of(v: &[f64]) -> f64 {
+    v.iter().copied().fold(f64::INFINITY, f64::min)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn tmp(name: &str) -> PathBuf {
+        let d = std::env::temp_dir().join(format!("spibench-trace-{}-{name}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&d);
+        d
+    }
+
+    #[test]
+    fn writes_summary_maps_and_images() {
+        let out = tmp("ok");
+        let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/tests/symmetric_arms.ron");
+        let args = TraceArgs {
+            scene,
+            rays: 20_000,
+            seed: 3,
+            out: out.clone(),
+        };
+        run(&args).unwrap();
+        let text = std::fs::read_to_string(out.join("summary.json")).unwrap();
+        let v: serde_json::Value = serde_json::from_str(&text).unwrap();
+        for key in [
+            "k_plus",
+            "k_minus",
+            "b_plus",
+            "b_minus",
+            "k_plus_stderr",
+            "k_minus_stderr",
+            "b_plus_stderr",
+            "b_minus_stderr",
+            "k_prime",
+            "imbalance",
+            "rays",
+            "ledger",
+        ] {
+            assert!(v.get(key).is_some(), "missing {key}");
+        }
+        assert_eq!(v["rays"], 20_000);
+        assert!(v["k_plus"].as_f64().unwrap() > 0.0);
+        assert!(
+            v["ledger"]["all_plus"]["absorbed_w"]["dmd_gaps"]
+                .as_f64()
+                .unwrap()
+                > 0.0
+        );
+        for f in [
+            "maps.exr",
+            "x.png",
+            "g_plus.png",
+            "g_minus.png",
+            "k_plus.png",
+            "k_minus.png",
+        ] {
+            assert!(out.join(f).is_file(), "{f}");
+        }
+        // The PNG has the map's size.
+        let img = image::open(out.join("k_plus.png")).unwrap();
+        assert_eq!((img.width(), img.height()), (4, 4));
+        // The EXR holds the seven channels at 4 × 4.
+        let exr = exr::prelude::read_all_data_from_file(out.join("maps.exr")).unwrap();
+        let layer = &exr.layer_data[0];
+        assert_eq!(layer.size, exr::prelude::Vec2(4, 4));
+        assert_eq!(layer.channel_data.list.len(), 7);
+        // Running again over an existing directory replaces the files and leaves no staging.
+        run(&args).unwrap();
+        let leftovers: Vec<_> = std::fs::read_dir(out.parent().unwrap())
+            .unwrap()
+            .filter_map(|e| e.ok())
+            .filter(|e| e.file_name().to_string_lossy().contains("partial"))
+            .filter(|e| e.file_name().to_string_lossy().contains("spibench-trace"))
+            .collect();
+        assert!(leftovers.is_empty());
+        let _ = std::fs::remove_dir_all(&out);
+    }
+
+    #[test]
+    fn bad_input_leaves_no_output() {
+        let out = tmp("bad");
+        let dir = tmp("bad-scene");
+        std::fs::create_dir_all(&dir).unwrap();
+        let scene = dir.join("bad.ron");
+        let text = std::fs::read_to_string(
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/tests/symmetric_arms.ron"),
+        )
+        .unwrap()
+        .replace(
+            "diameter_mm: 5.0,\n        ),\n        minus",
+            "diameter_mm: -5.0,\n        ),\n        minus",
+        );
+        std::fs::write(&scene, text).unwrap();
+        let args = TraceArgs {
+            scene,
+            rays: 1000,
+            seed: 1,
+            out: out.clone(),
+        };
+        let err = run(&args).unwrap_err();
+        let e = err.downcast_ref::<Error>().expect("a library error");
+        assert!(e.is_user_error());
+        assert!(e.to_string().contains("diameter_mm"), "{e}");
+        assert!(!out.exists());
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+}

@@ -1,0 +1,537 @@
+//! The walk of one lamp ray (and its DMD branches) through the bench.
+//!
+//! Physics per interaction (f64 throughout):
+//! - interfaces: Fresnel (or coating) reflectance R for unpolarised light; the ray reflects with
+//!   probability R and refracts otherwise (Snell, with the glass's dispersion at the ray's
+//!   wavelength), its weight unchanged. Ghosts and stray light are therefore traced with the
+//!   right probabilities.
+//! - absorption (ND glass bulk, mirror and DMD aluminium 1 − R, chrome 1 − R − T): the weight
+//!   is multiplied by the surviving fraction and the absorbed power is booked to the element.
+//!   There is no Russian roulette: paths end by absorption, escape, detection or the
+//!   interaction cap, so the ledger balances exactly, ray by ray.
+//! - black surfaces (lens rims, mount lips, meshes, DMD gaps, housings): the ray ends and its
+//!   power is booked to the element.
+//! - photodiodes: the ray ends; its power is "detected" and its photocurrent w·ℜ(λ) is tallied.
+//! - chart: where the mask is clear, a bare glass interface; on chrome, the weight is multiplied
+//!   by R_c + T_c (T_c = 10^−OD) and the ray reflects with probability R_c/(R_c + T_c), else
+//!   it is transmitted (refracted into the substrate). Image masks with grey levels choose clear
+//!   or chrome with the pixel's clear fraction.
+//! - geometric optics only: diffraction by the DMD's mirror grid (its blaze and orders) is not
+//!   modelled; the arms' collection of the diffracted light is therefore not part of k±.
+//!
+//! The nearest hit of every segment comes from the bench's BVH (`optics::bench::Accel`), checked
+//! against brute force in the tests below.
+//!
+//! The DMD: a path that has not met the pattern area yet and crosses the array plane inside it
+//! (downward) is split into two copies of the same weight, one per mirror state (`BRANCH_PLUS`,
+//! `BRANCH_MINUS`), both attributed to the unit j under the crossing point (its footprint). Each
+//! copy then meets the actual tilted facets of its state; the power that lands on pattern
+//! mirrors is x_j (half from each copy, since the two states' facets differ at the edges), and
+//! the power that falls into the gaps is absorbed there. On any later DMD interaction the copy
+//! sees every pattern mirror in its own state (the world "all units in
+//! state s"): exact for the uniform patterns and a second-order error otherwise, since light
+//! returning to the array (via window or chart reflections, ~1 %) would meet a mix of states.
+//! Mirrors outside the pattern area are always in the bench's outside state; for an unsplit path
+//! the pattern mirrors adjacent to its crossing cell (only rays within ~2 µm of the pattern
+//! border) are also taken in the outside state.
+
+use glam::DVec3;
+
+use crate::optics::bench::{Bench, Interaction};
+use crate::optics::dmd::{DmdHit, MirrorState};
+use crate::optics::fresnel::{reflect, refract};
+use crate::rng::{StreamRng, uniform};
+
+use super::tally::{
+    BRANCH_MINUS, BRANCH_PLUS, BatchTally, COMMON, SLOT_DETECTED_MINUS, SLOT_DETECTED_PLUS,
+    SLOT_EMITTED, SLOT_ESCAPED, SLOT_PATH_CAP,
+};
+
+/// Distance (m) by which a ray leaving a surface is moved off it, to the side it leaves on.
+/// 1 nm: far below every feature of the bench (the thinnest gap is the DMD's ~1 µm) and far above
+/// f64 rounding at bench scale (~1e-16 m).
+pub const SURFACE_OFFSET: f64 = 1e-9;
+
+/// How the pattern area is set during a trace.
+#[derive(Debug, Clone, Copy)]
+pub enum PatternMode<'a> {
+    /// Split at the pattern area and follow both states (transport maps).
+    Branch,
+    /// A fixed pattern: unit j in state + when `pattern[j]`, − otherwise; no splitting.
+    Fixed(&'a [bool]),
+}
+
+#[derive(Debug, Clone, Copy)]
+struct Path {
+    o: DVec3,
+    d: DVec3,
+    w: f64,
+    world: usize,
+    unit: usize,
+    interactions: u32,
+    arrived: bool,
+    /// Set on arrival: the next mirror hit books the incident power to x of `unit`.
+    x_pending: bool,
+}
+
+enum Target {
+    Surface(usize, DVec3),
+    Mesh(usize),
+    Dmd,
+}
+
+/// Traces `rays` lamp rays of batch `batch` from the stream `rng::stream(seed, batch)`.
+/// `inv_rays` is 1/N for the whole trace: each ray carries 1/N of the sampled power.
+pub fn run_batch(
+    bench: &Bench,
+    mode: PatternMode,
+    seed: u64,
+    batch: u64,
+    rays: u64,
+    inv_rays: f64,
+) -> BatchTally {
+    let mut rng = crate::rng::stream(seed, batch);
+    let mut tally = BatchTally::new(bench.units(), bench.elements.len());
+    let mut stack = Vec::with_capacity(8);
+    let mut index = vec![1.0; bench.media.len()];
+    let n = rays as usize;
+    // Latin hypercube over the batch (McKay, Beckman & Conover 1979): each of the emission's
+    // five dimensions and the wavelength is cut into n strata, and an independent random
+    // permutation per dimension assigns the strata to the rays. Every ray is still uniformly
+    // distributed, so every tally stays unbiased; the batch's rays cover the filament, the
+    // directions and the spectrum evenly, which removes most of the spectral and geometric noise
+    // from the per-batch sums. Batches remain independent, so batch means give the errors.
+    let perms: Vec<Vec<u32>> = (0..STRATIFIED_DIMS)
+        .map(|_| permutation(n, &mut rng))
+        .collect();
+    let inv_n = 1.0 / n as f64;
+    for i in 0..n {
+        let mut u = [0.0; STRATIFIED_DIMS];
+        for (d, p) in perms.iter().enumerate() {
+            u[d] = (p[i] as f64 + uniform(&mut rng)) * inv_n;
+        }
+        trace_ray(
+            bench, mode, inv_rays, u, &mut rng, &mut tally, &mut stack, &mut index,
+        );
+    }
+    tally
+}
+
+/// Emission dimensions (filament x, y; strategy; direction a, b) and the wavelength (bin, offset
+/// within the bin) stratified by the Latin hypercube.
+const STRATIFIED_DIMS: usize = 7;
+
+/// A uniformly random permutation of 0..n (Fisher–Yates).
+fn permutation(n: usize, rng: &mut StreamRng) -> Vec<u32> {
+    let mut p: Vec<u32> = (0..n as u32).collect();
+    for i in (1..n).rev() {
+        let j = ((uniform(rng) * (i + 1) as f64) as usize).min(i);
+        p.swap(i, j);
+    }
+    p
+}
+
+/// Traces one lamp ray with all its branches, adding to `tally`. `index` is scratch space for
+/// the refractive index of every medium at the ray's wavelength (computed once per ray).
+#[allow(clippy::too_many_arguments)]
+fn trace_ray(
+    bench: &Bench,
+    mode: PatternMode,
+    inv_rays: f64,
+    u: [f64; STRATIFIED_DIMS],
+    rng: &mut StreamRng,
+    tally: &mut BatchTally,
+    stack: &mut Vec<Path>,
+    index: &mut [f64],
+) {
+    let lamp = &bench.lamp;
+    let e = lamp.sample([u[0], u[1], u[2], u[3], u[4]]);
+    let (wl, spectral) = bench.sampler.sample(u[5], u[6]);
+    let w = lamp.band_power_w * e.factor * spectral * inv_rays;
+    let n_el = bench.elements.len();
+    tally.ledger[COMMON][n_el + SLOT_EMITTED] += w;
+    tally.rays += 1;
+    if w <= 0.0 {
+        return;
+    }
+    for (n, m) in index.iter_mut().zip(&bench.media) {
+        *n = m.glass.index(wl);
+    }
+    stack.clear();
+    stack.push(Path {
+        o: e.origin,
+        d: e.direction,
+        w,
+        world: COMMON,
+        unit: 0,
+        interactions: 0,
+        arrived: false,
+        x_pending: false,
+    });
+    while let Some(p) = stack.pop() {
+        walk(bench, mode, wl, index, p, rng, tally, stack);
+    }
+}
+
+#[inline]
+fn nearest(bench: &Bench, o: DVec3, d: DVec3) -> (f64, Option<Target>) {
+    use crate::optics::bench::Prim;
+    let mut best = f64::INFINITY;
+    let mut target = None;
+    let accel = &bench.accel;
+    let mut hit = obvhs::ray::RayHit::none();
+    let ray = crate::optics::mesh::bvh_ray(o, d, f64::INFINITY);
+    accel.bvh.ray_traverse(ray, &mut hit, |_, slot| {
+        match accel.prims[slot] {
+            Prim::Surface(i) => {
+                if let Some(h) = bench.surfaces[i].geometry.intersect(o, d, 0.0, best) {
+                    best = h.t;
+                    target = Some(Target::Surface(i, h.normal));
+                }
+            }
+            Prim::Mesh(k) => {
+                if let Some(t) = bench.meshes[k].0.intersect(o, d, 0.0, best)
+                    && t < best
+                {
+                    best = t;
+                    target = Some(Target::Mesh(k));
+                }
+            }
+            Prim::Dmd => {
+                if let Some(dmd) = &bench.dmd
+                    && let Some(t) = dmd.dmd.slab_entry(o, d, 0.0)
+                    && t < best
+                {
+                    best = t;
+                    target = Some(Target::Dmd);
+                }
+            }
+        }
+        // Tell the traversal an f32 distance no smaller than the exact best, so that no box
+        // that could hold a closer hit is pruned by rounding.
+        if best.is_finite() {
+            (best * (1.0 + 1e-6) + 1e-6) as f32
+        } else {
+            f32::INFINITY
+        }
+    });
+    (best, target)
+}
+
+#[inline]
+fn book(tally: &mut BatchTally, world: usize, slot: usize, w: f64) {
+    tally.ledger[world][slot] += w;
+}
+
+#[allow(clippy::too_many_arguments)]
+fn walk(
+    bench: &Bench,
+    mode: PatternMode,
+    wl: f64,
+    index: &[f64],
+    mut p: Path,
+    rng: &mut StreamRng,
+    tally: &mut BatchTally,
+    stack: &mut Vec<Path>,
+) {
+    let n_el = bench.elements.len();
+    let units = tally.x.len();
+    loop {
+        if p.interactions >= bench.max_interactions {
+            book(tally, p.world, n_el + SLOT_PATH_CAP, p.w);
+            return;
+        }
+        p.interactions += 1;
+        let (t, target) = nearest(bench, p.o, p.d);
+        let Some(target) = target else {
+            book(tally, p.world, n_el + SLOT_ESCAPED, p.w);
+            return;
+        };
+        match target {
+            Target::Mesh(k) => {
+                book(tally, p.world, bench.meshes[k].1, p.w);
+                return;
+            }
+            Target::Surface(i, n) => {
+                let s = &bench.surfaces[i];
+                let hit = p.o + t * p.d;
+                let cos_signed = -p.d.dot(n);
+                if s.clear.is_some_and(|c| c.blocks(hit)) {
+                    book(tally, p.world, s.element, p.w);
+                    return;
+                }
+                match &s.interaction {
+                    Interaction::Absorber => {
+                        book(tally, p.world, s.element, p.w);
+                        return;
+                    }
+                    Interaction::Mirror { reflectance } => {
+                        if cos_signed <= 0.0 {
+                            book(tally, p.world, s.element, p.w);
+                            return;
+                        }
+                        let r = reflectance.at(wl).clamp(0.0, 1.0);
+                        let kept = p.w * r;
+                        book(tally, p.world, s.element, p.w - kept);
+                        p.w = kept;
+                        p.d = reflect(p.d, n);
+                        p.o = hit + SURFACE_OFFSET * n;
+                    }
+                    Interaction::Detector { index } => {
+                        if cos_signed <= 0.0 {
+                            book(tally, p.world, s.element, p.w);
+                            return;
+                        }
+                        let det = &bench.detectors[*index];
+                        let current = p.w * det.responsivity.at(wl);
+                        if p.world == COMMON {
+                            tally.b[*index] += current;
+                        } else {
+                            let st = p.world - BRANCH_PLUS;
+                            tally.t[BatchTally::t_index(units, *index, st, p.unit)] += current;
+                        }
+                        let slot = if *index == 0 {
+                            SLOT_DETECTED_PLUS
+                        } else {
+                            SLOT_DETECTED_MINUS
+                        };
+                        book(tally, p.world, n_el + slot, p.w);
+                        return;
+                    }
+                    Interaction::Interface {
+                        front,
+                        back,
+                        coating,
+                    } => {
+                        let (m_in, m_out, nn, cos_i) = if cos_signed >= 0.0 {
+                            (*front, *back, n, cos_signed)
+                        } else {
+                            (*back, *front, -n, -cos_signed)
+                        };
+                        attenuate(bench, m_in, t, wl, &mut p, tally);
+                        let (n1, n2) = (index[m_in], index[m_out]);
+                        let r = coating.reflectance(n1, n2, cos_i, wl);
+                        scatter(&mut p, hit, nn, n1, n2, r, rng);
+                    }
+                    Interaction::Chart { chart, front, back } => {
+                        let (m_in, m_out, nn, cos_i) = if cos_signed >= 0.0 {
+                            (*front, *back, n, cos_signed)
+                        } else {
+                            (*back, *front, -n, -cos_signed)
+                        };
+                        attenuate(bench, m_in, t, wl, &mut p, tally);
+                        let plate = &bench.charts[*chart];
+                        let local = plate.frame.to_local(hit);
+                        let clear = plate.mask.clear_fraction(local.x, local.y);
+                        let (n1, n2) = (index[m_in], index[m_out]);
+                        if clear >= 1.0 || (clear > 0.0 && uniform(rng) < clear) {
+                            let r = crate::optics::fresnel::reflectance(n1, n2, cos_i);
+                            scatter(&mut p, hit, nn, n1, n2, r, rng);
+                        } else {
+                            // Chrome: reflect R_c, transmit T_c = 10^−OD, absorb the rest.
+                            let rc = plate.chrome_reflectance.at(wl).clamp(0.0, 1.0);
+                            let tc = 10f64.powf(-plate.chrome_od.at(wl)).min(1.0 - rc);
+                            let a = rc + tc;
+                            let kept = p.w * a;
+                            book(tally, p.world, s.element, p.w - kept);
+                            p.w = kept;
+                            if kept <= 0.0 {
+                                return;
+                            }
+                            let prob_r = if a > 0.0 { rc / a } else { 1.0 };
+                            scatter(&mut p, hit, nn, n1, n2, prob_r, rng);
+                        }
+                    }
+                }
+            }
+            Target::Dmd => {
+                let setup = bench.dmd.as_ref().expect("DMD target implies a DMD");
+                let dmd = &setup.dmd;
+                let pattern = dmd.pattern;
+                // Split an unsplit path at its first crossing of the pattern area.
+                if !p.arrived
+                    && let Some(q) = dmd.plane_crossing(p.o, p.d)
+                    && let Some(j) = dmd
+                        .cell_at(q.x, q.y)
+                        .and_then(|(c, r)| pattern.unit_of(c, r))
+                {
+                    p.arrived = true;
+                    p.x_pending = true;
+                    p.unit = j;
+                    tally.arrivals += 1;
+                    if matches!(mode, PatternMode::Branch) && p.world == COMMON {
+                        let mut other = p;
+                        other.world = BRANCH_MINUS;
+                        p.world = BRANCH_PLUS;
+                        // The minus copy is walked after this one finishes.
+                        other.interactions -= 1;
+                        stack.push(other);
+                    }
+                }
+                let world = p.world;
+                let outside = dmd.outside;
+                let state_of = |c: usize, r: usize| -> MirrorState {
+                    match pattern.unit_of(c, r) {
+                        None => outside,
+                        Some(j) => match (mode, world) {
+                            (PatternMode::Fixed(bits), _) => {
+                                crate::optics::bench::state_of_bit(bits[j])
+                            }
+                            (PatternMode::Branch, BRANCH_PLUS) => MirrorState::Plus,
+                            (PatternMode::Branch, BRANCH_MINUS) => MirrorState::Minus,
+                            (PatternMode::Branch, _) => outside,
+                        },
+                    }
+                };
+                let hit = dmd.intersect(p.o, p.d, 0.0, state_of);
+                if p.x_pending {
+                    // x_j: the power incident on pattern mirrors in unit j's footprint. The two
+                    // branches see slightly different facets (they differ only at the edges), so
+                    // each books half of what it meets: x_j is the mean over the two states.
+                    p.x_pending = false;
+                    if let Some(DmdHit::Mirror { col, row, .. }) = hit
+                        && pattern.unit_of(col, row).is_some()
+                    {
+                        let share = if p.world == COMMON { 1.0 } else { 0.5 };
+                        tally.x[p.unit] += share * p.w;
+                    }
+                }
+                match hit {
+                    Some(DmdHit::Mirror { t, normal, .. }) => {
+                        let hit = p.o + t * p.d;
+                        let r = dmd.reflectance.at(wl).clamp(0.0, 1.0);
+                        let kept = p.w * r;
+                        book(tally, p.world, setup.mirrors_element, p.w - kept);
+                        p.w = kept;
+                        p.d = reflect(p.d, normal);
+                        p.o = hit + SURFACE_OFFSET * normal;
+                    }
+                    Some(DmdHit::Gap { .. }) => {
+                        book(tally, p.world, setup.gaps_element, p.w);
+                        return;
+                    }
+                    None => {
+                        // An upward ray that met no neighbouring mirror: move it just above the
+                        // slab and carry on.
+                        let h = dmd.slab_half_height();
+                        let t_exit = (h - p.o.z) / p.d.z;
+                        p.o += (t_exit + SURFACE_OFFSET / p.d.z) * p.d;
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// Bulk absorption over the last segment (length t) in medium `m`.
+#[inline]
+fn attenuate(bench: &Bench, m: usize, t: f64, wl: f64, p: &mut Path, tally: &mut BatchTally) {
+    if let Some((od, element)) = &bench.media[m].absorption {
+        let tau = 10f64.powf(-od.at(wl) * t);
+        let kept = p.w * tau;
+        tally.ledger[p.world][*element] += p.w - kept;
+        p.w = kept;
+    }
+}
+
+/// Reflect with probability `r`, else refract from n1 into n2 (normal `nn` faces the incoming
+/// ray). The ray leaves from `hit`, offset to its outgoing side.
+#[inline]
+fn scatter(p: &mut Path, hit: DVec3, nn: DVec3, n1: f64, n2: f64, r: f64, rng: &mut StreamRng) {
+    let refracted = if r >= 1.0 || uniform(rng) < r {
+        None
+    } else {
+        refract(p.d, nn, n1, n2)
+    };
+    match refracted {
+        Some(d) => {
+            p.d = d;
+            p.o = hit - SURFACE_OFFSET * nn;
+        }
+        None => {
+            p.d = reflect(p.d, nn);
+            p.o = hit + SURFACE_OFFSET * nn;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Brute force over every primitive: the oracle for the BVH search.
+    fn nearest_brute(bench: &Bench, o: DVec3, d: DVec3) -> (f64, Option<Target>) {
+        let mut best = f64::INFINITY;
+        let mut target = None;
+        for (i, s) in bench.surfaces.iter().enumerate() {
+            if let Some(h) = s.geometry.intersect(o, d, 0.0, best) {
+                best = h.t;
+                target = Some(Target::Surface(i, h.normal));
+            }
+        }
+        for (k, (m, _)) in bench.meshes.iter().enumerate() {
+            if let Some(t) = m.intersect(o, d, 0.0, best)
+                && t < best
+            {
+                best = t;
+                target = Some(Target::Mesh(k));
+            }
+        }
+        if let Some(dmd) = &bench.dmd
+            && let Some(t) = dmd.dmd.slab_entry(o, d, 0.0)
+            && t < best
+        {
+            best = t;
+            target = Some(Target::Dmd);
+        }
+        (best, target)
+    }
+
+    /// The BVH search must find exactly the nearest primitive that brute force finds, for random
+    /// rays and for rays leaving surfaces as path segments do (in both directions).
+    #[test]
+    fn bvh_search_matches_brute_force() {
+        let bench = crate::trace::testing::paper_bench_with_mask();
+        let mut rng = crate::rng::stream(99, 0);
+        let mut mismatches = Vec::new();
+        let u = |r: &mut StreamRng| uniform(r) * 2.0 - 1.0;
+        for k in 0..200_000 {
+            let mut o = DVec3::new(
+                0.15 * u(&mut rng),
+                0.15 * u(&mut rng),
+                0.35 + 0.35 * u(&mut rng),
+            );
+            let mut d = DVec3::new(u(&mut rng), u(&mut rng), u(&mut rng)).normalize();
+            if k % 2 == 1 {
+                // Like a path segment: start 1 nm off a surface that the random ray meets.
+                let (t, hit) = nearest_brute(&bench, o, d);
+                if let Some(Target::Surface(_, n)) = hit {
+                    let side = if uniform(&mut rng) < 0.5 { 1.0 } else { -1.0 };
+                    o += t * d + side * SURFACE_OFFSET * n;
+                    d = DVec3::new(u(&mut rng), u(&mut rng), u(&mut rng)).normalize();
+                    if d.dot(n) * side < 0.0 {
+                        d = -d;
+                    }
+                }
+            }
+            let (t1, a) = nearest(&bench, o, d);
+            let (t2, b) = nearest_brute(&bench, o, d);
+            let same = match (&a, &b) {
+                (None, None) => true,
+                (Some(Target::Surface(i, _)), Some(Target::Surface(j, _))) => i == j,
+                (Some(Target::Mesh(i)), Some(Target::Mesh(j))) => i == j,
+                (Some(Target::Dmd), Some(Target::Dmd)) => true,
+                _ => false,
+            };
+            if !same || (t1.is_finite() && (t1 - t2).abs() > 1e-12) {
+                mismatches.push((o, d, t1, t2));
+            }
+        }
+        assert!(
+            mismatches.is_empty(),
+            "{} mismatches, first {:?}",
+            mismatches.len(),
+            mismatches.first()
+        );
+    }
+}

@@ -1,0 +1,312 @@
+//! Tests of the tracer and of the transport it feeds: closed forms, symmetry, linearity,
+//! energy conservation and determinism. Every statistical tolerance is a stated multiple of a
+//! standard error computed from the same trace (batch means, see crate::transport).
+
+use super::testing::{bench_with, paper_bench_with_mask, scene_path};
+use super::*;
+use crate::transport::{Estimate, Transport, fixed_pattern_currents, ratio_estimate};
+
+fn run(bench: &Bench, rays: u64, seed: u64) -> Tallies {
+    trace(bench, &TraceOptions::new(rays, seed)).unwrap()
+}
+
+fn transport(bench: &Bench, rays: u64, seed: u64) -> Transport {
+    Transport::from_tallies(bench, &run(bench, rays, seed))
+}
+
+#[test]
+fn identical_for_one_and_two_threads() {
+    let bench = paper_bench_with_mask();
+    let go = |threads: usize| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| run(&bench, 20_000, 42))
+    };
+    let (a, b) = (go(1), go(2));
+    let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+    assert_eq!(bits(&a.x), bits(&b.x));
+    assert_eq!(bits(&a.t), bits(&b.t));
+    assert_eq!(bits(&a.b), bits(&b.b));
+    for w in 0..3 {
+        assert_eq!(bits(&a.ledger[w]), bits(&b.ledger[w]));
+    }
+    assert_eq!(a.batches, b.batches);
+    assert!(a.arrivals > 0);
+    // And a different seed gives different numbers.
+    let c = rayon::ThreadPoolBuilder::new()
+        .num_threads(2)
+        .build()
+        .unwrap()
+        .install(|| run(&bench, 20_000, 43));
+    assert_ne!(bits(&a.x), bits(&c.x));
+}
+
+/// Every scene must conserve energy: emitted = absorbed + escaped + path cap + detected, in both
+/// mirror-state worlds, to rounding (the sums run over ~1e5 terms of mixed sizes, so 1e-12 of
+/// the emitted power).
+fn assert_ledger_balances(bench: &Bench, rays: u64, label: &str) {
+    let t = transport(bench, rays, 5);
+    let l = &t.ledger;
+    assert!(l.emitted_w > 0.0, "{label}");
+    for w in &l.worlds {
+        assert!(
+            w.residual_w.abs() <= 1e-12 * l.emitted_w,
+            "{label}: ledger residual {} W of {} W",
+            w.residual_w,
+            l.emitted_w
+        );
+        for (name, v) in &w.absorbed_w {
+            assert!(*v >= 0.0, "{label}: negative absorption in {name}");
+        }
+    }
+    // The sampled emission is an unbiased estimate of the nominal band power: within 5 standard
+    // errors, bounded here by the largest single-ray weight times √N (a loose but safe bound
+    // would hide bias, so use the batch spread of the traced emission instead).
+    let n_el = bench.elements.len();
+    let emitted: Vec<(u64, f64)> = {
+        // Re-trace to get per-batch emission: cheap for the sizes used here.
+        let mut v = Vec::new();
+        let n_batches = rays.div_ceil(RAYS_PER_BATCH);
+        for b in 0..n_batches {
+            let k = RAYS_PER_BATCH.min(rays - b * RAYS_PER_BATCH);
+            let bt = path::run_batch(bench, PatternMode::Branch, 5, b, k, 1.0 / rays as f64);
+            v.push((k, bt.ledger[tally::COMMON][n_el + tally::SLOT_EMITTED]));
+        }
+        v
+    };
+    let e = crate::transport::total_estimate(&emitted);
+    let traced_nominal = l.emitted_nominal_w - l.outside_cone_w;
+    assert!(
+        (e.value - traced_nominal).abs() <= 5.0 * e.stderr.max(1e-15 * traced_nominal),
+        "{label}: traced emission {} ± {} vs {}",
+        e.value,
+        e.stderr,
+        traced_nominal
+    );
+}
+
+/// True when the first line of `path` that is not blank or a comment opens an `Experiment(`.
+fn is_experiment_file(path: &std::path::Path) -> bool {
+    std::fs::read_to_string(path)
+        .unwrap()
+        .lines()
+        .map(str::trim)
+        .find(|l| !l.is_empty() && !l.starts_with("//"))
+        .is_some_and(|l| l.starts_with("Experiment"))
+}
+
+#[test]
+fn ledger_balances_for_every_scene() {
+    let mut seen = 0;
+    for dir in ["", "tests"] {
+        let d = scene_path(dir);
+        let mut files: Vec<_> = std::fs::read_dir(&d)
+            .unwrap()
+            .filter_map(|e| e.ok().map(|e| e.path()))
+            .filter(|p| p.extension().is_some_and(|x| x == "ron"))
+            // `scenes/` also holds the experiment files of `spibench simulate`, which have no
+            // bench: keep only the files whose top-level value is not an `Experiment`.
+            .filter(|p| !is_experiment_file(p))
+            .collect();
+        files.sort();
+        for f in files {
+            let name = f.file_name().unwrap().to_string_lossy().to_string();
+            let bench = crate::scene::bench::read_bench(&f).unwrap();
+            assert_ledger_balances(&bench, 30_000, &name);
+            seen += 1;
+        }
+    }
+    assert!(seen >= 3, "only {seen} scenes found");
+}
+
+/// The paper bench exactly as shipped, with its analytic USAF chart.
+#[test]
+fn paper_bench_with_usaf_chart() {
+    let bench = crate::scene::bench::read_bench(&scene_path("paper_bench.ron")).unwrap();
+    assert_ledger_balances(&bench, 50_000, "paper_bench.ron (USAF)");
+    let t = transport(&bench, 200_000, 1);
+    // The imaged region holds clear bars of group −1 elements 5–6: light reaches the pattern
+    // and both arms see it, with efficiencies of the order of the silicon responsivity.
+    assert!(t.x_total.value > 0.0);
+    for d in 0..2 {
+        assert!(
+            t.k[d].value > 0.1 && t.k[d].value < 0.65,
+            "k = {:?}",
+            t.k[d]
+        );
+    }
+    // Not all units are equal: the chart's bars modulate x_j by orders of magnitude
+    // (clear glass against OD 3 chrome).
+    let max = t.x_w.iter().copied().fold(0.0, f64::max);
+    let min = t.x_w.iter().copied().fold(f64::INFINITY, f64::min);
+    assert!(max > 20.0 * min.max(1e-30), "x_j range {min}..{max}");
+}
+
+/// Coaxial parallel disks (radii r1, r2, distance h): F12 = ½(X − √(X² − 4(R2/R1)²)) with
+/// R = r/h and X = 1 + (1 + R2²)/R1² (Howell's catalogue of view factors, C-41).
+fn coaxial_view_factor(r1: f64, r2: f64, h: f64) -> f64 {
+    let (a, b) = (r1 / h, r2 / h);
+    let x = 1.0 + (1.0 + b * b) / (a * a);
+    0.5 * (x - (x * x - 4.0 * (b / a).powi(2)).sqrt())
+}
+
+#[test]
+fn lambertian_disk_to_coaxial_disk_matches_view_factor() {
+    let f = coaxial_view_factor(5.0, 10.0, 50.0);
+    assert!((f - 0.038_10).abs() < 1e-4, "{f}");
+    for edits in [
+        vec![],
+        vec![(
+            "emission: Hemisphere,",
+            "emission: Cone(half_angle_deg: 20.0),",
+        )],
+    ] {
+        let bench = bench_with("tests/disk_to_disk.ron", &edits);
+        let t = transport(&bench, 200_000, 3);
+        // All light reaching the diode is pattern independent: b₊ = Φ·F·ℜ with Φ = 2 W and
+        // ℜ = 0.5 A/W; its batch-means standard error gives the tolerance (4 standard errors).
+        let phi_r = 2.0 * 0.5;
+        let est = t.b[0].value / phi_r;
+        let se = t.b[0].stderr / phi_r;
+        assert!(se > 0.0 && se < 0.05 * f, "se {se}");
+        assert!(
+            (est - f).abs() < 4.0 * se,
+            "F = {est} ± {se}, closed form {f}"
+        );
+        // The detected power in the ledger is the same light.
+        let det = t.ledger.worlds[0].detected_w[0];
+        assert!((det * 0.5 - t.b[0].value).abs() < 1e-12 * t.b[0].value);
+    }
+}
+
+/// k₊ − k₋ with its standard error (ratio of per-batch gain differences to power).
+fn k_difference(t: &Tallies) -> Estimate {
+    ratio_estimate(
+        &t.batches
+            .iter()
+            .map(|b| (b.g[0] - b.g[1], b.x))
+            .collect::<Vec<_>>(),
+    )
+}
+
+#[test]
+fn mirror_symmetric_arms_have_equal_k() {
+    let bench = bench_with("tests/symmetric_arms.ron", &[]);
+    let t = run(&bench, 200_000, 11);
+    let tr = Transport::from_tallies(&bench, &t);
+    let diff = k_difference(&t);
+    // The arms collect most of the light: k near the mean responsivity times the losses.
+    assert!(tr.k[0].value > 0.2, "{:?}", tr.k);
+    assert!(diff.stderr > 0.0);
+    // Equal within 3 standard errors of the difference (the brief's criterion).
+    assert!(
+        diff.value.abs() < 3.0 * diff.stderr,
+        "k+ − k− = {} ± {}",
+        diff.value,
+        diff.stderr
+    );
+}
+
+// The + arm's photodiode moved 2.3 mm sideways (along x + y, perpendicular to the arm): its
+// 5 mm disk clips the ~1 mm lamp image. The mirror image moves the − arm's diode along y + x
+// by the same amount — which is the same vector, so the − edit uses its own position.
+const PD_PLUS: &str = "position_mm: (39.0011, -39.0011, 123.8823),";
+const PD_MINUS: &str = "position_mm: (-39.0011, 39.0011, 123.8823),";
+const PD_PLUS_SHIFTED: &str = "position_mm: (40.6274, -37.3748, 123.8823),";
+const PD_MINUS_SHIFTED: &str = "position_mm: (-37.3748, 40.6274, 123.8823),";
+
+#[test]
+fn swapping_the_arms_swaps_k() {
+    let a = bench_with("tests/symmetric_arms.ron", &[(PD_PLUS, PD_PLUS_SHIFTED)]);
+    let b = bench_with("tests/symmetric_arms.ron", &[(PD_MINUS, PD_MINUS_SHIFTED)]);
+    let ta = transport(&a, 200_000, 21);
+    let tb = transport(&b, 200_000, 22);
+    // The perturbation matters: in bench A arm + collects clearly less than arm −.
+    let da = k_difference(&run(&a, 200_000, 21));
+    assert!(da.value < -5.0 * da.stderr, "{da:?}");
+    // Bench B is bench A reflected in x = y, which swaps the arms: k₊(A) = k₋(B) and
+    // k₋(A) = k₊(B). Independent traces: 4 combined standard errors.
+    for (x, y) in [(ta.k[0], tb.k[1]), (ta.k[1], tb.k[0])] {
+        let se = x.stderr.hypot(y.stderr);
+        assert!(
+            (x.value - y.value).abs() < 4.0 * se,
+            "{x:?} vs {y:?} (4 se = {})",
+            4.0 * se
+        );
+    }
+}
+
+#[test]
+fn defocusing_one_photodiode_lowers_that_arm() {
+    // Move the + diode 100 mm farther along its arm: the converging beam has spread to ~7 mm.
+    let focused = bench_with("tests/symmetric_arms.ron", &[]);
+    let defocused = bench_with(
+        "tests/symmetric_arms.ron",
+        &[(PD_PLUS, "position_mm: (67.7607, -67.7607, 215.2377),")],
+    );
+    let tf = transport(&focused, 150_000, 31);
+    let td = transport(&defocused, 150_000, 32);
+    let se = |a: Estimate, b: Estimate| a.stderr.hypot(b.stderr);
+    // Arm + loses light well beyond the noise (10 combined standard errors) ...
+    assert!(
+        tf.k[0].value - td.k[0].value > 10.0 * se(tf.k[0], td.k[0]),
+        "{:?} -> {:?}",
+        tf.k[0],
+        td.k[0]
+    );
+    // ... and arm − is unchanged within 4 combined standard errors.
+    assert!((tf.k[1].value - td.k[1].value).abs() < 4.0 * se(tf.k[1], td.k[1]));
+}
+
+#[test]
+fn fixed_patterns_reproduce_the_transport_maps() {
+    // Linearity: a trace with the DMD set to a pattern P must give the photocurrents the
+    // transport maps predict, y₊(P) = Σ P_j g₊_j + c₊ and y₋(P) = Σ (1 − P_j) g₋_j + c₋, for
+    // all units in state +, all in state −, and a random pattern. The bench has no window and
+    // no chart, so there is no second-order DMD interaction and the model is exact.
+    let bench = bench_with("tests/symmetric_arms.ron", &[]);
+    let units = bench.units();
+    // The prediction's error: 8 independent transport traces, their spread.
+    let seeds: Vec<u64> = (100..108).collect();
+    let transports: Vec<Transport> = seeds
+        .iter()
+        .map(|&s| transport(&bench, 40_000, s))
+        .collect();
+    let mut bits = crate::rng::stream(77, 0);
+    let random: Vec<bool> = (0..units)
+        .map(|_| crate::rng::uniform(&mut bits) < 0.5)
+        .collect();
+    for pattern in [vec![true; units], vec![false; units], random] {
+        let opts = TraceOptions {
+            rays: 200_000,
+            seed: 900,
+            mode: PatternMode::Fixed(&pattern),
+            progress: false,
+        };
+        let direct = fixed_pattern_currents(&bench, &trace(&bench, &opts).unwrap());
+        for (d, direct) in direct.iter().enumerate() {
+            let preds: Vec<f64> = transports
+                .iter()
+                .map(|t| {
+                    if d == 0 {
+                        t.y_plus(&pattern)
+                    } else {
+                        t.y_minus(&pattern)
+                    }
+                })
+                .collect();
+            let n = preds.len() as f64;
+            let mean = preds.iter().sum::<f64>() / n;
+            let var = preds.iter().map(|p| (p - mean).powi(2)).sum::<f64>() / (n - 1.0);
+            let se_pred = (var / n).sqrt();
+            let se = se_pred.hypot(direct.stderr);
+            // 4 combined standard errors (both exactly 0 when no light can reach the arm).
+            assert!(
+                (direct.value - mean).abs() <= 4.0 * se,
+                "arm {d}: direct {direct:?} vs transport {mean} ± {se_pred}"
+            );
+        }
+    }
+}
