@@ -34,6 +34,7 @@
 //! header of `make_reference.py` there).
 
 pub mod normalize;
+pub mod resolution;
 pub mod ssim;
 
 pub use normalize::{Normalized, normalize_to_truth};

@@ -1,5 +1,6 @@
 //! PNG output: grayscale rasters (8 and 16 bit) and RGB buffers, encoded in memory with the
-//! `image` crate and written through a temporary name (`npy::write_atomic`).
+//! `image` crate ([`encode_gray8`], [`encode_gray16`], [`encode_rgb8`], also used to embed
+//! images in HTML reports) and written through a temporary name (`npy::write_atomic`).
 
 use std::io::Cursor;
 use std::path::Path;
@@ -20,101 +21,123 @@ fn quantize(v: f64, lo: f64, hi: f64, max: f64) -> f64 {
     (t * max).round()
 }
 
-fn check_range(path: &Path, lo: f64, hi: f64) -> Result<()> {
+fn check_range(lo: f64, hi: f64) -> Result<()> {
     if !lo.is_finite() || !hi.is_finite() || hi <= lo {
         return Err(Error::input(format!(
             "the gray range must be finite with hi > lo, got lo = {lo}, hi = {hi}"
-        ))
-        .in_file(path));
+        )));
     }
     Ok(())
 }
 
 /// The dimensions as PNG needs them (u32, non-zero).
-fn dims(path: &Path, width: usize, height: usize) -> Result<(u32, u32)> {
+fn dims(width: usize, height: usize) -> Result<(u32, u32)> {
     match (u32::try_from(width), u32::try_from(height)) {
         (Ok(w), Ok(h)) if w > 0 && h > 0 && (w as u64) * (h as u64) <= (1u64 << 32) => Ok((w, h)),
-        _ => Err(
-            Error::input(format!("a {width}×{height} image cannot be written as PNG"))
-                .in_file(path),
-        ),
+        _ => Err(Error::input(format!(
+            "a {width}×{height} image cannot be encoded as PNG"
+        ))),
     }
 }
 
-fn check_raster(path: &Path, image: &Raster) -> Result<(u32, u32)> {
+fn check_raster(image: &Raster) -> Result<(u32, u32)> {
     if image.data.len() != image.width * image.height {
         return Err(Error::input(format!(
             "the image holds {} values but claims {}×{}",
             image.data.len(),
             image.width,
             image.height
-        ))
-        .in_file(path));
+        )));
     }
-    dims(path, image.width, image.height)
+    dims(image.width, image.height)
 }
 
-/// Writes an 8-bit gray PNG: linear map of `[lo, hi]` to `[0, 255]`, clipped, rounded; NaN is 0.
-pub fn write_gray8(path: &Path, image: &Raster, lo: f64, hi: f64) -> Result<()> {
-    check_range(path, lo, hi)?;
-    let (w, h) = check_raster(path, image)?;
+/// The stand-in path of an encoding failure in memory (there is no file yet).
+const IN_MEMORY: &str = "(PNG in memory)";
+
+/// Encodes an 8-bit gray PNG in memory: linear map of `[lo, hi]` to `[0, 255]`, clipped,
+/// rounded; NaN is 0. The bytes are a complete PNG file (for a data: URI or a later write).
+pub fn encode_gray8(image: &Raster, lo: f64, hi: f64) -> Result<Vec<u8>> {
+    check_range(lo, hi)?;
+    let (w, h) = check_raster(image)?;
     let px: Vec<u8> = image
         .data
         .iter()
         .map(|&v| quantize(v, lo, hi, 255.0) as u8)
         .collect();
     let buf: ImageBuffer<Luma<u8>, Vec<u8>> = ImageBuffer::from_raw(w, h, px)
-        .ok_or_else(|| Error::input("image buffer size mismatch").in_file(path))?;
-    write_atomic(
-        path,
-        &encode(path, |out| buf.write_to(out, ImageFormat::Png))?,
-    )
+        .ok_or_else(|| Error::input("image buffer size mismatch"))?;
+    encode(|out| buf.write_to(out, ImageFormat::Png))
 }
 
-/// Writes a 16-bit gray PNG: linear map of `[lo, hi]` to `[0, 65535]`, clipped, rounded; NaN is 0.
-pub fn write_gray16(path: &Path, image: &Raster, lo: f64, hi: f64) -> Result<()> {
-    check_range(path, lo, hi)?;
-    let (w, h) = check_raster(path, image)?;
+/// Encodes a 16-bit gray PNG in memory: linear map of `[lo, hi]` to `[0, 65535]`, clipped,
+/// rounded; NaN is 0.
+pub fn encode_gray16(image: &Raster, lo: f64, hi: f64) -> Result<Vec<u8>> {
+    check_range(lo, hi)?;
+    let (w, h) = check_raster(image)?;
     let px: Vec<u16> = image
         .data
         .iter()
         .map(|&v| quantize(v, lo, hi, 65535.0) as u16)
         .collect();
     let buf: ImageBuffer<Luma<u16>, Vec<u16>> = ImageBuffer::from_raw(w, h, px)
-        .ok_or_else(|| Error::input("image buffer size mismatch").in_file(path))?;
-    write_atomic(
-        path,
-        &encode(path, |out| buf.write_to(out, ImageFormat::Png))?,
-    )
+        .ok_or_else(|| Error::input("image buffer size mismatch"))?;
+    encode(|out| buf.write_to(out, ImageFormat::Png))
 }
 
-/// Writes an 8-bit RGB PNG from row-major RGB bytes (3 per pixel).
-pub fn write_rgb8(path: &Path, width: u32, height: u32, rgb: &[u8]) -> Result<()> {
-    dims(path, width as usize, height as usize)?;
+/// Encodes an 8-bit RGB PNG in memory from row-major RGB bytes (3 per pixel).
+pub fn encode_rgb8(width: u32, height: u32, rgb: &[u8]) -> Result<Vec<u8>> {
+    dims(width as usize, height as usize)?;
     let expected = width as usize * height as usize * 3;
     if rgb.len() != expected {
         return Err(Error::input(format!(
             "an RGB image of {width}×{height} needs {expected} bytes, got {}",
             rgb.len()
-        ))
-        .in_file(path));
+        )));
     }
     let buf: ImageBuffer<Rgb<u8>, &[u8]> = ImageBuffer::from_raw(width, height, rgb)
-        .ok_or_else(|| Error::input("image buffer size mismatch").in_file(path))?;
-    write_atomic(
-        path,
-        &encode(path, |out| buf.write_to(out, ImageFormat::Png))?,
-    )
+        .ok_or_else(|| Error::input("image buffer size mismatch"))?;
+    encode(|out| buf.write_to(out, ImageFormat::Png))
 }
 
-/// Runs an encoder into memory, so that the file itself is written in one atomic step.
-fn encode(
-    path: &Path,
-    f: impl FnOnce(&mut Cursor<Vec<u8>>) -> image::ImageResult<()>,
-) -> Result<Vec<u8>> {
+/// Writes an 8-bit gray PNG: linear map of `[lo, hi]` to `[0, 255]`, clipped, rounded; NaN is 0.
+pub fn write_gray8(path: &Path, image: &Raster, lo: f64, hi: f64) -> Result<()> {
+    let bytes = encode_gray8(image, lo, hi).map_err(|e| at_path(e, path))?;
+    write_atomic(path, &bytes)
+}
+
+/// Writes a 16-bit gray PNG: linear map of `[lo, hi]` to `[0, 65535]`, clipped, rounded; NaN is 0.
+pub fn write_gray16(path: &Path, image: &Raster, lo: f64, hi: f64) -> Result<()> {
+    let bytes = encode_gray16(image, lo, hi).map_err(|e| at_path(e, path))?;
+    write_atomic(path, &bytes)
+}
+
+/// Writes an 8-bit RGB PNG from row-major RGB bytes (3 per pixel).
+pub fn write_rgb8(path: &Path, width: u32, height: u32, rgb: &[u8]) -> Result<()> {
+    let bytes = encode_rgb8(width, height, rgb).map_err(|e| at_path(e, path))?;
+    write_atomic(path, &bytes)
+}
+
+/// Runs an encoder into memory, so that a file is written in one atomic step afterwards.
+fn encode(f: impl FnOnce(&mut Cursor<Vec<u8>>) -> image::ImageResult<()>) -> Result<Vec<u8>> {
     let mut out = Cursor::new(Vec::new());
-    f(&mut out).map_err(|e| Error::write(path, std::io::Error::other(e.to_string())))?;
+    f(&mut out)
+        .map_err(|e| Error::write(Path::new(IN_MEMORY), std::io::Error::other(e.to_string())))?;
     Ok(out.into_inner())
+}
+
+/// Puts the file an encoder was meant for into its error: input errors name the file, and an
+/// encoding failure is reported as a failure to write that file (as before the in-memory
+/// encoders existed).
+fn at_path(e: Error, path: &Path) -> Error {
+    match e {
+        Error::Io { action, source, .. } => Error::Io {
+            action,
+            path: path.to_path_buf(),
+            source,
+        },
+        other => other.in_file(path),
+    }
 }
 
 #[cfg(test)]
@@ -178,6 +201,39 @@ mod tests {
         let back = back.as_rgb8().expect("RGB PNG");
         assert_eq!(back.dimensions(), (2, 3));
         assert_eq!(back.as_raw(), &rgb);
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    #[test]
+    fn in_memory_encoders_give_the_file_bytes() {
+        let dir = scratch("in_memory_encoders_give_the_file_bytes");
+        let img = Raster::new(3, 2, vec![0.0, 0.2, 0.4, 0.6, 0.8, 1.0]).unwrap();
+        let path = dir.join("m.png");
+        write_gray8(&path, &img, 0.0, 1.0).unwrap();
+        let bytes = encode_gray8(&img, 0.0, 1.0).unwrap();
+        assert_eq!(std::fs::read(&path).unwrap(), bytes);
+        assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n");
+        let back = image::load_from_memory(&bytes).unwrap();
+        assert_eq!(
+            back.as_luma8().unwrap().as_raw(),
+            &vec![0, 51, 102, 153, 204, 255]
+        );
+        write_gray16(&path, &img, 0.0, 1.0).unwrap();
+        assert_eq!(
+            std::fs::read(&path).unwrap(),
+            encode_gray16(&img, 0.0, 1.0).unwrap()
+        );
+        let rgb = [10u8, 20, 30, 40, 50, 60];
+        write_rgb8(&path, 2, 1, &rgb).unwrap();
+        assert_eq!(
+            std::fs::read(&path).unwrap(),
+            encode_rgb8(2, 1, &rgb).unwrap()
+        );
+        // Without a file, bad input is still an input error, with no file named.
+        let e = encode_gray8(&img, 2.0, 1.0).unwrap_err();
+        assert!(e.is_user_error());
+        assert!(e.to_string().starts_with("the gray range"), "{e}");
+        assert!(encode_rgb8(0, 1, &[]).unwrap_err().is_user_error());
         let _ = std::fs::remove_dir_all(&dir);
     }
 

@@ -1,0 +1,980 @@
+//! The USAF 1951 resolution read-out of a reconstructed image: per element, the Michelson
+//! contrast of its horizontal-bar and vertical-bar triplets, whether it is resolved, and the
+//! finest element resolved.
+//!
+//! # Geometry
+//!
+//! The chart is [`UsafChart`] (chart millimetres, x right, y up). [`ChartToImage`] maps chart
+//! millimetres to continuous image coordinates (column, row): pixel (c, r) covers
+//! [c, c + 1) × [r, r + 1) and its centre is at (c + 0.5, r + 0.5). The map is any
+//! non-singular affine map, so it can mirror (a lens inverts the image), swap axes (a DMD frame
+//! that differs from the chart frame) or rotate; [`ChartToImage::for_render`] is the map of
+//! [`UsafChart::render`] (row 0 at the top), and [`ChartToImage::mirrored_cols`],
+//! [`ChartToImage::mirrored_rows`], [`ChartToImage::rotated_180`] and
+//! [`ChartToImage::transposed`] compose the usual image flips with it.
+//!
+//! Only elements whose two triplets (their bounding boxes) lie fully inside the image,
+//! [0, width] × [0, height], are read; an element cut by the image edge is skipped rather than
+//! misread.
+//!
+//! # Criterion
+//!
+//! For each triplet, the image is sampled with bilinear interpolation (between pixel centres,
+//! clamped to the edge pixels) along profiles across the three bars. The profile is averaged
+//! along the bar length over the middle 60 % of it ([`ResolutionOptions::length_fraction`]),
+//! which averages noise down while staying one bar width away from the bar ends, where the
+//! blur of the ends would otherwise lower the peaks. Across, each of the five windows (three
+//! bars, two gaps, one bar width each) is sampled at ≥ 8 and ≤ 64 evenly spaced points
+//! (≥ 4 per pixel where that stays within 64). The contrast is the Michelson contrast of the
+//! bar pattern as it is read for a square-wave target (its contrast transfer function, CTF):
+//!
+//! > C = (mean of the bright windows' maxima − mean of the dark windows' minima)
+//! >   / (mean of the bright windows' maxima + mean of the dark windows' minima),
+//!
+//! where the bright windows are the three bars of a negative chart (clear bars in chrome, as
+//! the paper's Thorlabs R3L3S1N) or the two gaps of a positive chart, and the dark windows the
+//! others. The sign is kept: an image whose bars come out darker than their gaps (the contrast
+//! reversal of "spurious resolution" in a defocused bar image, or a chart read with the wrong
+//! polarity) has C < 0 and is not resolved. C is NaN when the denominator is not positive
+//! (an image without a physical zero, e.g. all zeros), and NaN is never resolved. The image
+//! should be an intensity (non-negative up to noise), for example a reconstruction after the
+//! normalisation rule of [`crate::metrics`].
+//!
+//! An element is resolved when both triplets have C > [`DEFAULT_THRESHOLD`] = 0.2 and its bars
+//! are more than one pixel wide (see below). Why 0.2: near the resolution limit only the
+//! fundamental of a bar pattern passes, and then the square-wave contrast is 4/π times the
+//! sine-wave modulation (MTF) at the same frequency (J. W. Coltman, "The specification of
+//! imaging properties by response to a sine wave input", J. Opt. Soc. Am. 44, 468–471, 1954).
+//! C = 0.2 is thus an MTF of 0.2·π/4 = 0.157, the same as the Michelson contrast of the
+//! Rayleigh criterion: two equal Airy patterns at the Rayleigh distance dip to 73.5 % between
+//! their peaks (M. Born and E. Wolf, Principles of Optics, 7th ed., §7.6.3), i.e.
+//! (1 − 0.735)/(1 + 0.735) = 0.153. So "C > 0.2" is a Rayleigh-like, MTF ≈ 15 % criterion for
+//! a three-bar target.
+//!
+//! # Sampling limit
+//!
+//! A pixel grid cannot represent a bar pattern whose period is two pixels or less (the Nyquist
+//! limit): any contrast seen there is an alias (a beat with the pixel grid whose size depends
+//! on the phase), not resolution. So an element whose bars are at most one pixel wide is
+//! reported with its measured contrasts but flagged `aliased` and never resolved. The width in
+//! pixels is measured along the grid axis across which the bars' stripes vary fastest (exact
+//! for maps that are axis-aligned up to flips and swaps; for a rotated map it is the width
+//! that the Nyquist condition |k_col|, |k_row| < 1/2 per pixel constrains).
+
+use std::collections::BTreeMap;
+
+use crate::error::{Error, Result};
+use crate::objects::usaf::{Bar, Polarity, Region, UsafChart, spatial_frequency_lp_per_mm};
+use crate::raster::Raster;
+
+/// The contrast an element must exceed in both orientations to be resolved (see module docs).
+pub const DEFAULT_THRESHOLD: f64 = 0.2;
+/// The middle fraction of the bar length over which the profile is averaged.
+pub const DEFAULT_LENGTH_FRACTION: f64 = 0.6;
+
+/// The criterion in one sentence, for summaries and reports.
+pub const CRITERION: &str = "Michelson contrast (mean bright-window maximum − mean dark-window minimum)/(sum) of the bilinear profile across each three-bar triplet, averaged over the middle 60 % of the bar length; resolved when both triplets exceed the threshold (0.2 ≈ Rayleigh's dip via Coltman's CTF = 4/π·MTF) and the bars are wider than one pixel";
+
+/// USAF 1951 spatial frequency R = 2^(group + (element − 1)/6), in line pairs per mm.
+pub fn usaf_lp_per_mm(group: i32, element: u8) -> f64 {
+    spatial_frequency_lp_per_mm(group, element)
+}
+
+/// The affine map px = m·mm + t from chart millimetres (x, y) to continuous image coordinates
+/// (column, row), pixel centres at +0.5.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct ChartToImage {
+    pub m: [[f64; 2]; 2],
+    pub t: [f64; 2],
+}
+
+impl ChartToImage {
+    /// A map with finite coefficients and a non-singular matrix.
+    pub fn new(m: [[f64; 2]; 2], t: [f64; 2]) -> Result<Self> {
+        let map = ChartToImage { m, t };
+        map.validate()?;
+        Ok(map)
+    }
+
+    /// The map of [`UsafChart::render`]`(region, width, height)`: column c spans
+    /// x ∈ [x0 + c·Δx, x0 + (c + 1)·Δx], row r spans y ∈ [y1 − (r + 1)·Δy, y1 − r·Δy].
+    pub fn for_render(region: &Region, width: usize, height: usize) -> Result<Self> {
+        region.validate()?;
+        if width == 0 || height == 0 {
+            return Err(Error::input(format!(
+                "a {width}×{height} image has no pixels"
+            )));
+        }
+        let sx = width as f64 / region.width_mm;
+        let sy = height as f64 / region.height_mm;
+        ChartToImage::new(
+            [[sx, 0.0], [0.0, -sy]],
+            [-region.x0_mm() * sx, region.y1_mm() * sy],
+        )
+    }
+
+    /// Checks that the coefficients are finite and the matrix invertible.
+    pub fn validate(&self) -> Result<()> {
+        let finite = self
+            .m
+            .iter()
+            .flatten()
+            .chain(&self.t)
+            .all(|v| v.is_finite());
+        let det = self.det();
+        if !finite || !det.is_finite() || det == 0.0 {
+            return Err(Error::field(
+                "chart_to_image",
+                format!(
+                    "the chart-to-image map needs finite coefficients and an invertible matrix, got m = {:?}, t = {:?}",
+                    self.m, self.t
+                ),
+            ));
+        }
+        Ok(())
+    }
+
+    fn det(&self) -> f64 {
+        self.m[0][0] * self.m[1][1] - self.m[0][1] * self.m[1][0]
+    }
+
+    /// Image coordinates (column, row) of the chart point (x, y) in mm.
+    #[inline]
+    pub fn apply(&self, x_mm: f64, y_mm: f64) -> [f64; 2] {
+        [
+            self.m[0][0] * x_mm + self.m[0][1] * y_mm + self.t[0],
+            self.m[1][0] * x_mm + self.m[1][1] * y_mm + self.t[1],
+        ]
+    }
+
+    /// This map followed by the pixel map px' = a·px + b.
+    pub fn then(&self, a: [[f64; 2]; 2], b: [f64; 2]) -> ChartToImage {
+        let mut m = [[0.0; 2]; 2];
+        for (i, row) in m.iter_mut().enumerate() {
+            for (j, v) in row.iter_mut().enumerate() {
+                *v = a[i][0] * self.m[0][j] + a[i][1] * self.m[1][j];
+            }
+        }
+        let t = [
+            a[0][0] * self.t[0] + a[0][1] * self.t[1] + b[0],
+            a[1][0] * self.t[0] + a[1][1] * self.t[1] + b[1],
+        ];
+        ChartToImage { m, t }
+    }
+
+    /// The map onto the image mirrored left–right (column c becomes width − 1 − c).
+    pub fn mirrored_cols(&self, width: usize) -> ChartToImage {
+        self.then([[-1.0, 0.0], [0.0, 1.0]], [width as f64, 0.0])
+    }
+
+    /// The map onto the image mirrored top–bottom (row r becomes height − 1 − r).
+    pub fn mirrored_rows(&self, height: usize) -> ChartToImage {
+        self.then([[1.0, 0.0], [0.0, -1.0]], [0.0, height as f64])
+    }
+
+    /// The map onto the image turned by 180° (the inversion of a single imaging lens).
+    pub fn rotated_180(&self, width: usize, height: usize) -> ChartToImage {
+        self.mirrored_cols(width).mirrored_rows(height)
+    }
+
+    /// The map onto the transposed image (column and row swapped).
+    pub fn transposed(&self) -> ChartToImage {
+        self.then([[0.0, 1.0], [1.0, 0.0]], [0.0, 0.0])
+    }
+
+    /// Rows of m⁻¹: row k is the gradient of chart coordinate k (x or y) in mm per pixel.
+    fn inverse(&self) -> [[f64; 2]; 2] {
+        let d = self.det();
+        [
+            [self.m[1][1] / d, -self.m[0][1] / d],
+            [-self.m[1][0] / d, self.m[0][0] / d],
+        ]
+    }
+}
+
+/// Settings of the read-out.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ResolutionOptions {
+    /// Contrast both triplets must exceed, in (0, 1).
+    pub threshold: f64,
+    /// Middle fraction of the bar length averaged, in (0, 1].
+    pub length_fraction: f64,
+}
+
+impl Default for ResolutionOptions {
+    fn default() -> Self {
+        ResolutionOptions {
+            threshold: DEFAULT_THRESHOLD,
+            length_fraction: DEFAULT_LENGTH_FRACTION,
+        }
+    }
+}
+
+/// A chart element.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, serde::Serialize)]
+pub struct UsafElement {
+    pub group: i32,
+    pub element: u8,
+}
+
+impl UsafElement {
+    pub fn lp_per_mm(&self) -> f64 {
+        usaf_lp_per_mm(self.group, self.element)
+    }
+}
+
+/// The read-out of one element.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct ElementReadout {
+    pub group: i32,
+    pub element: u8,
+    pub lp_per_mm: f64,
+    /// Bar width in pixels (the smaller of the two orientations; see module docs).
+    pub bar_width_px: f64,
+    /// Contrast of the three horizontal bars (long in x; they resolve detail along y).
+    pub contrast_horizontal: f64,
+    /// Contrast of the three vertical bars (long in y; they resolve detail along x).
+    pub contrast_vertical: f64,
+    /// Bars at most one pixel wide: beyond the pixel grid's Nyquist limit, never resolved.
+    pub aliased: bool,
+    pub resolved: bool,
+}
+
+/// The read-out of a whole image.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct ResolutionReadout {
+    pub threshold: f64,
+    pub length_fraction: f64,
+    /// Every element fully inside the image, from coarse to fine.
+    pub elements: Vec<ElementReadout>,
+    /// The resolved element with the highest spatial frequency, if any.
+    pub finest_resolved: Option<UsafElement>,
+}
+
+impl ResolutionReadout {
+    /// The spatial frequency of [`ResolutionReadout::finest_resolved`], in lp/mm.
+    pub fn finest_lp_per_mm(&self) -> Option<f64> {
+        self.finest_resolved.map(|e| e.lp_per_mm())
+    }
+}
+
+/// Reads the resolution of `image`, an image of `chart` through `map` (see the module docs for
+/// the criterion). Bad input (an inconsistent raster, a singular or non-finite map, options out
+/// of range) is `Error::Input`.
+pub fn read_resolution(
+    image: &Raster,
+    chart: &UsafChart,
+    map: &ChartToImage,
+    options: &ResolutionOptions,
+) -> Result<ResolutionReadout> {
+    if image.width == 0 || image.height == 0 || image.data.len() != image.width * image.height {
+        return Err(Error::input(format!(
+            "the image holds {} values but claims {}×{}",
+            image.data.len(),
+            image.width,
+            image.height
+        )));
+    }
+    map.validate()?;
+    if !(options.threshold > 0.0 && options.threshold < 1.0) {
+        return Err(Error::field(
+            "threshold",
+            format!(
+                "the contrast threshold must lie in (0, 1), got {}",
+                options.threshold
+            ),
+        ));
+    }
+    if !(options.length_fraction > 0.0 && options.length_fraction <= 1.0) {
+        return Err(Error::field(
+            "length_fraction",
+            format!(
+                "the averaged fraction of the bar length must lie in (0, 1], got {}",
+                options.length_fraction
+            ),
+        ));
+    }
+    // Bars come ordered by group, element, horizontal first; the map keeps (group, element)
+    // order, which is the order of increasing frequency.
+    let mut by_element: BTreeMap<(i32, u8), Vec<Bar>> = BTreeMap::new();
+    for b in chart.bars() {
+        by_element.entry((b.group, b.element)).or_default().push(b);
+    }
+    let inverse = map.inverse();
+    let mut elements = Vec::new();
+    for ((group, element), bars) in by_element {
+        let horizontal: Vec<Bar> = bars.iter().filter(|b| b.horizontal).copied().collect();
+        let vertical: Vec<Bar> = bars.iter().filter(|b| !b.horizontal).copied().collect();
+        if horizontal.len() != 3 || vertical.len() != 3 {
+            continue;
+        }
+        if !inside(image, map, &horizontal) || !inside(image, map, &vertical) {
+            continue;
+        }
+        let w_mm = horizontal[0].width_mm();
+        // Horizontal bars vary along y: their stripes' gradient in pixels is row 1 of m⁻¹.
+        let width_px = |row: [f64; 2]| w_mm / row[0].abs().max(row[1].abs());
+        let bar_width_px = width_px(inverse[1]).min(width_px(inverse[0]));
+        let polarity = chart.polarity;
+        let frac = options.length_fraction;
+        let contrast_horizontal = triplet_contrast(image, map, &horizontal, polarity, frac);
+        let contrast_vertical = triplet_contrast(image, map, &vertical, polarity, frac);
+        let aliased = bar_width_px <= 1.0;
+        // NaN compares false, so an undefined contrast is never resolved.
+        let resolved = !aliased
+            && contrast_horizontal > options.threshold
+            && contrast_vertical > options.threshold;
+        elements.push(ElementReadout {
+            group,
+            element,
+            lp_per_mm: usaf_lp_per_mm(group, element),
+            bar_width_px,
+            contrast_horizontal,
+            contrast_vertical,
+            aliased,
+            resolved,
+        });
+    }
+    let finest_resolved = elements
+        .iter()
+        .filter(|e| e.resolved)
+        .map(|e| UsafElement {
+            group: e.group,
+            element: e.element,
+        })
+        .max();
+    Ok(ResolutionReadout {
+        threshold: options.threshold,
+        length_fraction: options.length_fraction,
+        elements,
+        finest_resolved,
+    })
+}
+
+/// The bounding box of a triplet in chart mm: [x0, y0, x1, y1].
+fn triplet_box(bars: &[Bar]) -> [f64; 4] {
+    bars.iter().fold(
+        [
+            f64::INFINITY,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::NEG_INFINITY,
+        ],
+        |a, b| {
+            [
+                a[0].min(b.x0_mm),
+                a[1].min(b.y0_mm),
+                a[2].max(b.x1_mm),
+                a[3].max(b.y1_mm),
+            ]
+        },
+    )
+}
+
+/// True if the triplet's box maps into [0, width] × [0, height] (an affine map sends the box to
+/// a parallelogram, which lies inside the image rectangle iff its four corners do). A slack of
+/// 1e-9 pixel absorbs round-off for a box that touches the edge exactly.
+fn inside(image: &Raster, map: &ChartToImage, bars: &[Bar]) -> bool {
+    let [x0, y0, x1, y1] = triplet_box(bars);
+    let (w, h) = (image.width as f64, image.height as f64);
+    let eps = 1e-9;
+    [(x0, y0), (x0, y1), (x1, y0), (x1, y1)]
+        .iter()
+        .all(|&(x, y)| {
+            let [c, r] = map.apply(x, y);
+            c >= -eps && c <= w + eps && r >= -eps && r <= h + eps
+        })
+}
+
+/// Bilinear interpolation between pixel centres at continuous (col, row); outside the centres'
+/// hull the edge pixels hold (so a sample between an edge pixel's centre and the image edge
+/// takes that pixel's value).
+#[inline]
+fn bilinear(image: &Raster, col: f64, row: f64) -> f64 {
+    let (w, h) = (image.width, image.height);
+    let x = (col - 0.5).clamp(0.0, (w - 1) as f64);
+    let y = (row - 0.5).clamp(0.0, (h - 1) as f64);
+    let c0 = (x.floor() as usize).min(w.saturating_sub(2));
+    let r0 = (y.floor() as usize).min(h.saturating_sub(2));
+    let (c1, r1) = ((c0 + 1).min(w - 1), (r0 + 1).min(h - 1));
+    let (fx, fy) = (x - c0 as f64, y - r0 as f64);
+    let top = image.get(r0, c0) * (1.0 - fx) + image.get(r0, c1) * fx;
+    let bottom = image.get(r1, c0) * (1.0 - fx) + image.get(r1, c1) * fx;
+    top * (1.0 - fy) + bottom * fy
+}
+
+/// The signed Michelson contrast of one triplet (see the module docs).
+fn triplet_contrast(
+    image: &Raster,
+    map: &ChartToImage,
+    bars: &[Bar],
+    polarity: Polarity,
+    length_fraction: f64,
+) -> f64 {
+    let horizontal = bars[0].horizontal;
+    // (across interval, along interval) of a bar: horizontal bars are long in x.
+    let spans = |b: &Bar| {
+        if horizontal {
+            ((b.y0_mm, b.y1_mm), (b.x0_mm, b.x1_mm))
+        } else {
+            ((b.x0_mm, b.x1_mm), (b.y0_mm, b.y1_mm))
+        }
+    };
+    let mut across: Vec<(f64, f64)> = bars.iter().map(|b| spans(b).0).collect();
+    across.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let (along0, along1) = spans(&bars[0]).1;
+    let centre = 0.5 * (along0 + along1);
+    let half = 0.5 * length_fraction * (along1 - along0);
+    let point = |a: f64, l: f64| if horizontal { (l, a) } else { (a, l) };
+
+    // Sample counts from the pixel lengths of one bar width across and of the averaged length.
+    let px_len = |(x0, y0): (f64, f64), (x1, y1): (f64, f64)| {
+        let [c0, r0] = map.apply(x0, y0);
+        let [c1, r1] = map.apply(x1, y1);
+        (c1 - c0).hypot(r1 - r0)
+    };
+    let w_px = px_len(point(across[0].0, centre), point(across[0].1, centre));
+    let len_px = px_len(
+        point(across[0].0, centre - half),
+        point(across[0].0, centre + half),
+    );
+    let per_window = ((4.0 * w_px).ceil() as usize).clamp(8, 64);
+    let n_along = ((2.0 * len_px).ceil() as usize).clamp(8, 256);
+
+    // Mean of the image along the bar length at one across position.
+    let profile = |a: f64| {
+        let mut sum = 0.0;
+        for k in 0..n_along {
+            let l = centre - half + (k as f64 + 0.5) * (2.0 * half) / n_along as f64;
+            let (x, y) = point(a, l);
+            let [c, r] = map.apply(x, y);
+            sum += bilinear(image, c, r);
+        }
+        sum / n_along as f64
+    };
+    let extreme = |(lo, hi): (f64, f64), bright: bool| {
+        let mut best = if bright {
+            f64::NEG_INFINITY
+        } else {
+            f64::INFINITY
+        };
+        for k in 0..per_window {
+            let v = profile(lo + (k as f64 + 0.5) * (hi - lo) / per_window as f64);
+            if v.is_nan() {
+                return f64::NAN;
+            }
+            best = if bright { best.max(v) } else { best.min(v) };
+        }
+        best
+    };
+    let bar_windows = across.clone();
+    let gap_windows: Vec<(f64, f64)> = across.windows(2).map(|p| (p[0].1, p[1].0)).collect();
+    let (bright, dark) = match polarity {
+        Polarity::Negative => (bar_windows, gap_windows),
+        Polarity::Positive => (gap_windows, bar_windows),
+    };
+    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
+    let hi = mean(&bright.iter().map(|&w| extreme(w, true)).collect::<Vec<_>>());
+    let lo = mean(&dark.iter().map(|&w| extreme(w, false)).collect::<Vec<_>>());
+    let sum = hi + lo;
+    if sum > 0.0 && sum.is_finite() {
+        (hi - lo) / sum
+    } else {
+        f64::NAN
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::objects::usaf::{PaperRegion, bar_width_mm};
+
+    /// The chart of the paper (groups −2..=7).
+    fn chart(polarity: Polarity) -> UsafChart {
+        UsafChart::new(-2, 7, polarity).unwrap()
+    }
+
+    /// A square around the second layer (groups 0 and 1, with groups 2..7 nested inside), with
+    /// a 0.3 mm margin: x −0.794..11.184 mm, y −4.462..7.517 mm (usaf.rs landmarks).
+    fn layer_region() -> Region {
+        Region::from_corners(-0.794, -4.462, 11.184, 7.517)
+            .to_square()
+            .expanded(0.3)
+    }
+
+    const N: usize = 500;
+
+    /// Separable Gaussian blur, kernel truncated at 4σ and normalised, edges replicated.
+    fn blur(img: &Raster, sigma_px: f64) -> Raster {
+        if sigma_px == 0.0 {
+            return img.clone();
+        }
+        let radius = (4.0 * sigma_px).ceil() as isize;
+        let mut k: Vec<f64> = (-radius..=radius)
+            .map(|i| (-0.5 * (i as f64 / sigma_px).powi(2)).exp())
+            .collect();
+        let s: f64 = k.iter().sum();
+        k.iter_mut().for_each(|v| *v /= s);
+        let (w, h) = (img.width as isize, img.height as isize);
+        let pass = |src: &Raster, horizontal: bool| {
+            Raster::from_fn(img.width, img.height, |r, c| {
+                let mut acc = 0.0;
+                for (j, kv) in k.iter().enumerate() {
+                    let d = j as isize - radius;
+                    let (rr, cc) = if horizontal {
+                        (r as isize, (c as isize + d).clamp(0, w - 1))
+                    } else {
+                        ((r as isize + d).clamp(0, h - 1), c as isize)
+                    };
+                    acc += kv * src.get(rr as usize, cc as usize);
+                }
+                acc
+            })
+        };
+        pass(&pass(img, true), false)
+    }
+
+    fn read(img: &Raster, chart: &UsafChart, map: &ChartToImage) -> ResolutionReadout {
+        read_resolution(img, chart, map, &ResolutionOptions::default()).unwrap()
+    }
+
+    #[test]
+    fn lp_per_mm_follows_the_usaf_series() {
+        assert_eq!(usaf_lp_per_mm(0, 1), 1.0);
+        assert_eq!(usaf_lp_per_mm(-2, 1), 0.25);
+        assert_eq!(usaf_lp_per_mm(3, 1), 8.0);
+        assert!((usaf_lp_per_mm(1, 4) - 2f64.powf(1.5)).abs() < 1e-12);
+        // Published table values (MIL-STD-150A): group −1 element 5: 0.794, group 7
+        // element 6: 228.0 lp/mm (the table rounds to 4 significant digits).
+        assert!((usaf_lp_per_mm(-1, 5) - 0.794).abs() < 5e-4);
+        assert!((usaf_lp_per_mm(7, 6) - 228.0).abs() < 0.5);
+        // A bar is half a period wide.
+        assert!((0.5 / usaf_lp_per_mm(0, 5) - bar_width_mm(0, 5)).abs() < 1e-15);
+    }
+
+    #[test]
+    fn render_map_sends_the_region_to_the_image() {
+        let region = layer_region();
+        let map = ChartToImage::for_render(&region, 400, 300).unwrap();
+        let [c, r] = map.apply(region.x0_mm(), region.y1_mm());
+        assert!(c.abs() < 1e-9 && r.abs() < 1e-9);
+        let [c, r] = map.apply(region.x1_mm(), region.y0_mm());
+        assert!((c - 400.0).abs() < 1e-9 && (r - 300.0).abs() < 1e-9);
+        // A pixel centre mapped back to the chart is clear exactly where the render says so
+        // (checked on every 3rd pixel that is wholly clear or wholly chrome).
+        let chart = chart(Polarity::Negative);
+        let img = chart.render(&region, 400, 300);
+        let inv = map.inverse();
+        let mut agree = 0;
+        let mut clear = 0;
+        for (row, col) in (0..300)
+            .step_by(3)
+            .flat_map(|r| (0..400).step_by(3).map(move |c| (r, c)))
+        {
+            let (pc, pr) = (col as f64 + 0.5 - map.t[0], row as f64 + 0.5 - map.t[1]);
+            let x = inv[0][0] * pc + inv[0][1] * pr;
+            let y = inv[1][0] * pc + inv[1][1] * pr;
+            let v = img.get(row, col);
+            if v == 0.0 || v == 1.0 {
+                assert_eq!(chart.is_clear(x, y), v == 1.0, "({row}, {col})");
+                agree += 1;
+                clear += usize::from(v == 1.0);
+            }
+        }
+        assert!(agree > 10_000 && clear > 1_000, "{agree} {clear}");
+    }
+
+    #[test]
+    fn sharp_render_resolves_bars_of_two_and_a_half_pixels() {
+        let chart = chart(Polarity::Negative);
+        let region = layer_region();
+        let img = chart.render(&region, N, N);
+        let map = ChartToImage::for_render(&region, N, N).unwrap();
+        let out = read(&img, &chart, &map);
+        // Groups 0..=7 lie inside the square, groups −2 and −1 outside it.
+        assert_eq!(out.elements.len(), 48);
+        assert!(out.elements.iter().all(|e| (0..=7).contains(&e.group)));
+        let px_mm = region.width_mm / N as f64;
+        let mut finest_sharp = None;
+        for e in &out.elements {
+            assert!((e.bar_width_px - bar_width_mm(e.group, e.element) / px_mm).abs() < 1e-9);
+            if e.bar_width_px >= 2.5 {
+                // At least one whole pixel lies inside every bar and every gap, so the profile
+                // reaches within 1/8 px of a pure 1 and a pure 0: C ≥ 0.75.
+                assert!(e.resolved, "{e:?}");
+                assert!(
+                    e.contrast_horizontal > 0.75 && e.contrast_vertical > 0.75,
+                    "{e:?}"
+                );
+                finest_sharp = Some(UsafElement {
+                    group: e.group,
+                    element: e.element,
+                });
+            }
+            if e.bar_width_px <= 1.0 {
+                assert!(e.aliased && !e.resolved, "{e:?}");
+            }
+        }
+        // 0.0252 mm pixels: group 2 element 6 (70 µm bars, 2.8 px) is the last ≥ 2.5 px.
+        assert_eq!(
+            finest_sharp,
+            Some(UsafElement {
+                group: 2,
+                element: 6
+            })
+        );
+        let finest = out.finest_resolved.unwrap();
+        assert!(finest >= finest_sharp.unwrap());
+        let finest_e = out
+            .elements
+            .iter()
+            .find(|e| e.group == finest.group && e.element == finest.element)
+            .unwrap();
+        assert!(finest_e.bar_width_px > 1.0);
+    }
+
+    /// Φ, the standard normal distribution function, via erfc (Abramowitz & Stegun 7.1.26,
+    /// absolute error < 1.5e-7).
+    fn phi(z: f64) -> f64 {
+        let x = z.abs() / std::f64::consts::SQRT_2;
+        let t = 1.0 / (1.0 + 0.327_591_1 * x);
+        let poly = t
+            * (0.254_829_592
+                + t * (-0.284_496_736
+                    + t * (1.421_413_741 + t * (-1.453_152_027 + t * 1.061_405_429))));
+        let erfc = poly * (-x * x).exp();
+        if z >= 0.0 {
+            1.0 - 0.5 * erfc
+        } else {
+            0.5 * erfc
+        }
+    }
+
+    /// The contrast of an element's triplet predicted in closed form: three bars of width w
+    /// and length 5w (period 2w) blurred by a Gaussian of σ (mm), the profile taken across the
+    /// bars and averaged over the middle 60 % of their length, then the same max/min rule.
+    /// Independent of the image, the map and the interpolation. Returns (contrast, hi + lo).
+    fn model_contrast(w: f64, sigma: f64) -> (f64, f64) {
+        let along = |l: f64| phi((l + 2.5 * w) / sigma) - phi((l - 2.5 * w) / sigma);
+        let n = 600;
+        let along_mean: f64 = (0..n)
+            .map(|k| along(-1.5 * w + 3.0 * w * (k as f64 + 0.5) / n as f64))
+            .sum::<f64>()
+            / n as f64;
+        let across = |s: f64| -> f64 {
+            (0..3)
+                .map(|i| {
+                    let a = 2.0 * w * i as f64;
+                    phi((s - a) / sigma) - phi((s - a - w) / sigma)
+                })
+                .sum::<f64>()
+                * along_mean
+        };
+        let ext = |lo: f64, bright: bool| {
+            let v = (0..200).map(|k| across(lo + w * (k as f64 + 0.5) / 200.0));
+            if bright {
+                v.fold(f64::NEG_INFINITY, f64::max)
+            } else {
+                v.fold(f64::INFINITY, f64::min)
+            }
+        };
+        let hi = (ext(0.0, true) + ext(2.0 * w, true) + ext(4.0 * w, true)) / 3.0;
+        let lo = (ext(w, false) + ext(3.0 * w, false)) / 2.0;
+        ((hi - lo) / (hi + lo), hi + lo)
+    }
+
+    #[test]
+    fn blurred_contrast_matches_the_three_bar_model() {
+        let chart = chart(Polarity::Negative);
+        let region = layer_region();
+        let sharp = chart.render(&region, N, N);
+        let map = ChartToImage::for_render(&region, N, N).unwrap();
+        let px_mm = region.width_mm / N as f64;
+        let mut compared = 0;
+        let mut worst: f64 = 0.0;
+        let mut worst_ratio: f64 = 0.0;
+        for sigma_px in [2.0, 4.0] {
+            let out = read(&blur(&sharp, sigma_px), &chart, &map);
+            // Area sampling adds a 1-px box (variance 1/12 px²) to the Gaussian.
+            let sigma_mm = (sigma_px * sigma_px + 1.0 / 12.0).sqrt() * px_mm;
+            for e in out.elements.iter().filter(|e| e.bar_width_px > 1.0) {
+                let (want, hi_plus_lo) = model_contrast(bar_width_mm(e.group, e.element), sigma_mm);
+                // Budget. Bilinear interpolation between pixel centres (spacing h = 1 px)
+                // misses an extremum by at most δ = h²/8·max|p''|; each blurred bar edge has
+                // |p''| ≤ max|φ'|/σ² = 0.242/σ² per unit step, and at most two edges reach an
+                // extremum, so δ ≤ 0.484/(8σ²) (0.0148 at σ = 2 px). An error δ in the maximum
+                // and in the minimum moves C = (hi − lo)/(hi + lo) by at most 2δ/(hi + lo).
+                // Add 0.01 for treating the 1-px box of area sampling as a Gaussian and for the
+                // neighbouring elements the model leaves out.
+                let delta = 0.484 / (8.0 * sigma_px * sigma_px);
+                let tol = 2.0 * delta / hi_plus_lo + 0.01;
+                for got in [e.contrast_horizontal, e.contrast_vertical] {
+                    worst = worst.max((got - want).abs());
+                    worst_ratio = worst_ratio.max((got - want).abs() / tol);
+                    assert!(
+                        (got - want).abs() < tol,
+                        "σ {sigma_px} px {e:?}: model {want} ± {tol}"
+                    );
+                }
+                if want > DEFAULT_THRESHOLD + tol {
+                    assert!(e.resolved, "σ {sigma_px} px {e:?}: model {want}");
+                } else if want < DEFAULT_THRESHOLD - tol {
+                    assert!(!e.resolved, "σ {sigma_px} px {e:?}: model {want}");
+                }
+                compared += 1;
+            }
+        }
+        eprintln!(
+            "largest |measured − model| contrast: {worst:.4} ({worst_ratio:.2} of its tolerance) over {compared} element readings"
+        );
+        assert!(compared > 40);
+    }
+
+    #[test]
+    fn blur_coarsens_the_limit_monotonically() {
+        let chart = chart(Polarity::Negative);
+        let region = layer_region();
+        let sharp = chart.render(&region, N, N);
+        let map = ChartToImage::for_render(&region, N, N).unwrap();
+        let mut limits = Vec::new();
+        for sigma_px in [0.0, 1.0, 2.0, 3.0, 5.0, 8.0] {
+            let out = read(&blur(&sharp, sigma_px), &chart, &map);
+            let f = out
+                .finest_lp_per_mm()
+                .expect("the coarse elements stay resolved");
+            limits.push((sigma_px, f));
+        }
+        eprintln!("σ (px) → finest resolved (lp/mm): {limits:?}");
+        for pair in limits.windows(2) {
+            assert!(pair[1].1 <= pair[0].1, "{limits:?}");
+        }
+        // The model's limit is ~3.3σ pixels per period, so σ = 2 → 8 px is 2 groups coarser.
+        assert!(limits[5].1 < limits[2].1 / 3.0, "{limits:?}");
+        assert!(limits[4].1 < limits[3].1, "{limits:?}");
+    }
+
+    /// The image transformed as named, with the matching map.
+    fn transformed(img: &Raster, map: &ChartToImage, how: &str) -> (Raster, ChartToImage) {
+        let (w, h) = (img.width, img.height);
+        match how {
+            "cols" => (
+                Raster::from_fn(w, h, |r, c| img.get(r, w - 1 - c)),
+                map.mirrored_cols(w),
+            ),
+            "rows" => (
+                Raster::from_fn(w, h, |r, c| img.get(h - 1 - r, c)),
+                map.mirrored_rows(h),
+            ),
+            "180" => (
+                Raster::from_fn(w, h, |r, c| img.get(h - 1 - r, w - 1 - c)),
+                map.rotated_180(w, h),
+            ),
+            "transpose" => (
+                Raster::from_fn(h, w, |r, c| img.get(c, r)),
+                map.transposed(),
+            ),
+            "rot90" => {
+                let (t, m) = transformed(img, map, "transpose");
+                transformed(&t, &m, "cols")
+            }
+            _ => unreachable!(),
+        }
+    }
+
+    #[test]
+    fn flipped_and_rotated_maps_give_the_same_readout() {
+        let chart = chart(Polarity::Negative);
+        let region = layer_region();
+        // A non-square image, so that a swapped width and height would show.
+        let (w, h) = (520, 480);
+        let img = blur(&chart.render(&region, w, h), 2.0);
+        let map = ChartToImage::for_render(&region, w, h).unwrap();
+        let base = read(&img, &chart, &map);
+        assert!(base.finest_resolved.is_some());
+        for how in ["cols", "rows", "180", "transpose", "rot90"] {
+            let (t, m) = transformed(&img, &map, how);
+            let out = read(&t, &chart, &m);
+            assert_eq!(out.finest_resolved, base.finest_resolved, "{how}");
+            assert_eq!(out.elements.len(), base.elements.len(), "{how}");
+            for (a, b) in out.elements.iter().zip(&base.elements) {
+                assert_eq!(
+                    (a.group, a.element, a.resolved),
+                    (b.group, b.element, b.resolved)
+                );
+                assert!(
+                    (a.contrast_horizontal - b.contrast_horizontal).abs() < 1e-9,
+                    "{how}"
+                );
+                assert!(
+                    (a.contrast_vertical - b.contrast_vertical).abs() < 1e-9,
+                    "{how}"
+                );
+                assert!((a.bar_width_px - b.bar_width_px).abs() < 1e-9, "{how}");
+            }
+        }
+        // Reading a flipped image through the unflipped map misreads it: the answer changes.
+        let (t, _) = transformed(&img, &map, "180");
+        let wrong = read(&t, &chart, &map);
+        assert_ne!(wrong.elements, base.elements);
+    }
+
+    #[test]
+    fn positive_and_negative_charts_agree_and_the_sign_counts() {
+        let region = layer_region();
+        let map = ChartToImage::for_render(&region, N, N).unwrap();
+        let neg = chart(Polarity::Negative);
+        let pos = chart(Polarity::Positive);
+        for sigma_px in [0.0, 3.0] {
+            let rn = read(&blur(&neg.render(&region, N, N), sigma_px), &neg, &map);
+            let img_pos = blur(&pos.render(&region, N, N), sigma_px);
+            let rp = read(&img_pos, &pos, &map);
+            assert!(rp.finest_resolved.is_some());
+            // The positive profile is 1 − the negative one: the same modulation over another
+            // mean level, so the Michelson contrasts differ a little and the limits agree to
+            // within one element (a factor 2^(1/6) in frequency).
+            let (fnn, fp) = (
+                rn.finest_lp_per_mm().unwrap(),
+                rp.finest_lp_per_mm().unwrap(),
+            );
+            assert!(
+                (fp / fnn).log2().abs() <= 1.0 / 6.0 + 1e-9,
+                "σ {sigma_px}: {fnn} {fp}"
+            );
+            // The positive image read as a negative chart has its bars dark: contrast < 0 for
+            // every well-resolved element, and nothing resolved.
+            let wrong = read(&img_pos, &neg, &map);
+            assert!(wrong.finest_resolved.is_none());
+            for (e, p) in wrong.elements.iter().zip(&rp.elements) {
+                if !p.aliased && p.contrast_horizontal > 0.5 {
+                    assert!(e.contrast_horizontal < 0.0, "{e:?}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn constant_and_empty_images_resolve_nothing() {
+        let chart = chart(Polarity::Negative);
+        let region = layer_region();
+        let map = ChartToImage::for_render(&region, 200, 200).unwrap();
+        let flat = Raster::from_fn(200, 200, |_, _| 0.7);
+        let out = read(&flat, &chart, &map);
+        assert!(!out.elements.is_empty());
+        assert!(out.finest_resolved.is_none());
+        // Zero up to the round-off of averaging a constant (a few ulps).
+        for e in &out.elements {
+            assert!(e.contrast_horizontal.abs() < 1e-12, "{e:?}");
+            assert!(e.contrast_vertical.abs() < 1e-12, "{e:?}");
+        }
+        // All zeros has no contrast at all (0/0): NaN, not resolved.
+        let out = read(&Raster::zeros(200, 200), &chart, &map);
+        assert!(out.finest_resolved.is_none());
+        assert!(out.elements.iter().all(|e| e.contrast_horizontal.is_nan()));
+        // NaN pixels poison only the elements they touch.
+        let mut img = chart.render(&region, 200, 200);
+        img.data[0] = f64::NAN;
+        assert!(read(&img, &chart, &map).finest_resolved.is_some());
+    }
+
+    #[test]
+    fn elements_cut_by_the_image_edge_are_skipped() {
+        let chart = chart(Polarity::Negative);
+        // The right edge at x = 6.5 mm cuts through group 0 element 1 and the third layer.
+        let region = Region::from_corners(-1.1, -4.8, 6.5, 7.8);
+        let (w, h) = (304, 500);
+        let img = chart.render(&region, w, h);
+        let map = ChartToImage::for_render(&region, w, h).unwrap();
+        let out = read(&img, &chart, &map);
+        let mut inside = Vec::new();
+        let mut partial = 0;
+        let mut by_element: BTreeMap<(i32, u8), Vec<Bar>> = BTreeMap::new();
+        for b in chart.bars() {
+            by_element.entry((b.group, b.element)).or_default().push(b);
+        }
+        for ((g, e), bars) in by_element {
+            let fully = bars
+                .iter()
+                .all(|b| b.overlap_area_mm2(&region) == b.area_mm2());
+            let touched = bars.iter().any(|b| b.overlap_area_mm2(&region) > 0.0);
+            if fully {
+                inside.push((g, e));
+            } else if touched {
+                partial += 1;
+            }
+        }
+        assert!(partial >= 2 && inside.len() >= 10, "{partial} {inside:?}");
+        let read_out: Vec<(i32, u8)> = out.elements.iter().map(|e| (e.group, e.element)).collect();
+        assert_eq!(read_out, inside);
+        assert!(!read_out.contains(&(0, 1)));
+        // A map that puts the chart elsewhere reads nothing.
+        let away = map.then([[1.0, 0.0], [0.0, 1.0]], [10_000.0, 0.0]);
+        let out = read(&img, &chart, &away);
+        assert!(out.elements.is_empty() && out.finest_resolved.is_none());
+    }
+
+    #[test]
+    fn paper_fig8b_at_96_pixels_resolves_group_0_element_6() {
+        let chart = UsafChart::thorlabs_r3l3s1n();
+        let region = PaperRegion::Fig8b.region();
+        let img = chart.render(&region, 96, 96);
+        let map = ChartToImage::for_render(&region, 96, 96).unwrap();
+        let out = read(&img, &chart, &map);
+        let listed: Vec<(i32, u8)> = out.elements.iter().map(|e| (e.group, e.element)).collect();
+        assert_eq!(listed, vec![(0, 4), (0, 5), (0, 6)]);
+        assert_eq!(
+            out.finest_resolved,
+            Some(UsafElement {
+                group: 0,
+                element: 6
+            })
+        );
+        // Group 0 element 6 at 96 px: 280.6 µm bars over 70.7 µm pixels = 3.97 px.
+        assert!((out.elements[2].bar_width_px - 3.968).abs() < 0.01);
+    }
+
+    #[test]
+    fn bad_input_is_an_input_error() {
+        let chart = chart(Polarity::Negative);
+        let region = layer_region();
+        let img = Raster::zeros(10, 10);
+        let map = ChartToImage::for_render(&region, 10, 10).unwrap();
+        let opts = ResolutionOptions::default();
+        let singular = ChartToImage {
+            m: [[1.0, 2.0], [2.0, 4.0]],
+            t: [0.0, 0.0],
+        };
+        assert!(
+            read_resolution(&img, &chart, &singular, &opts)
+                .unwrap_err()
+                .is_user_error()
+        );
+        assert!(ChartToImage::new([[f64::NAN, 0.0], [0.0, 1.0]], [0.0, 0.0]).is_err());
+        assert!(ChartToImage::new([[1.0, 0.0], [0.0, 1.0]], [f64::INFINITY, 0.0]).is_err());
+        assert!(ChartToImage::for_render(&region, 0, 10).is_err());
+        for (threshold, length_fraction) in [
+            (0.0, 0.6),
+            (1.0, 0.6),
+            (f64::NAN, 0.6),
+            (0.2, 0.0),
+            (0.2, 1.5),
+        ] {
+            let o = ResolutionOptions {
+                threshold,
+                length_fraction,
+            };
+            let e = read_resolution(&img, &chart, &map, &o).unwrap_err();
+            assert!(e.is_user_error(), "{e}");
+        }
+        let broken = Raster {
+            width: 10,
+            height: 10,
+            data: vec![0.0; 7],
+        };
+        assert!(
+            read_resolution(&broken, &chart, &map, &opts)
+                .unwrap_err()
+                .is_user_error()
+        );
+    }
+}

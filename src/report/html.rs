@@ -1,0 +1,933 @@
+//! One self-contained HTML page per report: text, tables, key–value lists and images, all in
+//! a single file that needs no network, no script and no external style sheet or font.
+//!
+//! A report is plain data ([`Page`] holding [`Block`]s) turned into a string by [`render`] (or
+//! written atomically by [`write_page`]). Everything that is text is HTML-escaped ([`escape`]),
+//! so a caption or table cell holding `<script>` shows those characters and runs nothing.
+//!
+//! # Images
+//!
+//! PNG bytes are embedded as `data:image/png;base64,…` URIs (base64 of RFC 4648 §4, written
+//! here: [`base64`]). An image narrower than [`MIN_DISPLAY_PX`] is shown enlarged by the
+//! smallest whole factor that brings it to that width (a 48×48 reconstruction at 6×, 288 px),
+//! and every enlarged image is drawn with `image-rendering: pixelated`, so each pixel stays a
+//! crisp square instead of being smoothed: a reconstruction's pixels are its data.
+//! [`png_bytes_gray8`] encodes a [`Raster`] in memory with the same code as the PNG files.
+//!
+//! SVG (for example a plot from `plotters`) is embedded as a `data:image/svg+xml;base64,…`
+//! URI in an `<img>`, not inline. Why: an SVG referenced by `<img>` is rendered by browsers in
+//! their "secure static mode" (no script runs, no external resource is fetched, no event
+//! handler fires; W3C SVG 2 §"Processing modes", HTML's rule for images), and its markup is
+//! base64 text that cannot close or open a tag of the page. Inline SVG would share the page's
+//! DOM, so any `<script>`, `<foreignObject>` or `on…` attribute in it would run or break the
+//! page unless the SVG were fully parsed and sanitised. Before embedding, the text is checked
+//! to be an SVG document (optional BOM, XML declaration, comments and a DOCTYPE without an
+//! internal subset, then an `<svg` root element); anything else is shown as a visible
+//! placeholder. A root element without an `xmlns` gets the SVG namespace added, since an
+//! `<img>` renders nothing without it.
+//!
+//! A Content-Security-Policy meta element (`default-src 'none'; img-src data:; style-src
+//! 'unsafe-inline'`) makes the browser itself refuse any script and any fetch, so the page
+//! stays self-contained even if a future block type made a mistake.
+//!
+//! # Checking the look in a browser
+//!
+//! The Rust tests need no browser. To look at a sample page (Debian's `chromium` package):
+//!
+//! ```text
+//! SPIBENCH_HTML_SAMPLE=/tmp/page.html cargo test --lib report::html::tests::sample_page
+//! chromium --headless --no-sandbox --disable-gpu --hide-scrollbars \
+//!     --screenshot=/tmp/page.png --window-size=1200,1600 file:///tmp/page.html
+//! chromium --headless --no-sandbox --disable-gpu --no-pdf-header-footer \
+//!     --print-to-pdf=/tmp/page.pdf file:///tmp/page.html
+//! ```
+
+use std::fmt::Write as _;
+use std::path::Path;
+
+use super::npy::write_atomic;
+use crate::error::Result;
+use crate::raster::Raster;
+
+/// Images narrower than this (CSS px) are shown enlarged by a whole factor (see module docs).
+pub const MIN_DISPLAY_PX: u32 = 256;
+
+/// One HTML page: a title (shown as the top heading) and its blocks, in order.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Page {
+    pub title: String,
+    pub blocks: Vec<Block>,
+}
+
+/// The parts a page is built from. All strings are plain text (escaped when rendered).
+#[derive(Debug, Clone, PartialEq)]
+pub enum Block {
+    /// A section heading; `level` 1..=6 (values outside are clamped). Level-2 headings get a
+    /// table of contents under the title when there are at least three of them.
+    Heading {
+        level: u8,
+        text: String,
+    },
+    Paragraph(String),
+    /// A table; cells that read as numbers (optionally with `%`) are right-aligned.
+    Table {
+        caption: Option<String>,
+        header: Vec<String>,
+        rows: Vec<Vec<String>>,
+    },
+    /// A PNG file's bytes, embedded. `width_px`: the display width in CSS pixels; `None`
+    /// shows the natural width, enlarged by a whole factor when below [`MIN_DISPLAY_PX`].
+    Image {
+        caption: String,
+        png: Vec<u8>,
+        alt: String,
+        width_px: Option<u32>,
+    },
+    /// An SVG document (text), embedded as an image (see the module docs for why).
+    Svg {
+        caption: String,
+        svg: String,
+    },
+    /// Blocks side by side (wrapping on narrow pages), typically images of the same size.
+    Figures(Vec<Block>),
+    /// Monospaced text, whitespace kept.
+    Preformatted(String),
+    /// A two-column list of names and values.
+    KeyValues(Vec<(String, String)>),
+}
+
+impl Block {
+    /// A grayscale image of `image`, mapped linearly from `[lo, hi]` to black..white (as
+    /// [`png_bytes_gray8`]); the caption doubles as the alternative text.
+    pub fn gray_image(
+        caption: impl Into<String>,
+        image: &Raster,
+        lo: f64,
+        hi: f64,
+    ) -> Result<Block> {
+        let caption = caption.into();
+        Ok(Block::Image {
+            alt: caption.clone(),
+            caption,
+            png: png_bytes_gray8(image, lo, hi)?,
+            width_px: None,
+        })
+    }
+}
+
+/// An 8-bit gray PNG of `image` in memory: `[lo, hi]` maps linearly to `[0, 255]`, clipped,
+/// rounded, NaN to 0 (the encoder of `report::png::write_gray8`). Bad input (a non-finite or
+/// empty range, an inconsistent raster) is `Error::Input`.
+pub fn png_bytes_gray8(image: &Raster, lo: f64, hi: f64) -> Result<Vec<u8>> {
+    super::png::encode_gray8(image, lo, hi)
+}
+
+/// Base64 of `bytes` with the standard alphabet and `=` padding (RFC 4648 §4), no line breaks.
+pub fn base64(bytes: &[u8]) -> String {
+    const ALPHABET: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    let mut out = String::with_capacity(bytes.len().div_ceil(3) * 4);
+    for chunk in bytes.chunks(3) {
+        // Three bytes make a 24-bit group, read as four 6-bit indices from the most
+        // significant end; a short final chunk is padded with zero bits and `=` (RFC 4648 §4).
+        let b = [
+            chunk[0],
+            chunk.get(1).copied().unwrap_or(0),
+            chunk.get(2).copied().unwrap_or(0),
+        ];
+        let group = (u32::from(b[0]) << 16) | (u32::from(b[1]) << 8) | u32::from(b[2]);
+        for i in 0..4 {
+            if i <= chunk.len() {
+                let index = (group >> (18 - 6 * i)) & 0x3f;
+                out.push(char::from(ALPHABET[index as usize]));
+            } else {
+                out.push('=');
+            }
+        }
+    }
+    out
+}
+
+/// Escapes text for HTML element content and quoted attribute values: `& < > " '` become
+/// character references, and control characters other than tab, line feed and carriage return
+/// (which HTML does not allow) become U+FFFD.
+pub fn escape(text: &str) -> String {
+    let mut out = String::with_capacity(text.len() + text.len() / 8);
+    for c in text.chars() {
+        match c {
+            '&' => out.push_str("&amp;"),
+            '<' => out.push_str("&lt;"),
+            '>' => out.push_str("&gt;"),
+            '"' => out.push_str("&quot;"),
+            '\'' => out.push_str("&#39;"),
+            '\t' | '\n' | '\r' => out.push(c),
+            c if c.is_control() => out.push('\u{FFFD}'),
+            c => out.push(c),
+        }
+    }
+    out
+}
+
+/// The style sheet: readable on screen, clean on paper, no external resources.
+const STYLE: &str = r#"
+:root { color-scheme: light; }
+body { font-family: system-ui, -apple-system, "Segoe UI", "DejaVu Sans", Helvetica, Arial, sans-serif;
+  color: #1a1a1a; background: #fff; line-height: 1.45; max-width: 72rem; margin: 1.5rem auto;
+  padding: 0 1.5rem; font-size: 15px; }
+h1 { font-size: 1.7em; margin: 0.2em 0 0.6em; border-bottom: 2px solid #333; padding-bottom: 0.2em; }
+h2 { font-size: 1.35em; margin: 1.6em 0 0.5em; border-bottom: 1px solid #bbb; padding-bottom: 0.15em; }
+h3 { font-size: 1.15em; margin: 1.3em 0 0.4em; }
+h4, h5, h6 { font-size: 1em; margin: 1.1em 0 0.3em; }
+p { margin: 0.5em 0 0.8em; }
+nav.toc { font-size: 0.92em; margin: 0 0 1em; }
+nav.toc ol { margin: 0.2em 0; padding-left: 1.6em; }
+nav.toc a { color: #1a4f8a; text-decoration: none; }
+table { border-collapse: collapse; margin: 0.6em 0 1.2em; font-size: 0.93em; }
+caption { caption-side: top; text-align: left; font-weight: 600; padding-bottom: 0.3em; }
+th, td { border: 1px solid #c8c8c8; padding: 0.25em 0.6em; vertical-align: top; text-align: left; }
+thead th { background: #eef0f3; }
+td.num { text-align: right; font-variant-numeric: tabular-nums; white-space: nowrap; }
+table.kv th { background: #f6f7f9; font-weight: 600; white-space: nowrap; }
+pre { background: #f6f7f9; border: 1px solid #ddd; padding: 0.6em 0.8em; overflow-x: auto;
+  font-size: 0.88em; line-height: 1.3; white-space: pre-wrap; word-break: break-word; }
+figure { margin: 0.6em 0 1.2em; display: inline-block; vertical-align: top; max-width: 100%; }
+figure img { display: block; max-width: 100%; height: auto; border: 1px solid #ccc; background: #fff; }
+figure img.px { image-rendering: crisp-edges; image-rendering: pixelated; }
+figcaption { font-size: 0.9em; color: #333; margin-top: 0.3em; max-width: 100%; }
+.figures { display: flex; flex-wrap: wrap; gap: 1rem 1.4rem; align-items: flex-start; margin: 0.6em 0 1.2em; }
+.figures > figure { margin: 0; }
+.missing { border: 1px dashed #b00; color: #b00; padding: 0.6em; font-size: 0.9em; }
+footer { margin-top: 2.5em; font-size: 0.8em; color: #666; border-top: 1px solid #ddd; padding-top: 0.4em; }
+@page { margin: 15mm; }
+@media print {
+  body { max-width: none; margin: 0; padding: 0; font-size: 10pt; }
+  nav.toc { display: none; }
+  figure, table, pre, .figures { break-inside: avoid; }
+  h1, h2, h3, h4 { break-after: avoid; }
+  thead th, table.kv th, pre { background: none; }
+}
+"#;
+
+/// The policy that keeps the page self-contained: no script, no fetch, inline style and
+/// data: images only.
+const CSP: &str = "default-src 'none'; img-src data:; style-src 'unsafe-inline'";
+
+/// The page as one HTML5 document.
+pub fn render(page: &Page) -> String {
+    let mut out = String::new();
+    out.push_str("<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n");
+    let _ = writeln!(
+        out,
+        "<meta http-equiv=\"Content-Security-Policy\" content=\"{CSP}\">"
+    );
+    out.push_str("<meta name=\"viewport\" content=\"width=device-width, initial-scale=1\">\n");
+    let _ = writeln!(out, "<title>{}</title>", escape(&page.title));
+    let _ = writeln!(out, "<style>{STYLE}</style>\n</head>\n<body>");
+    let _ = writeln!(out, "<h1>{}</h1>", escape(&page.title));
+
+    // Every heading gets an id in document order (nested ones too), so the contents can link.
+    let mut headings = Vec::new();
+    collect_headings(&page.blocks, &mut headings);
+    let sections: Vec<(usize, &str)> = headings
+        .iter()
+        .enumerate()
+        .filter(|(_, (level, _))| *level == 2)
+        .map(|(i, (_, text))| (i, *text))
+        .collect();
+    if sections.len() >= 3 {
+        out.push_str("<nav class=\"toc\"><ol>\n");
+        for (i, text) in sections {
+            let _ = writeln!(out, "<li><a href=\"#s{}\">{}</a></li>", i + 1, escape(text));
+        }
+        out.push_str("</ol></nav>\n");
+    }
+    let mut next_heading = 0;
+    for block in &page.blocks {
+        render_block(&mut out, block, &mut next_heading);
+    }
+    let _ = writeln!(
+        out,
+        "<footer>Generated by spibench {}.</footer>\n</body>\n</html>",
+        env!("CARGO_PKG_VERSION")
+    );
+    out
+}
+
+/// Writes the rendered page to `path` atomically (temporary name, then rename).
+pub fn write_page(path: &Path, page: &Page) -> Result<()> {
+    write_atomic(path, render(page).as_bytes())
+}
+
+fn clamp_level(level: u8) -> u8 {
+    level.clamp(1, 6)
+}
+
+fn collect_headings<'a>(blocks: &'a [Block], out: &mut Vec<(u8, &'a str)>) {
+    for b in blocks {
+        match b {
+            Block::Heading { level, text } => out.push((clamp_level(*level), text)),
+            Block::Figures(inner) => collect_headings(inner, out),
+            _ => {}
+        }
+    }
+}
+
+/// True for a table cell that reads as a number: optional sign (ASCII or U+2212 minus), digits,
+/// decimal point, exponent, optional trailing `%`.
+fn is_numeric(cell: &str) -> bool {
+    let t = cell.trim();
+    let t = t.strip_suffix('%').unwrap_or(t).trim_end();
+    let t = t.replace('\u{2212}', "-");
+    !t.is_empty()
+        && t.chars().any(|c| c.is_ascii_digit())
+        && t.chars()
+            .all(|c| c.is_ascii_digit() || matches!(c, '+' | '-' | '.' | 'e' | 'E'))
+        && t.parse::<f64>().is_ok()
+}
+
+/// Width and height from a PNG's IHDR chunk, or `None` if the bytes are not a PNG file.
+fn png_size(png: &[u8]) -> Option<(u32, u32)> {
+    const SIGNATURE: &[u8] = b"\x89PNG\r\n\x1a\n";
+    if png.len() < 24 || &png[..8] != SIGNATURE || &png[12..16] != b"IHDR" {
+        return None;
+    }
+    let w = u32::from_be_bytes(png[16..20].try_into().ok()?);
+    let h = u32::from_be_bytes(png[20..24].try_into().ok()?);
+    (w > 0 && h > 0).then_some((w, h))
+}
+
+/// The display width of an image of natural width `natural` (see [`Block::Image`]).
+fn display_width(natural: u32, requested: Option<u32>) -> u32 {
+    match requested {
+        Some(w) if w > 0 => w,
+        _ if natural < MIN_DISPLAY_PX => natural * MIN_DISPLAY_PX.div_ceil(natural),
+        _ => natural,
+    }
+}
+
+/// The SVG text ready for embedding, or `None` if it is not an SVG document (module docs).
+fn checked_svg(svg: &str) -> Option<String> {
+    let mut rest = svg.strip_prefix('\u{FEFF}').unwrap_or(svg).trim_start();
+    loop {
+        if let Some(r) = rest.strip_prefix("<?") {
+            rest = r.split_once("?>")?.1.trim_start();
+        } else if let Some(r) = rest.strip_prefix("<!--") {
+            rest = r.split_once("-->")?.1.trim_start();
+        } else if rest
+            .get(..9)
+            .is_some_and(|p| p.eq_ignore_ascii_case("<!DOCTYPE"))
+        {
+            let (decl, r) = rest.split_once('>')?;
+            // An internal subset can define entities; refuse it rather than reason about it.
+            if decl.contains('[') {
+                return None;
+            }
+            rest = r.trim_start();
+        } else {
+            break;
+        }
+    }
+    let after = rest.strip_prefix("<svg")?;
+    if !after.starts_with(|c: char| c.is_ascii_whitespace() || c == '>' || c == '/') {
+        return None;
+    }
+    let root_tag = &after[..after.find('>')?];
+    if root_tag.contains("xmlns=") {
+        Some(svg.to_string())
+    } else {
+        // Insert the namespace right after `<svg` of the root element.
+        let at = svg.len() - after.len();
+        Some(format!(
+            "{} xmlns=\"http://www.w3.org/2000/svg\"{}",
+            &svg[..at],
+            &svg[at..]
+        ))
+    }
+}
+
+fn figcaption(out: &mut String, caption: &str) {
+    if !caption.is_empty() {
+        let _ = write!(out, "<figcaption>{}</figcaption>", escape(caption));
+    }
+}
+
+fn render_block(out: &mut String, block: &Block, next_heading: &mut usize) {
+    match block {
+        Block::Heading { level, text } => {
+            *next_heading += 1;
+            let l = clamp_level(*level);
+            let _ = writeln!(
+                out,
+                "<h{l} id=\"s{}\">{}</h{l}>",
+                *next_heading,
+                escape(text)
+            );
+        }
+        Block::Paragraph(text) => {
+            let _ = writeln!(out, "<p>{}</p>", escape(text));
+        }
+        Block::Table {
+            caption,
+            header,
+            rows,
+        } => {
+            out.push_str("<table>\n");
+            if let Some(c) = caption {
+                let _ = writeln!(out, "<caption>{}</caption>", escape(c));
+            }
+            if !header.is_empty() {
+                out.push_str("<thead><tr>");
+                for h in header {
+                    let _ = write!(out, "<th scope=\"col\">{}</th>", escape(h));
+                }
+                out.push_str("</tr></thead>\n");
+            }
+            out.push_str("<tbody>\n");
+            for row in rows {
+                out.push_str("<tr>");
+                for cell in row {
+                    if is_numeric(cell) {
+                        let _ = write!(out, "<td class=\"num\">{}</td>", escape(cell));
+                    } else {
+                        let _ = write!(out, "<td>{}</td>", escape(cell));
+                    }
+                }
+                out.push_str("</tr>\n");
+            }
+            out.push_str("</tbody>\n</table>\n");
+        }
+        Block::Image {
+            caption,
+            png,
+            alt,
+            width_px,
+        } => {
+            out.push_str("<figure>");
+            match png_size(png) {
+                Some((w, _)) => {
+                    let shown = display_width(w, *width_px);
+                    let class = if shown > w { " class=\"px\"" } else { "" };
+                    let _ = write!(
+                        out,
+                        "<img{class} width=\"{shown}\" alt=\"{}\" src=\"data:image/png;base64,{}\">",
+                        escape(alt),
+                        base64(png)
+                    );
+                }
+                None => {
+                    let _ = write!(
+                        out,
+                        "<div class=\"missing\">Image not shown: the data is not a PNG file ({} bytes).</div>",
+                        png.len()
+                    );
+                }
+            }
+            figcaption(out, caption);
+            out.push_str("</figure>\n");
+        }
+        Block::Svg { caption, svg } => {
+            out.push_str("<figure>");
+            match checked_svg(svg) {
+                Some(doc) => {
+                    let _ = write!(
+                        out,
+                        "<img alt=\"{}\" src=\"data:image/svg+xml;base64,{}\">",
+                        escape(caption),
+                        base64(doc.as_bytes())
+                    );
+                }
+                None => {
+                    out.push_str(
+                        "<div class=\"missing\">Image not shown: the text is not an SVG document.</div>",
+                    );
+                }
+            }
+            figcaption(out, caption);
+            out.push_str("</figure>\n");
+        }
+        Block::Figures(blocks) => {
+            out.push_str("<div class=\"figures\">\n");
+            for b in blocks {
+                render_block(out, b, next_heading);
+            }
+            out.push_str("</div>\n");
+        }
+        Block::Preformatted(text) => {
+            // The HTML parser drops one newline right after <pre>, so one is added to keep a
+            // leading newline of the text.
+            let _ = writeln!(out, "<pre>\n{}</pre>", escape(text));
+        }
+        Block::KeyValues(pairs) => {
+            out.push_str("<table class=\"kv\">\n<tbody>\n");
+            for (k, v) in pairs {
+                let cls = if is_numeric(v) { " class=\"num\"" } else { "" };
+                let _ = writeln!(
+                    out,
+                    "<tr><th scope=\"row\">{}</th><td{cls}>{}</td></tr>",
+                    escape(k),
+                    escape(v)
+                );
+            }
+            out.push_str("</tbody>\n</table>\n");
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::objects::usaf::{PaperRegion, Polarity, UsafChart};
+
+    /// An independent decoder for the tests: RFC 4648 §4 read back bit by bit.
+    fn decode64(s: &str) -> Vec<u8> {
+        let alphabet = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+        let mut bits: Vec<bool> = Vec::new();
+        for c in s.trim_end_matches('=').chars() {
+            let v = alphabet.find(c).expect("base64 character");
+            for k in (0..6).rev() {
+                bits.push((v >> k) & 1 == 1);
+            }
+        }
+        bits.chunks_exact(8)
+            .map(|b| b.iter().fold(0u8, |acc, &bit| (acc << 1) | u8::from(bit)))
+            .collect()
+    }
+
+    /// The payloads of every `src="data:…;base64,…"` in a page, in order, with their media type.
+    fn data_uris(html: &str) -> Vec<(String, Vec<u8>)> {
+        html.split("src=\"")
+            .skip(1)
+            .map(|s| {
+                let uri = &s[..s.find('"').unwrap()];
+                let rest = uri.strip_prefix("data:").expect("only data: URIs");
+                let (mime, payload) = rest.split_once(";base64,").unwrap();
+                (mime.to_string(), decode64(payload))
+            })
+            .collect()
+    }
+
+    fn gray_png(w: usize, h: usize) -> Vec<u8> {
+        let img = Raster::from_fn(w, h, |r, c| ((r * 7 + c * 3) % 11) as f64);
+        png_bytes_gray8(&img, 0.0, 10.0).unwrap()
+    }
+
+    const SVG: &str = r##"<?xml version="1.0" encoding="UTF-8"?>
+<!-- a plot -->
+<svg width="320" height="160" viewBox="0 0 320 160" xmlns="http://www.w3.org/2000/svg">
+<rect x="0" y="0" width="320" height="160" fill="#fff" stroke="#888"/>
+<polyline fill="none" stroke="#1f77b4" stroke-width="2" points="20,140 80,100 140,110 200,50 260,60 300,20"/>
+<text x="24" y="24" font-family="sans-serif" font-size="14">PSNR / dB &lt;vs&gt; sampling ratio</text>
+</svg>"##;
+
+    #[test]
+    fn base64_matches_rfc4648_vectors() {
+        // RFC 4648 §10 test vectors.
+        for (input, want) in [
+            ("", ""),
+            ("f", "Zg=="),
+            ("fo", "Zm8="),
+            ("foo", "Zm9v"),
+            ("foob", "Zm9vYg=="),
+            ("fooba", "Zm9vYmE="),
+            ("foobar", "Zm9vYmFy"),
+        ] {
+            assert_eq!(base64(input.as_bytes()), want, "{input:?}");
+        }
+        // The last two alphabet entries and high bytes: 0xfb 0xff 0xbf is 111110 111111
+        // 111110 111111 = "+/+/"; 0x00 0x10 0x83 is indices 0, 1, 2, 3 = "ABCD".
+        assert_eq!(base64(&[0xfb, 0xff, 0xbf]), "+/+/");
+        assert_eq!(base64(&[0x00, 0x10, 0x83]), "ABCD");
+    }
+
+    #[test]
+    fn base64_round_trips_every_byte_and_length() {
+        let bytes: Vec<u8> = (0..=255u8).chain((0..=255u8).rev()).collect();
+        for n in 0..bytes.len() {
+            let enc = base64(&bytes[..n]);
+            assert_eq!(enc.len(), n.div_ceil(3) * 4);
+            assert_eq!(decode64(&enc), &bytes[..n], "length {n}");
+        }
+    }
+
+    #[test]
+    fn text_is_escaped_everywhere() {
+        let evil = "<script>alert('x')</script> & \"q\" \u{0}";
+        let page = Page {
+            title: format!("title {evil} </title>"),
+            blocks: vec![
+                Block::Heading {
+                    level: 2,
+                    text: evil.into(),
+                },
+                Block::Paragraph(evil.into()),
+                Block::Table {
+                    caption: Some(evil.into()),
+                    header: vec![evil.into(), "n".into()],
+                    rows: vec![vec![evil.into(), "1.5".into()]],
+                },
+                Block::Image {
+                    caption: evil.into(),
+                    png: gray_png(4, 4),
+                    alt: "x\" onerror=\"alert(1)".into(),
+                    width_px: None,
+                },
+                Block::Svg {
+                    caption: evil.into(),
+                    svg: SVG.into(),
+                },
+                Block::Figures(vec![Block::Paragraph(evil.into())]),
+                Block::Preformatted(format!("</pre>{evil}")),
+                Block::KeyValues(vec![(evil.into(), evil.into())]),
+            ],
+        };
+        let html = render(&page);
+        let lower = html.to_lowercase();
+        assert!(!lower.contains("<script"), "{html}");
+        assert!(!lower.contains("</script"));
+        assert!(!html.contains("\" onerror"));
+        assert!(!html.contains('\u{0}'));
+        // Title, heading, paragraph, caption, header, cell, figure captions ×2 (+ SVG alt),
+        // nested paragraph, pre, key and value.
+        let shown = html
+            .matches("&lt;script&gt;alert(&#39;x&#39;)&lt;/script&gt; &amp; &quot;q&quot;")
+            .count();
+        assert_eq!(shown, 14, "{html}");
+        assert_eq!(html.matches("</title>").count(), 1);
+        assert_eq!(html.matches("</pre>").count(), 1);
+        assert!(html.contains("x&quot; onerror=&quot;alert(1)"));
+    }
+
+    #[test]
+    fn page_is_self_contained() {
+        let page = sample();
+        let html = render(&page);
+        let lower = html.to_lowercase();
+        for banned in [
+            "http:",
+            "https:",
+            "<script",
+            "<link",
+            "@import",
+            "url(",
+            "<iframe",
+            "<object",
+            "<embed",
+            "src=\"/",
+            "href=\"/",
+            "href=\"http",
+        ] {
+            assert!(!lower.contains(banned), "found {banned}");
+        }
+        assert!(html.contains(CSP));
+        // Every src is a data: URI (data_uris panics otherwise), and every link is in-page.
+        assert_eq!(data_uris(&html).len(), 4);
+        for link in html.split("href=\"").skip(1) {
+            assert!(link.starts_with("#s"), "{link}");
+        }
+        // Tags balance.
+        for tag in ["figure", "table", "div", "pre", "p", "nav", "ol", "tbody"] {
+            let open = html.matches(&format!("<{tag}>")).count()
+                + html.matches(&format!("<{tag} ")).count();
+            let close = html.matches(&format!("</{tag}>")).count();
+            assert_eq!(open, close, "<{tag}>");
+        }
+        assert!(html.starts_with("<!DOCTYPE html>"));
+        assert!(html.trim_end().ends_with("</html>"));
+    }
+
+    #[test]
+    fn images_are_embedded_with_their_display_size() {
+        let small = gray_png(48, 48);
+        let mid = gray_png(100, 50);
+        let large = gray_png(300, 20);
+        let page = Page {
+            title: "images".into(),
+            blocks: vec![
+                Block::Image {
+                    caption: "48".into(),
+                    png: small.clone(),
+                    alt: "a".into(),
+                    width_px: None,
+                },
+                Block::Image {
+                    caption: "100".into(),
+                    png: mid.clone(),
+                    alt: "b".into(),
+                    width_px: None,
+                },
+                Block::Image {
+                    caption: "300".into(),
+                    png: large.clone(),
+                    alt: "c".into(),
+                    width_px: None,
+                },
+                Block::Image {
+                    caption: "300 shown at 150".into(),
+                    png: large.clone(),
+                    alt: "d".into(),
+                    width_px: Some(150),
+                },
+                Block::Image {
+                    caption: "not a png".into(),
+                    png: b"GIF89a not a png at all".to_vec(),
+                    alt: "e".into(),
+                    width_px: None,
+                },
+            ],
+        };
+        let html = render(&page);
+        let uris = data_uris(&html);
+        assert_eq!(uris.len(), 4);
+        for ((mime, bytes), want) in uris.iter().zip([&small, &mid, &large, &large]) {
+            assert_eq!(mime, "image/png");
+            assert_eq!(bytes, want);
+        }
+        // 48 px: ×6 = 288 ≥ 256, pixelated; 100 px: ×3 = 300; 300 px: natural, smooth;
+        // 150 px: shrunk, smooth (pixelated shrinking would drop rows).
+        assert!(html.contains("<img class=\"px\" width=\"288\" alt=\"a\""));
+        assert!(html.contains("<img class=\"px\" width=\"300\" alt=\"b\""));
+        assert!(html.contains("<img width=\"300\" alt=\"c\""));
+        assert!(html.contains("<img width=\"150\" alt=\"d\""));
+        assert!(html.contains("not a PNG file (23 bytes)"));
+        assert!(html.contains("<figcaption>not a png</figcaption>"));
+        assert_eq!(png_size(&small), Some((48, 48)));
+        assert_eq!(png_size(&mid), Some((100, 50)));
+        assert_eq!(png_size(&small[..20]), None);
+    }
+
+    #[test]
+    fn svg_is_checked_then_embedded() {
+        assert_eq!(checked_svg(SVG).as_deref(), Some(SVG));
+        // A missing namespace is added to the root element only.
+        let bare = "<svg width=\"10\" height=\"10\"><rect width=\"5\" height=\"5\"/></svg>";
+        let fixed = checked_svg(bare).unwrap();
+        assert_eq!(
+            fixed,
+            "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"10\" height=\"10\"><rect width=\"5\" height=\"5\"/></svg>"
+        );
+        let with_doctype = "\u{FEFF}  <!DOCTYPE svg PUBLIC \"-//W3C//DTD SVG 1.1//EN\" \"x.dtd\">\n<svg xmlns=\"http://www.w3.org/2000/svg\"/>";
+        assert!(checked_svg(with_doctype).is_some());
+        for bad in [
+            "",
+            "not svg",
+            "<html><svg></svg></html>",
+            "<svgfoo/>",
+            "<script>alert(1)</script><svg/>",
+            "<!DOCTYPE svg [<!ENTITY x \"y\">]><svg/>",
+            "<!-- unterminated <svg/>",
+            "<?xml version=\"1.0\"<svg/>",
+            "<svg",
+            "<éééééé svg",
+            "<!DOCéééé <svg/>",
+        ] {
+            assert!(checked_svg(bad).is_none(), "{bad:?}");
+        }
+        let page = Page {
+            title: "svg".into(),
+            blocks: vec![
+                Block::Svg {
+                    caption: "plot".into(),
+                    svg: SVG.into(),
+                },
+                Block::Svg {
+                    caption: "bad".into(),
+                    svg: "<p>hello</p></figure></body>".into(),
+                },
+            ],
+        };
+        let html = render(&page);
+        let uris = data_uris(&html);
+        assert_eq!(uris.len(), 1);
+        assert_eq!(uris[0].0, "image/svg+xml");
+        assert_eq!(uris[0].1, SVG.as_bytes());
+        assert!(html.contains("not an SVG document"));
+        assert!(!html.contains("<p>hello"));
+        assert_eq!(html.matches("</body>").count(), 1);
+    }
+
+    #[test]
+    fn headings_tables_and_text_are_structured() {
+        let page = Page {
+            title: "t".into(),
+            blocks: vec![
+                Block::Heading {
+                    level: 0,
+                    text: "zero".into(),
+                },
+                Block::Heading {
+                    level: 9,
+                    text: "nine".into(),
+                },
+                Block::Heading {
+                    level: 2,
+                    text: "A".into(),
+                },
+                Block::Figures(vec![Block::Heading {
+                    level: 2,
+                    text: "B".into(),
+                }]),
+                Block::Heading {
+                    level: 2,
+                    text: "C".into(),
+                },
+                Block::Table {
+                    caption: None,
+                    header: vec![],
+                    rows: vec![vec![
+                        "3.14".into(),
+                        "\u{2212}2".into(),
+                        " 12 %".into(),
+                        "1e-3".into(),
+                        "abc".into(),
+                        "1.2.3".into(),
+                        "-".into(),
+                        "inf".into(),
+                    ]],
+                },
+                Block::Preformatted("\nfirst line blank\n  indented".into()),
+            ],
+        };
+        let html = render(&page);
+        assert!(html.contains("<h1 id=\"s1\">zero</h1>"));
+        assert!(html.contains("<h6 id=\"s2\">nine</h6>"));
+        assert!(html.contains("<h2 id=\"s4\">B</h2>"));
+        assert!(html.contains("<li><a href=\"#s3\">A</a></li>\n<li><a href=\"#s4\">B</a></li>\n<li><a href=\"#s5\">C</a></li>"));
+        assert!(!html.contains("<thead>"));
+        assert!(!html.contains("<caption>"));
+        assert_eq!(html.matches("<td class=\"num\">").count(), 4, "{html}");
+        assert!(html.contains("<td>abc</td><td>1.2.3</td><td>-</td><td>inf</td>"));
+        assert!(html.contains("<pre>\n\nfirst line blank\n  indented</pre>"));
+        // Fewer than three level-2 headings: no contents.
+        let short = Page {
+            title: "t".into(),
+            blocks: vec![Block::Heading {
+                level: 2,
+                text: "only".into(),
+            }],
+        };
+        assert!(!render(&short).contains("<nav"));
+    }
+
+    #[test]
+    fn png_bytes_gray8_encodes_the_raster() {
+        let img = Raster::new(3, 2, vec![0.0, 0.5, 1.0, f64::NAN, -3.0, 7.0]).unwrap();
+        let bytes = png_bytes_gray8(&img, 0.0, 1.0).unwrap();
+        let back = image::load_from_memory(&bytes).unwrap();
+        let back = back.as_luma8().expect("8-bit gray");
+        assert_eq!(back.dimensions(), (3, 2));
+        assert_eq!(back.as_raw(), &vec![0, 128, 255, 0, 0, 255]);
+        assert!(png_bytes_gray8(&img, 1.0, 0.0).unwrap_err().is_user_error());
+        assert!(png_bytes_gray8(&img, 0.0, f64::NAN).is_err());
+        let b = Block::gray_image("g", &img, 0.0, 1.0).unwrap();
+        assert!(matches!(b, Block::Image { ref png, .. } if *png == bytes));
+    }
+
+    /// A page with every block type, like a run report: the chart at 48×48 and 96×96 beside
+    /// each other, a plot, tables, parameters and a log.
+    fn sample() -> Page {
+        let chart = UsafChart::new(-2, 7, Polarity::Negative).unwrap();
+        let region = PaperRegion::Fig8b.region();
+        let img48 = chart.render(&region, 48, 48);
+        let img96 = chart.render(&region, 96, 96);
+        let rows: Vec<Vec<String>> = [
+            ("single-arm", 0.25, 24.31, 0.712),
+            ("complementary", 0.25, 27.9, 0.801),
+            ("balanced (SCB)", 0.25, 31.07, 0.874),
+        ]
+        .iter()
+        .map(|(s, r, p, m)| {
+            vec![
+                s.to_string(),
+                format!("{r}"),
+                format!("{p:.2}"),
+                format!("{m:.3}"),
+            ]
+        })
+        .collect();
+        Page {
+            title: "spibench run — sample report <Fig. 8b>".into(),
+            blocks: vec![
+                Block::Paragraph(
+                    "A sample page with every block type, used to check the layout in a browser. \
+                     Text such as <b>this</b> is shown literally."
+                        .into(),
+                ),
+                Block::Heading {
+                    level: 2,
+                    text: "Parameters".into(),
+                },
+                Block::KeyValues(vec![
+                    ("scene".into(), "scenes/paper_bench.ron".into()),
+                    ("sampling ratio".into(), "0.25".into()),
+                    ("seed".into(), "1234".into()),
+                    (
+                        "detector".into(),
+                        "Thorlabs PDB450A (free-space balanced)".into(),
+                    ),
+                ]),
+                Block::Heading {
+                    level: 2,
+                    text: "Reconstructions".into(),
+                },
+                Block::Figures(vec![
+                    Block::gray_image("48×48, group 0 elements 4–6", &img48, 0.0, 1.0).unwrap(),
+                    Block::gray_image("96×96, same region", &img96, 0.0, 1.0).unwrap(),
+                    Block::Image {
+                        caption: "96×96 at natural size".into(),
+                        png: png_bytes_gray8(&img96, 0.0, 1.0).unwrap(),
+                        alt: "natural".into(),
+                        width_px: Some(96),
+                    },
+                ]),
+                Block::Table {
+                    caption: Some("Scores (PSNR in dB)".into()),
+                    header: vec![
+                        "scheme".into(),
+                        "ratio".into(),
+                        "PSNR".into(),
+                        "MSSIM".into(),
+                    ],
+                    rows,
+                },
+                Block::Heading {
+                    level: 2,
+                    text: "Plot".into(),
+                },
+                Block::Figures(vec![
+                    Block::Svg {
+                        caption: "PSNR against sampling ratio (SVG)".into(),
+                        svg: SVG.into(),
+                    },
+                    Block::Svg {
+                        caption: "a broken SVG is a visible placeholder".into(),
+                        svg: "<html>".into(),
+                    },
+                ]),
+                Block::Heading {
+                    level: 3,
+                    text: "Log".into(),
+                },
+                Block::Preformatted(
+                    "trace: 1.0e7 rays in 3.2 s\nreconstruct: TVAL3, 412 iterations\n\
+                     a very long line that should wrap rather than widen the page: \
+                     0123456789 0123456789 0123456789 0123456789 0123456789 0123456789 \
+                     0123456789 0123456789 0123456789"
+                        .into(),
+                ),
+            ],
+        }
+    }
+
+    /// The sample page; with SPIBENCH_HTML_SAMPLE=path it is also written there to be looked
+    /// at in a browser (see the module docs).
+    #[test]
+    fn sample_page() {
+        let page = sample();
+        let html = render(&page);
+        assert_eq!(html.matches("<figure>").count(), 5);
+        assert_eq!(html.matches("class=\"px\"").count(), 2);
+        assert!(html.contains("&lt;b&gt;this&lt;/b&gt;"));
+        if let Some(path) = std::env::var_os("SPIBENCH_HTML_SAMPLE") {
+            write_page(Path::new(&path), &page).unwrap();
+        }
+    }
+}
