@@ -3,8 +3,10 @@
 //! Exit status: 0 on success, 2 for input a user can fix (a malformed file, an unknown field,
 //! impossible values, a missing file; also clap's usage errors), 1 for anything else.
 
+mod export;
 mod progress;
 mod reconstruct;
+mod run;
 mod simulate;
 mod trace;
 
@@ -29,6 +31,11 @@ enum Command {
     Reconstruct(reconstruct::ReconstructArgs),
     /// Trace a bench: k±, b±, the per-unit transport maps and the flux ledger.
     Trace(trace::TraceArgs),
+    /// Export a bench as a Mitsuba 3 scene (the monochromatic, constant-index substitute unless --as-is).
+    ExportMitsuba(export::ExportArgs),
+    /// The whole traced experiment: trace, detector electronics in time, the four schemes,
+    /// reconstruction and scores (default: the paper's bench, built in).
+    Run(run::RunArgs),
 }
 
 /// Runs the command line and returns the process exit status.
@@ -44,6 +51,8 @@ pub fn main() -> i32 {
         Command::Simulate(a) => simulate::run(a),
         Command::Reconstruct(a) => reconstruct::run(a),
         Command::Trace(a) => trace::run(a),
+        Command::ExportMitsuba(a) => export::run(a),
+        Command::Run(a) => run::run(a),
     };
     match result {
         Ok(()) => 0,

@@ -1,1 +1,18 @@
-//! detector
+//! Detector electronics in time: the balanced amplified photodetector ([`bap`]), the
+//! oscilloscope ([`scope`]), lamp and ambient drift ([`drift`]) and the frame-by-frame
+//! recording that turns traced photocurrents into the per-frame values the acquisition schemes
+//! use ([`record`]).
+//!
+//! Pure functions over data in SI units (amperes, volts, seconds, hertz). Randomness comes from
+//! [`crate::rng::stream`] keyed by (seed, frame batch) or a fixed stream index, drawn in time
+//! order, so a record does not depend on the number of threads.
+
+pub mod bap;
+pub mod drift;
+pub mod record;
+pub mod scope;
+
+pub use bap::{Bap, Load, MONITOR_MINUS, MONITOR_PLUS, OUTPUT_NAMES, OutputStage, RF};
+pub use drift::{Drift, DriftPath};
+pub use record::{FrameTiming, Illumination, Record, SignalTrace, ideal_frames, record};
+pub use scope::{Channel, ChannelRange, Scope, ScopeNoise, auto_range};

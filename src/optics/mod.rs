@@ -10,6 +10,7 @@ pub mod geometry;
 pub mod glass;
 pub mod lamp;
 pub mod mesh;
+pub mod monochromatic;
 pub mod spectrum;
 
 pub use bench::Bench;

@@ -250,6 +250,14 @@ pub struct BenchFile {
     pub dmd: Option<DmdSpec>,
     /// The two photodiodes of the balanced detector.
     pub detectors: DetectorsSpec,
+    /// Detector electronics and oscilloscope for `spibench run` (crate::scene::run); defaults
+    /// when absent. Not used by the trace.
+    #[serde(default)]
+    pub electronics: crate::scene::run::ElectronicsSpec,
+    /// Run settings for `spibench run` (crate::scene::run); defaults when absent. Not used by
+    /// the trace.
+    #[serde(default)]
+    pub run: crate::scene::run::RunSpec,
 }
 
 fn default_band() -> (f64, f64) {

@@ -7,6 +7,7 @@
 
 pub mod bench;
 pub mod experiment;
+pub mod run;
 
 use std::path::Path;
 

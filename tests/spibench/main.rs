@@ -2,6 +2,8 @@
 //! counts, and the paper's claims on small problems. One binary, so CI links once.
 
 mod cli_reconstruct;
+mod cli_run;
 mod cli_simulate;
 mod common;
 mod paper;
+mod validation;

@@ -1,0 +1,587 @@
+//! `spibench run [SCENE] [--out DIR] [--seed S] [--rays N]`: the whole traced experiment
+//! (crate::run). Without SCENE, the paper's bench built into the binary
+//! (scenes/paper_bench.ron with the default `electronics` and `run` sections).
+//!
+//! Output (DIR), written into a staging folder and moved into place only when complete:
+//!
+//! - `summary.json`: the transport (as `spibench trace`), the electronics and oscilloscope
+//!   settings, the run settings, the recorded sequences, saturation findings, and for every
+//!   scheme × ratio PSNR, MSSIM, frames, acquisition time, solver iterations (keys on
+//!   [`RunSummary`]). Everything but `timings` and `results[*].solver_time_s` is identical for
+//!   the same scene and seed on any number of threads.
+//! - `results.csv`: the results table.
+//! - `images/x.png` (the ideal object, 255·x / max x) and `images/<scheme>__r<ratio>.png` (each
+//!   normalised reconstruction on the same 0–255 scale).
+//! - `montage.png`: laid out like the paper's Fig. 6 (the object, then one row per scheme, one
+//!   column per ratio, PSNR / MSSIM under each tile).
+//! - `mssim_vs_ratio.{svg,png}` (the paper's Fig. 7) and `psnr_vs_ratio.{svg,png}`.
+//! - `signals_<sequence>.{svg,png}`: the first frames of each recorded sequence as the
+//!   oscilloscope sampled them.
+
+use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+
+use anyhow::Result;
+use clap::Args;
+use serde::Serialize;
+
+use super::trace::{TraceSummary, summarize};
+use crate::acquisition::Scheme;
+use crate::detector::{Bap, Channel, FrameTiming, OUTPUT_NAMES, Scope};
+use crate::metrics::NORMALIZATION_RULE;
+use crate::report::csv::write_csv;
+use crate::report::json::write_json;
+use crate::report::montage::{Montage, write_montage};
+use crate::report::output::OutputDir;
+use crate::report::plot::{LinePlot, Series, write_plot};
+use crate::report::png::write_gray8;
+use crate::run::{
+    RunOutcome, RunSettings, Saturation, SchemeResult, SequenceSummary, Stage, Timings,
+};
+use crate::scene::run::{RunScene, parse_run_scene, read_run_scene};
+
+/// The paper's bench, built into the binary.
+pub const PAPER_BENCH: &str = include_str!("../../scenes/paper_bench.ron");
+
+/// The name the built-in bench has in messages and summaries.
+pub const PAPER_BENCH_NAME: &str = "<built-in scenes/paper_bench.ron>";
+
+#[derive(Debug, Clone, Args)]
+pub struct RunArgs {
+    /// A bench file (RON) with optional `electronics` and `run` sections; default: the paper's
+    /// bench built into the binary.
+    pub scene: Option<PathBuf>,
+    /// Output folder (created; files of the same name are replaced).
+    #[arg(long, default_value = "out/run")]
+    pub out: PathBuf,
+    /// Seed of the trace, the noise and the drift (the patterns' seed is in the scene).
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Lamp rays to trace, overriding the scene's `run.rays`.
+    #[arg(long)]
+    pub rays: Option<u64>,
+}
+
+/// `summary.json` of `run`. SI units unless the key says otherwise; NaN and ∞ are null.
+#[derive(Serialize)]
+pub struct RunSummary<'a> {
+    /// Always "run".
+    pub command: &'static str,
+    pub spibench_version: &'static str,
+    /// The scene path, or the built-in bench's name.
+    pub scene: String,
+    pub title: &'a str,
+    pub seed: u64,
+    pub units_across: usize,
+    pub units_down: usize,
+    /// The traced transport: k±, b±, k', imbalance, standard errors, ledger (keys as in
+    /// `spibench trace`'s summary.json).
+    pub transport: TraceSummary,
+    /// The balanced detector and the oscilloscope as used.
+    pub electronics: ElectronicsSummary<'a>,
+    /// DMD frame time, settling time, oscilloscope sample rate.
+    pub frame_timing: FrameTiming,
+    /// The run settings (sampling ratios, schemes, patterns, drift, noise, solver).
+    pub settings: &'a RunSettings,
+    /// How reconstructions are brought to the ideal object's scale before scoring.
+    pub normalization: &'static str,
+    /// The ideal object: 255·x_j / max x, with max x (W).
+    pub truth: &'static str,
+    pub x_max_w: f64,
+    /// The recorded frame sequences.
+    pub sequences: &'a [SequenceSummary],
+    /// True when any output was clipped or any channel over range; see `saturation`.
+    pub saturated: bool,
+    pub saturation: &'a [Saturation],
+    /// Scheme-major, ratio-minor.
+    pub results: &'a [SchemeResult],
+    /// Observations computed from the results (never tuned).
+    pub findings: Findings,
+    /// Output files, relative to the output folder.
+    pub files: Vec<String>,
+    /// Wall-clock timings (s): differ between identical runs.
+    pub timings: Timings,
+}
+
+/// The electronics in summary.json.
+#[derive(Serialize)]
+pub struct ElectronicsSummary<'a> {
+    pub detector: &'a Bap,
+    /// CMRR from the diodes' flat responsivity mismatch (dB; null when infinite).
+    pub cmrr_db: Option<f64>,
+    /// Optical power difference that drives the RF output to its swing at 0.65 A/W (W).
+    pub rf_saturation_power_w_at_0_65_a_per_w: f64,
+    pub oscilloscope: &'a Scope,
+    /// The channels as set: [rf, monitor_plus, monitor_minus].
+    pub channels: ChannelsSummary,
+    /// Rms output noise of each output at the mean currents of the recorded frames (V):
+    /// shot and amplifier noise over the one-pole noise bandwidth.
+    pub output_noise_v_rms: NamedOutputs,
+}
+
+#[derive(Serialize)]
+pub struct ChannelsSummary {
+    pub rf: Channel,
+    pub monitor_plus: Channel,
+    pub monitor_minus: Channel,
+}
+
+#[derive(Serialize)]
+pub struct NamedOutputs {
+    pub rf: f64,
+    pub monitor_plus: f64,
+    pub monitor_minus: f64,
+}
+
+/// Comparisons the paper draws, computed from this run.
+#[derive(Serialize)]
+pub struct Findings {
+    /// Ratios at which secondary complementary balancing has a higher MSSIM than double-arm
+    /// dual-pixel, and at which it does not (both schemes run).
+    pub scb_beats_double_arm_at: Vec<f64>,
+    pub scb_not_above_double_arm_at: Vec<f64>,
+    /// MSSIM of secondary complementary balancing minus that of traditional CS at the highest
+    /// ratio (both schemes run).
+    pub scb_minus_traditional_mssim_at_max_ratio: Option<f64>,
+}
+
+fn findings(o: &RunOutcome) -> Findings {
+    let s = &o.settings;
+    let mut beats = Vec::new();
+    let mut not = Vec::new();
+    for (r, &ratio) in s.sampling_ratios.iter().enumerate() {
+        if let (Some(scb), Some(dbl)) = (
+            o.result(Scheme::SecondaryComplementaryBalancing, r),
+            o.result(Scheme::DoubleArm, r),
+        ) {
+            if scb.mssim > dbl.mssim {
+                beats.push(ratio);
+            } else {
+                not.push(ratio);
+            }
+        }
+    }
+    let last = s
+        .sampling_ratios
+        .iter()
+        .enumerate()
+        .max_by(|a, b| a.1.total_cmp(b.1))
+        .map(|(i, _)| i);
+    let scb_trad = last.and_then(|r| {
+        Some(
+            o.result(Scheme::SecondaryComplementaryBalancing, r)?.mssim
+                - o.result(Scheme::Traditional, r)?.mssim,
+        )
+    });
+    Findings {
+        scb_beats_double_arm_at: beats,
+        scb_not_above_double_arm_at: not,
+        scb_minus_traditional_mssim_at_max_ratio: scb_trad,
+    }
+}
+
+/// Loads the scene named by the arguments (or the built-in bench) with the `--rays` override.
+pub fn load_scene(args: &RunArgs) -> crate::Result<(String, RunScene)> {
+    let (name, mut scene) = match &args.scene {
+        Some(p) => (p.display().to_string(), read_run_scene(p)?),
+        None => (
+            PAPER_BENCH_NAME.to_string(),
+            parse_run_scene(PAPER_BENCH, Path::new(PAPER_BENCH_NAME))?,
+        ),
+    };
+    if let Some(r) = args.rays {
+        if r == 0 || r > crate::scene::run::MAX_RAYS {
+            return Err(crate::Error::field(
+                "--rays",
+                format!("must lie between 1 and {}", crate::scene::run::MAX_RAYS),
+            ));
+        }
+        scene.settings.rays = r;
+    }
+    Ok((name, scene))
+}
+
+/// Runs `spibench run`.
+pub fn run(args: &RunArgs) -> Result<()> {
+    let (name, scene) = load_scene(args)?;
+    let out = OutputDir::create(&args.out)?;
+    eprintln!(
+        "{}: {}×{} units, {} rays, {} scheme(s) × {} ratio(s), seed {}",
+        name,
+        scene.bench.units_shape().0,
+        scene.bench.units_shape().1,
+        scene.settings.rays,
+        scene.settings.schemes.len(),
+        scene.settings.sampling_ratios.len(),
+        args.seed
+    );
+    let bars: Mutex<Option<(Stage, indicatif::ProgressBar)>> = Mutex::new(None);
+    let progress = |stage: Stage, done: u64, total: u64| {
+        if let Ok(mut g) = bars.lock() {
+            let fresh = !matches!(&*g, Some((s, _)) if *s == stage);
+            if fresh {
+                if let Some((_, b)) = g.take() {
+                    b.finish_and_clear();
+                }
+                let what = match stage {
+                    Stage::Record => "recording",
+                    Stage::Solve => "solving",
+                };
+                *g = Some((stage, super::progress::bar(total, what)));
+            }
+            if let Some((_, b)) = &*g {
+                b.set_position(done);
+            }
+        }
+    };
+    let outcome = crate::run::run(&scene, args.seed, true, &progress)?;
+    if let Ok(mut g) = bars.lock()
+        && let Some((_, b)) = g.take()
+    {
+        b.finish_and_clear();
+    }
+    let summary_files = write_outputs(&name, &scene.bench, &outcome, &out)?;
+    let dir = out.commit()?;
+    print_report(&name, &outcome);
+    println!(
+        "wrote {} ({} files, {:.1} s)",
+        dir.display(),
+        summary_files,
+        outcome.timings.total_s
+    );
+    Ok(())
+}
+
+fn pct(r: f64) -> String {
+    let p = r * 100.0;
+    if (p - p.round()).abs() < 1e-9 {
+        format!("{p:.0} %")
+    } else {
+        format!("{p:.1} %")
+    }
+}
+
+/// The file of a reconstruction.
+pub fn result_file(r: &SchemeResult) -> String {
+    format!("images/{}__r{:.3}.png", r.scheme.key(), r.ratio)
+}
+
+/// Builds the summary of an outcome.
+pub fn summarize_run<'a>(
+    name: &str,
+    bench: &crate::optics::Bench,
+    o: &'a RunOutcome,
+    files: Vec<String>,
+) -> RunSummary<'a> {
+    let mut transport = summarize(name, bench, &o.transport, o.trace_arrivals);
+    transport.files = Vec::new();
+    let mean_i = mean_currents(o);
+    let noise = o.detector.output_noise_v_rms(mean_i);
+    let cmrr = o.detector.cmrr_db();
+    RunSummary {
+        command: "run",
+        spibench_version: env!("CARGO_PKG_VERSION"),
+        scene: name.to_string(),
+        title: &o.settings.title,
+        seed: o.seed,
+        units_across: o.transport.units_across,
+        units_down: o.transport.units_down,
+        transport,
+        electronics: ElectronicsSummary {
+            detector: &o.detector,
+            cmrr_db: cmrr.is_finite().then_some(cmrr),
+            rf_saturation_power_w_at_0_65_a_per_w: o.detector.rf_saturation_power_w(0.65),
+            oscilloscope: &o.scope,
+            channels: ChannelsSummary {
+                rf: o.channels[0],
+                monitor_plus: o.channels[1],
+                monitor_minus: o.channels[2],
+            },
+            output_noise_v_rms: NamedOutputs {
+                rf: noise[0],
+                monitor_plus: noise[1],
+                monitor_minus: noise[2],
+            },
+        },
+        frame_timing: o.timing,
+        settings: &o.settings,
+        normalization: NORMALIZATION_RULE,
+        truth: "255 * x_j / max(x): x_j the traced power incident on unit j's mirrors",
+        x_max_w: o.x.max(),
+        sequences: &o.sequences,
+        saturated: !o.saturation.is_empty(),
+        saturation: &o.saturation,
+        results: &o.results,
+        findings: findings(o),
+        files,
+        timings: o.timings,
+    }
+}
+
+/// Mean diode currents over a random pattern: half of each arm's pattern light plus the rest.
+fn mean_currents(o: &RunOutcome) -> [f64; 2] {
+    let t = &o.transport;
+    let light = [0, 1].map(|d| 0.5 * t.g_a[d].iter().sum::<f64>() + t.c_traced[d].value);
+    o.detector.diode_currents(light, t.ambient_a, t.dark_a)
+}
+
+fn write_outputs(
+    name: &str,
+    bench: &crate::optics::Bench,
+    o: &RunOutcome,
+    out: &OutputDir,
+) -> crate::Result<usize> {
+    let mut files = Vec::new();
+    write_gray8(&out.path("images/x.png"), &o.truth, 0.0, 255.0)?;
+    files.push("images/x.png".to_string());
+    for r in &o.results {
+        let f = result_file(r);
+        write_gray8(&out.path(&f), &r.reconstruction, 0.0, 255.0)?;
+        files.push(f);
+    }
+
+    let s = &o.settings;
+    let header = [
+        "scheme",
+        "ratio",
+        "measurements",
+        "dmd_frames",
+        "acquisition_time_s",
+        "psnr_db",
+        "mssim",
+        "iterations",
+        "converged",
+        "saturated",
+        "solver_time_s",
+    ];
+    let rows: Vec<Vec<String>> = o
+        .results
+        .iter()
+        .map(|r| {
+            vec![
+                r.scheme.key().to_string(),
+                format!("{}", r.ratio),
+                r.measurements.to_string(),
+                r.dmd_frames.to_string(),
+                format!("{:.6}", r.acquisition_time_s),
+                format!("{:.4}", r.psnr_db),
+                format!("{:.6}", r.mssim),
+                r.iterations.to_string(),
+                r.converged.to_string(),
+                r.saturated.to_string(),
+                format!("{:.4}", r.solver_time_s),
+            ]
+        })
+        .collect();
+    write_csv(&out.path("results.csv"), &header, &rows)?;
+    files.push("results.csv".to_string());
+
+    // Fig. 6: the object, then one row per scheme.
+    let n_ratio = s.sampling_ratios.len();
+    let mut tiles = vec![{
+        let mut row = vec![None; n_ratio];
+        row[0] = Some(o.truth.clone());
+        row
+    }];
+    let mut captions = vec![{
+        let mut row = vec![String::new(); n_ratio];
+        row[0] = "ideal object x".to_string();
+        row
+    }];
+    let mut row_labels = vec!["(a) object".to_string()];
+    for (k, scheme) in s.schemes.iter().enumerate() {
+        let letter = (b'b' + k as u8) as char;
+        row_labels.push(format!("({letter}) {}", scheme.label()));
+        let mut trow = Vec::new();
+        let mut crow = Vec::new();
+        for r in 0..n_ratio {
+            let res = &o.results[k * n_ratio + r];
+            trow.push(Some(res.reconstruction.clone()));
+            crow.push(format!(
+                "{:.2} dB / {:.3}{}",
+                res.psnr_db,
+                res.mssim,
+                if res.saturated { " SAT" } else { "" }
+            ));
+        }
+        tiles.push(trow);
+        captions.push(crow);
+    }
+    let montage = Montage {
+        title: format!("{}: reconstructions against sampling ratio", s.title),
+        row_labels,
+        col_labels: s.sampling_ratios.iter().map(|&r| pct(r)).collect(),
+        tiles,
+        captions,
+    };
+    write_montage(&montage, 160, &out.path("montage.png"))?;
+    files.push("montage.png".to_string());
+
+    // Fig. 7 (MSSIM) and the PSNR twin.
+    for (stem, label, pick) in [
+        (
+            "mssim_vs_ratio",
+            "MSSIM",
+            (|r: &SchemeResult| r.mssim) as fn(&SchemeResult) -> f64,
+        ),
+        ("psnr_vs_ratio", "PSNR (dB)", |r: &SchemeResult| r.psnr_db),
+    ] {
+        let plot = LinePlot {
+            title: format!("{}: {label} against sampling ratio", s.title),
+            x_label: "sampling ratio M/N".to_string(),
+            y_label: label.to_string(),
+            series: s
+                .schemes
+                .iter()
+                .enumerate()
+                .map(|(k, scheme)| Series {
+                    label: scheme.label().to_string(),
+                    x: s.sampling_ratios.clone(),
+                    y: (0..n_ratio)
+                        .map(|r| pick(&o.results[k * n_ratio + r]))
+                        .collect(),
+                    y_err: None,
+                })
+                .collect(),
+            log_x: false,
+        };
+        write_plot(
+            &plot,
+            &out.path(&format!("{stem}.svg")),
+            &out.path(&format!("{stem}.png")),
+        )?;
+        files.push(format!("{stem}.svg"));
+        files.push(format!("{stem}.png"));
+    }
+
+    // Signal traces: at most ~400 points per series (the plot marks every point).
+    for (q, tr) in &o.traces {
+        if tr.t_s.is_empty() {
+            continue;
+        }
+        let step = tr.t_s.len().div_ceil(400).max(1);
+        let series = (0..3)
+            .map(|k| Series {
+                label: OUTPUT_NAMES[k].replace('_', " "),
+                x: tr.t_s.iter().step_by(step).map(|t| t * 1e6).collect(),
+                y: tr.v[k].iter().step_by(step).copied().collect(),
+                y_err: None,
+            })
+            .collect();
+        let plot = LinePlot {
+            title: format!(
+                "{} sequence: first {} frames as recorded (every {step}th sample)",
+                q.key(),
+                tr.frames
+            ),
+            x_label: "time (µs)".to_string(),
+            y_label: "output (V)".to_string(),
+            series,
+            log_x: false,
+        };
+        let stem = format!("signals_{}", q.key());
+        write_plot(
+            &plot,
+            &out.path(&format!("{stem}.svg")),
+            &out.path(&format!("{stem}.png")),
+        )?;
+        files.push(format!("{stem}.svg"));
+        files.push(format!("{stem}.png"));
+    }
+
+    files.push("summary.json".to_string());
+    let count = files.len();
+    let summary = summarize_run(name, bench, o, files);
+    write_json(&out.path("summary.json"), &summary)?;
+    Ok(count)
+}
+
+fn print_report(name: &str, o: &RunOutcome) {
+    let t = &o.transport;
+    let pm = |e: crate::transport::Estimate| format!("{:.4e} ± {:.1e}", e.value, e.stderr);
+    println!(
+        "{name}: {}×{} units, {} rays (seed {}), trace {:.1} s, record {:.1} s, solve {:.1} s",
+        t.units_across,
+        t.units_down,
+        t.rays,
+        o.seed,
+        o.timings.trace_s,
+        o.timings.record_s,
+        o.timings.solve_s
+    );
+    println!(
+        "  k+ = {} A/W, k- = {} A/W, k' = {} A/W, imbalance = {}",
+        pm(t.k[0]),
+        pm(t.k[1]),
+        pm(t.k_prime),
+        pm(t.imbalance)
+    );
+    println!("  b+ = {} A, b- = {} A", pm(t.b[0]), pm(t.b[1]));
+    let ch = &o.channels;
+    println!(
+        "  detector: RF {:.0} V/A (±{} V), monitors {:.0}/{:.0} V/A, CMRR {:.1} dB; scope {:.3e} S/s, \
+         RF {:.0e} V/div, MON+ {:.0e} V/div, MON- {:.0e} V/div",
+        o.detector.rf.gain_v_per_a,
+        o.detector.rf.swing_v,
+        o.detector.monitors[0].gain_v_per_a,
+        o.detector.monitors[1].gain_v_per_a,
+        o.detector.cmrr_db(),
+        o.scope.sample_rate_hz,
+        ch[0].volts_per_div,
+        ch[1].volts_per_div,
+        ch[2].volts_per_div
+    );
+    let s = &o.settings;
+    print!("  {:<34}", "MSSIM (PSNR dB)");
+    for &r in &s.sampling_ratios {
+        print!(" {:>14}", pct(r));
+    }
+    println!();
+    for (k, scheme) in s.schemes.iter().enumerate() {
+        print!("  {:<34}", scheme.label());
+        for r in 0..s.sampling_ratios.len() {
+            let res = &o.results[k * s.sampling_ratios.len() + r];
+            print!(
+                " {:>14}",
+                format!(
+                    "{:.3} ({:.1}){}",
+                    res.mssim,
+                    res.psnr_db,
+                    if res.saturated { "!" } else { "" }
+                )
+            );
+        }
+        println!();
+    }
+    for sat in &o.saturation {
+        eprintln!("warning: SATURATION: {}", sat.message);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn built_in_bench_parses_with_defaults() {
+        let args = RunArgs {
+            scene: None,
+            out: PathBuf::from("unused"),
+            seed: 1,
+            rays: Some(1000),
+        };
+        let (name, scene) = load_scene(&args).unwrap();
+        assert_eq!(name, PAPER_BENCH_NAME);
+        assert_eq!(scene.settings.rays, 1000);
+        assert_eq!(scene.bench.units_shape(), (48, 48));
+        assert_eq!(
+            scene.settings.sampling_ratios,
+            vec![0.05, 0.1, 0.15, 0.2, 0.4, 0.6, 0.8, 1.0]
+        );
+        let bad = RunArgs {
+            rays: Some(0),
+            ..args
+        };
+        assert!(load_scene(&bad).unwrap_err().is_user_error());
+    }
+}

@@ -1,0 +1,199 @@
+//! `spibench run` end to end on a small variant of the paper's bench (16 × 16 units, few rays):
+//! every output, determinism across thread counts, saturation reporting, bad input.
+
+use std::path::{Path, PathBuf};
+
+use crate::common::*;
+
+/// The paper bench as 16 × 16 units of 36 × 36 mirrors with a short run section, plus edits.
+fn small_scene(dir: &TempDir, name: &str, run: &str, edits: &[(&str, &str)]) -> PathBuf {
+    let mut t = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/scenes/paper_bench.ron"
+    ))
+    .unwrap();
+    let mut all = vec![(
+        "units_across: 48, units_down: 48, mirrors_per_unit: 12",
+        "units_across: 16, units_down: 16, mirrors_per_unit: 36",
+    )];
+    all.extend_from_slice(edits);
+    for (a, b) in all {
+        assert_eq!(t.matches(a).count(), 1, "{a}");
+        t = t.replace(a, b);
+    }
+    let end = t.rfind(')').unwrap();
+    let t = format!("{}    run: ({run}),\n)\n", &t[..end]);
+    let p = dir.join(name);
+    std::fs::write(&p, t).unwrap();
+    p
+}
+
+const RUN: &str = "rays: 30000, sampling_ratios: [0.25, 1.0], signal_trace_frames: 3";
+
+fn run_to(scene: &Path, out: &Path, threads: &str) -> std::process::Output {
+    spibench(
+        &[
+            "run",
+            scene.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--seed",
+            "4",
+        ],
+        &[("RAYON_NUM_THREADS", threads)],
+    )
+}
+
+/// summary.json without its timings (the only keys that may differ between identical runs).
+fn without_timings(mut v: serde_json::Value) -> serde_json::Value {
+    v.as_object_mut().unwrap().remove("timings");
+    for r in v["results"].as_array_mut().unwrap() {
+        r.as_object_mut().unwrap().remove("solver_time_s");
+    }
+    v
+}
+
+#[test]
+fn run_writes_every_output_identically_on_one_and_two_threads() {
+    let dir = TempDir::new("run-ok");
+    let scene = small_scene(&dir, "small.ron", RUN, &[]);
+    let (a, b) = (dir.join("one"), dir.join("two"));
+    let oa = run_to(&scene, &a, "1");
+    assert!(oa.status.success(), "{}", stderr(&oa));
+    let ob = run_to(&scene, &b, "2");
+    assert!(ob.status.success(), "{}", stderr(&ob));
+    let mut files = vec![
+        "summary.json".to_string(),
+        "results.csv".to_string(),
+        "montage.png".to_string(),
+        "images/x.png".to_string(),
+    ];
+    for stem in [
+        "mssim_vs_ratio",
+        "psnr_vs_ratio",
+        "signals_base",
+        "signals_complementary",
+    ] {
+        files.push(format!("{stem}.svg"));
+        files.push(format!("{stem}.png"));
+    }
+    for scheme in [
+        "traditional",
+        "single_arm_complementary",
+        "double_arm",
+        "secondary_complementary_balancing",
+    ] {
+        for r in ["0.250", "1.000"] {
+            files.push(format!("images/{scheme}__r{r}.png"));
+        }
+    }
+    for f in &files {
+        assert!(a.join(f).is_file(), "missing {f}");
+    }
+    let sa = read_json(&a.join("summary.json"));
+    let sb = read_json(&b.join("summary.json"));
+    assert_eq!(without_timings(sa.clone()), without_timings(sb));
+    // The documented keys.
+    assert_eq!(sa["command"], "run");
+    for key in [
+        "k_plus",
+        "k_minus",
+        "b_plus",
+        "b_minus",
+        "k_prime",
+        "imbalance",
+        "ledger",
+    ] {
+        assert!(sa["transport"].get(key).is_some(), "transport.{key}");
+    }
+    assert!(sa["transport"].get("k_plus_stderr").is_some());
+    assert_eq!(sa["electronics"]["detector"]["rf"]["gain_v_per_a"], 350e3);
+    assert_eq!(sa["saturated"], false);
+    let results = sa["results"].as_array().unwrap();
+    assert_eq!(results.len(), 8);
+    for r in results {
+        for key in [
+            "scheme",
+            "ratio",
+            "psnr_db",
+            "mssim",
+            "dmd_frames",
+            "acquisition_time_s",
+            "iterations",
+            "solver_time_s",
+        ] {
+            assert!(r.get(key).is_some(), "results[].{key}");
+        }
+    }
+    // 100 % of 256 units: SCB shows 512 frames, double-arm 256.
+    let frames = |scheme: &str| {
+        results
+            .iter()
+            .find(|r| r["scheme"] == scheme && r["ratio"] == 1.0)
+            .unwrap()["dmd_frames"]
+            .as_u64()
+            .unwrap()
+    };
+    assert_eq!(frames("secondary_complementary_balancing"), 512);
+    assert_eq!(frames("double_arm"), 256);
+    let out = stdout(&oa);
+    assert!(out.contains("Secondary complementary balancing"), "{out}");
+    // A different seed gives different noise.
+    let c = dir.join("three");
+    let oc = spibench(
+        &[
+            "run",
+            scene.to_str().unwrap(),
+            "--out",
+            c.to_str().unwrap(),
+            "--seed",
+            "5",
+        ],
+        &[],
+    );
+    assert!(oc.status.success(), "{}", stderr(&oc));
+    assert_ne!(
+        without_timings(read_json(&c.join("summary.json")))["results"],
+        without_timings(sa)["results"]
+    );
+}
+
+#[test]
+fn run_reports_saturation() {
+    let dir = TempDir::new("run-sat");
+    // A 1 kW lamp: about a thousand times the default light.
+    let scene = small_scene(
+        &dir,
+        "bright.ron",
+        "rays: 30000, sampling_ratios: [0.5], schemes: [SecondaryComplementaryBalancing]",
+        &[("power: FromFilament,", "power: InBand(watts: 1000.0),")],
+    );
+    let out = dir.join("out");
+    let o = run_to(&scene, &out, "2");
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stderr(&o).contains("SATURATION"), "{}", stderr(&o));
+    let s = read_json(&out.join("summary.json"));
+    assert_eq!(s["saturated"], true);
+    let sat = s["saturation"].as_array().unwrap();
+    assert!(
+        sat.iter()
+            .any(|x| x["output"] == "rf" && x["kind"] == "detector_swing")
+    );
+    assert_eq!(s["results"][0]["saturated"], true);
+}
+
+#[test]
+fn run_rejects_bad_input_with_file_line_and_field() {
+    let dir = TempDir::new("run-bad");
+    let scene = small_scene(&dir, "typo.ron", "rays: 1000, sampling_ratio: [0.5]", &[]);
+    let out = dir.join("out");
+    let o = run_to(&scene, &out, "2");
+    assert_input_error(&o, &["typo.ron", "line", "sampling_ratio"], &out);
+
+    let scene = small_scene(&dir, "slow.ron", "rays: 1000, settling_time_us: 60.0", &[]);
+    let o = run_to(&scene, &out, "2");
+    assert_input_error(&o, &["slow.ron", "line", "settling_time_us"], &out);
+
+    let o = run_to(&dir.join("missing.ron"), &out, "2");
+    assert_input_error(&o, &["missing.ron"], &out);
+}
