@@ -57,6 +57,8 @@ use crate::detector::{
 };
 use crate::error::{Error, Result};
 use crate::metrics;
+use crate::metrics::resolution::{ChartToImage, ResolutionOptions, read_resolution};
+use crate::objects::usaf::UsafChart;
 use crate::raster::Raster;
 use crate::reconstruction::{BitMatrix, PatternForm, tval3};
 use crate::rng;
@@ -146,6 +148,104 @@ pub enum Stage {
     Solve,
 }
 
+/// A resolved USAF element and its spatial frequency on the chart.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Resolved {
+    pub group: i32,
+    pub element: u8,
+    pub lp_per_mm: f64,
+}
+
+/// How reconstructions of a USAF chart are read for resolution: the chart, the map from chart
+/// millimetres to unit coordinates found by registering the ideal object x against the chart,
+/// and what x itself resolves (the limit set by the optics and the unit size).
+#[derive(Debug, Clone, Serialize)]
+pub struct ResolutionContext {
+    #[serde(skip)]
+    pub chart: UsafChart,
+    #[serde(skip)]
+    pub map: ChartToImage,
+    /// Chart mm → unit pixel coordinates: (col, row) = m·(x, y) + t.
+    pub map_m: [[f64; 2]; 2],
+    pub map_t: [f64; 2],
+    /// Pearson correlation of x with the chart through `map` (the read-out is skipped below
+    /// [`MIN_REGISTRATION_CORRELATION`]).
+    pub registration_correlation: f64,
+    pub criterion: &'static str,
+    pub threshold: f64,
+    /// What the ideal object x resolves.
+    pub ideal_finest_resolved: Option<Resolved>,
+}
+
+/// Below this correlation the registration is not trusted and no resolution is reported.
+pub const MIN_REGISTRATION_CORRELATION: f64 = 0.8;
+
+/// Registers x against the bench's USAF chart (if it has one) for the resolution read-out.
+///
+/// Geometric guess: the chart point that the imaging lens puts on the pattern centre, taking
+/// the paper's 1:1 imaging (m = −1) about the optical axis (the bench z axis), and one unit =
+/// pitch · mirrors per unit on the chart. The registration then refines orientation, scale
+/// (±12 %) and offset (±4 units) against x itself.
+fn resolution_context(
+    bench: &crate::optics::Bench,
+    x: &Raster,
+) -> Result<Option<ResolutionContext>> {
+    let (Some(plate), Some(dmd)) = (bench.charts.first(), bench.dmd.as_ref()) else {
+        return Ok(None);
+    };
+    let crate::optics::chart::ChartMask::Usaf(chart) = &plate.mask else {
+        return Ok(None);
+    };
+    let d = &dmd.dmd;
+    let pa = &d.pattern;
+    let mpu = pa.mirrors_per_unit as f64;
+    // Pattern centre on the DMD (m, bench frame: columns along +x, rows along −y).
+    let dx =
+        (pa.col0 as f64 + pa.units_across as f64 * mpu / 2.0 - d.columns as f64 / 2.0) * d.pitch;
+    let dy = -(pa.row0 as f64 + pa.units_down as f64 * mpu / 2.0 - d.rows as f64 / 2.0) * d.pitch;
+    let f = &plate.frame;
+    if f.w.z.abs() < 1e-6 {
+        return Ok(None);
+    }
+    // The chart point on the line through (−dx, −dy) parallel to the axis.
+    let base = glam::DVec3::new(-dx, -dy, 0.0);
+    let t = (f.origin - base).dot(f.w) / f.w.z;
+    let local = f.to_local(base + glam::DVec3::new(0.0, 0.0, t));
+    let center_mm = [local.x * 1e3, local.y * 1e3];
+    let pixels_per_mm = 1.0 / (d.pitch * mpu * 1e3);
+    let reg = metrics::registration::register_chart(x, chart, center_mm, pixels_per_mm, 4.0)?;
+    if reg.correlation.is_nan() || reg.correlation < MIN_REGISTRATION_CORRELATION {
+        return Ok(None);
+    }
+    let options = ResolutionOptions::default();
+    let ideal = finest(x, chart, &reg.map, &options)?;
+    Ok(Some(ResolutionContext {
+        chart: chart.clone(),
+        map: reg.map,
+        map_m: reg.map.m,
+        map_t: reg.map.t,
+        registration_correlation: reg.correlation,
+        criterion: metrics::resolution::CRITERION,
+        threshold: options.threshold,
+        ideal_finest_resolved: ideal,
+    }))
+}
+
+/// The finest element resolved in `image`.
+fn finest(
+    image: &Raster,
+    chart: &UsafChart,
+    map: &ChartToImage,
+    options: &ResolutionOptions,
+) -> Result<Option<Resolved>> {
+    let r = read_resolution(image, chart, map, options)?;
+    Ok(r.finest_resolved.map(|e| Resolved {
+        group: e.group,
+        element: e.element,
+        lp_per_mm: metrics::resolution::usaf_lp_per_mm(e.group, e.element),
+    }))
+}
+
 /// One scheme at one sampling ratio.
 #[derive(Debug, Clone, Serialize)]
 pub struct SchemeResult {
@@ -171,6 +271,10 @@ pub struct SchemeResult {
     pub saturated: bool,
     /// Solver CPU time (s): a timing, different from run to run.
     pub solver_time_s: f64,
+    /// The finest USAF element resolved in the reconstruction (metrics::resolution, both bar
+    /// orientations above the Michelson-contrast threshold); None when the chart is not a USAF
+    /// chart, could not be registered, or nothing is resolved.
+    pub finest_resolved: Option<Resolved>,
     /// The reconstruction after normalisation, on the truth's 0–255 scale.
     #[serde(skip)]
     pub reconstruction: Raster,
@@ -235,6 +339,8 @@ pub struct RunOutcome {
     pub truth: Raster,
     /// Scheme-major, ratio-minor, in the settings' order.
     pub results: Vec<SchemeResult>,
+    /// The USAF resolution read-out's registration (None without a registrable USAF chart).
+    pub resolution: Option<ResolutionContext>,
     /// The recorded sequences (those some scheme needed).
     pub sequences: Vec<SequenceSummary>,
     /// The first frames of each recorded sequence, sample by sample.
@@ -485,6 +591,7 @@ pub fn run(
 
     // ---- Reconstruct and score.
     let t2 = Instant::now();
+    let resolution = resolution_context(&scene.bench, &x)?;
     let sets: Vec<PatternSet> = s
         .sampling_ratios
         .iter()
@@ -512,6 +619,10 @@ pub fn run(
             let op = set.operator(scheme.form());
             let sol = tval3::tval3(op.as_ref(), &y, across, down, &s.solver)?;
             let norm = metrics::normalize_to_truth(&sol.image, &truth)?;
+            let finest_resolved = match &resolution {
+                Some(c) => finest(&norm.image, &c.chart, &c.map, &ResolutionOptions::default())?,
+                None => None,
+            };
             let out = SchemeResult {
                 scheme,
                 ratio: s.sampling_ratios[r],
@@ -528,6 +639,7 @@ pub fn run(
                 relative_residual: sol.relative_residual,
                 saturated,
                 solver_time_s: sol.cpu_time_s,
+                finest_resolved,
                 reconstruction: norm.image,
             };
             let d = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
@@ -554,6 +666,7 @@ pub fn run(
         x,
         truth,
         results,
+        resolution,
         sequences,
         traces,
         saturation,

@@ -7,6 +7,7 @@ mod export;
 mod progress;
 mod reconstruct;
 mod run;
+mod run_report;
 mod simulate;
 mod trace;
 

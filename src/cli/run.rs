@@ -17,6 +17,9 @@
 //! - `mssim_vs_ratio.{svg,png}` (the paper's Fig. 7) and `psnr_vs_ratio.{svg,png}`.
 //! - `signals_<sequence>.{svg,png}`: the first frames of each recorded sequence as the
 //!   oscilloscope sampled them.
+//! - `report.html`: one self-contained page (images embedded as data: URIs, no network) with the
+//!   bench summary, the per-unit efficiency maps, the ledger, the signal traces, the montage,
+//!   the curves, the resolution read-out and the settings that reproduce the run.
 
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
@@ -95,6 +98,10 @@ pub struct RunSummary<'a> {
     pub saturation: &'a [Saturation],
     /// Scheme-major, ratio-minor.
     pub results: &'a [SchemeResult],
+    /// The USAF resolution read-out: the registration of x against the chart, the criterion,
+    /// and what x itself resolves (null without a registrable USAF chart). Each result carries
+    /// its `finest_resolved`.
+    pub resolution: Option<&'a crate::run::ResolutionContext>,
     /// Observations computed from the results (never tuned).
     pub findings: Findings,
     /// Output files, relative to the output folder.
@@ -252,7 +259,7 @@ pub fn run(args: &RunArgs) -> Result<()> {
     Ok(())
 }
 
-fn pct(r: f64) -> String {
+pub(super) fn pct(r: f64) -> String {
     let p = r * 100.0;
     if (p - p.round()).abs() < 1e-9 {
         format!("{p:.0} %")
@@ -312,6 +319,7 @@ pub fn summarize_run<'a>(
         saturated: !o.saturation.is_empty(),
         saturation: &o.saturation,
         results: &o.results,
+        resolution: o.resolution.as_ref(),
         findings: findings(o),
         files,
         timings: o.timings,
@@ -353,6 +361,9 @@ fn write_outputs(
         "converged",
         "saturated",
         "solver_time_s",
+        "finest_group",
+        "finest_element",
+        "finest_lp_per_mm",
     ];
     let rows: Vec<Vec<String>> = o
         .results
@@ -370,6 +381,15 @@ fn write_outputs(
                 r.converged.to_string(),
                 r.saturated.to_string(),
                 format!("{:.4}", r.solver_time_s),
+                r.finest_resolved
+                    .map(|e| e.group.to_string())
+                    .unwrap_or_default(),
+                r.finest_resolved
+                    .map(|e| e.element.to_string())
+                    .unwrap_or_default(),
+                r.finest_resolved
+                    .map(|e| format!("{:.4}", e.lp_per_mm))
+                    .unwrap_or_default(),
             ]
         })
         .collect();
@@ -489,11 +509,21 @@ fn write_outputs(
         files.push(format!("{stem}.png"));
     }
 
+    files.push("report.html".to_string());
     files.push("summary.json".to_string());
     let count = files.len();
     let summary = summarize_run(name, bench, o, files);
     write_json(&out.path("summary.json"), &summary)?;
+    super::run_report::write_report(name, o, &summary, out)?;
     Ok(count)
+}
+
+/// "g/e" of a resolved element, or "none".
+pub fn element_text(e: Option<crate::run::Resolved>) -> String {
+    match e {
+        Some(e) => format!("{}/{}", e.group, e.element),
+        None => "none".to_string(),
+    }
 }
 
 fn print_report(name: &str, o: &RunOutcome) {
@@ -552,6 +582,21 @@ fn print_report(name: &str, o: &RunOutcome) {
             );
         }
         println!();
+    }
+    if let Some(c) = &o.resolution {
+        println!(
+            "  finest USAF element resolved (group/element; x itself: {}; registration r = {:.3})",
+            element_text(c.ideal_finest_resolved),
+            c.registration_correlation
+        );
+        for (k, scheme) in s.schemes.iter().enumerate() {
+            print!("  {:<34}", scheme.label());
+            for r in 0..s.sampling_ratios.len() {
+                let res = &o.results[k * s.sampling_ratios.len() + r];
+                print!(" {:>14}", element_text(res.finest_resolved));
+            }
+            println!();
+        }
     }
     for sat in &o.saturation {
         eprintln!("warning: SATURATION: {}", sat.message);

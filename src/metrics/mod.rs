@@ -34,6 +34,7 @@
 //! header of `make_reference.py` there).
 
 pub mod normalize;
+pub mod registration;
 pub mod resolution;
 pub mod ssim;
 

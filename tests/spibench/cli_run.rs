@@ -64,6 +64,7 @@ fn run_writes_every_output_identically_on_one_and_two_threads() {
     assert!(ob.status.success(), "{}", stderr(&ob));
     let mut files = vec![
         "summary.json".to_string(),
+        "report.html".to_string(),
         "results.csv".to_string(),
         "montage.png".to_string(),
         "images/x.png".to_string(),
@@ -89,6 +90,22 @@ fn run_writes_every_output_identically_on_one_and_two_threads() {
     }
     for f in &files {
         assert!(a.join(f).is_file(), "missing {f}");
+    }
+    // report.html: one self-contained page whose images are all embedded.
+    let html = std::fs::read_to_string(a.join("report.html")).expect("report.html");
+    assert!(
+        html.starts_with("<!DOCTYPE html>"),
+        "report.html is not an HTML page"
+    );
+    for absent in ["http://", "https://", "<script", "<link"] {
+        assert!(!html.contains(absent), "report.html contains {absent}");
+    }
+    assert!(
+        html.matches("src=\"data:image/").count() >= 6,
+        "embedded images missing"
+    );
+    for section in ["Flux ledger", "Signals", "Reconstructions", "Settings"] {
+        assert!(html.contains(section), "report.html lacks {section}");
     }
     let sa = read_json(&a.join("summary.json"));
     let sb = read_json(&b.join("summary.json"));
