@@ -333,6 +333,23 @@ fn mean_currents(o: &RunOutcome) -> [f64; 2] {
     o.detector.diode_currents(light, t.ambient_a, t.dark_a)
 }
 
+/// Writes a plot as `STEM.svg` and `STEM.png` and lists both files.
+fn write_plot_pair(
+    plot: &LinePlot,
+    stem: &str,
+    out: &OutputDir,
+    files: &mut Vec<String>,
+) -> crate::Result<()> {
+    write_plot(
+        plot,
+        &out.path(&format!("{stem}.svg")),
+        &out.path(&format!("{stem}.png")),
+    )?;
+    files.push(format!("{stem}.svg"));
+    files.push(format!("{stem}.png"));
+    Ok(())
+}
+
 fn write_outputs(
     name: &str,
     bench: &crate::optics::Bench,
@@ -465,13 +482,7 @@ fn write_outputs(
                 .collect(),
             log_x: false,
         };
-        write_plot(
-            &plot,
-            &out.path(&format!("{stem}.svg")),
-            &out.path(&format!("{stem}.png")),
-        )?;
-        files.push(format!("{stem}.svg"));
-        files.push(format!("{stem}.png"));
+        write_plot_pair(&plot, stem, out, &mut files)?;
     }
 
     // Signal traces: at most ~400 points per series (the plot marks every point).
@@ -500,13 +511,7 @@ fn write_outputs(
             log_x: false,
         };
         let stem = format!("signals_{}", q.key());
-        write_plot(
-            &plot,
-            &out.path(&format!("{stem}.svg")),
-            &out.path(&format!("{stem}.png")),
-        )?;
-        files.push(format!("{stem}.svg"));
-        files.push(format!("{stem}.png"));
+        write_plot_pair(&plot, &stem, out, &mut files)?;
     }
 
     files.push("report.html".to_string());

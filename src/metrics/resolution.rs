@@ -356,22 +356,7 @@ pub fn read_resolution(
 
 /// The bounding box of a triplet in chart mm: [x0, y0, x1, y1].
 fn triplet_box(bars: &[Bar]) -> [f64; 4] {
-    bars.iter().fold(
-        [
-            f64::INFINITY,
-            f64::INFINITY,
-            f64::NEG_INFINITY,
-            f64::NEG_INFINITY,
-        ],
-        |a, b| {
-            [
-                a[0].min(b.x0_mm),
-                a[1].min(b.y0_mm),
-                a[2].max(b.x1_mm),
-                a[3].max(b.y1_mm),
-            ]
-        },
-    )
+    crate::objects::usaf::bbox(bars)
 }
 
 /// True if the triplet's box maps into [0, width] × [0, height] (an affine map sends the box to

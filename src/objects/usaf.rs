@@ -447,7 +447,8 @@ struct Layout {
     layers: Vec<LayerIndex>,
 }
 
-fn bbox(bars: &[Bar]) -> [f64; 4] {
+/// The bounding box of a set of bars in chart mm: [x0, y0, x1, y1].
+pub fn bbox(bars: &[Bar]) -> [f64; 4] {
     bars.iter().fold(
         [
             f64::INFINITY,
