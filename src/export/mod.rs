@@ -863,20 +863,22 @@ pub fn export_mitsuba(bench: &Bench, opts: &ExportOptions) -> Result<MitsubaScen
 mod tests {
     use super::*;
 
+    /// Signed area of a triangle soup projected on the xy plane (positive counter-clockwise).
+    fn signed_area_z(s: &Soup) -> f64 {
+        let p = |i: u32| {
+            let v = s.v[i as usize];
+            DVec3::new(v[0] as f64, v[1] as f64, v[2] as f64)
+        };
+        s.f.iter()
+            .map(|t| 0.5 * (p(t[1]) - p(t[0])).cross(p(t[2]) - p(t[0])).z)
+            .sum()
+    }
+
     #[test]
     fn polygons_keep_the_circle_area() {
         let f = Frame::new(DVec3::ZERO, DVec3::Z, None);
         let s = plane_soup(&f, Shape2D::Disk { radius: 1.0 });
-        let area: f64 =
-            s.f.iter()
-                .map(|t| {
-                    let p = |i: u32| {
-                        let v = s.v[i as usize];
-                        DVec3::new(v[0] as f64, v[1] as f64, v[2] as f64)
-                    };
-                    0.5 * (p(t[1]) - p(t[0])).cross(p(t[2]) - p(t[0])).z
-                })
-                .sum();
+        let area = signed_area_z(&s);
         // Counter-clockwise (normal +z) and the area of the unit circle in mm² (1 m = 1000 mm),
         // to f32 rounding of the vertices.
         let exact = std::f64::consts::PI * 1e6;
@@ -894,16 +896,7 @@ mod tests {
                 hole: 0.01,
             },
         );
-        let area: f64 =
-            s.f.iter()
-                .map(|t| {
-                    let p = |i: u32| {
-                        let v = s.v[i as usize];
-                        DVec3::new(v[0] as f64, v[1] as f64, v[2] as f64)
-                    };
-                    0.5 * (p(t[1]) - p(t[0])).cross(p(t[2]) - p(t[0])).z
-                })
-                .sum();
+        let area = signed_area_z(&s);
         let exact = (0.08 * 0.06 - std::f64::consts::PI * 1e-4) * 1e6;
         assert!((area - exact).abs() < 1e-5 * exact, "{area} vs {exact}");
     }

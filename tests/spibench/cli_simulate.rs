@@ -20,21 +20,30 @@ Experiment(
 )
 "#;
 
-#[test]
-fn simulate_writes_every_output() {
-    let dir = TempDir::new("sim-ok");
-    let file = dir.join("small.ron");
-    std::fs::write(&file, SMALL).unwrap();
-    let out = dir.join("out");
-    let o = spibench(
+/// Runs `spibench simulate FILE --out OUT` with extra environment variables.
+fn simulate(
+    file: &std::path::Path,
+    out: &std::path::Path,
+    env: &[(&str, &str)],
+) -> std::process::Output {
+    spibench(
         &[
             "simulate",
             file.to_str().unwrap(),
             "--out",
             out.to_str().unwrap(),
         ],
-        &[],
-    );
+        env,
+    )
+}
+
+#[test]
+fn simulate_writes_every_output() {
+    let dir = TempDir::new("sim-ok");
+    let file = dir.join("small.ron");
+    std::fs::write(&file, SMALL).unwrap();
+    let out = dir.join("out");
+    let o = simulate(&file, &out, &[]);
     assert!(o.status.success(), "{}", stderr(&o));
     for f in [
         "summary.json",
@@ -90,15 +99,7 @@ fn simulate_is_identical_on_one_and_two_threads() {
     let mut results = Vec::new();
     for threads in ["1", "2"] {
         let out = dir.join(&format!("out{threads}"));
-        let o = spibench(
-            &[
-                "simulate",
-                file.to_str().unwrap(),
-                "--out",
-                out.to_str().unwrap(),
-            ],
-            &[("RAYON_NUM_THREADS", threads)],
-        );
+        let o = simulate(&file, &out, &[("RAYON_NUM_THREADS", threads)]);
         assert!(o.status.success(), "{}", stderr(&o));
         let mut s = read_json(&out.join("summary.json"));
         // Timings differ between runs; everything else must be bit-identical.
@@ -117,15 +118,7 @@ fn unknown_field_names_file_line_and_field() {
     let file = dir.join("bad.ron");
     std::fs::write(&file, SMALL.replace("seed: 5,", "seed: 5,\n    sead: 6,")).unwrap();
     let out = dir.join("out");
-    let o = spibench(
-        &[
-            "simulate",
-            file.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-        ],
-        &[],
-    );
+    let o = simulate(&file, &out, &[]);
     assert_input_error(&o, &["bad.ron", "line 16", "sead"], &out);
 }
 
@@ -136,15 +129,7 @@ fn sampling_ratio_out_of_range_is_rejected() {
         let file = dir.join("bad.ron");
         std::fs::write(&file, SMALL.replace("[0.3, 0.6]", &format!("[0.3, {bad}]"))).unwrap();
         let out = dir.join("out");
-        let o = spibench(
-            &[
-                "simulate",
-                file.to_str().unwrap(),
-                "--out",
-                out.to_str().unwrap(),
-            ],
-            &[],
-        );
+        let o = simulate(&file, &out, &[]);
         assert_input_error(
             &o,
             &["bad.ron", "line 7", "sampling_ratios", "(0, 1]"],
@@ -157,15 +142,7 @@ fn sampling_ratio_out_of_range_is_rejected() {
 fn missing_experiment_and_missing_object_file() {
     let dir = TempDir::new("sim-missing");
     let out = dir.join("out");
-    let o = spibench(
-        &[
-            "simulate",
-            dir.join("nope.ron").to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-        ],
-        &[],
-    );
+    let o = simulate(&dir.join("nope.ron"), &out, &[]);
     assert_input_error(&o, &["nope.ron"], &out);
 
     let file = dir.join("obj.ron");
@@ -174,15 +151,7 @@ fn missing_experiment_and_missing_object_file() {
         SMALL.replace("object: Phantom", "object: File(path: \"missing.png\")"),
     )
     .unwrap();
-    let o = spibench(
-        &[
-            "simulate",
-            file.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-        ],
-        &[],
-    );
+    let o = simulate(&file, &out, &[]);
     assert_input_error(&o, &["missing.png"], &out);
 }
 
@@ -199,15 +168,7 @@ fn hadamard_needs_a_power_of_two() {
         );
     std::fs::write(&file, text).unwrap();
     let out = dir.join("out");
-    let o = spibench(
-        &[
-            "simulate",
-            file.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-        ],
-        &[],
-    );
+    let o = simulate(&file, &out, &[]);
     assert_input_error(&o, &["h.ron", "patterns", "48"], &out);
 }
 
