@@ -4,8 +4,8 @@
 //! - rays per second per core on 1 and 2 threads,
 //! - the relative standard errors of k₊ and k₋, the number of rays and the time needed for
 //!   0.1 % (extrapolated with SE ∝ 1/√N from a pilot run, then confirmed by one run at that N),
-//! - the same for a baseline in the same run: the bench without the field importance sampling
-//!   (rays drawn over the whole emission cone only).
+//! - the same for two baselines in the same run: the field target without the chart guidance,
+//!   and the bench without any field importance sampling (rays over the whole emission cone).
 //!
 //! Timings are wall-clock and depend on what else the machine is doing; the ratio to the
 //! baseline, measured in the same run, is the meaningful comparison.
@@ -67,7 +67,7 @@ fn main() {
     };
     println!("bench: {}", scene.display());
 
-    let pilot_rays = 500_000;
+    let pilot_rays = 1_000_000;
     let one = run(&bench, pilot_rays, 1, 1);
     let two = run(&bench, pilot_rays, 1, 2);
     println!(
@@ -89,18 +89,26 @@ fn main() {
         confirm.seconds, confirm.rel_se[0], confirm.rel_se[1]
     );
 
-    // Baseline: no field importance sampling.
-    let mut plain = bench.clone();
+    // Comparisons in the same run: the field target without the chart guidance, and no field
+    // importance sampling at all (rays over the whole emission cone only).
+    let mut unguided = bench.clone();
+    unguided.lamp.guide = None;
+    let mut plain = unguided.clone();
     plain.lamp.field = None;
-    let base = run(&plain, pilot_rays, 1, 2);
-    let nb = rays_for_target(&base, pilot_rays);
-    let tb = base.seconds * nb as f64 / pilot_rays as f64;
-    println!(
-        "baseline without field sampling: {:.0} rays/s, rel. SE k+ {:.2e}, k- {:.2e} at {pilot_rays} rays \
-         -> 0.1 % needs {nb} rays, ~{tb:.0} s (extrapolated): {:.1}x slower to the target",
-        pilot_rays as f64 / base.seconds,
-        base.rel_se[0],
-        base.rel_se[1],
-        tb / confirm.seconds.max(1e-9)
-    );
+    for (name, b) in [
+        ("field target without chart guidance", &unguided),
+        ("baseline without field sampling", &plain),
+    ] {
+        let base = run(b, pilot_rays, 1, 2);
+        let nb = rays_for_target(&base, pilot_rays);
+        let tb = base.seconds * nb as f64 / pilot_rays as f64;
+        println!(
+            "{name}: {:.0} rays/s, rel. SE k+ {:.2e}, k- {:.2e} at {pilot_rays} rays \
+             -> 0.1 % needs {nb} rays, ~{tb:.1} s (extrapolated): {:.1}x slower to the target",
+            pilot_rays as f64 / base.seconds,
+            base.rel_se[0],
+            base.rel_se[1],
+            tb / confirm.seconds.max(1e-9)
+        );
+    }
 }

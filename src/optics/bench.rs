@@ -145,6 +145,15 @@ impl Surface {
     }
 }
 
+/// What the nearest-hit search found: surface i (with its geometric normal), mesh k, or the
+/// DMD's slab.
+#[derive(Debug, Clone, Copy)]
+pub enum Target {
+    Surface(usize, DVec3),
+    Mesh(usize),
+    Dmd,
+}
+
 /// What a leaf of the bench's BVH holds.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Prim {
@@ -324,6 +333,52 @@ impl Bench {
 
     pub fn element_id(&self, name: &str) -> Option<ElementId> {
         self.elements.iter().position(|e| e == name)
+    }
+
+    /// The nearest primitive hit by the ray (o, unit d) beyond t = 0: its distance and what it is.
+    #[inline]
+    pub fn nearest(&self, o: DVec3, d: DVec3) -> (f64, Option<Target>) {
+        let bench = self;
+        let mut best = f64::INFINITY;
+        let mut target = None;
+        let accel = &bench.accel;
+        let mut hit = obvhs::ray::RayHit::none();
+        let ray = crate::optics::mesh::bvh_ray(o, d, f64::INFINITY);
+        accel.bvh.ray_traverse(ray, &mut hit, |_, slot| {
+            match accel.prims[slot] {
+                Prim::Surface(i) => {
+                    if let Some(h) = bench.surfaces[i].geometry.intersect(o, d, 0.0, best) {
+                        best = h.t;
+                        target = Some(Target::Surface(i, h.normal));
+                    }
+                }
+                Prim::Mesh(k) => {
+                    if let Some(t) = bench.meshes[k].0.intersect(o, d, 0.0, best)
+                        && t < best
+                    {
+                        best = t;
+                        target = Some(Target::Mesh(k));
+                    }
+                }
+                Prim::Dmd => {
+                    if let Some(dmd) = &bench.dmd
+                        && let Some(t) = dmd.dmd.slab_entry(o, d, 0.0)
+                        && t < best
+                    {
+                        best = t;
+                        target = Some(Target::Dmd);
+                    }
+                }
+            }
+            // Tell the traversal an f32 distance no smaller than the exact best, so that no box
+            // that could hold a closer hit is pruned by rounding.
+            if best.is_finite() {
+                (best * (1.0 + 1e-6) + 1e-6) as f32
+            } else {
+                f32::INFINITY
+            }
+        });
+        (best, target)
     }
 }
 

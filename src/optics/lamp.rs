@@ -30,6 +30,7 @@ use std::f64::consts::PI;
 use glam::DVec3;
 
 use super::geometry::Frame;
+use super::guide::ChartGuide;
 use super::spectrum::{Spectrum, integrate, planck_radiance, tungsten_emissivity};
 
 /// The outline of the emitting filament in the lamp frame's (u, v) plane.
@@ -160,6 +161,9 @@ pub struct Lamp {
     /// sin² of the emission cone's half-angle.
     pub sin2_max: f64,
     pub field: Option<FieldTarget>,
+    /// Of the rays aimed at the field target, a share aimed at a chart's clear areas instead of
+    /// uniformly over the target (fitted to the assembled bench, see `optics::guide`).
+    pub guide: Option<ChartGuide>,
 }
 
 /// A sampled emission: start point, unit direction, and the ray's share of the band power as a
@@ -205,10 +209,11 @@ impl Lamp {
         Ok(())
     }
 
-    /// Samples an emission from five uniform numbers in [0, 1): two for the point on the
-    /// filament, one for the choice of strategy, two for the direction.
+    /// Samples an emission at `wavelength_m` from five uniform numbers in [0, 1): two for the
+    /// point on the filament, one for the choice of strategy, two for the direction. (The
+    /// wavelength matters only to the chart-guided strategy, whose aim follows the dispersion.)
     #[inline]
-    pub fn sample(&self, u: [f64; 5]) -> Emission {
+    pub fn sample(&self, u: [f64; 5], wavelength_m: f64) -> Emission {
         let fr = &self.frame;
         let (x, y) = match self.shape {
             EmitterShape::Rect { half_u, half_v } => {
@@ -221,10 +226,14 @@ impl Lamp {
             }
         };
         let p = fr.origin + x * fr.u + y * fr.v;
-        let alpha = self.field.map_or(0.0, |f| f.probability);
+        let (alpha, beta) = self.shares();
         let (a, b) = (u[3], u[4]);
-        let dir = match self.field {
-            Some(f) if u[2] < alpha => {
+        let dir = match (self.field, &self.guide) {
+            (Some(f), Some(g)) if u[2] < alpha * beta => {
+                let (qx, qy) = g.sample(a, b, (x, y), wavelength_m);
+                (f.center + qx * fr.u + qy * fr.v - p).normalize()
+            }
+            (Some(f), _) if u[2] < alpha => {
                 let (x, y) = f.outline.sample(a, b);
                 let q = f.center + x * fr.u + y * fr.v;
                 (q - p).normalize()
@@ -238,18 +247,52 @@ impl Lamp {
             }
         };
         let cos_t = dir.dot(fr.w);
-        let pdf = (1.0 - alpha) * self.pdf_cone(cos_t)
-            + if alpha > 0.0 {
-                alpha * self.pdf_field(p, dir)
-            } else {
-                0.0
-            };
-        let factor = if pdf > 0.0 { cos_t / PI / pdf } else { 0.0 };
+        // Only the cone is traced (the power outside it is booked analytically), so a guided
+        // direction outside it carries nothing; its density still counts in the mixture.
+        let in_cone = self.pdf_cone(cos_t) > 0.0;
+        let pdf = self.pdf(p, (x, y), dir, wavelength_m);
+        let factor = if in_cone && pdf > 0.0 {
+            cos_t / PI / pdf
+        } else {
+            0.0
+        };
         Emission {
             origin: p,
             direction: dir,
             factor,
         }
+    }
+
+    /// (α, β): the probability of aiming at the field target and, of those, the share aimed by
+    /// the chart guide.
+    #[inline]
+    fn shares(&self) -> (f64, f64) {
+        let alpha = self.field.map_or(0.0, |f| f.probability);
+        let beta = self.guide.as_ref().map_or(0.0, |g| g.share);
+        (alpha, beta)
+    }
+
+    /// The mixture's solid-angle density of `dir` from filament point p (offset d in the lamp
+    /// frame): (1 − α)·cone + α·(1 − β)·uniform target + α·β·chart-guided target.
+    #[inline]
+    fn pdf(&self, p: DVec3, d: (f64, f64), dir: DVec3, wavelength_m: f64) -> f64 {
+        let (alpha, beta) = self.shares();
+        let cos_t = dir.dot(self.frame.w);
+        let mut pdf = (1.0 - alpha) * self.pdf_cone(cos_t);
+        if alpha > 0.0
+            && let Some((q, jacobian)) = self.field_point(p, dir)
+        {
+            let f = self.field.expect("alpha > 0 implies a field");
+            if beta < 1.0 && f.outline.contains(q.0, q.1) {
+                pdf += alpha * (1.0 - beta) * jacobian / f.outline.area();
+            }
+            if let Some(g) = &self.guide
+                && beta > 0.0
+            {
+                pdf += alpha * beta * jacobian * g.pdf(q, d, wavelength_m);
+            }
+        }
+        pdf
     }
 
     /// Solid-angle density of the cosine-weighted cone.
@@ -262,24 +305,22 @@ impl Lamp {
         }
     }
 
-    /// Solid-angle density of aiming at a uniform point of the field disk from `p`.
+    /// Where the ray from `p` along `dir` crosses the field plane, as (u, v) offsets from the
+    /// target's centre, and the Jacobian t²/cos θ from area on that plane to solid angle at p.
     #[inline]
-    fn pdf_field(&self, p: DVec3, dir: DVec3) -> f64 {
-        let Some(f) = self.field else { return 0.0 };
+    fn field_point(&self, p: DVec3, dir: DVec3) -> Option<((f64, f64), f64)> {
+        let f = self.field?;
         let w = self.frame.w;
         let cos_t = dir.dot(w);
         if cos_t <= 0.0 {
-            return 0.0;
+            return None;
         }
         let t = (f.center - p).dot(w) / cos_t;
         if t <= 0.0 {
-            return 0.0;
+            return None;
         }
         let q = p + t * dir - f.center;
-        if !f.outline.contains(q.dot(self.frame.u), q.dot(self.frame.v)) {
-            return 0.0;
-        }
-        t * t / (f.outline.area() * cos_t)
+        Some(((q.dot(self.frame.u), q.dot(self.frame.v)), t * t / cos_t))
     }
 }
 
@@ -380,6 +421,7 @@ mod tests {
             band_power_w: 1.0,
             sin2_max: sin2,
             field,
+            guide: None,
         }
     }
 
@@ -398,7 +440,7 @@ mod tests {
             ]
         };
         for _ in 0..100 {
-            let e = plain.sample(u(&mut r));
+            let e = plain.sample(u(&mut r), 850e-9);
             assert!((e.factor - sin2).abs() < 1e-12);
         }
         // With a field disk, the mean weight of rays landing on a test disk (here: the whole
@@ -424,7 +466,7 @@ mod tests {
         let stats = |l: &Lamp, r: &mut rng::StreamRng| {
             let (mut s_all, mut s2_all, mut s_in, mut s2_in) = (0.0, 0.0, 0.0, 0.0);
             for _ in 0..n {
-                let e = l.sample(u(r));
+                let e = l.sample(u(r), 850e-9);
                 s_all += e.factor;
                 s2_all += e.factor * e.factor;
                 let v = if in_small(&e) { e.factor } else { 0.0 };

@@ -8,6 +8,7 @@ pub mod dmd;
 pub mod fresnel;
 pub mod geometry;
 pub mod glass;
+pub mod guide;
 pub mod lamp;
 pub mod mesh;
 pub mod monochromatic;

@@ -31,6 +31,7 @@ use crate::optics::chart::ChartMask;
 use crate::optics::dmd::{Dmd, MirrorState, PatternArea};
 use crate::optics::geometry::{Frame, Geometry, Shape2D, sag};
 use crate::optics::glass::{GLASS_NAMES, Glass};
+use crate::optics::guide::ChartGuide;
 use crate::optics::lamp::{
     EmitterShape, FieldOutline, FieldTarget, Lamp, LampSpectrum, SpectralSampler,
     band_power_from_filament,
@@ -355,7 +356,7 @@ pub enum EmissionSpec {
 }
 
 /// Importance sampling toward a target (disk or rectangle) perpendicular to the lamp axis.
-#[derive(Debug, Clone, Copy, Deserialize)]
+#[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct FieldSamplingSpec {
     /// Centre of the target; the target lies in the plane through this point perpendicular to
@@ -365,6 +366,26 @@ pub struct FieldSamplingSpec {
     pub outline: Outline,
     /// Fraction of rays aimed at the target, in [0, 1).
     pub probability: f64,
+    /// Optional: aim a share of those rays at the clear areas of a chart instead of uniformly
+    /// over the target. The map from the target to the chart is fitted to design rays traced
+    /// through the bench's optics (src/optics/guide.rs); unbiased for any share, it pays when
+    /// the field is mostly chrome, as on a negative USAF chart.
+    #[serde(default)]
+    pub chart_guided: Option<ChartGuidedSpec>,
+}
+
+/// Chart-guided aiming within the field target.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ChartGuidedSpec {
+    /// Name of the chart element.
+    pub chart: String,
+    /// Share of the target-aimed rays that aim at the chart's clear areas, in (0, 1].
+    pub share: UnitFraction,
+    /// The region of the chart whose clear areas are aimed at (width, height, mm), centred
+    /// where the optics send light from the filament's centre through the target's centre:
+    /// the field imaged onto the DMD's pattern area plus a margin.
+    pub region_mm: (Positive, Positive),
 }
 
 /// One bench element.
@@ -1169,7 +1190,7 @@ impl Builder<'_> {
                 .product::<f64>()
         };
         let sampler = SpectralSampler::new(&lamp.spectrum, band, resp, throughput);
-        Ok(Bench {
+        let mut bench = Bench {
             band,
             lamp,
             sampler,
@@ -1187,7 +1208,36 @@ impl Builder<'_> {
             elements: self.parts.elements,
             lamp_housing,
             max_interactions: file.max_interactions,
-        })
+        };
+        if let Some(g) = file
+            .lamp
+            .field_sampling
+            .as_ref()
+            .and_then(|f| f.chart_guided.as_ref())
+        {
+            let path = ["lamp", "field_sampling", "chart_guided"];
+            let chart = bench
+                .element_id(&g.chart)
+                .and_then(|id| {
+                    bench.surfaces.iter().find_map(|s| match s.interaction {
+                        Interaction::Chart { chart, .. } if s.element == id => Some(chart),
+                        _ => None,
+                    })
+                })
+                .ok_or_else(|| {
+                    self.ctx
+                        .err_path(&path, format!("no chart named `{}`", g.chart))
+                })?;
+            let guide = ChartGuide::fit(
+                &bench,
+                chart,
+                g.share.0,
+                (g.region_mm.0.0 * 1e-3, g.region_mm.1.0 * 1e-3),
+            )
+            .map_err(|m| self.ctx.err_path(&path, m))?;
+            bench.lamp.guide = Some(guide);
+        }
+        Ok(bench)
     }
 
     fn element(&mut self, el: &ElementSpec) -> Result<()> {
@@ -1874,7 +1924,7 @@ impl Builder<'_> {
                 a.sin().powi(2)
             }
         };
-        let field = s.field_sampling.map(|f| FieldTarget {
+        let field = s.field_sampling.as_ref().map(|f| FieldTarget {
             center: mm(f.center_mm),
             outline: match f.outline {
                 Outline::Round { diameter_mm } => FieldOutline::Disk {
@@ -1897,6 +1947,7 @@ impl Builder<'_> {
             band_power_w,
             sin2_max,
             field,
+            guide: None,
         };
         lamp.check_field().map_err(|m| e("field_sampling", m))?;
         Ok(lamp)
