@@ -12,8 +12,10 @@
 //! - position: uniform over the filament;
 //! - direction: a mixture of (1 − α) cosine-weighted directions inside a cone of half-angle
 //!   θmax around the filament normal and α directions toward a "field" target (the part of the
-//!   collimator whose light reaches the imaged region of the chart), with weight
-//!   (cos θ/π)/pdf_mixture(ω) (one-sample multiple importance sampling, balance heuristic);
+//!   collimator whose light reaches the imaged region of the chart), of which a share β may be
+//!   aimed at the chart's clear glass (`optics::guide`), with weight (cos θ/π)/pdf_mixture(ω)
+//!   (one-sample multiple importance sampling, balance heuristic); a direction drawn outside
+//!   the cone carries nothing;
 //! - power outside the cone, Φ·cos²θmax, is never traced: it goes straight into the ledger as
 //!   absorbed by the lamp housing (the cone is chosen to contain the collimator's aperture, so
 //!   none of that light could reach the bench);
