@@ -133,7 +133,7 @@ pub struct ChartGuide {
     /// The largest RMS residual of the design rays about the fitted maps (m): how well the proxy
     /// map follows the optics (efficiency only).
     pub fit_rms_m: f64,
-    /// Fraction of the window's area that is clear.
+    /// Fraction of the window's area that is clear glass (before the rim is added).
     pub clear_fraction: f64,
 }
 
@@ -270,6 +270,7 @@ impl ChartGuide {
         // proxy map misplaces by up to a cell (its error is ~10 µm RMS, ~70 µm at worst on the
         // paper bench) still find a density no more than 4× below that of the glass they reach,
         // which bounds their weight; the rim costs ~5 % of the rays on 0.6 mm bars.
+        let glass = clear.iter().sum::<f64>() / (nx * ny) as f64;
         let clear: Vec<f64> = (0..ny)
             .flat_map(|i| (0..nx).map(move |j| (i, j)))
             .map(|(i, j)| {
@@ -324,7 +325,7 @@ impl ChartGuide {
             col_cdf,
             density,
             fit_rms_m: fit_rms,
-            clear_fraction: total / (nx * ny) as f64,
+            clear_fraction: glass,
         })
     }
 
