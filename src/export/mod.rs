@@ -109,6 +109,13 @@ impl Soup {
         self.f.push([a, b, c]);
     }
 
+    /// A planar quadrilateral (corners in order around it) as two triangles, without normals.
+    fn quad(&mut self, corners: [DVec3; 4]) {
+        let [a, b, c, d] = corners.map(|p| self.vertex(p, None));
+        self.tri(a, b, c);
+        self.tri(a, c, d);
+    }
+
     fn append(&mut self, other: &Soup) {
         let base = self.v.len() as u32;
         self.v.extend_from_slice(&other.v);
@@ -194,12 +201,12 @@ fn plane_soup(frame: &Frame, shape: Shape2D) -> Soup {
             );
         }
         Shape2D::Rect { half_u, half_v } => {
-            let a = s.vertex(at(-half_u, -half_v), None);
-            let b = s.vertex(at(half_u, -half_v), None);
-            let c = s.vertex(at(half_u, half_v), None);
-            let d = s.vertex(at(-half_u, half_v), None);
-            s.tri(a, b, c);
-            s.tri(a, c, d);
+            s.quad([
+                at(-half_u, -half_v),
+                at(half_u, -half_v),
+                at(half_u, half_v),
+                at(-half_u, half_v),
+            ]);
         }
         Shape2D::RectWithRectHole {
             half_u,
@@ -752,12 +759,12 @@ pub fn export_mitsuba(bench: &Bench, opts: &ExportOptions) -> Result<MitsubaScen
                 let rot = rots[crate::optics::dmd::state_index(state)];
                 let c0 = d.mirror_center(col, row);
                 let corner = |x: f64, y: f64| c0 + rot * DVec3::new(x, y, 0.0);
-                let a = soup.vertex(corner(-half, -half), None);
-                let b = soup.vertex(corner(half, -half), None);
-                let c = soup.vertex(corner(half, half), None);
-                let e = soup.vertex(corner(-half, half), None);
-                soup.tri(a, b, c);
-                soup.tri(a, c, e);
+                soup.quad([
+                    corner(-half, -half),
+                    corner(half, -half),
+                    corner(half, half),
+                    corner(-half, half),
+                ]);
             }
         }
         let bsdf = format!(

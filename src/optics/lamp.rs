@@ -281,10 +281,10 @@ impl Lamp {
         let (alpha, beta) = self.shares();
         let cos_t = dir.dot(self.frame.w);
         let mut pdf = (1.0 - alpha) * self.pdf_cone(cos_t);
-        if alpha > 0.0
+        if let Some(f) = self.field
+            && alpha > 0.0
             && let Some((q, jacobian)) = self.field_point(p, dir)
         {
-            let f = self.field.expect("alpha > 0 implies a field");
             if beta < 1.0 && f.outline.contains(q.0, q.1) {
                 pdf += alpha * (1.0 - beta) * jacobian / f.outline.area();
             }
@@ -392,11 +392,50 @@ impl SpectralSampler {
     /// A wavelength from two uniforms and its weight (S(λ)/∫S)/pdf(λ) (mean 1 over the band).
     #[inline]
     pub fn sample(&self, u_bin: f64, u_in: f64) -> (f64, f64) {
-        let i = (self.cdf.partition_point(|&c| c <= u_bin).max(1) - 1).min(self.density.len() - 1);
+        let (i, _) = pick(&self.cdf, u_bin);
         let l = self.band.0 + (i as f64 + u_in) * self.bin;
         let w = self.spectrum.at(l) / self.spectrum_integral / self.density[i];
         (l, w)
     }
+}
+
+/// The interval of a CDF (c[0] = 0 ≤ … ≤ c[last] ≈ 1) that holds u, and u's position within
+/// it in [0, 1) (a second uniform for a piecewise-constant draw, made of u's remaining bits).
+#[inline]
+pub(crate) fn pick(cdf: &[f64], u: f64) -> (usize, f64) {
+    let n = cdf.len() - 1;
+    let i = (cdf.partition_point(|&c| c <= u).max(1) - 1).min(n - 1);
+    let width = cdf[i + 1] - cdf[i];
+    let f = if width > 0.0 {
+        ((u - cdf[i]) / width).clamp(0.0, 1.0 - f64::EPSILON)
+    } else {
+        0.5
+    };
+    (i, f)
+}
+
+/// Mean and standard error of the emission factor over `n` draws of `lamp`, over all rays and
+/// over the rays that `inside` accepts: the unbiasedness tests of the direction mixture.
+#[cfg(test)]
+pub(crate) fn factor_stats(
+    lamp: &Lamp,
+    n: usize,
+    mut draw: impl FnMut() -> ([f64; 5], f64),
+    inside: impl Fn(&Emission) -> bool,
+) -> ((f64, f64), (f64, f64)) {
+    let (mut s, mut s2, mut d, mut d2) = (0.0, 0.0, 0.0, 0.0);
+    for _ in 0..n {
+        let (u, wl) = draw();
+        let e = lamp.sample(u, wl);
+        s += e.factor;
+        s2 += e.factor * e.factor;
+        let v = if inside(&e) { e.factor } else { 0.0 };
+        d += v;
+        d2 += v * v;
+    }
+    let nf = n as f64;
+    let m = |s: f64, s2: f64| (s / nf, ((s2 / nf - (s / nf).powi(2)) / nf).sqrt());
+    (m(s, s2), m(d, d2))
 }
 
 /// In-band radiant power of a flat one-sided Lambertian filament of `area` (m²) at its
@@ -465,22 +504,8 @@ mod tests {
             let q = e.origin + t * e.direction;
             (q.x - 0.003).hypot(q.y) < 0.002
         };
-        let stats = |l: &Lamp, r: &mut rng::StreamRng| {
-            let (mut s_all, mut s2_all, mut s_in, mut s2_in) = (0.0, 0.0, 0.0, 0.0);
-            for _ in 0..n {
-                let e = l.sample(u(r), 850e-9);
-                s_all += e.factor;
-                s2_all += e.factor * e.factor;
-                let v = if in_small(&e) { e.factor } else { 0.0 };
-                s_in += v;
-                s2_in += v * v;
-            }
-            let nf = n as f64;
-            let m = |s: f64, s2: f64| (s / nf, ((s2 / nf - (s / nf).powi(2)) / nf).sqrt());
-            (m(s_all, s2_all), m(s_in, s2_in))
-        };
-        let ((a, sa), (b, sb)) = stats(&mixed, &mut r);
-        let (_, (c, sc)) = stats(&plain, &mut r);
+        let ((a, sa), (b, sb)) = factor_stats(&mixed, n, || (u(&mut r), 850e-9), in_small);
+        let (_, (c, sc)) = factor_stats(&plain, n, || (u(&mut r), 850e-9), in_small);
         assert!((a - sin2).abs() < 4.0 * sa, "{a} ± {sa}");
         assert!(
             (b - c).abs() < 4.0 * (sb * sb + sc * sc).sqrt(),
