@@ -96,6 +96,15 @@ impl Error {
         self
     }
 
+    /// Appends a sentence to an input error's message (other errors are returned unchanged).
+    pub fn with_note(mut self, note: impl AsRef<str>) -> Self {
+        if let Error::Input { message, .. } = &mut self {
+            let m = message.trim_end_matches('.');
+            *message = format!("{m} ({})", note.as_ref());
+        }
+        self
+    }
+
     pub fn read(path: &Path, source: std::io::Error) -> Self {
         Error::Io {
             action: "read",

@@ -63,17 +63,21 @@ use crate::reconstruction::BitMatrix;
 /// Experiment files spell the variants in snake_case: `natural`, `walsh`, `russian_dolls`,
 /// `cake_cutting`. There is no `origami` (see the module documentation).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
-// Files spell variants as Rust does (`CakeCutting`), the RON convention; JSON output uses
-// snake_case keys (`cake_cutting`).
+// Files spell variants as Rust does (`CakeCutting`), the RON convention, or in snake_case
+// (`cake_cutting`), which is what JSON output and benches written by spibench use.
 #[serde(rename_all(serialize = "snake_case"))]
 pub enum HadamardOrdering {
     /// Sylvester (natural) order.
+    #[serde(alias = "natural")]
     Natural,
     /// 1-D sequency order of H_{s²}, rows reshaped to s×s.
+    #[serde(alias = "walsh")]
     Walsh,
     /// Russian dolls (Sun et al. 2017); within-doll order is this project's choice.
+    #[serde(alias = "russian_dolls")]
     RussianDolls,
     /// Cake-cutting (Yu 2019): ascending piece count, ties in natural order.
+    #[serde(alias = "cake_cutting")]
     CakeCutting,
 }
 

@@ -48,12 +48,15 @@ pub const MAX_POISSON_STD: f64 = (1u64 << 26) as f64;
 
 /// The distribution of the additive noise.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
-// Files spell variants as Rust does (`CakeCutting`), the RON convention; JSON output uses
-// snake_case keys (`cake_cutting`).
+// Files spell variants as Rust does (`CakeCutting`), the RON convention, or in snake_case
+// (`cake_cutting`), which is what JSON output and benches written by spibench use.
 #[serde(rename_all(serialize = "snake_case"))]
 pub enum NoiseDistribution {
+    #[serde(alias = "gaussian")]
     Gaussian,
+    #[serde(alias = "exponential")]
     Exponential,
+    #[serde(alias = "poisson")]
     Poisson,
 }
 

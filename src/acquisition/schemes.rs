@@ -59,17 +59,21 @@ pub const DEFAULT_DMD_RATE_HZ: f64 = 22_727.0;
 /// Experiment files spell them in snake_case: `traditional`, `single_arm_complementary`,
 /// `double_arm`, `secondary_complementary_balancing`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
-// Files spell variants as Rust does (`CakeCutting`), the RON convention; JSON output uses
-// snake_case keys (`cake_cutting`).
+// Files spell variants as Rust does (`CakeCutting`), the RON convention, or in snake_case
+// (`cake_cutting`), which is what JSON output and benches written by spibench use.
 #[serde(rename_all(serialize = "snake_case"))]
 pub enum Scheme {
     /// Traditional CS: one arm (MONITOR+), one frame and one sample per pattern, A = P.
+    #[serde(alias = "traditional")]
     Traditional,
     /// Single-arm complementary: MONITOR+ over P then 1 − P, difference, Â = 2P − 1.
+    #[serde(alias = "single_arm_complementary")]
     SingleArmComplementary,
     /// Double-arm dual-pixel: MONITOR+ minus MONITOR− on the same frame, Â.
+    #[serde(alias = "double_arm")]
     DoubleArm,
     /// Secondary complementary balancing: RF output over P then 1 − P, difference, Â.
+    #[serde(alias = "secondary_complementary_balancing")]
     SecondaryComplementaryBalancing,
 }
 

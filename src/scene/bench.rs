@@ -20,7 +20,7 @@
 use std::path::{Path, PathBuf};
 
 use glam::DVec3;
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 
 use crate::error::{Error, Result};
 use crate::optics::bench::{
@@ -44,9 +44,15 @@ use crate::raster::Raster;
 // Checked scalar newtypes: validated while deserialising, so errors carry line and column.
 
 /// A finite number > 0.
-#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
-#[serde(try_from = "f64")]
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize, Serialize)]
+#[serde(try_from = "f64", into = "f64")]
 pub struct Positive(pub f64);
+
+impl From<Positive> for f64 {
+    fn from(v: Positive) -> f64 {
+        v.0
+    }
+}
 
 impl TryFrom<f64> for Positive {
     type Error = String;
@@ -60,9 +66,15 @@ impl TryFrom<f64> for Positive {
 }
 
 /// A finite number ≥ 0.
-#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
-#[serde(try_from = "f64")]
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize, Serialize)]
+#[serde(try_from = "f64", into = "f64")]
 pub struct NonNegative(pub f64);
+
+impl From<NonNegative> for f64 {
+    fn from(v: NonNegative) -> f64 {
+        v.0
+    }
+}
 
 impl TryFrom<f64> for NonNegative {
     type Error = String;
@@ -76,9 +88,15 @@ impl TryFrom<f64> for NonNegative {
 }
 
 /// A number in (0, 1].
-#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
-#[serde(try_from = "f64")]
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize, Serialize)]
+#[serde(try_from = "f64", into = "f64")]
 pub struct UnitFraction(pub f64);
+
+impl From<UnitFraction> for f64 {
+    fn from(v: UnitFraction) -> f64 {
+        v.0
+    }
+}
 
 impl TryFrom<f64> for UnitFraction {
     type Error = String;
@@ -92,9 +110,15 @@ impl TryFrom<f64> for UnitFraction {
 }
 
 /// A table of (wavelength_nm, value) pairs with strictly increasing wavelengths.
-#[derive(Debug, Clone, PartialEq, Deserialize)]
-#[serde(try_from = "Vec<(f64, f64)>")]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(try_from = "Vec<(f64, f64)>", into = "Vec<(f64, f64)>")]
 pub struct TableNm(pub Vec<(f64, f64)>);
+
+impl From<TableNm> for Vec<(f64, f64)> {
+    fn from(v: TableNm) -> Vec<(f64, f64)> {
+        v.0
+    }
+}
 
 impl TryFrom<Vec<(f64, f64)>> for TableNm {
     type Error = String;
@@ -111,7 +135,7 @@ impl TryFrom<Vec<(f64, f64)>> for TableNm {
 pub type Mm3 = (f64, f64, f64);
 
 /// A direction in the bench frame (see the module notes).
-#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub enum Direction {
     /// Components (x, y, z), any non-zero length.
@@ -121,7 +145,7 @@ pub enum Direction {
 }
 
 impl Direction {
-    fn to_unit(self) -> std::result::Result<DVec3, String> {
+    pub fn to_unit(self) -> std::result::Result<DVec3, String> {
         let v = match self {
             Direction::Vector((x, y, z)) => DVec3::new(x, y, z),
             Direction::Polar { theta_deg, phi_deg } => {
@@ -137,7 +161,7 @@ impl Direction {
 }
 
 /// A wavelength-dependent quantity.
-#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub enum SpectrumSpec {
     /// The same value at every wavelength.
@@ -183,7 +207,7 @@ impl SpectrumSpec {
 }
 
 /// The treatment of a glass surface.
-#[derive(Debug, Clone, Default, PartialEq, Deserialize)]
+#[derive(Debug, Clone, Default, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub enum CoatingSpec {
     /// Bare glass: Fresnel reflection (~4 % per surface at normal incidence for N-BK7).
@@ -197,7 +221,7 @@ pub enum CoatingSpec {
 }
 
 /// A planar outline.
-#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub enum Outline {
     Round {
@@ -230,7 +254,7 @@ impl Outline {
 // The file.
 
 /// A bench file (see the module notes for the frame and units).
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct BenchFile {
     /// Traced wavelength band [min, max] in nm. Default (350, 1150): the silicon-sensitive band;
@@ -270,7 +294,7 @@ fn default_max_interactions() -> u32 {
 }
 
 /// The lamp: a flat Lambertian filament and its spectrum and power.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct LampSpec {
     /// Centre of the filament (mm).
@@ -296,7 +320,7 @@ pub struct LampSpec {
 }
 
 /// The emitting area of the filament.
-#[derive(Debug, Clone, Copy, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub enum FilamentSpec {
     Rect {
@@ -309,7 +333,7 @@ pub enum FilamentSpec {
 }
 
 /// The lamp's spectral shape.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub enum LampSpectrumSpec {
     /// Planck's law × the Larrabee tungsten emissivity at `temperature_k`.
@@ -324,7 +348,7 @@ pub enum LampSpectrumSpec {
 }
 
 /// How much power the filament emits.
-#[derive(Debug, Clone, Copy, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub enum LampPowerSpec {
     /// Radiant power emitted in the traced band (W).
@@ -343,7 +367,7 @@ pub enum LampPowerSpec {
 }
 
 /// The traced emission cone.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub enum EmissionSpec {
     /// The whole hemisphere.
@@ -356,7 +380,7 @@ pub enum EmissionSpec {
 }
 
 /// Importance sampling toward a target (disk or rectangle) perpendicular to the lamp axis.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct FieldSamplingSpec {
     /// Centre of the target; the target lies in the plane through this point perpendicular to
@@ -375,7 +399,7 @@ pub struct FieldSamplingSpec {
 }
 
 /// Chart-guided aiming within the field target.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct ChartGuidedSpec {
     /// Name of the chart element.
@@ -389,7 +413,7 @@ pub struct ChartGuidedSpec {
 }
 
 /// One bench element.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub enum ElementSpec {
     /// A singlet lens of real spherical or flat surfaces.
@@ -570,6 +594,21 @@ pub enum ElementSpec {
     },
 }
 
+impl ElementSpec {
+    /// The element's unique `name`.
+    pub fn name(&self) -> &str {
+        match self {
+            ElementSpec::Lens { name, .. }
+            | ElementSpec::Filter { name, .. }
+            | ElementSpec::Aperture { name, .. }
+            | ElementSpec::Tube { name, .. }
+            | ElementSpec::Baffle { name, .. }
+            | ElementSpec::Mirror { name, .. }
+            | ElementSpec::Chart { name, .. } => name,
+        }
+    }
+}
+
 fn default_segments() -> usize {
     64
 }
@@ -587,7 +626,7 @@ fn default_chrome_reflectance() -> SpectrumSpec {
 }
 
 /// What is printed on a chart.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub enum ChartPatternSpec {
     /// The 1951 USAF chart of groups `min_group..=max_group` (crate::objects::usaf), negative
@@ -610,7 +649,7 @@ pub enum ChartPatternSpec {
 }
 
 /// A chart point, in chart millimetres from the plate centre.
-#[derive(Debug, Clone, Copy, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub enum CenterOnSpec {
     Point((f64, f64)),
@@ -623,7 +662,7 @@ pub enum CenterOnSpec {
 }
 
 /// The DMD (TI DLP7000 class by default values in the paper bench).
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct DmdSpec {
     /// Mirror columns (along +x).
@@ -662,7 +701,7 @@ fn default_dmd_reflectance() -> SpectrumSpec {
 }
 
 /// The DMD window: a glass plate parallel to the array.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct WindowSpec {
     /// Glass (name or constant index).
@@ -679,7 +718,7 @@ pub struct WindowSpec {
 }
 
 /// The block of mirrors that carries the pattern.
-#[derive(Debug, Clone, Copy, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct PatternSpec {
     /// First mirror (column, row) of the area.
@@ -692,7 +731,7 @@ pub struct PatternSpec {
 }
 
 /// A mirror state.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
 pub enum StateSpec {
     /// +tilt (toward arm +).
     Plus,
@@ -703,7 +742,7 @@ pub enum StateSpec {
 }
 
 /// The balanced detector's two photodiodes.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct DetectorsSpec {
     /// INPUT+ diode, collecting arm + (mirrors in state +).
@@ -713,7 +752,7 @@ pub struct DetectorsSpec {
 }
 
 /// A photodiode.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct PhotodiodeSpec {
     /// Centre of the active area (mm).
@@ -979,7 +1018,7 @@ fn value_end(b: &[u8], start: usize, end: usize) -> usize {
 
 /// Reads and validates a bench file.
 pub fn read_bench(path: &Path) -> Result<Bench> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::read(path, e))?;
+    let text = crate::scene::read_text(path)?;
     parse_bench(&text, path)
 }
 
@@ -987,14 +1026,17 @@ pub fn read_bench(path: &Path) -> Result<Bench> {
 /// paths.
 pub fn parse_bench(text: &str, path: &Path) -> Result<Bench> {
     let file: BenchFile = crate::scene::parse_ron(text, path)?;
-    build_bench(&file, text, path)
+    build_bench(&file, Some(text), path)
 }
 
-/// Converts a parsed bench file (with its text, for error positions) into a validated bench.
-pub fn build_bench(file: &BenchFile, text: &str, path: &Path) -> Result<Bench> {
+/// Converts a parsed bench file into a validated bench. `text` is the file's source when there
+/// is one: errors then carry the line and column of the field they name; a bench made in code
+/// has none, and its errors name the field alone. `path` names the file in errors and anchors
+/// relative image paths.
+pub fn build_bench(file: &BenchFile, text: Option<&str>, path: &Path) -> Result<Bench> {
     Builder {
         ctx: Ctx {
-            loc: Locator { text },
+            loc: text.map(|text| Locator { text }),
             path,
         },
         parts: BenchParts::new(),
@@ -1004,9 +1046,9 @@ pub fn build_bench(file: &BenchFile, text: &str, path: &Path) -> Result<Bench> {
     .build(file)
 }
 
-/// The text and path, for locating errors.
+/// The text (when the bench has one) and path, for locating errors.
 struct Ctx<'a> {
-    loc: Locator<'a>,
+    loc: Option<Locator<'a>>,
     path: &'a Path,
 }
 
@@ -1039,8 +1081,10 @@ impl Ctx<'_> {
     fn err_path(&self, path: &[&str], msg: impl Into<String>) -> Error {
         let field = path.last().copied().unwrap_or("");
         let mut e = Error::field(field, msg).in_file(self.path);
-        if let Some(p) = self.loc.path(path) {
-            let (l, c) = self.loc.line_col(p);
+        if let Some(loc) = &self.loc
+            && let Some(p) = loc.path(path)
+        {
+            let (l, c) = loc.line_col(p);
             e = e.at_line(l, c);
         }
         e
@@ -1049,8 +1093,10 @@ impl Ctx<'_> {
     /// An error at a field of a named element.
     fn err_el(&self, element: &str, field: &str, msg: impl Into<String>) -> Error {
         let mut e = Error::field(field, format!("`{element}`: {}", msg.into())).in_file(self.path);
-        if let Some(p) = self.loc.element_field(element, field) {
-            let (l, c) = self.loc.line_col(p);
+        if let Some(loc) = &self.loc
+            && let Some(p) = loc.element_field(element, field)
+        {
+            let (l, c) = loc.line_col(p);
             e = e.at_line(l, c);
         }
         e
@@ -1146,7 +1192,7 @@ impl Builder<'_> {
         // Element names.
         let mut names: Vec<&str> = Vec::new();
         for el in &file.elements {
-            let name = element_name(el);
+            let name = el.name();
             if name.trim().is_empty() {
                 return Err(self
                     .ctx
@@ -1241,7 +1287,7 @@ impl Builder<'_> {
     }
 
     fn element(&mut self, el: &ElementSpec) -> Result<()> {
-        let name = element_name(el).to_string();
+        let name = el.name().to_string();
         let n = name.as_str();
         let id = self.parts.element(n);
         let e = |f: &str, m: String| self.ctx.err_el(n, f, m);
@@ -1981,18 +2027,6 @@ impl Builder<'_> {
             }
         }
         Ok(())
-    }
-}
-
-fn element_name(el: &ElementSpec) -> &str {
-    match el {
-        ElementSpec::Lens { name, .. }
-        | ElementSpec::Filter { name, .. }
-        | ElementSpec::Aperture { name, .. }
-        | ElementSpec::Tube { name, .. }
-        | ElementSpec::Baffle { name, .. }
-        | ElementSpec::Mirror { name, .. }
-        | ElementSpec::Chart { name, .. } => name,
     }
 }
 

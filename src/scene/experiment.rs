@@ -72,9 +72,15 @@ fn default_dmd_rate() -> f64 {
 }
 
 /// A sampling ratio in (0, 1], validated while parsing so that errors carry line and column.
-#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
-#[serde(try_from = "f64")]
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize, serde::Serialize)]
+#[serde(try_from = "f64", into = "f64")]
 pub struct Ratio(pub f64);
+
+impl From<Ratio> for f64 {
+    fn from(v: Ratio) -> f64 {
+        v.0
+    }
+}
 
 impl TryFrom<f64> for Ratio {
     type Error = String;
@@ -95,7 +101,7 @@ pub struct ObjectEntry {
     pub object: ObjectSpec,
 }
 
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Deserialize, serde::Serialize)]
 #[serde(deny_unknown_fields)]
 pub enum PatternsSpec {
     /// Random 0/1 patterns from a seeded SplitMix64 sequence; the same patterns serve every
@@ -174,9 +180,15 @@ impl TryFrom<ArmsFields> for ArmsSpec {
 }
 
 /// Additive noise on every recorded detector sample, validated while parsing.
-#[derive(Debug, Clone, Copy, Deserialize)]
-#[serde(try_from = "AdditiveNoise")]
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize, serde::Serialize)]
+#[serde(try_from = "AdditiveNoise", into = "AdditiveNoise")]
 pub struct NoiseSpec(pub AdditiveNoise);
+
+impl From<NoiseSpec> for AdditiveNoise {
+    fn from(v: NoiseSpec) -> AdditiveNoise {
+        v.0
+    }
+}
 
 impl TryFrom<AdditiveNoise> for NoiseSpec {
     type Error = String;

@@ -6,8 +6,10 @@
 //! the field.
 
 pub mod bench;
+pub mod doc;
 pub mod experiment;
 pub mod run;
+pub mod variables;
 
 use std::path::Path;
 
@@ -29,8 +31,30 @@ pub fn parse_ron<T: DeserializeOwned>(text: &str, path: &Path) -> Result<T> {
 
 /// Reads and parses a RON file.
 pub fn read_ron<T: DeserializeOwned>(path: &Path) -> Result<T> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::read(path, e))?;
-    parse_ron(&text, path)
+    parse_ron(&read_text(path)?, path)
+}
+
+/// The largest input text file spibench reads (bench, experiment and settings files are a few
+/// kilobytes; a larger one is a wrong path, such as a device or a data file).
+pub const MAX_TEXT_BYTES: u64 = 16 << 20;
+
+/// Reads a UTF-8 input file of at most [`MAX_TEXT_BYTES`], without reading past the limit (so
+/// that `/dev/zero` or a huge file fails at once).
+pub fn read_text(path: &Path) -> Result<String> {
+    use std::io::Read;
+    let file = std::fs::File::open(path).map_err(|e| Error::read(path, e))?;
+    let mut bytes = Vec::new();
+    file.take(MAX_TEXT_BYTES + 1)
+        .read_to_end(&mut bytes)
+        .map_err(|e| Error::read(path, e))?;
+    if bytes.len() as u64 > MAX_TEXT_BYTES {
+        return Err(Error::input(format!(
+            "the file is larger than {} MiB: not a spibench input file",
+            MAX_TEXT_BYTES >> 20
+        ))
+        .in_file(path));
+    }
+    String::from_utf8(bytes).map_err(|_| Error::input("the file is not UTF-8 text").in_file(path))
 }
 
 fn ron_error(text: &str, path: &Path, e: ron::error::SpannedError) -> Error {

@@ -24,7 +24,7 @@
 
 use std::path::Path;
 
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 
 use crate::acquisition::{AdditiveNoise, DEFAULT_DMD_RATE_HZ, Scheme};
 use crate::detector::{Bap, ChannelRange, Drift, Load, OutputStage, Scope, ScopeNoise};
@@ -55,7 +55,7 @@ pub const MAX_RAYS: u64 = 10_000_000_000;
 // electronics
 
 /// The `electronics` section.
-#[derive(Debug, Clone, Default, Deserialize)]
+#[derive(Debug, Clone, Default, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct ElectronicsSpec {
     /// The balanced amplified photodetector (Thorlabs PDB210A/M class).
@@ -67,7 +67,7 @@ pub struct ElectronicsSpec {
 /// What the detector's outputs drive (the oscilloscope's input termination). Thorlabs
 /// amplified detectors drive their BNC outputs through a 50 Ω series resistor, so the gain and
 /// swing into a 50 Ω load are half those into a high impedance (bench-facts §1.1, L).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
 pub enum LoadSpec {
     /// 1 MΩ oscilloscope input (the usual choice for a 1 MHz detector).
     HighImpedance,
@@ -83,7 +83,7 @@ pub enum LoadSpec {
 /// flat (grey) mismatch between the two diodes of one device. A mismatch δ between the two
 /// diodes makes a common-mode input appear at the RF output with relative size δ, so the
 /// common-mode rejection ratio is CMRR = 20·log₁₀(1/δ) dB.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct DetectorSpec {
     /// Load on every output. Default `HighImpedance`.
@@ -119,7 +119,7 @@ impl Default for DetectorSpec {
 }
 
 /// Frequency response of an output.
-#[derive(Debug, Clone, Copy, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub enum BandwidthSpec {
     /// A single real pole at `bandwidth_hz` (−3 dB), the usual transimpedance response.
@@ -127,7 +127,7 @@ pub enum BandwidthSpec {
 }
 
 /// Amplifier noise referred to the input.
-#[derive(Debug, Clone, Copy, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub enum AmplifierNoiseSpec {
     /// Input current noise density (A/√Hz).
@@ -153,7 +153,7 @@ impl AmplifierNoiseSpec {
 }
 
 /// The RF output.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct RfSpec {
     /// Transimpedance into a high impedance (V/A). Default 350 × 10³: twice the 50 Ω value
@@ -195,7 +195,7 @@ impl Default for RfSpec {
 }
 
 /// A monitor output (MONITOR+ or MONITOR−).
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct MonitorSpec {
     /// Transimpedance into a high impedance (V/A). Default 17.5 × 10³: the manual's monitor
@@ -236,7 +236,7 @@ impl Default for MonitorSpec {
 }
 
 /// The vertical setting of one oscilloscope channel.
-#[derive(Debug, Clone, Copy, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub enum ChannelSpec {
     /// As an operator would set it: the smallest 1-2-5 volts/division that holds the
@@ -251,7 +251,7 @@ pub enum ChannelSpec {
 }
 
 /// The oscilloscope.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct ScopeSpec {
     /// Recorded sample rate (Hz). Default 10 MS/s: High Res mode decimates the 25 GS/s ADC
@@ -302,7 +302,7 @@ impl Default for ScopeSpec {
 // run
 
 /// The `run` section.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct RunSpec {
     /// Title of montages and plots. Default "spibench run".
@@ -367,7 +367,7 @@ impl Default for RunSpec {
 /// light (both arms: common mode); the ambient factor multiplies the ambient current of both
 /// diodes. d(t) is an Ornstein–Uhlenbeck process (stationary rms, correlation time), r(t) a
 /// sinusoid of random phase.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct DriftSpec {
     /// Relative rms of the lamp's intensity drift. Default 10⁻³ (L: a stabilised QTH source
@@ -411,7 +411,7 @@ impl Default for DriftSpec {
 
 /// Reads a run scene (a bench file with optional `electronics` and `run` sections).
 pub fn read_run_scene(path: &Path) -> Result<RunScene> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::read(path, e))?;
+    let text = crate::scene::read_text(path)?;
     parse_run_scene(&text, path)
 }
 
@@ -419,7 +419,13 @@ pub fn read_run_scene(path: &Path) -> Result<RunScene> {
 /// paths.
 pub fn parse_run_scene(text: &str, path: &Path) -> Result<RunScene> {
     let file: BenchFile = crate::scene::parse_ron(text, path)?;
-    let bench = build_bench(&file, text, path)?;
+    run_scene(&file, Some(text), path)
+}
+
+/// Converts a parsed bench file into a run scene; `text` is its source when it has one (for
+/// error lines), as in [`build_bench`].
+pub fn run_scene(file: &BenchFile, text: Option<&str>, path: &Path) -> Result<RunScene> {
+    let bench = build_bench(file, text, path)?;
     let locate = |e: Error, section: &str, field: &str| locate_error(e, text, path, section, field);
     let detector =
         detector_si(&file.electronics.detector).map_err(|(f, e)| locate(e, "electronics", f))?;
@@ -446,9 +452,9 @@ pub fn parse_run_scene(text: &str, path: &Path) -> Result<RunScene> {
 }
 
 /// Adds the file, the field and (when the field is written in the file) its line.
-fn locate_error(e: Error, text: &str, path: &Path, section: &str, field: &str) -> Error {
+fn locate_error(e: Error, text: Option<&str>, path: &Path, section: &str, field: &str) -> Error {
     let mut e = e.in_file(path).at_field(field);
-    if let Some((line, col)) = find_field(text, section, field) {
+    if let Some((line, col)) = text.and_then(|t| find_field(t, section, field)) {
         e = e.at_line(line, col);
     }
     e

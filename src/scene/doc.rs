@@ -1,0 +1,182 @@
+//! A bench as a value that code can change and rebuild.
+//!
+//! A [`BenchDoc`] is the parsed bench file ([`BenchFile`]) together with where it came from: the
+//! path (which names it in errors and anchors relative image paths) and, when it was read from
+//! text, that text (which gives errors their line and column). Code edits the file — through
+//! bench variables ([`crate::scene::variables`]) or directly — and builds a fresh
+//! [`crate::optics::Bench`] from it with [`BenchDoc::build`]; a `Bench` has no setters, so its
+//! derived state (the BVH, the spectral sampler, the chart guide, the emission cone) is always
+//! the one its parts imply.
+//!
+//! [`BenchDoc::to_ron`] writes the bench back as RON that every command accepts; reading it
+//! again gives the identical file, and so the identical bench.
+
+use std::path::{Path, PathBuf};
+
+use crate::error::{Error, Result};
+use crate::optics::Bench;
+use crate::scene::bench::{BenchFile, build_bench};
+use crate::scene::run::{RunScene, run_scene};
+
+/// A bench file with its origin, and the variables set on it since it was read.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BenchDoc {
+    /// The bench as data.
+    pub file: BenchFile,
+    path: PathBuf,
+    /// The source text the file was read from. Field positions stay valid after variables are
+    /// set (only values change), so errors keep their lines.
+    text: Option<String>,
+    /// Variables set since reading, in order, for error messages.
+    edits: Vec<(String, f64)>,
+}
+
+impl BenchDoc {
+    /// Reads a bench file (not yet built: see [`BenchDoc::build`]).
+    pub fn read(path: &Path) -> Result<BenchDoc> {
+        let text = crate::scene::read_text(path)?;
+        BenchDoc::parse(&text, path)
+    }
+
+    /// Parses bench text; `path` names it in errors and anchors relative paths.
+    pub fn parse(text: &str, path: &Path) -> Result<BenchDoc> {
+        let file: BenchFile = crate::scene::parse_ron(text, path)?;
+        Ok(BenchDoc {
+            file,
+            path: path.to_path_buf(),
+            text: Some(text.to_string()),
+            edits: Vec::new(),
+        })
+    }
+
+    /// A bench made in code: errors name the field but no line; relative image paths are
+    /// taken relative to `path`'s folder.
+    pub fn from_file(file: BenchFile, path: &Path) -> BenchDoc {
+        BenchDoc {
+            file,
+            path: path.to_path_buf(),
+            text: None,
+            edits: Vec::new(),
+        }
+    }
+
+    /// The path that names this bench.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// The variables set since reading, in order.
+    pub fn edits(&self) -> &[(String, f64)] {
+        &self.edits
+    }
+
+    /// Builds and validates the bench.
+    pub fn build(&self) -> Result<Bench> {
+        build_bench(&self.file, self.text.as_deref(), &self.path).map_err(|e| self.context(e))
+    }
+
+    /// Builds the bench with its electronics and run settings, for `spibench run`.
+    pub fn run_scene(&self) -> Result<RunScene> {
+        run_scene(&self.file, self.text.as_deref(), &self.path).map_err(|e| self.context(e))
+    }
+
+    /// Sets a bench variable (a field path or a rigid-body move, see
+    /// [`crate::scene::variables`]).
+    pub fn set(&mut self, path: &str, value: f64) -> Result<()> {
+        crate::scene::variables::set(&mut self.file, path, value)
+            .map_err(|e| e.in_file(&self.path))?;
+        self.edits.push((path.to_string(), value));
+        Ok(())
+    }
+
+    /// A copy with the variables set (in order).
+    pub fn with(&self, settings: &[(String, f64)]) -> Result<BenchDoc> {
+        let mut d = self.clone();
+        for (p, v) in settings {
+            d.set(p, *v)?;
+        }
+        Ok(d)
+    }
+
+    /// The value of a bench variable.
+    pub fn get(&self, path: &str) -> Result<f64> {
+        crate::scene::variables::get(&self.file, path).map_err(|e| e.in_file(&self.path))
+    }
+
+    /// The bench as RON text (every field written, defaults filled in), which every command
+    /// reads back into the identical bench.
+    pub fn to_ron(&self) -> String {
+        to_ron(&self.file)
+    }
+
+    /// Says which variables were set when the error arose, since the file's text no longer
+    /// shows the values that were built.
+    fn context(&self, e: Error) -> Error {
+        if self.edits.is_empty() {
+            return e;
+        }
+        let set: Vec<String> = self
+            .edits
+            .iter()
+            .map(|(p, v)| format!("{p} = {v}"))
+            .collect();
+        e.with_note(format!("with the bench variables {}", set.join(", ")))
+    }
+}
+
+/// The canonical RON text of a bench file: every field written, in declaration order.
+pub fn to_ron(file: &BenchFile) -> String {
+    let config = ron::ser::PrettyConfig::new()
+        .struct_names(false)
+        .indentor("    ".to_string())
+        .separate_tuple_members(false)
+        .enumerate_arrays(false);
+    let body = ron::ser::to_string_pretty(file, config)
+        .expect("a BenchFile holds only finite numbers, strings and plain data");
+    format!("// A spibench bench file (millimetres and degrees), written by spibench.\n{body}\n")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn paper_path() -> PathBuf {
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/paper_bench.ron")
+    }
+
+    #[test]
+    fn written_bench_reads_back_identically() {
+        for name in [
+            "paper_bench.ron",
+            "fig8_region_b_48.ron",
+            "fig8_region_b_96.ron",
+            "fig8_region_c_96.ron",
+        ] {
+            let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+                .join("scenes")
+                .join(name);
+            let doc = BenchDoc::read(&path).unwrap();
+            let text = doc.to_ron();
+            let back = BenchDoc::parse(&text, &path).unwrap();
+            assert_eq!(back.file, doc.file, "{name}");
+            // Written twice, the text is the same: the form is canonical.
+            assert_eq!(back.to_ron(), text, "{name}");
+        }
+    }
+
+    #[test]
+    fn errors_of_an_edited_bench_name_the_variables() {
+        let mut doc = BenchDoc::read(&paper_path()).unwrap();
+        doc.build().unwrap();
+        // A biconvex lens 10 µm thick: its faces cross, and the build must refuse it.
+        doc.set("imaging_lens.thickness_mm", 0.01).unwrap();
+        let Err(e) = doc.build() else {
+            panic!("a lens whose faces cross was accepted")
+        };
+        assert!(e.is_user_error());
+        let s = e.to_string();
+        assert!(s.contains("imaging_lens.thickness_mm = 0.01"), "{s}");
+        // The text of the file still locates the field.
+        assert!(s.contains("line "), "{s}");
+    }
+}

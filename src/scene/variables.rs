@@ -1,0 +1,686 @@
+//! Bench variables: any numeric field of a bench file named by a path, and the rigid-body moves
+//! a tolerance table speaks in.
+//!
+//! **Field paths** are `ELEMENT.FIELD[.COMPONENT]`, in the field's own units as written in the
+//! file (millimetres, degrees, nanometres, …):
+//! - ELEMENT is an element's `name`, or a section: `lamp`, `dmd`, `detectors.plus`,
+//!   `detectors.minus`, `electronics`, `run`;
+//! - FIELD is a field of it, nested as deep as the file nests (`lamp.field_sampling.probability`,
+//!   `dmd.pattern.units_across`); an enum's variant is passed through (`lamp.filament.width_mm`
+//!   reaches the `Rect` filament's width; `lamp.axis.theta_deg` a polar direction's angle);
+//! - COMPONENT is `x|y|z` (or `0|1|2`) for a vector and `0|1` for a pair.
+//!
+//! Examples: `detectors.minus.position_mm.x`, `arm_minus_lens.tilt_deg.0`, `dmd.tilt_deg`.
+//!
+//! **Rigid-body moves** are relative to the bench they are applied to, in the part's own frame
+//! (the frame its axis or normal and its `x_axis` define, before its alignment `tilt_deg`):
+//! - `ELEMENT.decenter_mm.x|y`: along the part's own x or y axis (perpendicular to its axis or
+//!   normal);
+//! - `ELEMENT.despace_mm`: along its axis or normal, in the direction written in the file (a
+//!   lens's axis is the direction of light travel; a mirror's or a diode's normal points out of
+//!   its face, toward the light);
+//! - `ELEMENT.tilt_deg.x|y`: a rotation about its own x or y axis through its position.
+//!
+//! Every element, the lamp and both detectors accept moves. The DMD defines the bench frame and
+//! does not move: tilt its mirrors with `dmd.tilt_deg` instead.
+//!
+//! Setting goes through the bench file's own deserialiser, so a value outside a field's valid
+//! range is refused with the same rule as in a file, and the bench built from the result is
+//! validated as a whole like any other.
+
+use glam::{DMat3, DVec3};
+use serde_json::Value;
+
+use crate::error::{Error, Result};
+use crate::optics::geometry::Frame;
+use crate::scene::bench::{BenchFile, Direction, ElementSpec, Mm3};
+
+/// The top-level sections that a path may start with (besides element names).
+const SECTIONS: [&str; 5] = ["lamp", "dmd", "detectors", "electronics", "run"];
+
+/// Top-level scalar fields that a path may name alone.
+const TOP_FIELDS: [&str; 2] = ["band_nm", "max_interactions"];
+
+/// A rigid-body move of a part, in its own frame.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Move {
+    /// Along the part's own x (0) or y (1) axis (mm).
+    Decenter(usize),
+    /// Along its axis or normal (mm).
+    Despace,
+    /// About its own x (0) or y (1) axis (degrees).
+    Tilt(usize),
+}
+
+/// The value of a numeric bench variable (a field path; a rigid-body move reads 0, since moves
+/// are relative to the bench they are applied to).
+pub fn get(file: &BenchFile, path: &str) -> Result<f64> {
+    if let Some((target, mv)) = parse_move(path)? {
+        // Check that the part exists and can move.
+        let _ = (pose(&mut file.clone(), &target, path)?, mv);
+        return Ok(0.0);
+    }
+    let root = to_value(file)?;
+    let leaf = walk_ref(&root, path).map_err(|m| bad_path(file, path, m))?;
+    leaf.as_f64()
+        .ok_or_else(|| bad_path(file, path, "names a field that is not a number".into()))
+}
+
+/// Sets a numeric bench variable: a field path to `value` in the field's units, or a rigid-body
+/// move by `value` (mm or degrees). Errors (an unknown path, a value outside the field's valid
+/// range) are input errors that name the path and list the valid paths near it.
+pub fn set(file: &mut BenchFile, path: &str, value: f64) -> Result<()> {
+    if !value.is_finite() {
+        return Err(Error::field(
+            path,
+            format!("a bench variable must be a finite number, got {value}"),
+        ));
+    }
+    if let Some((target, mv)) = parse_move(path)? {
+        return apply_move(file, &target, mv, value, path);
+    }
+    let mut root = to_value(file)?;
+    let leaf = walk_mut(&mut root, path).map_err(|m| bad_path(file, path, m))?;
+    *leaf = match &*leaf {
+        Value::Number(n) if n.is_u64() || n.is_i64() => {
+            if value.fract() != 0.0 {
+                return Err(Error::field(
+                    path,
+                    format!("this field is a whole number, got {value}"),
+                ));
+            }
+            if n.is_u64() && value < 0.0 {
+                return Err(Error::field(
+                    path,
+                    format!("this field is a count (≥ 0), got {value}"),
+                ));
+            }
+            if value.abs() > 9.0e15 {
+                return Err(Error::field(
+                    path,
+                    format!("{value} is too large for a whole-number field"),
+                ));
+            }
+            if n.is_u64() {
+                Value::from(value as u64)
+            } else {
+                Value::from(value as i64)
+            }
+        }
+        Value::Number(_) => Value::from(value),
+        Value::Null => {
+            return Err(bad_path(
+                file,
+                path,
+                "names a field that is not set in this bench: write it in the bench file first"
+                    .into(),
+            ));
+        }
+        _ => {
+            return Err(bad_path(
+                file,
+                path,
+                "names a field that is not a number".into(),
+            ));
+        }
+    };
+    *file = serde_json::from_value::<BenchFile>(root)
+        .map_err(|e| Error::field(path, format!("value {value} refused: {}", clean_serde(&e))))?;
+    Ok(())
+}
+
+/// Every numeric field path of the bench, plus the rigid-body moves of its movable parts, in
+/// file order.
+pub fn list(file: &BenchFile) -> Vec<String> {
+    let Ok(root) = to_value(file) else {
+        return Vec::new();
+    };
+    let mut out = Vec::new();
+    if let Value::Object(top) = &root {
+        for f in TOP_FIELDS {
+            if let Some(v) = top.get(f) {
+                leaves(v, f, &mut out);
+            }
+        }
+        for s in SECTIONS {
+            if s == "detectors" {
+                for d in ["plus", "minus"] {
+                    let base = format!("detectors.{d}");
+                    if let Some(v) = top.get("detectors").and_then(|v| v.get(d)) {
+                        leaves(v, &base, &mut out);
+                        moves_of(&base, &mut out);
+                    }
+                }
+            } else if let Some(v) = top.get(s) {
+                leaves(v, s, &mut out);
+                if s == "lamp" {
+                    moves_of(s, &mut out);
+                }
+            }
+        }
+        if let Some(Value::Array(els)) = top.get("elements") {
+            for el in els {
+                if let Some((name, inner)) = element_parts(el) {
+                    leaves(inner, &name, &mut out);
+                    moves_of(&name, &mut out);
+                }
+            }
+        }
+    }
+    out
+}
+
+fn moves_of(base: &str, out: &mut Vec<String>) {
+    for m in [
+        "decenter_mm.x",
+        "decenter_mm.y",
+        "despace_mm",
+        "tilt_deg.x",
+        "tilt_deg.y",
+    ] {
+        out.push(format!("{base}.{m}"));
+    }
+}
+
+/// Numeric leaves under `v`, named from `base` (variant wrappers passed through, `name` and
+/// strings skipped).
+fn leaves(v: &Value, base: &str, out: &mut Vec<String>) {
+    match v {
+        Value::Number(_) => out.push(base.to_string()),
+        Value::Array(a) => {
+            let names: &[&str] = if a.len() == 3 { &["x", "y", "z"] } else { &[] };
+            for (i, x) in a.iter().enumerate() {
+                let c = names
+                    .get(i)
+                    .map_or_else(|| i.to_string(), |s| s.to_string());
+                leaves(x, &format!("{base}.{c}"), out);
+            }
+        }
+        Value::Object(m) => {
+            if let Some(inner) = variant_inner(v) {
+                leaves(inner, base, out);
+                return;
+            }
+            for (k, x) in m {
+                leaves(x, &format!("{base}.{k}"), out);
+            }
+        }
+        _ => {}
+    }
+}
+
+fn to_value(file: &BenchFile) -> Result<Value> {
+    serde_json::to_value(file)
+        .map_err(|e| Error::Numerical(format!("a bench could not be represented: {e}")))
+}
+
+fn clean_serde(e: &serde_json::Error) -> String {
+    let s = e.to_string();
+    // serde_json appends "at line 0 column 0" for values: meaningless here.
+    match s.find(" at line ") {
+        Some(k) => s[..k].to_string(),
+        None => s,
+    }
+}
+
+/// An externally tagged enum variant `{"Name": inner}`: its inner value.
+fn variant_inner(v: &Value) -> Option<&Value> {
+    match v {
+        Value::Object(m) if m.len() == 1 => {
+            let (k, inner) = m.iter().next()?;
+            k.chars()
+                .next()
+                .is_some_and(|c| c.is_ascii_uppercase())
+                .then_some(inner)
+        }
+        _ => None,
+    }
+}
+
+fn variant_inner_mut(v: &mut Value) -> Option<&mut Value> {
+    let is_variant = variant_inner(v).is_some();
+    match v {
+        Value::Object(m) if is_variant => m.values_mut().next(),
+        _ => None,
+    }
+}
+
+/// An element's name and its fields.
+fn element_parts(el: &Value) -> Option<(String, &Value)> {
+    let inner = variant_inner(el)?;
+    let name = inner.get("name")?.as_str()?.to_string();
+    Some((name, inner))
+}
+
+/// Splits a path into the part it addresses (a section, `detectors.plus|minus` or an element
+/// name) and the rest.
+fn split_target(path: &str) -> (String, Vec<&str>) {
+    let segs: Vec<&str> = path.split('.').collect();
+    if segs.len() >= 2 && segs[0] == "detectors" {
+        return (format!("detectors.{}", segs[1]), segs[2..].to_vec());
+    }
+    (segs[0].to_string(), segs[1..].to_vec())
+}
+
+fn walk_ref<'v>(root: &'v Value, path: &str) -> std::result::Result<&'v Value, String> {
+    let (target, rest) = split_target(path);
+    let mut cur = find_target(root, &target)?;
+    for seg in rest {
+        if let Some(inner) = variant_inner(cur) {
+            cur = inner;
+        }
+        cur = step(cur, seg)?;
+    }
+    if let Some(inner) = variant_inner(cur) {
+        cur = inner;
+    }
+    Ok(cur)
+}
+
+fn walk_mut<'v>(root: &'v mut Value, path: &str) -> std::result::Result<&'v mut Value, String> {
+    // Resolve with the immutable walk first (good messages), then follow the same steps.
+    walk_ref(root, path)?;
+    let (target, rest) = split_target(path);
+    let mut cur = find_target_mut(root, &target).ok_or("unknown part")?;
+    for seg in rest {
+        if variant_inner(cur).is_some() {
+            cur = variant_inner_mut(cur).ok_or("unreachable")?;
+        }
+        let idx = index_of(cur, seg)?;
+        cur = match (cur, idx) {
+            (Value::Object(m), Key::Field) => m.get_mut(seg).ok_or("unknown field")?,
+            (Value::Array(a), Key::Index(i)) => a.get_mut(i).ok_or("no such component")?,
+            _ => return Err("unreachable".into()),
+        };
+    }
+    if variant_inner(cur).is_some() {
+        cur = variant_inner_mut(cur).ok_or("unreachable")?;
+    }
+    Ok(cur)
+}
+
+enum Key {
+    Field,
+    Index(usize),
+}
+
+fn index_of(cur: &Value, seg: &str) -> std::result::Result<Key, String> {
+    match cur {
+        Value::Object(m) => {
+            if m.contains_key(seg) {
+                Ok(Key::Field)
+            } else {
+                Err(format!("has no field `{seg}`"))
+            }
+        }
+        Value::Array(a) => {
+            let i = match seg {
+                "x" => 0,
+                "y" => 1,
+                "z" => 2,
+                s => s
+                    .parse::<usize>()
+                    .map_err(|_| format!("`{seg}` is not a component (x, y, z or an index)"))?,
+            };
+            if i < a.len() {
+                Ok(Key::Index(i))
+            } else {
+                Err(format!(
+                    "component `{seg}` is out of range: the value has {} components",
+                    a.len()
+                ))
+            }
+        }
+        Value::Null => Err(format!(
+            "reaches a field that is not set in this bench before `{seg}`: write it in the \
+             bench file first"
+        )),
+        _ => Err(format!("reaches a plain value before `{seg}`")),
+    }
+}
+
+fn step<'v>(cur: &'v Value, seg: &str) -> std::result::Result<&'v Value, String> {
+    match (cur, index_of(cur, seg)?) {
+        (Value::Object(m), Key::Field) => m.get(seg).ok_or_else(|| "unknown field".into()),
+        (Value::Array(a), Key::Index(i)) => a.get(i).ok_or_else(|| "no such component".into()),
+        _ => Err("unreachable".into()),
+    }
+}
+
+fn find_target<'v>(root: &'v Value, target: &str) -> std::result::Result<&'v Value, String> {
+    if let Some(rest) = target.strip_prefix("detectors.") {
+        return root
+            .get("detectors")
+            .and_then(|d| d.get(rest))
+            .ok_or_else(|| format!("`{target}`: the detectors are `plus` and `minus`"));
+    }
+    if SECTIONS.contains(&target) || TOP_FIELDS.contains(&target) {
+        return match root.get(target) {
+            Some(Value::Null) | None => Err(format!("this bench has no `{target}` section")),
+            Some(v) => Ok(v),
+        };
+    }
+    if let Some(Value::Array(els)) = root.get("elements") {
+        for el in els {
+            if let Some((name, inner)) = element_parts(el)
+                && name == target
+            {
+                return Ok(inner);
+            }
+        }
+    }
+    Err(format!("no element or section named `{target}`"))
+}
+
+fn find_target_mut<'v>(root: &'v mut Value, target: &str) -> Option<&'v mut Value> {
+    if let Some(rest) = target.strip_prefix("detectors.") {
+        return root.get_mut("detectors")?.get_mut(rest);
+    }
+    if SECTIONS.contains(&target) || TOP_FIELDS.contains(&target) {
+        return root.get_mut(target);
+    }
+    let Some(Value::Array(els)) = root.get_mut("elements") else {
+        return None;
+    };
+    els.iter_mut()
+        .filter_map(variant_inner_mut)
+        .find(|inner| inner.get("name").and_then(Value::as_str) == Some(target))
+}
+
+/// An input error for a bad path: the reason and the valid paths nearest to it.
+fn bad_path(file: &BenchFile, path: &str, why: String) -> Error {
+    let all = list(file);
+    let (target, _) = split_target(path);
+    let mut near: Vec<&String> = all
+        .iter()
+        .filter(|p| p.starts_with(&format!("{target}.")) || p.as_str() == target)
+        .collect();
+    let hint = if near.is_empty() {
+        let mut parts: Vec<String> = SECTIONS
+            .iter()
+            .filter(|s| **s != "detectors")
+            .map(|s| s.to_string())
+            .collect();
+        parts.extend(["detectors.plus".to_string(), "detectors.minus".to_string()]);
+        if let Ok(Value::Array(els)) = to_value(file).map(|v| v["elements"].clone()) {
+            parts.extend(els.iter().filter_map(|e| element_parts(e).map(|p| p.0)));
+        }
+        format!("the parts of this bench are {}", parts.join(", "))
+    } else {
+        near.sort_by_key(|p| distance(p, path));
+        near.truncate(12);
+        format!(
+            "valid paths near it: {}",
+            near.iter()
+                .map(|s| s.as_str())
+                .collect::<Vec<_>>()
+                .join(", ")
+        )
+    };
+    Error::field(path, format!("bench variable `{path}` {why}; {hint}"))
+}
+
+/// Levenshtein distance, for ordering suggestions.
+fn distance(a: &str, b: &str) -> usize {
+    let b: Vec<char> = b.chars().collect();
+    let mut prev: Vec<usize> = (0..=b.len()).collect();
+    for (i, ca) in a.chars().enumerate() {
+        let mut cur = vec![i + 1; b.len() + 1];
+        for (j, cb) in b.iter().enumerate() {
+            let sub = prev[j] + usize::from(ca != *cb);
+            cur[j + 1] = sub.min(prev[j + 1] + 1).min(cur[j] + 1);
+        }
+        prev = cur;
+    }
+    prev[b.len()]
+}
+
+// ---------------------------------------------------------------------------------------------
+// Rigid-body moves.
+
+/// `ELEMENT.decenter_mm.x` → (ELEMENT, Decenter(0)); field paths → None.
+fn parse_move(path: &str) -> Result<Option<(String, Move)>> {
+    let (target, rest) = split_target(path);
+    let mv = match rest.as_slice() {
+        ["decenter_mm", c] => Move::Decenter(axis_index(c, path)?),
+        ["despace_mm"] => Move::Despace,
+        ["tilt_deg", c @ ("x" | "y")] => Move::Tilt(axis_index(c, path)?),
+        _ => return Ok(None),
+    };
+    Ok(Some((target, mv)))
+}
+
+fn axis_index(c: &str, path: &str) -> Result<usize> {
+    match c {
+        "x" => Ok(0),
+        "y" => Ok(1),
+        _ => Err(Error::field(
+            path,
+            format!("a move's component is x or y (in the part's own frame), got `{c}`"),
+        )),
+    }
+}
+
+/// The pose fields of a movable part.
+struct Pose<'a> {
+    position: &'a mut Mm3,
+    axis: &'a mut Direction,
+    x_axis: Option<&'a mut Option<Direction>>,
+}
+
+fn pose<'a>(file: &'a mut BenchFile, target: &str, path: &str) -> Result<Pose<'a>> {
+    let p = match target {
+        "lamp" => Pose {
+            position: &mut file.lamp.position_mm,
+            axis: &mut file.lamp.axis,
+            x_axis: Some(&mut file.lamp.x_axis),
+        },
+        "detectors.plus" | "detectors.minus" => {
+            let d = if target.ends_with("plus") {
+                &mut file.detectors.plus
+            } else {
+                &mut file.detectors.minus
+            };
+            Pose {
+                position: &mut d.position_mm,
+                axis: &mut d.normal,
+                x_axis: None,
+            }
+        }
+        "dmd" => {
+            return Err(Error::field(
+                path,
+                "the DMD defines the bench frame and does not move: tilt its mirrors with \
+                 `dmd.tilt_deg`, or move the other parts",
+            ));
+        }
+        name => {
+            let Some(i) = file.elements.iter().position(|e| e.name() == name) else {
+                return Err(bad_path(
+                    file,
+                    path,
+                    format!("names no element or section `{name}`"),
+                ));
+            };
+            let el = &mut file.elements[i];
+            match el {
+                ElementSpec::Lens {
+                    position_mm, axis, ..
+                }
+                | ElementSpec::Aperture {
+                    position_mm, axis, ..
+                }
+                | ElementSpec::Tube {
+                    position_mm, axis, ..
+                } => Pose {
+                    position: position_mm,
+                    axis,
+                    x_axis: None,
+                },
+                ElementSpec::Filter {
+                    position_mm,
+                    axis,
+                    x_axis,
+                    ..
+                }
+                | ElementSpec::Baffle {
+                    position_mm,
+                    axis,
+                    x_axis,
+                    ..
+                } => Pose {
+                    position: position_mm,
+                    axis,
+                    x_axis: Some(x_axis),
+                },
+                ElementSpec::Mirror {
+                    position_mm,
+                    normal,
+                    x_axis,
+                    ..
+                }
+                | ElementSpec::Chart {
+                    position_mm,
+                    normal,
+                    x_axis,
+                    ..
+                } => Pose {
+                    position: position_mm,
+                    axis: normal,
+                    x_axis: Some(x_axis),
+                },
+            }
+        }
+    };
+    Ok(p)
+}
+
+fn unit(d: Direction, path: &str) -> Result<DVec3> {
+    d.to_unit().map_err(|m| Error::field(path, m))
+}
+
+fn apply_move(file: &mut BenchFile, target: &str, mv: Move, value: f64, path: &str) -> Result<()> {
+    let p = pose(file, target, path)?;
+    let w = unit(*p.axis, path)?;
+    let hint = match p.x_axis.as_deref() {
+        Some(Some(d)) => Some(unit(*d, path)?),
+        _ => None,
+    };
+    let f = Frame::new(DVec3::ZERO, w, hint);
+    let along = |dir: DVec3, mm: f64, pos: &mut Mm3| {
+        pos.0 += dir.x * mm;
+        pos.1 += dir.y * mm;
+        pos.2 += dir.z * mm;
+    };
+    match mv {
+        Move::Decenter(i) => along(if i == 0 { f.u } else { f.v }, value, p.position),
+        Move::Despace => along(f.w, value, p.position),
+        Move::Tilt(i) => {
+            // About the part's own x (u) or y (v) axis through its position: the axis turns,
+            // and so does an explicit x_axis, so the part moves as a rigid body.
+            let r = DMat3::from_axis_angle(if i == 0 { f.u } else { f.v }, value.to_radians());
+            let vec = |v: DVec3| Direction::Vector((v.x, v.y, v.z));
+            *p.axis = vec(r * f.w);
+            if let Some(x) = p.x_axis {
+                // Keep the part's in-plane orientation: the turned u is the new x hint.
+                *x = Some(vec(r * f.u));
+            }
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::bench::BenchFile;
+    use std::path::Path;
+
+    fn paper() -> BenchFile {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/paper_bench.ron");
+        let text = std::fs::read_to_string(&path).unwrap();
+        crate::scene::parse_ron(&text, &path).unwrap()
+    }
+
+    #[test]
+    fn field_paths_get_and_set() {
+        let mut f = paper();
+        let x = get(&f, "detectors.minus.position_mm.x").unwrap();
+        set(&mut f, "detectors.minus.position_mm.x", x + 1.5).unwrap();
+        assert_eq!(f.detectors.minus.position_mm.0, x + 1.5);
+        assert_eq!(get(&f, "detectors.minus.position_mm.x").unwrap(), x + 1.5);
+        set(&mut f, "dmd.tilt_deg", 11.0).unwrap();
+        assert_eq!(f.dmd.as_ref().unwrap().tilt_deg.0, 11.0);
+        // An integer field takes whole numbers only.
+        set(&mut f, "dmd.pattern.units_across", 32.0).unwrap();
+        assert_eq!(f.dmd.as_ref().unwrap().pattern.units_across, 32);
+        assert!(set(&mut f, "dmd.pattern.units_across", 32.5).is_err());
+    }
+
+    #[test]
+    fn every_listed_path_reads() {
+        let f = paper();
+        let all = list(&f);
+        assert!(all.len() > 50, "{}", all.len());
+        for p in &all {
+            get(&f, p).unwrap_or_else(|e| panic!("{p}: {e}"));
+        }
+        assert!(all.iter().any(|p| p == "detectors.minus.despace_mm"));
+    }
+
+    #[test]
+    fn bad_paths_and_values_are_input_errors_naming_the_path() {
+        let mut f = paper();
+        let e = set(&mut f, "detectors.minus.positon_mm.x", 1.0).unwrap_err();
+        let s = e.to_string();
+        assert!(e.is_user_error());
+        assert!(
+            s.contains("positon_mm") && s.contains("detectors.minus.position_mm.x"),
+            "{s}"
+        );
+        let e = set(&mut f, "no_such_lens.position_mm.x", 1.0).unwrap_err();
+        assert!(e.to_string().contains("detectors.plus"), "{e}");
+        // Outside the field's valid range: refused by the file's own rule.
+        let e = set(&mut f, "dmd.tilt_deg", -3.0).unwrap_err();
+        assert!(e.to_string().contains("positive"), "{e}");
+        assert!(set(&mut f, "dmd.tilt_deg", f64::NAN).is_err());
+        assert!(set(&mut f, "dmd.decenter_mm.x", 1.0).is_err());
+    }
+
+    #[test]
+    fn moves_are_rigid_and_in_the_parts_frame() {
+        let f0 = paper();
+        let mut f = f0.clone();
+        let d0 = f0.detectors.minus.clone();
+        set(&mut f, "detectors.minus.despace_mm", 2.0).unwrap();
+        let n = d0.normal.to_unit().unwrap();
+        let p = f.detectors.minus.position_mm;
+        let moved = DVec3::new(
+            p.0 - d0.position_mm.0,
+            p.1 - d0.position_mm.1,
+            p.2 - d0.position_mm.2,
+        );
+        assert!((moved - 2.0 * n).length() < 1e-12, "{moved:?}");
+        // A decentre is perpendicular to the normal and 1 mm long.
+        let mut g = f0.clone();
+        set(&mut g, "detectors.minus.decenter_mm.y", 1.0).unwrap();
+        let p = g.detectors.minus.position_mm;
+        let moved = DVec3::new(
+            p.0 - d0.position_mm.0,
+            p.1 - d0.position_mm.1,
+            p.2 - d0.position_mm.2,
+        );
+        assert!((moved.length() - 1.0).abs() < 1e-12 && moved.dot(n).abs() < 1e-12);
+        // A tilt turns the normal by the angle, about an axis perpendicular to it.
+        let mut h = f0.clone();
+        set(&mut h, "detectors.minus.tilt_deg.x", 3.0).unwrap();
+        let n2 = h.detectors.minus.normal.to_unit().unwrap();
+        assert!((n.dot(n2).acos().to_degrees() - 3.0).abs() < 1e-9);
+        assert_eq!(h.detectors.minus.position_mm, d0.position_mm);
+        // Moves read as 0 and zero moves change nothing.
+        assert_eq!(get(&h, "detectors.minus.tilt_deg.x").unwrap(), 0.0);
+        let mut z = f0.clone();
+        set(&mut z, "detectors.minus.decenter_mm.x", 0.0).unwrap();
+        assert_eq!(z.detectors.minus.position_mm, d0.position_mm);
+    }
+}
