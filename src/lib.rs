@@ -13,6 +13,7 @@ pub mod export;
 pub mod metrics;
 pub mod objects;
 pub mod optics;
+pub mod pipeline;
 pub mod raster;
 pub mod reconstruction;
 pub mod report;
@@ -20,6 +21,7 @@ pub mod rng;
 pub mod run;
 pub mod scene;
 pub mod simulation;
+pub mod sweep;
 pub mod trace;
 pub mod transport;
 

@@ -108,6 +108,55 @@ fn check_grid(width: usize, height: usize) -> Result<usize> {
 /// `m` random patterns on a `width` × `height` grid from [`random`] with `seed`.
 ///
 /// Valid for 1 ≤ m ≤ 4N and at most [`MAX_RANDOM_BITS`] stored bits.
+/// Number of base patterns for a sampling ratio: the nearest integer to ratio·N, at least 1 and
+/// at most N.
+pub fn patterns_for_ratio(ratio: f64, units: usize) -> usize {
+    ((ratio * units as f64).round() as usize).clamp(1, units)
+}
+
+/// Which base patterns an acquisition shows.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PatternFamily {
+    /// Random 0/1 patterns from a seeded SplitMix64 sequence ([`random_set`]).
+    Random { seed: u64 },
+    /// Sylvester Hadamard patterns in an ordering (2^m × 2^m units only, [`hadamard_set`]).
+    Hadamard { ordering: HadamardOrdering },
+}
+
+impl PatternFamily {
+    /// The first `m` patterns of the family for a `width × height` unit grid.
+    pub fn build(&self, width: usize, height: usize, m: usize) -> Result<PatternSet> {
+        match *self {
+            PatternFamily::Random { seed } => random_set(width, height, m, seed),
+            PatternFamily::Hadamard { ordering } => {
+                if width != height {
+                    return Err(Error::field(
+                        "patterns",
+                        format!(
+                            "Hadamard patterns need a square 2^m × 2^m unit grid, got {width}×{height}"
+                        ),
+                    ));
+                }
+                hadamard_set(width, ordering, m)
+            }
+        }
+    }
+
+    /// "random (seed 1)", "hadamard (cake-cutting)".
+    pub fn label(&self) -> String {
+        match self {
+            PatternFamily::Random { seed } => format!("random (seed {seed})"),
+            PatternFamily::Hadamard { ordering } => format!("hadamard ({})", ordering.label()),
+        }
+    }
+}
+
+impl serde::Serialize for PatternFamily {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> std::result::Result<S::Ok, S::Error> {
+        s.serialize_str(&self.label())
+    }
+}
+
 pub fn random_set(width: usize, height: usize, m: usize, seed: u64) -> Result<PatternSet> {
     let n = check_grid(width, height)?;
     if m == 0 {

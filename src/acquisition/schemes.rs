@@ -54,6 +54,56 @@ use crate::reconstruction::{LinearOperator, PatternForm};
 /// 44 µs (DLP7000 through a ViALUX controller; the paper's "up to 22 kHz"; bench-facts §0.6).
 pub const DEFAULT_DMD_RATE_HZ: f64 = 22_727.0;
 
+/// The frame sequences a DMD shows.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Sequence {
+    /// P₁, P₂, …: one frame per pattern.
+    Base,
+    /// P₁, 1 − P₁, P₂, 1 − P₂, …: a complementary pair back to back.
+    Complementary,
+}
+
+impl Sequence {
+    pub fn key(self) -> &'static str {
+        match self {
+            Sequence::Base => "base",
+            Sequence::Complementary => "complementary",
+        }
+    }
+
+    /// Frames shown for `m` base patterns.
+    pub fn frames(self, m: usize) -> usize {
+        match self {
+            Sequence::Base => m,
+            Sequence::Complementary => 2 * m,
+        }
+    }
+}
+
+/// The balanced detector's outputs, in the order of its recorded frame values.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Output {
+    /// The balanced RF output, G·(I₊ − I₋).
+    Rf,
+    /// The monitor of the + diode.
+    MonitorPlus,
+    /// The monitor of the − diode.
+    MonitorMinus,
+}
+
+impl Output {
+    /// Index into a frame's [RF, MONITOR+, MONITOR−] values (crate::detector's order).
+    pub fn index(self) -> usize {
+        match self {
+            Output::Rf => crate::detector::RF,
+            Output::MonitorPlus => crate::detector::MONITOR_PLUS,
+            Output::MonitorMinus => crate::detector::MONITOR_MINUS,
+        }
+    }
+}
+
 /// The four acquisition schemes of the paper (§2 and §3).
 ///
 /// Experiment files spell them in snake_case: `traditional`, `single_arm_complementary`,
@@ -126,10 +176,7 @@ impl Scheme {
 
     /// DMD frames shown for `m` base patterns.
     pub fn dmd_frames(self, m: usize) -> usize {
-        match self {
-            Scheme::Traditional | Scheme::DoubleArm => m,
-            Scheme::SingleArmComplementary | Scheme::SecondaryComplementaryBalancing => 2 * m,
-        }
+        self.sequence().frames(m)
     }
 
     /// Detector samples recorded for `m` base patterns.
@@ -138,6 +185,53 @@ impl Scheme {
             Scheme::Traditional => m,
             _ => 2 * m,
         }
+    }
+
+    /// The frame sequence the scheme's DMD shows.
+    pub fn sequence(self) -> Sequence {
+        match self {
+            Scheme::Traditional | Scheme::DoubleArm => Sequence::Base,
+            Scheme::SingleArmComplementary | Scheme::SecondaryComplementaryBalancing => {
+                Sequence::Complementary
+            }
+        }
+    }
+
+    /// The detector outputs the scheme reads (the paper's §4 set-up): MONITOR+ for the one-arm
+    /// schemes, both monitors for double-arm, the balanced RF output for SCB.
+    pub fn outputs(self) -> &'static [Output] {
+        match self {
+            Scheme::Traditional | Scheme::SingleArmComplementary => &[Output::MonitorPlus],
+            Scheme::DoubleArm => &[Output::MonitorPlus, Output::MonitorMinus],
+            Scheme::SecondaryComplementaryBalancing => &[Output::Rf],
+        }
+    }
+
+    /// The scheme's measurements y_i for the first `m` patterns from the recorded frame values
+    /// of its sequence (`frames[k][o]`: frame k, output o in [`Output`] order).
+    ///
+    /// | scheme | y_i |
+    /// |---|---|
+    /// | traditional CS | V₊(P_i) |
+    /// | single-arm complementary | V₊(P_i) − V₊(1 − P_i) |
+    /// | double-arm dual-pixel | V₊(P_i) − V₋(P_i) |
+    /// | secondary complementary balancing | V_rf(P_i) − V_rf(1 − P_i) |
+    pub fn measurements(self, frames: &[[f64; 3]], m: usize) -> Vec<f64> {
+        let (rf, mp, mm) = (
+            Output::Rf.index(),
+            Output::MonitorPlus.index(),
+            Output::MonitorMinus.index(),
+        );
+        (0..m)
+            .map(|i| match self {
+                Scheme::Traditional => frames[i][mp],
+                Scheme::DoubleArm => frames[i][mp] - frames[i][mm],
+                Scheme::SingleArmComplementary => frames[2 * i][mp] - frames[2 * i + 1][mp],
+                Scheme::SecondaryComplementaryBalancing => {
+                    frames[2 * i][rf] - frames[2 * i + 1][rf]
+                }
+            })
+            .collect()
     }
 
     /// The noise-free model of the scheme (module documentation).

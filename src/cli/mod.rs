@@ -9,6 +9,7 @@ mod reconstruct;
 mod run;
 mod run_report;
 mod simulate;
+mod sweep;
 mod trace;
 
 use clap::{Parser, Subcommand};
@@ -26,6 +27,13 @@ struct Cli {
 
 #[derive(Debug, Subcommand)]
 enum Command {
+    /// The whole traced experiment: trace, detector electronics in time, the four schemes,
+    /// reconstruction and scores (default: the paper's bench, built in).
+    Run(run::RunArgs),
+    /// Trace one bench over a 1-D or 2-D grid of bench variables with common random numbers:
+    /// k±, b±, imbalance, leak and power at every point, with standard errors of each point and
+    /// of its difference from the nominal bench.
+    Sweep(sweep::SweepArgs),
     /// Run one of the paper's idealised simulations (scalar k±, b±, additive noise, no optics).
     Simulate(simulate::SimulateArgs),
     /// Reconstruct measurements that came from elsewhere (a real bench or another simulator).
@@ -34,9 +42,6 @@ enum Command {
     Trace(trace::TraceArgs),
     /// Export a bench as a Mitsuba 3 scene (the monochromatic, constant-index substitute unless --as-is).
     ExportMitsuba(export::ExportArgs),
-    /// The whole traced experiment: trace, detector electronics in time, the four schemes,
-    /// reconstruction and scores (default: the paper's bench, built in).
-    Run(run::RunArgs),
 }
 
 /// Runs the command line and returns the process exit status.
@@ -54,6 +59,7 @@ pub fn main() -> i32 {
         Command::Trace(a) => trace::run(a),
         Command::ExportMitsuba(a) => export::run(a),
         Command::Run(a) => run::run(a),
+        Command::Sweep(a) => sweep::run(a),
     };
     match result {
         Ok(()) => 0,
@@ -62,6 +68,22 @@ pub fn main() -> i32 {
             exit_status(&e)
         }
     }
+}
+
+/// Parses `PATH=VALUE` (a bench variable and a number) from the command line.
+pub(crate) fn parse_assignment(text: &str, flag: &str) -> crate::Result<(String, f64)> {
+    let bad = |why: &str| crate::Error::field(flag, format!("`{text}`: {why}"));
+    let (path, value) = text
+        .split_once('=')
+        .ok_or_else(|| bad("expected PATH=VALUE"))?;
+    let value: f64 = value
+        .trim()
+        .parse()
+        .map_err(|_| bad("the value is not a number"))?;
+    if !value.is_finite() {
+        return Err(bad("the value must be finite"));
+    }
+    Ok((path.trim().to_string(), value))
 }
 
 /// One paragraph: the error and its causes.

@@ -28,20 +28,21 @@ use anyhow::Result;
 use clap::Args;
 use serde::Serialize;
 
-use super::trace::{TraceSummary, summarize};
 use crate::acquisition::Scheme;
 use crate::detector::{Bap, Channel, FrameTiming, OUTPUT_NAMES, Scope};
 use crate::metrics::NORMALIZATION_RULE;
+use crate::pipeline::TraceRequest;
+use crate::pipeline::cache::{CacheKey, TraceCache};
+use crate::pipeline::summary::{TraceSummary, summarize};
 use crate::report::csv::write_csv;
 use crate::report::json::write_json;
 use crate::report::montage::{Montage, write_montage};
 use crate::report::output::OutputDir;
 use crate::report::plot::{LinePlot, Series, write_plot};
 use crate::report::png::write_gray8;
-use crate::run::{
-    RunOutcome, RunSettings, Saturation, SchemeResult, SequenceSummary, Stage, Timings,
-};
-use crate::scene::run::{RunScene, parse_run_scene, read_run_scene};
+use crate::run::{RunOutcome, Saturation, SchemeResult, SequenceSummary, Stage, Timings};
+use crate::scene::doc::BenchDoc;
+use crate::scene::run::{RunScene, RunSettings};
 
 /// The paper's bench, built into the binary.
 pub const PAPER_BENCH: &str = include_str!("../../scenes/paper_bench.ron");
@@ -63,6 +64,14 @@ pub struct RunArgs {
     /// Lamp rays to trace, overriding the scene's `run.rays`.
     #[arg(long)]
     pub rays: Option<u64>,
+    /// Set a bench variable before running, e.g. `--set detectors.minus.decenter_mm.x=0.5`
+    /// (repeatable; paths as in `spibench sweep`).
+    #[arg(long = "set", value_name = "PATH=VALUE")]
+    pub set: Vec<String>,
+    /// Keep traces in this folder and reuse them: a later run of the same bench, rays and seed
+    /// (whatever its electronics, noise or solver settings) skips the trace.
+    #[arg(long, value_name = "DIR")]
+    pub cache: Option<PathBuf>,
 }
 
 /// `summary.json` of `run`. SI units unless the key says otherwise; NaN and ∞ are null.
@@ -187,15 +196,27 @@ fn findings(o: &RunOutcome) -> Findings {
     }
 }
 
-/// Loads the scene named by the arguments (or the built-in bench) with the `--rays` override.
-pub fn load_scene(args: &RunArgs) -> crate::Result<(String, RunScene)> {
-    let (name, mut scene) = match &args.scene {
-        Some(p) => (p.display().to_string(), read_run_scene(p)?),
+/// Reads the bench named on the command line (or the built-in bench) and applies `--set`.
+pub fn load_doc(scene: Option<&Path>, set: &[String]) -> crate::Result<(String, BenchDoc)> {
+    let (name, mut doc) = match scene {
+        Some(p) => (p.display().to_string(), BenchDoc::read(p)?),
         None => (
             PAPER_BENCH_NAME.to_string(),
-            parse_run_scene(PAPER_BENCH, Path::new(PAPER_BENCH_NAME))?,
+            BenchDoc::parse(PAPER_BENCH, Path::new(PAPER_BENCH_NAME))?,
         ),
     };
+    for a in set {
+        let (path, value) = super::parse_assignment(a, "--set")?;
+        doc.set(&path, value)?;
+    }
+    Ok((name, doc))
+}
+
+/// Loads the scene named by the arguments (or the built-in bench) with the `--set` and
+/// `--rays` overrides.
+pub fn load_scene(args: &RunArgs) -> crate::Result<(String, BenchDoc, RunScene)> {
+    let (name, doc) = load_doc(args.scene.as_deref(), &args.set)?;
+    let mut scene = doc.run_scene()?;
     if let Some(r) = args.rays {
         if r == 0 || r > crate::scene::run::MAX_RAYS {
             return Err(crate::Error::field(
@@ -205,13 +226,18 @@ pub fn load_scene(args: &RunArgs) -> crate::Result<(String, RunScene)> {
         }
         scene.settings.rays = r;
     }
-    Ok((name, scene))
+    Ok((name, doc, scene))
 }
 
 /// Runs `spibench run`.
 pub fn run(args: &RunArgs) -> Result<()> {
-    let (name, scene) = load_scene(args)?;
+    let (name, doc, scene) = load_scene(args)?;
     let out = OutputDir::create(&args.out)?;
+    let cache = args.cache.as_deref().map(TraceCache::new);
+    let key = match &cache {
+        Some(_) => Some(CacheKey::new(&doc, scene.settings.rays, args.seed)?),
+        None => None,
+    };
     eprintln!(
         "{}: {}×{} units, {} rays, {} scheme(s) × {} ratio(s), seed {}",
         name,
@@ -241,7 +267,27 @@ pub fn run(args: &RunArgs) -> Result<()> {
             }
         }
     };
-    let outcome = crate::run::run(&scene, args.seed, true, &progress)?;
+    let request = TraceRequest {
+        progress: true,
+        cache: cache.as_ref().zip(key.as_ref()),
+        ..TraceRequest::new(scene.settings.rays, args.seed)
+    };
+    let outcome = crate::run::run(&scene, args.seed, &request, &progress)?;
+    if let (Some(c), Some(k)) = (&cache, &key) {
+        match &outcome.cache {
+            crate::pipeline::CacheStatus::Hit => {
+                eprintln!(
+                    "trace read from the cache ({}/{}.trace)",
+                    c.dir().display(),
+                    k.as_str()
+                )
+            }
+            crate::pipeline::CacheStatus::Rebuilt(why) => {
+                eprintln!("warning: damaged cache entry rebuilt ({why})")
+            }
+            _ => eprintln!("trace stored in the cache ({})", c.dir().display()),
+        }
+    }
     if let Ok(mut g) = bars.lock()
         && let Some((_, b)) = g.take()
     {
@@ -280,7 +326,7 @@ pub fn summarize_run<'a>(
     o: &'a RunOutcome,
     files: Vec<String>,
 ) -> RunSummary<'a> {
-    let mut transport = summarize(name, bench, &o.transport, o.trace_arrivals);
+    let mut transport = summarize(name, bench, &o.transport, &o.metrics, o.trace_arrivals);
     transport.files = Vec::new();
     let mean_i = mean_currents(o);
     let noise = o.detector.output_noise_v_rms(mean_i);
@@ -619,8 +665,10 @@ mod tests {
             out: PathBuf::from("unused"),
             seed: 1,
             rays: Some(1000),
+            set: Vec::new(),
+            cache: None,
         };
-        let (name, scene) = load_scene(&args).unwrap();
+        let (name, _, scene) = load_scene(&args).unwrap();
         assert_eq!(name, PAPER_BENCH_NAME);
         assert_eq!(scene.settings.rays, 1000);
         assert_eq!(scene.bench.units_shape(), (48, 48));

@@ -7,19 +7,17 @@
 //! directory that is renamed into place at the end, so bad input or a failed write leaves no
 //! partial output.
 
-use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-use serde::Serialize;
-
 use crate::error::{Error, Result};
+use crate::pipeline::summary::{TraceSummary, summarize};
+use crate::pipeline::{TraceRequest, trace_stage};
 use crate::raster::Raster;
 use crate::report::exr::write_channels;
 use crate::report::output::OutputDir;
 use crate::report::png::write_gray8;
 use crate::scene::bench::read_bench;
-use crate::trace::{TraceOptions, trace};
-use crate::transport::{LedgerWorld, Transport};
+use crate::transport::Transport;
 
 /// Arguments of `spibench trace`.
 #[derive(Debug, Clone, clap::Args)]
@@ -35,148 +33,6 @@ pub struct TraceArgs {
     /// Output directory (created; existing files of the same names are replaced).
     #[arg(long, default_value = "out/trace")]
     pub out: PathBuf,
-}
-
-/// `summary.json`. Currents in A, powers in W, efficiencies in A/W; every estimate has a
-/// `_stderr` twin (Monte Carlo standard error, batch means); NaN is written as null.
-#[derive(Debug, Clone, Serialize)]
-pub struct TraceSummary {
-    /// The bench file as given on the command line.
-    pub scene: String,
-    /// Lamp rays traced and the seed of the random streams.
-    pub rays: u64,
-    pub seed: u64,
-    /// Traced wavelength band [min, max] (nm); every power here is within it.
-    pub band_nm: [f64; 2],
-    /// Pattern units across and down (the maps' width and height).
-    pub units_across: usize,
-    pub units_down: usize,
-    /// Lamp rays whose path reached the pattern area (sampling diagnostic).
-    pub arrivals: u64,
-    /// Lamp power emitted in the traced band (W).
-    pub lamp_band_power_w: f64,
-    /// Σ_j x_j: power incident on the pattern-area mirrors (W).
-    pub x_total_w: f64,
-    pub x_total_w_stderr: f64,
-    /// k± = Σ_j g±_j / Σ_j x_j (A/W).
-    pub k_plus: f64,
-    pub k_plus_stderr: f64,
-    pub k_minus: f64,
-    pub k_minus_stderr: f64,
-    /// b± = c±: pattern-independent current of each arm (A), traced light + ambient + dark.
-    pub b_plus: f64,
-    pub b_plus_stderr: f64,
-    pub b_minus: f64,
-    pub b_minus_stderr: f64,
-    /// k' = k₊ + k₋ (A/W), the SCB image scale.
-    pub k_prime: f64,
-    pub k_prime_stderr: f64,
-    /// (k₊ − k₋)/(k₊ + k₋).
-    pub imbalance: f64,
-    pub imbalance_stderr: f64,
-    /// Parts of b±: traced light (A), ambient (A, from the irradiance on the diode, its area
-    /// and the mean 400–700 nm responsivity), dark current (A).
-    pub b_traced_plus: f64,
-    pub b_traced_minus: f64,
-    pub b_ambient_plus: f64,
-    pub b_ambient_minus: f64,
-    pub b_dark_plus: f64,
-    pub b_dark_minus: f64,
-    /// The flux ledger.
-    pub ledger: LedgerSummary,
-    /// Output files (relative to the output directory).
-    pub files: Vec<String>,
-}
-
-/// The flux ledger in `summary.json` (W).
-#[derive(Debug, Clone, Serialize)]
-pub struct LedgerSummary {
-    /// Emitted in the band: the sampled ray weights plus the analytic power outside the traced
-    /// emission cone (an unbiased estimate of `emitted_nominal_w`).
-    pub emitted_w: f64,
-    /// The lamp's band power.
-    pub emitted_nominal_w: f64,
-    /// Emitted outside the traced cone (booked to `lamp_housing`).
-    pub outside_cone_w: f64,
-    /// The bench with every pattern unit in state + ...
-    pub all_plus: LedgerWorldSummary,
-    /// ... and in state −.
-    pub all_minus: LedgerWorldSummary,
-}
-
-/// Where the power went in one mirror-state world (W).
-#[derive(Debug, Clone, Serialize)]
-pub struct LedgerWorldSummary {
-    /// Absorbed per bench element (element names as in the bench file, plus lamp_housing,
-    /// dmd_mirrors, dmd_gaps, dmd_package, dmd_window, pd_*_housing).
-    pub absorbed_w: BTreeMap<String, f64>,
-    /// Left the bench without meeting anything.
-    pub escaped_w: f64,
-    /// Abandoned at the interaction cap.
-    pub path_cap_w: f64,
-    /// Reached photodiode + and −.
-    pub detected_plus_w: f64,
-    pub detected_minus_w: f64,
-    /// emitted − (absorbed + escaped + path cap + detected): zero up to rounding.
-    pub residual_w: f64,
-}
-
-fn world_summary(w: &LedgerWorld) -> LedgerWorldSummary {
-    LedgerWorldSummary {
-        absorbed_w: w.absorbed_w.iter().cloned().collect(),
-        escaped_w: w.escaped_w,
-        path_cap_w: w.path_cap_w,
-        detected_plus_w: w.detected_w[0],
-        detected_minus_w: w.detected_w[1],
-        residual_w: w.residual_w,
-    }
-}
-
-/// Builds the summary of a transport.
-pub fn summarize(
-    scene: &str,
-    bench: &crate::optics::Bench,
-    t: &Transport,
-    arrivals: u64,
-) -> TraceSummary {
-    TraceSummary {
-        scene: scene.to_string(),
-        rays: t.rays,
-        seed: t.seed,
-        band_nm: [round_nm(bench.band.0), round_nm(bench.band.1)],
-        units_across: t.units_across,
-        units_down: t.units_down,
-        arrivals,
-        lamp_band_power_w: bench.lamp.band_power_w,
-        x_total_w: t.x_total.value,
-        x_total_w_stderr: t.x_total.stderr,
-        k_plus: t.k[0].value,
-        k_plus_stderr: t.k[0].stderr,
-        k_minus: t.k[1].value,
-        k_minus_stderr: t.k[1].stderr,
-        b_plus: t.b[0].value,
-        b_plus_stderr: t.b[0].stderr,
-        b_minus: t.b[1].value,
-        b_minus_stderr: t.b[1].stderr,
-        k_prime: t.k_prime.value,
-        k_prime_stderr: t.k_prime.stderr,
-        imbalance: t.imbalance.value,
-        imbalance_stderr: t.imbalance.stderr,
-        b_traced_plus: t.c_traced[0].value,
-        b_traced_minus: t.c_traced[1].value,
-        b_ambient_plus: t.ambient_a[0],
-        b_ambient_minus: t.ambient_a[1],
-        b_dark_plus: t.dark_a[0],
-        b_dark_minus: t.dark_a[1],
-        ledger: LedgerSummary {
-            emitted_w: t.ledger.emitted_w,
-            emitted_nominal_w: t.ledger.emitted_nominal_w,
-            outside_cone_w: t.ledger.outside_cone_w,
-            all_plus: world_summary(&t.ledger.worlds[0]),
-            all_minus: world_summary(&t.ledger.worlds[1]),
-        },
-        files: Vec::new(),
-    }
 }
 
 /// The per-unit maps written to the EXR (channel name, values).
@@ -200,21 +56,24 @@ pub fn run(args: &TraceArgs) -> anyhow::Result<()> {
             .in_file(&args.scene)
             .into());
     }
-    let opts = TraceOptions {
-        progress: true,
-        ..TraceOptions::new(args.rays, args.seed)
-    };
     let start = std::time::Instant::now();
-    let tallies = trace(&bench, &opts)?;
+    let traced = trace_stage(
+        &bench,
+        &TraceRequest {
+            progress: true,
+            ..TraceRequest::new(args.rays, args.seed)
+        },
+    )?;
     let seconds = start.elapsed().as_secs_f64();
-    let t = Transport::from_tallies(&bench, &tallies);
+    let t = &traced.transport;
     let mut summary = summarize(
         &args.scene.display().to_string(),
         &bench,
-        &t,
-        tallies.arrivals,
+        t,
+        &traced.metrics,
+        traced.arrivals(),
     );
-    write_outputs(&args.out, &t, &mut summary)?;
+    write_outputs(&args.out, t, &mut summary)?;
     print_table(&summary, seconds);
     Ok(())
 }
@@ -311,11 +170,6 @@ fn write_outputs(out: &Path, t: &Transport, summary: &mut TraceSummary) -> Resul
     std::fs::write(&summary_path, json + "\n").map_err(|e| Error::write(&summary_path, e))?;
     dir.commit()?;
     Ok(())
-}
-
-/// Metres to nanometres, rounded to 1e-6 nm (undoing the nm → m conversion's rounding).
-fn round_nm(m: f64) -> f64 {
-    (m * 1e15).round() / 1e6
 }
 
 fn max_of(v: &[f64]) -> f64 {

@@ -110,9 +110,14 @@ pub struct Scores {
     pub gain: f64,
     /// The least-squares offset applied after the gain.
     pub offset: f64,
+    /// The reconstruction after the normalisation, on the truth's 0–255 scale: what was scored,
+    /// and what a report shows.
+    #[serde(skip)]
+    pub image: Raster,
 }
 
-/// Normalises `recon` to `truth` (module rule) and scores it: PSNR (peak 255) and MSSIM.
+/// Normalises `recon` to `truth` (module rule) and scores it: PSNR (peak 255) and MSSIM. The
+/// normalised image is returned with the scores, so no caller re-implements the rule.
 pub fn score(truth: &Raster, recon: &Raster) -> Result<Scores> {
     let n = normalize_to_truth(recon, truth)?;
     Ok(Scores {
@@ -120,6 +125,7 @@ pub fn score(truth: &Raster, recon: &Raster) -> Result<Scores> {
         mssim: mssim(truth, &n.image)?,
         gain: n.gain,
         offset: n.offset,
+        image: n.image,
     })
 }
 

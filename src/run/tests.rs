@@ -5,8 +5,12 @@
 use std::path::Path;
 
 use super::*;
-use crate::detector::{ChannelRange, DriftPath, ideal_frames, record};
+use crate::acquisition::Scheme;
+use crate::detector::{
+    ChannelRange, DriftPath, FrameTiming, Illumination, Record, ideal_frames, record,
+};
 use crate::scene::run::{RunScene, parse_run_scene};
+use crate::trace::{TraceOptions, trace};
 
 fn paper_text() -> String {
     std::fs::read_to_string(concat!(
@@ -89,9 +93,9 @@ fn scb_difference_is_the_balanced_sum_when_noise_is_off() {
         let n = t.units();
         let m = 40;
         let pats = crate::acquisition::patterns::random(m, n, 77);
-        let light = frame_light(&t, &pats, m, Sequence::Complementary);
+        let light = t.frame_currents(&pats, m, true);
         let rec = record_ideal(&s, &t, &light);
-        let y = measurements(Scheme::SecondaryComplementaryBalancing, &rec.frames, m);
+        let y = Scheme::SecondaryComplementaryBalancing.measurements(&rec.frames, m);
         let g = s.detector.rf.gain_v_per_a;
         let scale = g * (t.g_a[0].iter().sum::<f64>() + t.g_a[1].iter().sum::<f64>());
         for (i, yi) in y.iter().enumerate() {
@@ -126,9 +130,9 @@ fn double_arm_carries_the_derived_offset() {
     let n = t.units();
     let m = 40;
     let pats = crate::acquisition::patterns::random(m, n, 78);
-    let light = frame_light(&t, &pats, m, Sequence::Base);
+    let light = t.frame_currents(&pats, m, false);
     let rec = record_ideal(&s, &t, &light);
-    let y = measurements(Scheme::DoubleArm, &rec.frames, m);
+    let y = Scheme::DoubleArm.measurements(&rec.frames, m);
     let gm = s.detector.monitors[0].gain_v_per_a;
     assert_eq!(gm, s.detector.monitors[1].gain_v_per_a);
     let sum_x: f64 = t.x_w.iter().sum();
@@ -164,7 +168,7 @@ fn double_arm_carries_the_derived_offset() {
 fn scb_beats_double_arm_at_every_ratio_on_the_paper_bench() {
     let mut s = scene("", &[]);
     s.settings.rays = 400_000;
-    let o = run(&s, 1, false, &|_, _, _| {}).unwrap();
+    let o = run(&s, 1, &TraceRequest::new(s.settings.rays, 1), &|_, _, _| {}).unwrap();
     assert_eq!(o.results.len(), 32);
     for (r, &ratio) in s.settings.sampling_ratios.iter().enumerate() {
         let scb = o
@@ -216,7 +220,7 @@ fn saturation_is_reported() {
             ("power: FromFilament,", "power: InBand(watts: 1000.0),"),
         ],
     );
-    let o = run(&s, 3, false, &|_, _, _| {}).unwrap();
+    let o = run(&s, 3, &TraceRequest::new(s.settings.rays, 3), &|_, _, _| {}).unwrap();
     let rf: Vec<_> = o
         .saturation
         .iter()
@@ -230,7 +234,7 @@ fn saturation_is_reported() {
     assert!(scb.saturated);
     // The same bench at the default lamp power is clean.
     let s = scene("run: (sampling_ratios: [0.5], rays: 30000),", &[SMALL]);
-    let o = run(&s, 3, false, &|_, _, _| {}).unwrap();
+    let o = run(&s, 3, &TraceRequest::new(s.settings.rays, 3), &|_, _, _| {}).unwrap();
     assert!(o.saturation.is_empty(), "{:?}", o.saturation);
     assert!(o.results.iter().all(|r| !r.saturated));
 }
@@ -248,7 +252,15 @@ fn identical_for_one_and_two_threads() {
             .num_threads(threads)
             .build()
             .unwrap()
-            .install(|| run(&s, seed, false, &|_, _, _| {}).unwrap())
+            .install(|| {
+                run(
+                    &s,
+                    seed,
+                    &TraceRequest::new(s.settings.rays, seed),
+                    &|_, _, _| {},
+                )
+                .unwrap()
+            })
     };
     let (a, b) = (go(1, 5), go(2, 5));
     let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();

@@ -26,12 +26,11 @@ use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
-use crate::acquisition::{AdditiveNoise, DEFAULT_DMD_RATE_HZ, Scheme};
+use crate::acquisition::{AdditiveNoise, DEFAULT_DMD_RATE_HZ, PatternFamily, Scheme};
 use crate::detector::{Bap, ChannelRange, Drift, Load, OutputStage, Scope, ScopeNoise};
 use crate::error::{Error, Result};
 use crate::optics::Bench;
 use crate::reconstruction::tval3::Tval3Options;
-use crate::run::RunSettings;
 use crate::scene::bench::{BenchFile, NonNegative, Positive, build_bench};
 use crate::scene::experiment::{NoiseSpec, PatternsSpec, Ratio};
 
@@ -50,6 +49,23 @@ pub const MAX_SCOPE_SAMPLES: f64 = 2e9;
 
 /// The largest number of rays a run may trace (10¹⁰ rays is about a day on two cores).
 pub const MAX_RAYS: u64 = 10_000_000_000;
+
+/// The run settings in SI (the `run` section of a bench file, validated).
+#[derive(Debug, Clone, Serialize)]
+pub struct RunSettings {
+    pub title: String,
+    pub rays: u64,
+    pub sampling_ratios: Vec<f64>,
+    pub schemes: Vec<Scheme>,
+    pub patterns: PatternFamily,
+    pub dmd_rate_hz: f64,
+    pub settling_time_s: f64,
+    pub drift: Drift,
+    pub noise: bool,
+    pub additive_noise: Option<AdditiveNoise>,
+    pub solver: Tval3Options,
+    pub signal_trace_frames: usize,
+}
 
 // ---------------------------------------------------------------------------------------------
 // electronics
@@ -671,7 +687,10 @@ pub fn settings_si(r: &RunSpec) -> FieldResult<RunSettings> {
         rays: r.rays,
         sampling_ratios: r.sampling_ratios.iter().map(|x| x.0).collect(),
         schemes: r.schemes.clone(),
-        patterns: r.patterns.clone(),
+        patterns: match r.patterns {
+            PatternsSpec::Random { seed } => PatternFamily::Random { seed },
+            PatternsSpec::Hadamard { ordering } => PatternFamily::Hadamard { ordering },
+        },
         dmd_rate_hz: r.dmd_rate_hz.0,
         settling_time_s: r.settling_time_us.0 * 1e-6,
         drift: Drift {
@@ -725,7 +744,7 @@ fn check_relations(bench: &Bench, scope: &Scope, s: &RunSettings) -> FieldResult
     let max_m = s
         .sampling_ratios
         .iter()
-        .map(|&r| crate::simulation::patterns_for_ratio(r, n))
+        .map(|&r| crate::acquisition::patterns_for_ratio(r, n))
         .max()
         .unwrap_or(1);
     // Both sequences: M frames of P alone and 2M frames of P, 1 − P.
@@ -740,7 +759,7 @@ fn check_relations(bench: &Bench, scope: &Scope, s: &RunSettings) -> FieldResult
             )),
         ));
     }
-    if let PatternsSpec::Hadamard { .. } = s.patterns
+    if let PatternFamily::Hadamard { .. } = s.patterns
         && across != down
     {
         return Err((

@@ -86,10 +86,13 @@ pub struct BatchScalars {
     pub c: [f64; 2],
     /// Unsplit detector currents B± (A) (the whole signal in a fixed-pattern trace).
     pub b: [f64; 2],
+    /// Power reaching photodiode [+, −] (W) with every pattern unit in state + (index 0) and
+    /// in state − (index 1): the ledger's detected slots, common part plus branch.
+    pub detected_w: [[f64; 2]; 2],
 }
 
 /// The merged result of a trace.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct Tallies {
     pub rays: u64,
     /// Lamp rays whose path reached the pattern area.
@@ -177,6 +180,11 @@ impl Tallies {
             g: [b.gain_sum(0), b.gain_sum(1)],
             c: [b.offset_sum(0), b.offset_sum(1)],
             b: b.b,
+            detected_w: [BRANCH_PLUS, BRANCH_MINUS].map(|branch| {
+                let n_el = b.ledger[COMMON].len() - EXTRA_SLOTS;
+                [SLOT_DETECTED_PLUS, SLOT_DETECTED_MINUS]
+                    .map(|slot| b.ledger[COMMON][n_el + slot] + b.ledger[branch][n_el + slot])
+            }),
         });
     }
 }

@@ -358,11 +358,8 @@ fn fixed_patterns_reproduce_the_transport_maps() {
             let preds: Vec<f64> = transports
                 .iter()
                 .map(|t| {
-                    if d == 0 {
-                        t.y_plus(&pattern)
-                    } else {
-                        t.y_minus(&pattern)
-                    }
+                    assert_eq!(pattern.len(), t.units());
+                    t.currents(&pattern)[d]
                 })
                 .collect();
             let n = preds.len() as f64;

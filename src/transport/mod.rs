@@ -21,11 +21,13 @@
 
 use crate::optics::Bench;
 use crate::optics::bench::ambient_responsivity;
-use crate::reconstruction::BitMatrix;
+use crate::reconstruction::{BitMatrix, LinearOperator, PackedOperator, PatternForm};
 use crate::trace::tally::{
     BRANCH_MINUS, BRANCH_PLUS, COMMON, SLOT_DETECTED_MINUS, SLOT_DETECTED_PLUS, SLOT_EMITTED,
     SLOT_ESCAPED, SLOT_PATH_CAP,
 };
+pub mod metrics;
+
 use crate::trace::{BatchTally, Tallies};
 
 /// A Monte Carlo estimate and its standard error.
@@ -277,52 +279,46 @@ impl Transport {
         self.t_a[BatchTally::t_index(self.units(), d, s, j)]
     }
 
-    /// y₊(P) = Σ_j P_j g₊_j + c₊ (A). `pattern.len()` must equal the number of units.
-    pub fn y_plus(&self, pattern: &[bool]) -> f64 {
-        assert_eq!(pattern.len(), self.units(), "pattern length ≠ units");
-        let mut s = 0.0;
-        for (j, &p) in pattern.iter().enumerate() {
-            if p {
-                s += self.g_a[0][j];
+    /// The forward model (the one place it is written): the traced light currents [I₊, I₋] (A)
+    /// of the frames that show the first `m` rows of `patterns`, where a frame showing F gives
+    /// I₊ = Σ_j F_j·g₊_j + c₊ and I₋ = Σ_j (1 − F_j)·g₋_j + c₋ (arm + sees the units in state +,
+    /// arm − those in state −), with c± the traced pattern-independent light. Ambient light and
+    /// dark current are not included: the detector adds them, so that ambient drift and the
+    /// responsivity mismatch act on the right terms. With `complementary`, each pattern P_i is
+    /// followed by its complement 1 − P_i (2m frames), as the complementary schemes show them.
+    pub fn frame_currents(
+        &self,
+        patterns: &BitMatrix,
+        m: usize,
+        complementary: bool,
+    ) -> Vec<[f64; 2]> {
+        let op = PackedOperator::new(patterns.head(m), PatternForm::ZeroOne);
+        let mut pg = [vec![0.0; m], vec![0.0; m]];
+        for (g, out) in self.g_a.iter().zip(pg.iter_mut()) {
+            op.apply(g, out);
+        }
+        let total = [0, 1].map(|d| self.g_a[d].iter().sum::<f64>());
+        let c = [0, 1].map(|d| self.c_traced[d].value);
+        let mut out = Vec::with_capacity(if complementary { 2 * m } else { m });
+        for (p_plus, p_minus) in pg[0].iter().zip(&pg[1]) {
+            out.push([p_plus + c[0], (total[1] - p_minus) + c[1]]);
+            if complementary {
+                out.push([(total[0] - p_plus) + c[0], p_minus + c[1]]);
             }
         }
-        s + self.c_a[0]
+        out
     }
 
-    /// y₋(P) = Σ_j (1 − P_j) g₋_j + c₋ (A).
-    pub fn y_minus(&self, pattern: &[bool]) -> f64 {
-        assert_eq!(pattern.len(), self.units(), "pattern length ≠ units");
-        let mut s = 0.0;
-        for (j, &p) in pattern.iter().enumerate() {
-            if !p {
-                s += self.g_a[1][j];
-            }
-        }
-        s + self.c_a[1]
-    }
-
-    /// y₊ for row `row` of a bit-packed pattern matrix (columns = units, row-major unit order).
-    pub fn y_plus_row(&self, patterns: &BitMatrix, row: usize) -> f64 {
-        assert_eq!(patterns.cols(), self.units(), "pattern columns ≠ units");
-        let mut s = 0.0;
-        for j in 0..self.units() {
-            if patterns.get(row, j) {
-                s += self.g_a[0][j];
-            }
-        }
-        s + self.c_a[0]
-    }
-
-    /// y₋ for row `row` of a bit-packed pattern matrix.
-    pub fn y_minus_row(&self, patterns: &BitMatrix, row: usize) -> f64 {
-        assert_eq!(patterns.cols(), self.units(), "pattern columns ≠ units");
-        let mut s = 0.0;
-        for j in 0..self.units() {
-            if !patterns.get(row, j) {
-                s += self.g_a[1][j];
-            }
-        }
-        s + self.c_a[1]
+    /// The diode currents [y₊, y₋] (A) for one pattern, ambient and dark current included:
+    /// y±(P) = [`Transport::frame_currents`] + ambient + dark. `pattern.len()` must equal the
+    /// number of units.
+    pub fn currents(&self, pattern: &[bool]) -> [f64; 2] {
+        let units = self.units();
+        let bits = BitMatrix::from_fn(1, units, |_, j| pattern.get(j).copied().unwrap_or(false));
+        let [light] = self.frame_currents(&bits, 1, false)[..] else {
+            return [f64::NAN; 2];
+        };
+        [0, 1].map(|d| light[d] + self.ambient_a[d] + self.dark_a[d])
     }
 }
 

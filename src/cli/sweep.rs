@@ -1,0 +1,458 @@
+//! `spibench sweep BENCH --vary PATH=START:STOP:N [--vary …] [--rays N] [--seed S] [--quality]
+//! [--out DIR]`: one bench over a 1-D or 2-D grid of bench variables, every point traced with
+//! the same seed (common random numbers), so that each point's difference from the nominal
+//! bench carries a paired standard error far below that of independent runs (crate::sweep).
+//!
+//! Output (DIR): `summary.json` (`rows`: one per grid point, the varied values and every metric
+//! with `_stderr`, `_diff` from the nominal bench and `_diff_stderr`), `sweep.csv` (the same
+//! columns), plots (1-D: each metric against the variable with ±1 standard-error bars; 2-D:
+//! heatmaps with a colour bar and the nominal bench marked) and `report.html`.
+
+use std::path::PathBuf;
+
+use anyhow::Result;
+use clap::Args;
+use serde::Serialize;
+use serde_json::{Map, Value};
+
+use crate::report::csv::write_csv;
+use crate::report::heatmap::{Heatmap, write_heatmap};
+use crate::report::html::{Block, Page, write_page};
+use crate::report::json::write_json;
+use crate::report::output::OutputDir;
+use crate::report::plot::{LinePlot, Series, write_plot};
+use crate::sweep::{Sweep, SweepOptions, SweepPoint, Vary, sweep};
+use crate::transport::metrics::{METRICS, MetricRow};
+
+/// Arguments of `spibench sweep`.
+#[derive(Debug, Clone, Args)]
+pub struct SweepArgs {
+    /// Bench file (RON); default: the paper's bench built into the binary.
+    pub scene: Option<PathBuf>,
+    /// A variable and its grid, PATH=START:STOP:N (N values, both ends included); once for a
+    /// 1-D sweep, twice for a 2-D grid. PATH is a bench variable such as
+    /// `detectors.minus.position_mm.x`, `arm_minus_lens.despace_mm` or `dmd.tilt_deg`.
+    #[arg(long, value_name = "PATH=START:STOP:N", required = true)]
+    pub vary: Vec<String>,
+    /// Lamp rays per grid point.
+    #[arg(long, default_value_t = 500_000)]
+    pub rays: u64,
+    /// Seed of every point's trace (the same for all: common random numbers).
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Run the whole pipeline (detector, the four schemes, reconstruction, scores) on every
+    /// point, with the bench's `run` settings.
+    #[arg(long)]
+    pub quality: bool,
+    /// Set a bench variable of the nominal bench first (repeatable).
+    #[arg(long = "set", value_name = "PATH=VALUE")]
+    pub set: Vec<String>,
+    /// Output folder.
+    #[arg(long, default_value = "out/sweep")]
+    pub out: PathBuf,
+}
+
+/// The metrics plotted, with their axis labels.
+const PLOTTED: [(&str, &str); 6] = [
+    ("imbalance", "imbalance (k₊ − k₋)/(k₊ + k₋)"),
+    ("k_plus", "k₊ (A/W)"),
+    ("k_minus", "k₋ (A/W)"),
+    ("b_minus_minus_b_plus", "b₋ − b₊ (A)"),
+    ("leak_plus", "off-arm leak, all units + (ratio)"),
+    ("power_minus_w", "power on diode −, all units − (W)"),
+];
+
+/// `summary.json` of `sweep`.
+#[derive(Serialize)]
+struct SweepSummary<'a> {
+    command: &'static str,
+    spibench_version: &'static str,
+    scene: &'a str,
+    rays: u64,
+    seed: u64,
+    quality: bool,
+    vary: Vec<VarySummary<'a>>,
+    /// Metric names, units and meanings (every row has `NAME`, `NAME_stderr`, `NAME_diff`,
+    /// `NAME_diff_stderr`, and `NAME_diff_stderr_independent`: the standard error the
+    /// difference would have between independent runs).
+    metrics: Vec<MetricDoc>,
+    nominal: Map<String, Value>,
+    rows: Vec<Map<String, Value>>,
+    files: Vec<String>,
+}
+
+#[derive(Serialize)]
+struct VarySummary<'a> {
+    path: &'a str,
+    start: f64,
+    stop: f64,
+    n: usize,
+    /// The variable's value in the nominal bench (0 for a rigid-body move).
+    nominal: f64,
+}
+
+#[derive(Serialize)]
+struct MetricDoc {
+    name: &'static str,
+    unit: &'static str,
+    meaning: &'static str,
+}
+
+fn num(v: f64) -> Value {
+    serde_json::Number::from_f64(v).map_or(Value::Null, Value::Number)
+}
+
+/// One row: the varied values, then each metric's value, standard error and difference from
+/// the nominal bench with its paired and independent standard errors.
+fn row(p: &SweepPoint, nominal: &SweepPoint) -> Map<String, Value> {
+    let mut m = Map::new();
+    for (path, v) in &p.settings {
+        m.insert(path.clone(), num(*v));
+    }
+    for (i, (name, _, _)) in METRICS.iter().enumerate() {
+        let (a, b) = (&p.metrics.values[i], &nominal.metrics.values[i]);
+        let r = MetricRow::new(a, b);
+        m.insert((*name).to_string(), num(r.value));
+        m.insert(format!("{name}_stderr"), num(r.stderr));
+        m.insert(format!("{name}_diff"), num(r.diff));
+        m.insert(format!("{name}_diff_stderr"), num(r.diff_stderr));
+        m.insert(
+            format!("{name}_diff_stderr_independent"),
+            num(r.stderr.hypot(b.stderr())),
+        );
+    }
+    m.insert("arrivals".into(), Value::from(p.arrivals));
+    if let Some(q) = &p.quality {
+        for r in q {
+            let key = format!("{}_{}", r.scheme.key(), (r.ratio * 100.0).round() as u32);
+            m.insert(format!("{key}_mssim"), num(r.mssim));
+            m.insert(format!("{key}_psnr_db"), num(r.psnr_db));
+            m.insert(
+                format!("{key}_finest_resolved"),
+                r.finest_resolved.map_or(Value::Null, |e| {
+                    Value::from(format!("{}/{}", e.group, e.element))
+                }),
+            );
+        }
+    }
+    m
+}
+
+/// Runs `spibench sweep`.
+pub fn run(args: &SweepArgs) -> Result<()> {
+    let (name, doc) = super::run::load_doc(args.scene.as_deref(), &args.set)?;
+    let vary: Vec<Vary> = args
+        .vary
+        .iter()
+        .map(|v| Vary::parse(v))
+        .collect::<crate::Result<_>>()?;
+    if args.rays < 2 * crate::trace::RAYS_PER_BATCH || args.rays > crate::scene::run::MAX_RAYS {
+        return Err(crate::Error::field(
+            "--rays",
+            format!(
+                "must lie between {} (two batches, for standard errors) and {}",
+                2 * crate::trace::RAYS_PER_BATCH,
+                crate::scene::run::MAX_RAYS
+            ),
+        )
+        .into());
+    }
+    // Unknown paths fail here, before anything is traced.
+    let nominal_values: Vec<f64> = vary
+        .iter()
+        .map(|v| doc.get(&v.path))
+        .collect::<crate::Result<_>>()?;
+    let out = OutputDir::create(&args.out)?;
+    let options = SweepOptions {
+        rays: args.rays,
+        seed: args.seed,
+        quality: args.quality,
+    };
+    let points: usize = vary.iter().map(|v| v.n).product();
+    eprintln!(
+        "{name}: sweep of {points} point(s) + the nominal bench, {} rays each (seed {}){}",
+        args.rays,
+        args.seed,
+        if args.quality { ", full pipeline" } else { "" }
+    );
+    let bar = super::progress::bar(points as u64 + 1, "tracing");
+    let start = std::time::Instant::now();
+    let s = sweep(&doc, &vary, &options, &|done, _| {
+        bar.set_position(done as u64)
+    })?;
+    bar.finish_and_clear();
+    let seconds = start.elapsed().as_secs_f64();
+    let files = write_outputs(&name, &s, &nominal_values, &out)?;
+    let dir = out.commit()?;
+    print_table(&s);
+    println!(
+        "wrote {} ({} files, {:.1} s)",
+        dir.display(),
+        files,
+        seconds
+    );
+    Ok(())
+}
+
+fn print_table(s: &Sweep) {
+    let heads: Vec<&str> = s.vary.iter().map(|v| v.path.as_str()).collect();
+    let mut line = heads
+        .iter()
+        .map(|h| format!("{:>14}", short(h)))
+        .collect::<String>();
+    for h in ["imbalance", "Δ vs nominal", "k₊ (A/W)", "k₋ (A/W)"] {
+        line += &format!(" {h:>22}");
+    }
+    println!("{line}");
+    fn get<'p>(p: &'p SweepPoint, n: &str) -> Option<&'p crate::transport::metrics::Metric> {
+        p.metrics.get(n)
+    }
+    for p in &s.points {
+        let mut line = p
+            .settings
+            .iter()
+            .map(|(_, v)| format!("{v:>14.6}"))
+            .collect::<String>();
+        for (n, diff) in [
+            ("imbalance", false),
+            ("imbalance", true),
+            ("k_plus", false),
+            ("k_minus", false),
+        ] {
+            let (Some(a), Some(b)) = (get(p, n), get(&s.nominal, n)) else {
+                continue;
+            };
+            let e = if diff { a.diff(b) } else { a.estimate() };
+            line += &format!(" {:>22}", format!("{:.4e} ± {:.1e}", e.value, e.stderr));
+        }
+        println!("{line}");
+    }
+}
+
+/// The last two segments of a path, for table headings.
+fn short(path: &str) -> String {
+    let segs: Vec<&str> = path.split('.').collect();
+    let k = segs.len().saturating_sub(2);
+    let s = segs[k..].join(".");
+    if s.chars().count() > 14 {
+        s.chars().take(13).collect::<String>() + "…"
+    } else {
+        s
+    }
+}
+
+fn write_outputs(name: &str, s: &Sweep, nominal_values: &[f64], out: &OutputDir) -> Result<usize> {
+    let mut files = vec![
+        "summary.json".to_string(),
+        "sweep.csv".to_string(),
+        "report.html".to_string(),
+    ];
+    let rows: Vec<Map<String, Value>> = s.points.iter().map(|p| row(p, &s.nominal)).collect();
+    // CSV: the columns of the rows, in their order.
+    let header: Vec<String> = rows
+        .first()
+        .map_or_else(Vec::new, |r| r.keys().cloned().collect());
+    let csv_rows: Vec<Vec<String>> = rows
+        .iter()
+        .map(|r| {
+            header
+                .iter()
+                .map(|k| match r.get(k) {
+                    Some(Value::Number(n)) => n.to_string(),
+                    Some(Value::String(t)) => t.clone(),
+                    _ => String::new(),
+                })
+                .collect()
+        })
+        .collect();
+    let header_refs: Vec<&str> = header.iter().map(|h| h.as_str()).collect();
+    write_csv(&out.path("sweep.csv"), &header_refs, &csv_rows)?;
+
+    let mut blocks = vec![Block::Paragraph(format!(
+        "{} grid point(s) of {name}, each traced with {} rays and seed {} (common random numbers: \
+         every point draws the same random numbers, so a difference from the nominal bench is \
+         resolved by its paired standard error, given beside the standard error independent \
+         runs would have). Error bars and ± are one standard error.",
+        s.points.len(),
+        s.options.rays,
+        s.options.seed
+    ))];
+    let mut figures = Vec::new();
+    match s.vary.as_slice() {
+        [v] => {
+            let xs: Vec<f64> = s.points.iter().map(|p| p.settings[0].1).collect();
+            for (metric, label) in PLOTTED {
+                let Some(i) = METRICS.iter().position(|m| m.0 == metric) else {
+                    continue;
+                };
+                let plot = LinePlot {
+                    title: String::new(),
+                    x_label: v.path.clone(),
+                    y_label: label.to_string(),
+                    series: vec![Series {
+                        label: String::new(),
+                        x: xs.clone(),
+                        y: s.points.iter().map(|p| p.metrics.values[i].value).collect(),
+                        y_err: Some(
+                            s.points
+                                .iter()
+                                .map(|p| {
+                                    let e = p.metrics.values[i].stderr();
+                                    if e.is_finite() { e } else { 0.0 }
+                                })
+                                .collect(),
+                        ),
+                    }],
+                    log_x: false,
+                };
+                let (svg, png) = (format!("{metric}.svg"), format!("{metric}.png"));
+                write_plot(&plot, &out.path(&svg), &out.path(&png))?;
+                figures.push((svg.clone(), label.to_string()));
+                files.extend([svg, png]);
+            }
+            if let Some(q) = s.points.first().and_then(|p| p.quality.as_ref()) {
+                let last_ratio = q.iter().map(|r| r.ratio).fold(0.0, f64::max);
+                let schemes: Vec<_> = q
+                    .iter()
+                    .filter(|r| r.ratio == last_ratio)
+                    .map(|r| r.scheme)
+                    .collect();
+                let series = schemes
+                    .iter()
+                    .map(|&k| Series {
+                        label: k.label().to_string(),
+                        x: xs.clone(),
+                        y: s.points
+                            .iter()
+                            .map(|p| {
+                                p.quality
+                                    .as_ref()
+                                    .and_then(|q| {
+                                        q.iter().find(|r| r.scheme == k && r.ratio == last_ratio)
+                                    })
+                                    .map_or(f64::NAN, |r| r.mssim)
+                            })
+                            .collect(),
+                        y_err: None,
+                    })
+                    .collect();
+                let plot = LinePlot {
+                    title: String::new(),
+                    x_label: v.path.clone(),
+                    y_label: format!("MSSIM at {:.0} % sampling", last_ratio * 100.0),
+                    series,
+                    log_x: false,
+                };
+                write_plot(&plot, &out.path("mssim.svg"), &out.path("mssim.png"))?;
+                figures.push(("mssim.svg".into(), "MSSIM of each scheme".into()));
+                files.extend(["mssim.svg".to_string(), "mssim.png".to_string()]);
+            }
+        }
+        [a, b] => {
+            for (metric, label) in PLOTTED.iter().take(4) {
+                let Some(i) = METRICS.iter().position(|m| m.0 == *metric) else {
+                    continue;
+                };
+                let h = Heatmap {
+                    x_label: a.path.clone(),
+                    y_label: b.path.clone(),
+                    value_label: label.to_string(),
+                    xs: a.values(),
+                    ys: b.values(),
+                    values: s.points.iter().map(|p| p.metrics.values[i].value).collect(),
+                    mark: Some((nominal_values[0], nominal_values[1])),
+                };
+                let (svg, png) = (format!("{metric}.svg"), format!("{metric}.png"));
+                write_heatmap(&h, &out.path(&svg), &out.path(&png))?;
+                figures.push((svg.clone(), format!("{label}; + marks the nominal bench")));
+                files.extend([svg, png]);
+            }
+        }
+        _ => {}
+    }
+    for (svg, caption) in figures {
+        let text = std::fs::read_to_string(out.path(&svg))
+            .map_err(|e| crate::Error::read(&out.path(&svg), e))?;
+        blocks.push(Block::Svg { caption, svg: text });
+    }
+    let mut header_html: Vec<String> = s.vary.iter().map(|v| v.path.clone()).collect();
+    header_html.extend(
+        [
+            "imbalance",
+            "Δ imbalance",
+            "k₊ (A/W)",
+            "k₋ (A/W)",
+            "b₋ − b₊ (A)",
+        ]
+        .map(String::from),
+    );
+    let pm = |m: &crate::transport::Estimate| format!("{:.4e} ± {:.1e}", m.value, m.stderr);
+    let table_rows = s
+        .points
+        .iter()
+        .map(|p| {
+            let mut r: Vec<String> = p.settings.iter().map(|(_, v)| format!("{v}")).collect();
+            let g = |n: &str| p.metrics.get(n).map(|m| m.estimate());
+            let d = |n: &str| match (p.metrics.get(n), s.nominal.metrics.get(n)) {
+                (Some(a), Some(b)) => Some(a.diff(b)),
+                _ => None,
+            };
+            for e in [
+                g("imbalance"),
+                d("imbalance"),
+                g("k_plus"),
+                g("k_minus"),
+                g("b_minus_minus_b_plus"),
+            ] {
+                r.push(e.map_or_else(String::new, |e| pm(&e)));
+            }
+            r
+        })
+        .collect();
+    blocks.push(Block::Table {
+        caption: Some("Grid points (value ± standard error; Δ against the nominal bench ± its paired standard error)".into()),
+        header: header_html,
+        rows: table_rows,
+    });
+    write_page(
+        &out.path("report.html"),
+        &Page {
+            title: format!("spibench sweep of {name}"),
+            blocks,
+        },
+    )?;
+    let nominal = row(&s.nominal, &s.nominal);
+    let summary = SweepSummary {
+        command: "sweep",
+        spibench_version: env!("CARGO_PKG_VERSION"),
+        scene: name,
+        rays: s.options.rays,
+        seed: s.options.seed,
+        quality: s.options.quality,
+        vary: s
+            .vary
+            .iter()
+            .zip(nominal_values)
+            .map(|(v, &n)| VarySummary {
+                path: &v.path,
+                start: v.start,
+                stop: v.stop,
+                n: v.n,
+                nominal: n,
+            })
+            .collect(),
+        metrics: METRICS
+            .iter()
+            .map(|&(name, unit, meaning)| MetricDoc {
+                name,
+                unit,
+                meaning,
+            })
+            .collect(),
+        nominal,
+        rows,
+        files: files.clone(),
+    };
+    write_json(&out.path("summary.json"), &summary)?;
+    Ok(files.len())
+}

@@ -1,0 +1,248 @@
+//! The record stage: the detector outputs in time for the DMD's frame sequences.
+
+use rayon::prelude::*;
+use serde::Serialize;
+
+use super::{Progress, Stage, Traced};
+use crate::acquisition::{AdditiveNoise, PatternSet, Sequence};
+use crate::detector::{
+    self, Bap, Channel, DriftPath, FrameTiming, Illumination, OUTPUT_NAMES, Record, Scope,
+    SignalTrace,
+};
+use crate::error::Result;
+use crate::rng;
+use crate::scene::run::RunSettings;
+
+/// What was recorded in one sequence.
+#[derive(Debug, Clone, Serialize)]
+pub struct SequenceSummary {
+    pub sequence: Sequence,
+    pub frames: usize,
+    pub duration_s: f64,
+    /// Oscilloscope samples per channel.
+    pub scope_samples: u64,
+    /// Samples averaged per frame (min, max).
+    pub settled_samples_per_frame: (usize, usize),
+    /// Per output [RF, MONITOR+, MONITOR−]: frames with a clipped output, frames over the
+    /// oscilloscope range, and the largest |V| of the noise-free unclipped output.
+    pub clipped_frames: [usize; 3],
+    pub over_range_frames: [usize; 3],
+    pub peak_abs_ideal_v: [f64; 3],
+}
+
+/// A saturation or over-range finding, also printed as a warning.
+#[derive(Debug, Clone, Serialize)]
+pub struct Saturation {
+    pub sequence: Sequence,
+    /// "rf", "monitor_plus" or "monitor_minus".
+    pub output: &'static str,
+    /// "detector_swing" (the output clipped) or "oscilloscope_range".
+    pub kind: &'static str,
+    pub frames: usize,
+    pub of_frames: usize,
+    pub limit_v: f64,
+    pub peak_abs_ideal_v: f64,
+    pub message: String,
+}
+
+/// The recorded sequences of an acquisition.
+#[derive(Debug, Clone)]
+pub struct Recorded {
+    /// The base patterns for the highest sampling ratio (lower ratios use their first rows).
+    pub patterns: PatternSet,
+    pub timing: FrameTiming,
+    /// The oscilloscope channels as set for the records [RF, MONITOR+, MONITOR−].
+    pub channels: [Channel; 3],
+    /// One record per sequence that some scheme needs, in [`Sequence`] order.
+    pub records: Vec<(Sequence, Record)>,
+    pub sequences: Vec<SequenceSummary>,
+    pub saturation: Vec<Saturation>,
+}
+
+impl Recorded {
+    /// The record of a sequence.
+    pub fn record(&self, q: Sequence) -> Option<&Record> {
+        self.records.iter().find(|(s, _)| *s == q).map(|(_, r)| r)
+    }
+
+    /// The first frames of each record, sample by sample.
+    pub fn traces(&self) -> Vec<(Sequence, SignalTrace)> {
+        self.records
+            .iter()
+            .map(|(q, r)| (*q, r.trace.clone()))
+            .collect()
+    }
+}
+
+fn sequence_seed(seed: u64, s: Sequence) -> u64 {
+    let index = match s {
+        Sequence::Base => 0,
+        Sequence::Complementary => 1,
+    };
+    rng::mix64(seed ^ rng::mix64(0x5EC0_0000 + index))
+}
+
+/// The record stage: records every sequence that `settings.schemes` read, for the patterns of
+/// `patterns`, through the detector and oscilloscope, with the noise and drift drawn from
+/// streams keyed by `seed`.
+pub fn record_stage(
+    traced: &Traced,
+    detector: &Bap,
+    scope: &Scope,
+    settings: &RunSettings,
+    patterns: &PatternSet,
+    seed: u64,
+    progress: Progress,
+) -> Result<Recorded> {
+    let s = settings;
+    let transport = &traced.transport;
+    let bits = patterns.base_patterns();
+    let max_m = patterns.measurements();
+    let timing = FrameTiming {
+        frame_s: 1.0 / s.dmd_rate_hz,
+        settling_s: s.settling_time_s,
+        sample_rate_hz: scope.sample_rate_hz,
+    };
+    let needed: Vec<Sequence> = [Sequence::Base, Sequence::Complementary]
+        .into_iter()
+        .filter(|q| s.schemes.iter().any(|k| k.sequence() == *q))
+        .collect();
+    let lights: Vec<Vec<[f64; 2]>> = needed
+        .iter()
+        .map(|&q| transport.frame_currents(&bits, max_m, q == Sequence::Complementary))
+        .collect();
+    let illum: Vec<Illumination> = lights
+        .iter()
+        .map(|l| Illumination {
+            light_a: l,
+            ambient_a: transport.ambient_a,
+            dark_a: transport.dark_a,
+        })
+        .collect();
+    let ideal: Vec<Vec<[f64; 3]>> = illum
+        .iter()
+        .map(|il| detector::ideal_frames(detector, il))
+        .collect();
+    // Channel ranges from the clipped noise-free outputs of every recorded frame.
+    let channels: [Channel; 3] = [0, 1, 2].map(|o| {
+        let st = detector.stage(o);
+        let (lo, hi) = ideal
+            .iter()
+            .flatten()
+            .map(|v| st.clip(v[o]))
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+                (a.min(v), b.max(v))
+            });
+        scope.channel(o, lo, hi, !s.noise)
+    });
+    let total_frames: u64 = lights.iter().map(|l| l.len() as u64).sum();
+    progress(Stage::Record, 0, total_frames);
+    let records: Vec<Record> = needed
+        .par_iter()
+        .zip(illum.par_iter())
+        .map(|(&q, il)| {
+            let q_seed = sequence_seed(seed, q);
+            let drift = if s.noise {
+                DriftPath::draw(&s.drift, il.light_a.len(), timing.frame_s, q_seed)
+            } else {
+                DriftPath::flat(il.light_a.len(), timing.frame_s)
+            };
+            let mut r = detector::record(
+                detector,
+                &channels,
+                timing,
+                il,
+                &drift,
+                q_seed,
+                s.noise,
+                s.signal_trace_frames,
+            );
+            if let Some(noise) = &s.additive_noise {
+                add_paper_noise(&mut r, noise, q_seed);
+            }
+            r
+        })
+        .collect();
+    progress(Stage::Record, total_frames, total_frames);
+
+    let mut sequences = Vec::new();
+    let mut saturation = Vec::new();
+    for ((&q, r), id) in needed.iter().zip(&records).zip(&ideal) {
+        let frames = r.frames.len();
+        let peak = [0, 1, 2].map(|o| id.iter().map(|v| v[o].abs()).fold(0.0, f64::max));
+        let clipped = [0, 1, 2].map(|o| r.clipped_frames(o, frames));
+        let over = [0, 1, 2].map(|o| r.over_range_frames(o, frames));
+        for o in 0..3 {
+            let swing = detector.stage(o).swing_v;
+            if clipped[o] > 0 {
+                saturation.push(Saturation {
+                    sequence: q,
+                    output: OUTPUT_NAMES[o],
+                    kind: "detector_swing",
+                    frames: clipped[o],
+                    of_frames: frames,
+                    limit_v: swing,
+                    peak_abs_ideal_v: peak[o],
+                    message: format!(
+                        "{} output clipped at ±{swing} V in {} of {frames} frames of the {} \
+                         sequence (noise-free peak |V| = {:.4} V): the light saturates the \
+                         detector; results that read it are marked saturated",
+                        OUTPUT_NAMES[o],
+                        clipped[o],
+                        q.key(),
+                        peak[o]
+                    ),
+                });
+            }
+            if over[o] > 0 {
+                let (lo, hi) = channels[o].window();
+                saturation.push(Saturation {
+                    sequence: q,
+                    output: OUTPUT_NAMES[o],
+                    kind: "oscilloscope_range",
+                    frames: over[o],
+                    of_frames: frames,
+                    limit_v: hi.abs().max(lo.abs()),
+                    peak_abs_ideal_v: peak[o],
+                    message: format!(
+                        "{} channel over the oscilloscope's range [{lo:.4}, {hi:.4}] V in {} of \
+                         {frames} frames of the {} sequence; results that read it are marked \
+                         saturated",
+                        OUTPUT_NAMES[o],
+                        over[o],
+                        q.key()
+                    ),
+                });
+            }
+        }
+        sequences.push(SequenceSummary {
+            sequence: q,
+            frames,
+            duration_s: frames as f64 * timing.frame_s,
+            scope_samples: r.samples,
+            settled_samples_per_frame: r.settled_samples,
+            clipped_frames: clipped,
+            over_range_frames: over,
+            peak_abs_ideal_v: peak,
+        });
+    }
+    Ok(Recorded {
+        patterns: patterns.clone(),
+        timing,
+        channels,
+        records: needed.into_iter().zip(records).collect(),
+        sequences,
+        saturation,
+    })
+}
+
+/// The paper's idealised additive noise on every recorded frame value of every output: output
+/// o of a sequence draws from the noise streams of seed mix64(sequence seed ⊕ o).
+fn add_paper_noise(r: &mut Record, noise: &AdditiveNoise, seed: u64) {
+    for o in 0..3 {
+        let e = noise.samples(rng::mix64(seed ^ (0xADD0 + o as u64)), r.frames.len());
+        for (f, e) in r.frames.iter_mut().zip(e) {
+            f[o] += e;
+        }
+    }
+}

@@ -1,0 +1,243 @@
+//! Sweeps: one bench traced over a 1-D or 2-D grid of bench variables with common random
+//! numbers, so that the differences between grid points are resolved far better than by
+//! independent runs (crate::transport::metrics).
+//!
+//! Every grid point is the nominal bench with the grid's variables set ([`BenchDoc::with`]),
+//! built afresh (so no derived state can be stale) and traced with the same seed and ray count
+//! as the nominal bench. Each point reports its metrics with their standard errors and, against
+//! the nominal bench, their differences with the paired standard error. With `quality`, the
+//! whole pipeline (record, solve, score) runs on every point.
+
+use crate::acquisition::patterns_for_ratio;
+use crate::error::{Error, Result};
+use crate::pipeline::{self, Progress, SchemeResult, TraceRequest, Traced};
+use crate::scene::doc::BenchDoc;
+use crate::transport::metrics::BenchMetrics;
+
+/// The most grid points one sweep may have (each is a full trace).
+pub const MAX_POINTS: usize = 10_000;
+
+/// One swept variable: a bench-variable path and its values.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Vary {
+    pub path: String,
+    pub start: f64,
+    pub stop: f64,
+    pub n: usize,
+}
+
+impl Vary {
+    /// Parses `PATH=START:STOP:N` (N ≥ 1 evenly spaced values, both ends included; N = 1 is
+    /// START alone).
+    pub fn parse(text: &str) -> Result<Vary> {
+        let bad = |why: &str| Error::field("--vary", format!("`{text}`: {why}"));
+        let (path, range) = text
+            .split_once('=')
+            .ok_or_else(|| bad("expected PATH=START:STOP:N"))?;
+        let parts: Vec<&str> = range.split(':').collect();
+        let [a, b, n] = parts[..] else {
+            return Err(bad("expected PATH=START:STOP:N"));
+        };
+        let num = |s: &str| -> Result<f64> {
+            let v: f64 = s
+                .trim()
+                .parse()
+                .map_err(|_| bad("START and STOP must be numbers"))?;
+            if v.is_finite() {
+                Ok(v)
+            } else {
+                Err(bad("START and STOP must be finite"))
+            }
+        };
+        let n: usize = n
+            .trim()
+            .parse()
+            .map_err(|_| bad("N must be a whole number ≥ 1"))?;
+        if n == 0 || n > MAX_POINTS {
+            return Err(bad(&format!("N must lie between 1 and {MAX_POINTS}")));
+        }
+        Ok(Vary {
+            path: path.trim().to_string(),
+            start: num(a)?,
+            stop: num(b)?,
+            n,
+        })
+    }
+
+    /// The values, evenly spaced from start to stop.
+    pub fn values(&self) -> Vec<f64> {
+        if self.n == 1 {
+            return vec![self.start];
+        }
+        (0..self.n)
+            .map(|i| {
+                let t = i as f64 / (self.n - 1) as f64;
+                // Exact at both ends.
+                if i + 1 == self.n {
+                    self.stop
+                } else {
+                    self.start + t * (self.stop - self.start)
+                }
+            })
+            .collect()
+    }
+}
+
+/// How to sweep.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SweepOptions {
+    pub rays: u64,
+    pub seed: u64,
+    /// Run the whole pipeline (record, solve, score) on every point.
+    pub quality: bool,
+}
+
+/// One traced bench of a sweep.
+#[derive(Debug, Clone)]
+pub struct SweepPoint {
+    /// The variables set on the nominal bench (empty for the nominal bench itself).
+    pub settings: Vec<(String, f64)>,
+    pub metrics: BenchMetrics,
+    pub arrivals: u64,
+    /// With `quality`: every scheme × ratio of the bench's `run` settings.
+    pub quality: Option<Vec<SchemeResult>>,
+}
+
+/// A finished sweep.
+#[derive(Debug, Clone)]
+pub struct Sweep {
+    pub vary: Vec<Vary>,
+    pub options: SweepOptions,
+    pub nominal: SweepPoint,
+    /// Row-major over the grid: the first variable is the slow index.
+    pub points: Vec<SweepPoint>,
+}
+
+/// The grid's settings, row-major.
+pub fn grid(vary: &[Vary]) -> Result<Vec<Vec<(String, f64)>>> {
+    match vary {
+        [a] => Ok(a
+            .values()
+            .into_iter()
+            .map(|v| vec![(a.path.clone(), v)])
+            .collect()),
+        [a, b] => {
+            if a.path == b.path {
+                return Err(Error::field(
+                    "--vary",
+                    "the two --vary flags name the same variable",
+                ));
+            }
+            let (va, vb) = (a.values(), b.values());
+            if va.len() * vb.len() > MAX_POINTS {
+                return Err(Error::field(
+                    "--vary",
+                    format!(
+                        "a grid of {} × {} points is more than {MAX_POINTS}",
+                        va.len(),
+                        vb.len()
+                    ),
+                ));
+            }
+            Ok(va
+                .iter()
+                .flat_map(|&x| {
+                    vb.iter()
+                        .map(move |&y| vec![(a.path.clone(), x), (b.path.clone(), y)])
+                })
+                .collect())
+        }
+        _ => Err(Error::field("--vary", "give one or two --vary flags")),
+    }
+}
+
+/// Runs a sweep. `progress(done, total)` counts traced points (the nominal bench included).
+pub fn sweep(
+    doc: &BenchDoc,
+    vary: &[Vary],
+    options: &SweepOptions,
+    progress: &(dyn Fn(usize, usize) + Sync),
+) -> Result<Sweep> {
+    let settings = grid(vary)?;
+    // Every point must be a valid bench before the first (long) trace.
+    for s in &settings {
+        doc.with(s)?.build()?;
+    }
+    let total = settings.len() + 1;
+    progress(0, total);
+    let nominal = point(doc, Vec::new(), options)?;
+    progress(1, total);
+    let mut points = Vec::with_capacity(settings.len());
+    for (i, s) in settings.into_iter().enumerate() {
+        let d = doc.with(&s)?;
+        points.push(point(&d, s, options)?);
+        progress(i + 2, total);
+    }
+    Ok(Sweep {
+        vary: vary.to_vec(),
+        options: *options,
+        nominal,
+        points,
+    })
+}
+
+fn point(doc: &BenchDoc, settings: Vec<(String, f64)>, o: &SweepOptions) -> Result<SweepPoint> {
+    let req = TraceRequest::new(o.rays, o.seed);
+    let quiet: Progress = &|_, _, _| {};
+    let (traced, quality): (Traced, _) = if o.quality {
+        let scene = doc.run_scene()?;
+        let traced = pipeline::trace_stage(&scene.bench, &req)?;
+        let (across, down) = scene.bench.units_shape();
+        let max_m = scene
+            .settings
+            .sampling_ratios
+            .iter()
+            .map(|&r| patterns_for_ratio(r, across * down))
+            .max()
+            .unwrap_or(1);
+        let patterns = scene.settings.patterns.build(across, down, max_m)?;
+        let outcome = crate::run::downstream(&scene, &traced, &patterns, o.seed, quiet)?;
+        (traced, Some(outcome.results))
+    } else {
+        let bench = doc.build()?;
+        (pipeline::trace_stage(&bench, &req)?, None)
+    };
+    Ok(SweepPoint {
+        settings,
+        arrivals: traced.arrivals(),
+        metrics: traced.metrics,
+        quality,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn vary_parses_and_spaces_evenly() {
+        let v = Vary::parse("detectors.minus.decenter_mm.x=-1:1:5").unwrap();
+        assert_eq!(v.path, "detectors.minus.decenter_mm.x");
+        assert_eq!(v.values(), vec![-1.0, -0.5, 0.0, 0.5, 1.0]);
+        assert_eq!(Vary::parse("a=2:3:1").unwrap().values(), vec![2.0]);
+        for bad in ["a", "a=1:2", "a=1:2:0", "a=x:2:3", "a=1:inf:3", "a=1:2:3:4"] {
+            let e = Vary::parse(bad).unwrap_err();
+            assert!(
+                e.is_user_error() && e.to_string().contains("--vary"),
+                "{bad}: {e}"
+            );
+        }
+    }
+
+    #[test]
+    fn grids_are_row_major() {
+        let a = Vary::parse("p=0:1:2").unwrap();
+        let b = Vary::parse("q=5:7:3").unwrap();
+        let g = grid(&[a.clone(), b]).unwrap();
+        assert_eq!(g.len(), 6);
+        assert_eq!(g[1], vec![("p".to_string(), 0.0), ("q".to_string(), 6.0)]);
+        assert_eq!(g[3][0].1, 1.0);
+        assert!(grid(&[a.clone(), a]).is_err());
+        assert!(grid(&[]).is_err());
+    }
+}

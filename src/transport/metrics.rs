@@ -1,0 +1,253 @@
+//! The numbers a bench is judged by, each with its Monte Carlo standard error, in a form that
+//! also gives the standard error of the *difference* between two benches traced with common
+//! random numbers.
+//!
+//! Every metric here is a smooth function of batch totals (a total, or a ratio of totals). Its
+//! batch-means standard error is that of its linearisation: the metric's *influence* ψ_b of
+//! batch b (for a total S = Σ s_b over batches of n_b of the N rays, ψ_b = s_b − (n_b/N)·S; for
+//! a ratio R = ΣA_b/ΣD_b, ψ_b = (A_b − R·D_b)/ΣD_b, the delta method), and
+//! SE² = n_B/(n_B − 1)·Σ_b ψ_b². These are exactly the formulas of
+//! [`crate::transport::total_estimate`] and [`crate::transport::ratio_estimate`].
+//!
+//! Two benches traced with the same seed draw the same random numbers batch by batch (common
+//! random numbers: crate::trace keys batch b's stream by (seed, b)), so their batch estimates
+//! are strongly correlated when the benches differ a little. The difference of a metric between
+//! them is then resolved by the paired batch differences:
+//! SE²(M_a − M_b) = n_B/(n_B − 1)·Σ_b (ψ_{a,b} − ψ_{b,b})², far below SE_a² + SE_b² (Glasserman,
+//! *Monte Carlo Methods in Financial Engineering*, 2003, §4.1: common random numbers).
+
+use serde::Serialize;
+
+use crate::trace::Tallies;
+use crate::transport::{Estimate, Transport};
+
+/// A metric's value and its per-batch influence (see the module notes).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Metric {
+    pub value: f64,
+    psi: Vec<f64>,
+}
+
+impl Metric {
+    /// An exact number (no Monte Carlo error), e.g. an electronics setting.
+    pub fn exact(value: f64, batches: usize) -> Metric {
+        Metric {
+            value,
+            psi: vec![0.0; batches],
+        }
+    }
+
+    /// The total Σ_b s_b of per-batch sums `s` over batches of `n` rays.
+    pub fn total(n: &[u64], s: &[f64]) -> Metric {
+        let big_n: u64 = n.iter().sum();
+        let total: f64 = s.iter().sum();
+        let psi = n
+            .iter()
+            .zip(s)
+            .map(|(&k, &v)| v - (k as f64 / big_n.max(1) as f64) * total)
+            .collect();
+        Metric { value: total, psi }
+    }
+
+    /// The ratio ΣA_b / ΣD_b.
+    pub fn ratio(a: &[f64], d: &[f64]) -> Metric {
+        let sa: f64 = a.iter().sum();
+        let sd: f64 = d.iter().sum();
+        let r = sa / sd;
+        let psi = a.iter().zip(d).map(|(x, y)| (x - r * y) / sd).collect();
+        Metric { value: r, psi }
+    }
+
+    /// This metric plus a constant.
+    pub fn plus(mut self, c: f64) -> Metric {
+        self.value += c;
+        self
+    }
+
+    /// The batch-means standard error (NaN with fewer than two batches).
+    pub fn stderr(&self) -> f64 {
+        se(self.psi.iter().copied())
+    }
+
+    pub fn estimate(&self) -> Estimate {
+        Estimate {
+            value: self.value,
+            stderr: self.stderr(),
+        }
+    }
+
+    /// `self − other` with the paired (common-random-numbers) standard error. NaN when the two
+    /// were not traced with the same batches.
+    pub fn diff(&self, other: &Metric) -> Estimate {
+        let stderr = if self.psi.len() == other.psi.len() {
+            se(self.psi.iter().zip(&other.psi).map(|(a, b)| a - b))
+        } else {
+            f64::NAN
+        };
+        Estimate {
+            value: self.value - other.value,
+            stderr,
+        }
+    }
+}
+
+fn se(psi: impl ExactSizeIterator<Item = f64>) -> f64 {
+    let nb = psi.len();
+    if nb < 2 {
+        return f64::NAN;
+    }
+    let q: f64 = psi.map(|p| p * p).sum();
+    (q * nb as f64 / (nb as f64 - 1.0)).sqrt()
+}
+
+/// The names, units and meanings of the bench metrics, in table order.
+pub const METRICS: [(&str, &str, &str); 12] = [
+    ("k_plus", "A/W", "k₊ = Σ_j g₊_j / Σ_j x_j"),
+    ("k_minus", "A/W", "k₋ = Σ_j g₋_j / Σ_j x_j"),
+    ("k_prime", "A/W", "k' = k₊ + k₋, the SCB image scale"),
+    ("imbalance", "1", "(k₊ − k₋)/(k₊ + k₋)"),
+    (
+        "b_plus",
+        "A",
+        "b₊: pattern-independent current of arm + (traced light, ambient, dark)",
+    ),
+    ("b_minus", "A", "b₋, as b₊ for arm −"),
+    (
+        "b_minus_minus_b_plus",
+        "A",
+        "b₋ − b₊, the offset double-arm detection leaves",
+    ),
+    (
+        "power_plus_w",
+        "W",
+        "power on diode + with every pattern unit in state +",
+    ),
+    (
+        "power_minus_w",
+        "W",
+        "power on diode − with every pattern unit in state −",
+    ),
+    (
+        "leak_plus",
+        "1",
+        "off-arm leak: power on diode − / power on diode + with every unit in state +",
+    ),
+    (
+        "leak_minus",
+        "1",
+        "off-arm leak: power on diode + / power on diode − with every unit in state −",
+    ),
+    ("x_total_w", "W", "Σ_j x_j, power on the pattern area"),
+];
+
+/// The traced metrics of one bench (the order of [`METRICS`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct BenchMetrics {
+    pub values: Vec<Metric>,
+}
+
+impl BenchMetrics {
+    /// From a trace's batches and its transport (for the ambient and dark currents).
+    pub fn new(t: &Tallies, transport: &Transport) -> BenchMetrics {
+        let bs = &t.batches;
+        let col = |f: &dyn Fn(&crate::trace::BatchScalars) -> f64| -> Vec<f64> {
+            bs.iter().map(f).collect()
+        };
+        let n: Vec<u64> = bs.iter().map(|b| b.rays).collect();
+        let x = col(&|b| b.x);
+        let g = [col(&|b| b.g[0]), col(&|b| b.g[1])];
+        let gsum: Vec<f64> = g[0].iter().zip(&g[1]).map(|(a, b)| a + b).collect();
+        let gdiff: Vec<f64> = g[0].iter().zip(&g[1]).map(|(a, b)| a - b).collect();
+        let constant = |d: usize| transport.ambient_a[d] + transport.dark_a[d];
+        let b = [0, 1].map(|d| Metric::total(&n, &col(&|s| s.c[d])).plus(constant(d)));
+        let b_diff = Metric::total(&n, &col(&|s| s.c[1] - s.c[0])).plus(constant(1) - constant(0));
+        // detected_w[world][diode]: world 0 = every unit +, 1 = every unit −.
+        let det = |w: usize, d: usize| col(&|s| s.detected_w[w][d]);
+        let values = vec![
+            Metric::ratio(&g[0], &x),
+            Metric::ratio(&g[1], &x),
+            Metric::ratio(&gsum, &x),
+            Metric::ratio(&gdiff, &gsum),
+            b[0].clone(),
+            b[1].clone(),
+            b_diff,
+            Metric::total(&n, &det(0, 0)),
+            Metric::total(&n, &det(1, 1)),
+            Metric::ratio(&det(0, 1), &det(0, 0)),
+            Metric::ratio(&det(1, 0), &det(1, 1)),
+            Metric::total(&n, &x),
+        ];
+        BenchMetrics { values }
+    }
+
+    /// The metric named `name` (one of [`METRICS`]).
+    pub fn get(&self, name: &str) -> Option<&Metric> {
+        METRICS
+            .iter()
+            .position(|m| m.0 == name)
+            .and_then(|i| self.values.get(i))
+    }
+}
+
+/// One metric in a summary row: value, standard error and, against a reference bench traced
+/// with the same random numbers, the difference with its paired standard error.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct MetricRow {
+    pub value: f64,
+    pub stderr: f64,
+    pub diff: f64,
+    pub diff_stderr: f64,
+}
+
+impl MetricRow {
+    pub fn new(m: &Metric, reference: &Metric) -> MetricRow {
+        let d = m.diff(reference);
+        MetricRow {
+            value: m.value,
+            stderr: m.stderr(),
+            diff: d.value,
+            diff_stderr: d.stderr,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::transport::{ratio_estimate, total_estimate};
+
+    #[test]
+    fn influence_errors_equal_the_batch_means_formulas() {
+        let n = [10u64, 10, 12, 8];
+        let s = [1.0, 2.5, 3.0, 1.5];
+        let t = Metric::total(&n, &s);
+        let e = total_estimate(&n.iter().copied().zip(s).collect::<Vec<_>>());
+        assert_eq!(t.value, e.value);
+        assert!((t.stderr() - e.stderr).abs() < 1e-14);
+        let a = [2.0, 4.1, 0.9, 3.3];
+        let r = Metric::ratio(&a, &s);
+        let e = ratio_estimate(&a.iter().copied().zip(s).collect::<Vec<_>>());
+        assert_eq!(r.value, e.value);
+        assert!((r.stderr() - e.stderr).abs() < 1e-14);
+    }
+
+    #[test]
+    fn paired_difference_cancels_common_noise() {
+        // Two "benches" whose batch sums share the same noise: the difference is exact.
+        let n = [10u64; 5];
+        let s = [1.0, 1.3, 0.8, 1.1, 0.9];
+        let s2: Vec<f64> = s.iter().map(|v| v * 1.01).collect();
+        let a = Metric::total(&n, &s);
+        let b = Metric::total(&n, &s2);
+        let d = b.diff(&a);
+        assert!((d.value - 0.01 * a.value).abs() < 1e-12);
+        assert!(
+            d.stderr < 0.02 * a.stderr(),
+            "{} vs {}",
+            d.stderr,
+            a.stderr()
+        );
+        // Different batch structures cannot be paired.
+        assert!(Metric::total(&n[..4], &s[..4]).diff(&a).stderr.is_nan());
+    }
+}
