@@ -105,11 +105,53 @@ pub fn run_batch(
         for (d, p) in perms.iter().enumerate() {
             u[d] = (p[i] as f64 + uniform(&mut rng)) * inv_n;
         }
+        let key = RayKey {
+            seed,
+            index: batch * crate::trace::RAYS_PER_BATCH + i as u64,
+        };
+        let mut ray_rng = key.stream(STREAM_COMMON);
         trace_ray(
-            bench, mode, inv_rays, u, &mut rng, &mut tally, &mut stack, &mut index,
+            bench,
+            mode,
+            inv_rays,
+            u,
+            key,
+            &mut ray_rng,
+            &mut tally,
+            &mut stack,
+            &mut index,
         );
     }
     tally
+}
+
+/// Identifies one lamp ray of a trace, for its random streams.
+///
+/// Every ray draws its interactions from streams of its own, one for the path before the DMD
+/// and one for each mirror-state branch after it, keyed by (seed, ray index, part). A change to
+/// one part of the bench then changes the random numbers only of the rays, and of the branches,
+/// whose paths it changes: two benches that differ a little are traced with common random
+/// numbers ray by ray, so their difference is resolved far better than their values
+/// (crate::transport::metrics). A single stream per batch would let one ray that takes another
+/// path shift the draws of every later ray of its batch.
+#[derive(Debug, Clone, Copy)]
+struct RayKey {
+    seed: u64,
+    index: u64,
+}
+
+/// The streams of a ray: before the DMD split, then the + and − branches.
+const STREAM_COMMON: u64 = 0;
+const STREAM_PLUS: u64 = 1;
+const STREAM_MINUS: u64 = 2;
+
+impl RayKey {
+    fn stream(self, part: u64) -> StreamRng {
+        crate::rng::stream(
+            crate::rng::mix64(self.seed ^ crate::rng::mix64(0x5241_5953_0000_0000 + part)),
+            self.index,
+        )
+    }
 }
 
 /// Emission dimensions (filament x, y; strategy; direction a, b) and the wavelength (bin, offset
@@ -134,6 +176,7 @@ fn trace_ray(
     mode: PatternMode,
     inv_rays: f64,
     u: [f64; STRATIFIED_DIMS],
+    key: RayKey,
     rng: &mut StreamRng,
     tally: &mut BatchTally,
     stack: &mut Vec<Path>,
@@ -164,7 +207,11 @@ fn trace_ray(
         x_pending: false,
     });
     while let Some(p) = stack.pop() {
-        walk(bench, mode, wl, index, p, rng, tally, stack);
+        if p.world == BRANCH_MINUS {
+            // The − branch of the split (pushed by `walk`) draws from its own stream.
+            *rng = key.stream(STREAM_MINUS);
+        }
+        walk(bench, mode, wl, index, p, key, rng, tally, stack);
     }
 }
 
@@ -180,6 +227,7 @@ fn walk(
     wl: f64,
     index: &[f64],
     mut p: Path,
+    key: RayKey,
     rng: &mut StreamRng,
     tally: &mut BatchTally,
     stack: &mut Vec<Path>,
@@ -322,9 +370,11 @@ fn walk(
                         let mut other = p;
                         other.world = BRANCH_MINUS;
                         p.world = BRANCH_PLUS;
-                        // The minus copy is walked after this one finishes.
+                        // The minus copy is walked after this one finishes; each branch draws
+                        // from its own stream (see RayKey).
                         other.interactions -= 1;
                         stack.push(other);
+                        *rng = key.stream(STREAM_PLUS);
                     }
                 }
                 let world = p.world;
