@@ -189,3 +189,5 @@ pub struct Timings {
     pub solve_s: f64,
     pub total_s: f64,
 }
+#[cfg(test)]
+mod tests;

@@ -162,7 +162,7 @@ impl Ledger {
 }
 
 /// The traced transport of a bench: everything the detector and acquisition stages need.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct Transport {
     pub rays: u64,
     pub seed: u64,

@@ -5,5 +5,6 @@ mod cli_reconstruct;
 mod cli_run;
 mod cli_simulate;
 mod common;
+mod layering;
 mod paper;
 mod validation;

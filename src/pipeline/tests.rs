@@ -1,0 +1,150 @@
+//! Tests of the stages on benches as values: a written bench traces as the one it was written
+//! from, a part moved in code traces as the same edit made in the file, and a cached trace gives
+//! the same downstream results.
+
+use std::path::{Path, PathBuf};
+
+use super::cache::{CacheKey, TraceCache};
+use super::*;
+use crate::scene::doc::BenchDoc;
+
+fn scene_path(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("scenes")
+        .join(name)
+}
+
+fn paper() -> BenchDoc {
+    BenchDoc::read(&scene_path("paper_bench.ron")).unwrap()
+}
+
+fn tallies(doc: &BenchDoc, rays: u64, seed: u64) -> Tallies {
+    let bench = doc.build().unwrap();
+    trace_stage(&bench, &TraceRequest::new(rays, seed))
+        .unwrap()
+        .tallies
+}
+
+#[test]
+fn a_bench_written_out_and_read_back_traces_bit_identically() {
+    let doc = paper();
+    let back = BenchDoc::parse(&doc.to_ron(), doc.path()).unwrap();
+    assert_eq!(tallies(&doc, 20_000, 3), tallies(&back, 20_000, 3));
+}
+
+#[test]
+fn moving_a_part_in_code_equals_editing_the_file() {
+    let path = scene_path("paper_bench.ron");
+    let text = std::fs::read_to_string(&path).unwrap();
+    // The − diode as written in the file.
+    let doc = paper();
+    let old = doc.file.detectors.minus.position_mm;
+    let written = format!("position_mm: ({}, {}, {})", old.0, old.1, old.2);
+    let edited_text = format!("position_mm: ({}, {}, {})", old.0 + 0.75, old.1, old.2);
+    assert_eq!(
+        text.matches(&written).count(),
+        1,
+        "the diode position must be written as `{written}`"
+    );
+    let edited = BenchDoc::parse(&text.replace(&written, &edited_text), &path).unwrap();
+    let mut moved = doc.clone();
+    moved
+        .set("detectors.minus.position_mm.x", old.0 + 0.75)
+        .unwrap();
+    assert_eq!(moved.file, edited.file);
+    assert_eq!(tallies(&moved, 20_000, 4), tallies(&edited, 20_000, 4));
+    // And the move changed something: the bench is rebuilt, not reused.
+    assert_ne!(tallies(&moved, 20_000, 4), tallies(&doc, 20_000, 4));
+}
+
+#[test]
+fn a_cached_trace_gives_identical_downstream_results() {
+    // A quick bench: 16 × 16 units, a few ratios and two schemes.
+    let mut doc = paper();
+    doc.set("dmd.pattern.units_across", 16.0).unwrap();
+    doc.set("dmd.pattern.units_down", 16.0).unwrap();
+    doc.set("dmd.pattern.mirrors_per_unit", 36.0).unwrap();
+    let mut scene = doc.run_scene().unwrap();
+    scene.settings.sampling_ratios = vec![0.25, 1.0];
+    scene.settings.schemes = vec![
+        crate::acquisition::Scheme::DoubleArm,
+        crate::acquisition::Scheme::SecondaryComplementaryBalancing,
+    ];
+    let dir = std::env::temp_dir().join(format!("spibench-cache-run-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let cache = TraceCache::new(&dir);
+    let key = CacheKey::new(&doc, 40_000, 9).unwrap();
+    let req = TraceRequest {
+        cache: Some((&cache, &key)),
+        ..TraceRequest::new(40_000, 9)
+    };
+    let quiet: Progress = &|_, _, _| {};
+    let first = crate::run::run(&scene, 9, &req, quiet).unwrap();
+    let second = crate::run::run(&scene, 9, &req, quiet).unwrap();
+    assert_eq!(first.cache, CacheStatus::Miss);
+    assert_eq!(second.cache, CacheStatus::Hit);
+    assert_eq!(first.transport, second.transport);
+    for (a, b) in first.results.iter().zip(&second.results) {
+        assert_eq!(a.reconstruction, b.reconstruction);
+        assert_eq!(
+            (a.psnr_db, a.mssim, a.iterations),
+            (b.psnr_db, b.mssim, b.iterations)
+        );
+    }
+    // A damaged entry is rebuilt, and the results stay the same.
+    let entry = std::fs::read_dir(&dir)
+        .unwrap()
+        .flatten()
+        .find(|e| e.path().extension().is_some_and(|x| x == "trace"))
+        .unwrap()
+        .path();
+    let mut bytes = std::fs::read(&entry).unwrap();
+    let n = bytes.len();
+    bytes[n / 2] ^= 1;
+    std::fs::write(&entry, &bytes).unwrap();
+    let third = crate::run::run(&scene, 9, &req, quiet).unwrap();
+    assert!(
+        matches!(third.cache, CacheStatus::Rebuilt(_)),
+        "{:?}",
+        third.cache
+    );
+    assert_eq!(third.transport, first.transport);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn bench_metrics_agree_with_the_transport() {
+    let doc = paper();
+    let bench = doc.build().unwrap();
+    let t = trace_stage(&bench, &TraceRequest::new(30_000, 2)).unwrap();
+    let m = &t.metrics;
+    let tr = &t.transport;
+    let close = |a: f64, b: f64| (a - b).abs() <= 1e-12 * a.abs().max(b.abs()).max(1e-30);
+    for (name, e) in [
+        ("k_plus", tr.k[0]),
+        ("k_minus", tr.k[1]),
+        ("k_prime", tr.k_prime),
+        ("imbalance", tr.imbalance),
+        ("b_plus", tr.b[0]),
+        ("b_minus", tr.b[1]),
+        ("x_total_w", tr.x_total),
+    ] {
+        let v = m.get(name).unwrap().estimate();
+        assert!(close(v.value, e.value), "{name}: {v:?} vs {e:?}");
+        assert!(close(v.stderr, e.stderr), "{name}: {v:?} vs {e:?}");
+    }
+    // The detected powers are the ledger's.
+    let l = &tr.ledger;
+    assert!(close(
+        m.get("power_plus_w").unwrap().value,
+        l.worlds[0].detected_w[0]
+    ));
+    assert!(close(
+        m.get("power_minus_w").unwrap().value,
+        l.worlds[1].detected_w[1]
+    ));
+    assert!(close(
+        m.get("leak_plus").unwrap().value,
+        l.worlds[0].detected_w[1] / l.worlds[0].detected_w[0]
+    ));
+}
