@@ -58,13 +58,22 @@ fn main() {
                 "/scenes/paper_bench.ron"
             ))
         });
-    let bench = match spibench::scene::bench::read_bench(&scene) {
-        Ok(b) => b,
+    let doc = match spibench::scene::doc::BenchDoc::read(&scene) {
+        Ok(d) => d,
         Err(e) => {
             eprintln!("{e}");
             std::process::exit(2);
         }
     };
+    let build = |file: spibench::scene::bench::BenchFile| {
+        spibench::scene::doc::BenchDoc::from_file(file, doc.path())
+            .build()
+            .unwrap_or_else(|e| {
+                eprintln!("{e}");
+                std::process::exit(2);
+            })
+    };
+    let bench = build(doc.file.clone());
     println!("bench: {}", scene.display());
 
     let pilot_rays = 1_000_000;
@@ -91,10 +100,14 @@ fn main() {
 
     // Comparisons in the same run: the field target without the chart guidance, and no field
     // importance sampling at all (rays over the whole emission cone only).
-    let mut unguided = bench.clone();
-    unguided.lamp.guide = None;
-    let mut plain = unguided.clone();
-    plain.lamp.field = None;
+    // Each variant is a bench of its own, built from an edited file.
+    let mut file = doc.file.clone();
+    if let Some(f) = file.lamp.field_sampling.as_mut() {
+        f.chart_guided = None;
+    }
+    let unguided = build(file.clone());
+    file.lamp.field_sampling = None;
+    let plain = build(file);
     for (name, b) in [
         ("field target without chart guidance", &unguided),
         ("baseline without field sampling", &plain),

@@ -51,7 +51,7 @@ pub fn maps(t: &Transport) -> Vec<(&'static str, Vec<f64>)> {
 /// Runs `spibench trace`.
 pub fn run(args: &TraceArgs) -> anyhow::Result<()> {
     let bench = read_bench(&args.scene)?;
-    if bench.dmd.is_none() {
+    if bench.dmd().is_none() {
         return Err(Error::field("dmd", "`trace` needs a bench with a DMD")
             .in_file(&args.scene)
             .into());

@@ -414,7 +414,7 @@ fn unrepresentable(what: String) -> Error {
 }
 
 fn constant_index(bench: &Bench, m: usize, el: &str) -> Result<f64> {
-    let medium = &bench.media[m];
+    let medium = &bench.media()[m];
     if medium.absorption.is_some() {
         return Err(unrepresentable(format!("`{el}` absorbs in its bulk")));
     }
@@ -433,7 +433,7 @@ fn constant(s: &Spectrum, what: String) -> Result<f64> {
 
 /// Exports a monochromatic, constant-index bench (see the module notes).
 pub fn export_mitsuba(bench: &Bench, opts: &ExportOptions) -> Result<MitsubaScene> {
-    if bench.dmd.is_some() && opts.pattern.len() != bench.units() {
+    if bench.dmd().is_some() && opts.pattern.len() != bench.units() {
         return Err(Error::field(
             "pattern",
             format!(
@@ -446,7 +446,7 @@ pub fn export_mitsuba(bench: &Bench, opts: &ExportOptions) -> Result<MitsubaScen
     let mut files: Vec<(String, Vec<u8>)> = Vec::new();
     let notes: Vec<String> = Vec::new();
     let mut xml = String::new();
-    let depth = bench.max_interactions + 1;
+    let depth = bench.max_interactions() + 1;
     let _ = writeln!(
         xml,
         "<?xml version=\"1.0\"?>\n<!-- spibench export: millimetres; powers in W. -->\n\
@@ -472,8 +472,8 @@ pub fn export_mitsuba(bench: &Bench, opts: &ExportOptions) -> Result<MitsubaScen
     };
     let mut detectors_json = Vec::new();
     let mut charts_done = Vec::new();
-    for s in &bench.surfaces {
-        let el = bench.elements[s.element].replace(|c: char| !c.is_ascii_alphanumeric(), "_");
+    for s in bench.surfaces() {
+        let el = bench.elements()[s.element].replace(|c: char| !c.is_ascii_alphanumeric(), "_");
         let clear_split = |s: &crate::optics::bench::Surface| -> Option<(Soup, Soup)> {
             let c = s.clear?;
             match &s.geometry {
@@ -551,11 +551,11 @@ pub fn export_mitsuba(bench: &Bench, opts: &ExportOptions) -> Result<MitsubaScen
                 add_mesh(&mut xml, &mut files, &el, &face, &bsdf);
             }
             Interaction::Detector { index } => {
-                let det = &bench.detectors[*index];
+                let det = &bench.detectors()[*index];
                 if !opts.spectral {
                     constant(&det.responsivity, format!("the responsivity of `{el}`"))?;
                 }
-                let (b0, b1) = (bench.band.0 * 1e9, bench.band.1 * 1e9);
+                let (b0, b1) = (bench.band().0 * 1e9, bench.band().1 * 1e9);
                 let table: Vec<[f64; 2]> = if opts.spectral {
                     let n = (b1 - b0).round().max(1.0) as usize;
                     (0..=n)
@@ -591,14 +591,14 @@ pub fn export_mitsuba(bench: &Bench, opts: &ExportOptions) -> Result<MitsubaScen
                     "normal": [f.w.x, f.w.y, f.w.z],
                     "radius_mm": r,
                     "area_mm2": std::f64::consts::PI * r * r,
-                    "responsivity_a_per_w": det.responsivity.at(bench.band.0),
+                    "responsivity_a_per_w": det.responsivity.at(bench.band().0),
                     "responsivity_table_nm_a_per_w": table,
                 }));
             }
             Interaction::Chart { chart, front, back } => {
                 let n1 = constant_index(bench, *front, &el)?;
                 let n2 = constant_index(bench, *back, &el)?;
-                let plate = &bench.charts[*chart];
+                let plate = &bench.charts()[*chart];
                 let Geometry::Plane {
                     frame: face,
                     shape: Shape2D::Rect { half_u, half_v },
@@ -729,7 +729,7 @@ pub fn export_mitsuba(bench: &Bench, opts: &ExportOptions) -> Result<MitsubaScen
             }
         }
     }
-    for (m, _) in &bench.meshes {
+    for (m, _) in bench.meshes() {
         let mut soup = Soup::default();
         for t in m.triangles() {
             let p = |v: glam::Vec3A| DVec3::new(v.x as f64, v.y as f64, v.z as f64);
@@ -740,7 +740,7 @@ pub fn export_mitsuba(bench: &Bench, opts: &ExportOptions) -> Result<MitsubaScen
         }
         black.append(&soup);
     }
-    if let Some(setup) = &bench.dmd {
+    if let Some(setup) = &bench.dmd() {
         let d = &setup.dmd;
         let r = constant(&d.reflectance, "the DMD mirror reflectance".into())?;
         let mut soup = Soup::default();
@@ -789,7 +789,7 @@ pub fn export_mitsuba(bench: &Bench, opts: &ExportOptions) -> Result<MitsubaScen
         add_mesh(&mut xml, &mut files, "absorbers", &black, BLACK);
     }
     // The lamp.
-    let lamp = &bench.lamp;
+    let lamp = &bench.lamp();
     let f = lamp.frame;
     let area_mm2 = lamp.shape.area() * MM * MM;
     let radiance = lamp.band_power_w / (std::f64::consts::PI * area_mm2);
@@ -853,7 +853,7 @@ pub fn export_mitsuba(bench: &Bench, opts: &ExportOptions) -> Result<MitsubaScen
             "sin2_max": lamp.sin2_max,
             "spectrum": spectrum_json,
         },
-        "band_nm": [bench.band.0 * 1e9, bench.band.1 * 1e9],
+        "band_nm": [bench.band().0 * 1e9, bench.band().1 * 1e9],
         "detectors": detectors_json,
     });
     files.push(("scene.xml".into(), xml.into_bytes()));

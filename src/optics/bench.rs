@@ -11,6 +11,7 @@ use super::chart::ChartMask;
 use super::dmd::{Dmd, MirrorState};
 use super::geometry::{Frame, Geometry, Shape2D, sag};
 use super::glass::Glass;
+use super::guide::ChartGuide;
 use super::lamp::{Lamp, SpectralSampler};
 use super::mesh::Mesh;
 use super::spectrum::Spectrum;
@@ -297,27 +298,186 @@ pub struct DmdSetup {
 }
 
 /// The validated bench.
+///
+/// A `Bench` is built once, by [`Bench::assemble`], and never changed: its fields are private
+/// and read through methods. Everything derived from its parts — the nearest-hit search
+/// structure (BVH), the spectral sampler and the lamp's chart guide — is made by the
+/// constructor from those parts, so a bench whose part moved (a new bench, built from an edited
+/// [`crate::scene::doc::BenchDoc`]) can never keep a stale one.
 #[derive(Debug, Clone)]
 pub struct Bench {
+    band: (f64, f64),
+    lamp: Lamp,
+    sampler: SpectralSampler,
+    media: Vec<Medium>,
+    surfaces: Vec<Surface>,
+    accel: Accel,
+    meshes: Vec<(Mesh, ElementId)>,
+    dmd: Option<DmdSetup>,
+    detectors: [Photodiode; 2],
+    charts: Vec<ChartPlate>,
+    elements: Vec<String>,
+    lamp_housing: ElementId,
+    max_interactions: u32,
+    /// Internal optical densities of the absorbing filters (for the spectral sampler).
+    filter_ods: Vec<Spectrum>,
+    guide: Option<GuideRequest>,
+}
+
+/// The chart guide a bench asks for (crate::optics::guide): which chart, what share of the
+/// field-target rays, and the region of the chart (m).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GuideRequest {
+    pub chart: usize,
+    pub share: f64,
+    pub region_m: (f64, f64),
+}
+
+/// The parts of a bench, from which [`Bench::assemble`] derives the rest.
+#[derive(Debug, Clone)]
+pub struct Assembly {
     /// Traced wavelength band (m).
     pub band: (f64, f64),
+    /// The lamp (its `guide` is ignored: the guide is fitted from `guide`).
     pub lamp: Lamp,
-    pub sampler: SpectralSampler,
-    pub media: Vec<Medium>,
-    pub surfaces: Vec<Surface>,
-    /// The nearest-hit search structure over surfaces, meshes and the DMD.
-    pub accel: Accel,
-    pub meshes: Vec<(Mesh, ElementId)>,
+    pub parts: BenchParts,
     pub dmd: Option<DmdSetup>,
     /// [arm +, arm −].
     pub detectors: [Photodiode; 2],
-    pub charts: Vec<ChartPlate>,
-    /// Ledger names, indexed by element id.
-    pub elements: Vec<String>,
     /// The element charged with the lamp's emission outside the traced cone.
     pub lamp_housing: ElementId,
     /// Interactions after which a path is abandoned (booked as "path cap").
     pub max_interactions: u32,
+    /// Internal optical densities of the absorbing filters, for wavelength sampling.
+    pub filter_ods: Vec<Spectrum>,
+    pub guide: Option<GuideRequest>,
+}
+
+impl Bench {
+    /// The one constructor: derives the BVH, the spectral sampler (lamp spectrum × mean diode
+    /// responsivity × filter transmittance) and the chart guide from the parts. Fails only when
+    /// the guide cannot be fitted (the message says why).
+    pub fn assemble(a: Assembly) -> std::result::Result<Bench, String> {
+        let Assembly {
+            band,
+            mut lamp,
+            parts,
+            dmd,
+            detectors,
+            lamp_housing,
+            max_interactions,
+            filter_ods,
+            guide,
+        } = a;
+        lamp.guide = None;
+        let resp =
+            |l: f64| 0.5 * (detectors[0].responsivity.at(l) + detectors[1].responsivity.at(l));
+        let throughput = |l: f64| {
+            filter_ods
+                .iter()
+                .map(|od| 10f64.powf(-od.at(l)))
+                .product::<f64>()
+        };
+        let sampler = SpectralSampler::new(&lamp.spectrum, band, resp, throughput);
+        let accel = Accel::new(&parts.surfaces, &parts.meshes, dmd.as_ref().map(|d| &d.dmd));
+        let mut bench = Bench {
+            band,
+            lamp,
+            sampler,
+            media: parts.media,
+            surfaces: parts.surfaces,
+            accel,
+            meshes: parts.meshes,
+            dmd,
+            detectors,
+            charts: parts.charts,
+            elements: parts.elements,
+            lamp_housing,
+            max_interactions,
+            filter_ods,
+            guide,
+        };
+        if let Some(g) = guide {
+            // The guide is fitted to design rays traced through this very bench.
+            let fitted = ChartGuide::fit(&bench, g.chart, g.share, g.region_m)?;
+            bench.lamp.guide = Some(fitted);
+        }
+        Ok(bench)
+    }
+
+    /// The parts this bench was assembled from, to assemble a variant (the guide is refitted).
+    pub fn into_assembly(self) -> Assembly {
+        Assembly {
+            band: self.band,
+            lamp: self.lamp,
+            parts: BenchParts {
+                media: self.media,
+                surfaces: self.surfaces,
+                meshes: self.meshes,
+                charts: self.charts,
+                elements: self.elements,
+            },
+            dmd: self.dmd,
+            detectors: self.detectors,
+            lamp_housing: self.lamp_housing,
+            max_interactions: self.max_interactions,
+            filter_ods: self.filter_ods,
+            guide: self.guide,
+        }
+    }
+
+    /// Traced wavelength band (m).
+    pub fn band(&self) -> (f64, f64) {
+        self.band
+    }
+
+    pub fn lamp(&self) -> &Lamp {
+        &self.lamp
+    }
+
+    pub fn sampler(&self) -> &SpectralSampler {
+        &self.sampler
+    }
+
+    pub fn media(&self) -> &[Medium] {
+        &self.media
+    }
+
+    pub fn surfaces(&self) -> &[Surface] {
+        &self.surfaces
+    }
+
+    pub fn meshes(&self) -> &[(Mesh, ElementId)] {
+        &self.meshes
+    }
+
+    pub fn dmd(&self) -> Option<&DmdSetup> {
+        self.dmd.as_ref()
+    }
+
+    /// [arm +, arm −].
+    pub fn detectors(&self) -> &[Photodiode; 2] {
+        &self.detectors
+    }
+
+    pub fn charts(&self) -> &[ChartPlate] {
+        &self.charts
+    }
+
+    /// Ledger names, indexed by element id.
+    pub fn elements(&self) -> &[String] {
+        &self.elements
+    }
+
+    /// The element charged with the lamp's emission outside the traced cone.
+    pub fn lamp_housing(&self) -> ElementId {
+        self.lamp_housing
+    }
+
+    /// Interactions after which a path is abandoned (booked as "path cap").
+    pub fn max_interactions(&self) -> u32 {
+        self.max_interactions
+    }
 }
 
 impl Bench {
@@ -383,7 +543,7 @@ impl Bench {
 }
 
 /// Assembles a bench: hands out element and medium ids and collects surfaces.
-#[derive(Debug, Default)]
+#[derive(Debug, Clone, Default)]
 pub struct BenchParts {
     pub media: Vec<Medium>,
     pub surfaces: Vec<Surface>,

@@ -149,7 +149,7 @@ impl ChartGuide {
         share: f64,
         region: (f64, f64),
     ) -> Result<ChartGuide, String> {
-        let lamp = &bench.lamp;
+        let lamp = &bench.lamp();
         let field = lamp
             .field
             .ok_or("chart guidance needs a field target (`field_sampling`)")?;
@@ -157,7 +157,7 @@ impl ChartGuide {
             return Err(format!("the share must be in [0, 1], got {share}"));
         }
         let plate = bench
-            .charts
+            .charts()
             .get(chart)
             .ok_or_else(|| format!("no chart {chart}"))?;
         let fr = &lamp.frame;
@@ -186,8 +186,8 @@ impl ChartGuide {
         let mut maps = Vec::with_capacity(WAVELENGTH_NODES);
         let mut fit_rms = 0.0f64;
         for k in 0..WAVELENGTH_NODES {
-            let wl = bench.band.0
-                + (k as f64 + 0.5) * (bench.band.1 - bench.band.0) / WAVELENGTH_NODES as f64;
+            let wl = bench.band().0
+                + (k as f64 + 0.5) * (bench.band().1 - bench.band().0) / WAVELENGTH_NODES as f64;
             // Features scaled to O(1) for a well-conditioned normal matrix.
             let mut rows: Vec<([f64; 5], [f64; 2])> = Vec::with_capacity(wanted);
             for &fa in &gf {
@@ -310,7 +310,7 @@ impl ChartGuide {
         Ok(ChartGuide {
             share,
             chart,
-            band: bench.band,
+            band: bench.band(),
             maps,
             x0,
             y0,
@@ -396,7 +396,7 @@ fn follow_to_chart(
         let Some(Target::Surface(i, n)) = target else {
             return None;
         };
-        let s = &bench.surfaces[i];
+        let s = &bench.surfaces()[i];
         let hit = o + t * d;
         if s.clear.is_some_and(|c| c.blocks(hit)) {
             return None;
@@ -404,7 +404,7 @@ fn follow_to_chart(
         let cos_signed = -d.dot(n);
         let (front, back) = match &s.interaction {
             Interaction::Chart { chart: c, .. } if *c == chart => {
-                let l = bench.charts[chart].frame.to_local(hit);
+                let l = bench.charts()[chart].frame.to_local(hit);
                 return Some((l.x, l.y));
             }
             Interaction::Interface { front, back, .. } | Interaction::Chart { front, back, .. } => {
@@ -425,8 +425,8 @@ fn follow_to_chart(
         d = refract(
             d,
             nn,
-            bench.media[m_in].glass.index(wl),
-            bench.media[m_out].glass.index(wl),
+            bench.media()[m_in].glass.index(wl),
+            bench.media()[m_out].glass.index(wl),
         )?;
         o = hit - STEP_OFF * nn;
     }
@@ -507,19 +507,19 @@ mod tests {
     fn proxy_map_follows_the_optics() {
         let bench = paper_bench();
         let g = bench
-            .lamp
+            .lamp()
             .guide
             .as_ref()
             .expect("the paper bench is chart-guided");
-        let f = bench.lamp.field.unwrap();
-        let fr = bench.lamp.frame;
+        let f = bench.lamp().field.unwrap();
+        let fr = bench.lamp().frame;
         let mut r = rng::stream(3, 0);
         let (mut worst, mut sq, mut n) = (0.0f64, 0.0, 0);
         for _ in 0..2000 {
             let mut u = || 2.0 * uniform(&mut r) - 1.0;
             let d = (u() * 1e-3, u() * 0.6e-3);
             let q = (u() * 5e-3, u() * 5e-3);
-            let wl = bench.band.0 + 0.5 * (u() + 1.0) * (bench.band.1 - bench.band.0);
+            let wl = bench.band().0 + 0.5 * (u() + 1.0) * (bench.band().1 - bench.band().0);
             let p = fr.origin + d.0 * fr.u + d.1 * fr.v;
             let aim = f.center + q.0 * fr.u + q.1 * fr.v;
             let s = follow_to_chart(&bench, g.chart, p, (aim - p).normalize(), wl)
@@ -559,7 +559,7 @@ mod tests {
     #[test]
     fn draws_follow_the_density() {
         let bench = paper_bench();
-        let g = bench.lamp.guide.as_ref().unwrap();
+        let g = bench.lamp().guide.as_ref().unwrap();
         let (d, wl) = ((0.4e-3, -0.3e-3), 633e-9);
         // The density is piecewise constant on cells of ~43 µm; the midpoint rule on a 5 µm grid
         // integrates it to 0.1 % over the plane and 0.3 % over a box (measured against a
@@ -624,7 +624,7 @@ mod tests {
     #[test]
     fn guided_mixture_is_unbiased() {
         let bench = paper_bench();
-        let guided = bench.lamp.clone();
+        let guided = bench.lamp().clone();
         let mut plain = guided.clone();
         plain.field = None;
         plain.guide = None;
@@ -637,11 +637,12 @@ mod tests {
             (q.dot(fr.u) - 1.5e-3).hypot(q.dot(fr.v)) < 0.5e-3
         };
         let n = 400_000;
+        let band = bench.band();
         let draw = |seed: u64| {
             let mut r = rng::stream(seed, 0);
             move || {
                 let u = [(); 5].map(|_| uniform(&mut r));
-                let wl = bench.band.0 + uniform(&mut r) * (bench.band.1 - bench.band.0);
+                let wl = band.0 + uniform(&mut r) * (band.1 - band.0);
                 (u, wl)
             }
         };

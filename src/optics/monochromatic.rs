@@ -23,7 +23,7 @@
 use super::bench::{Bench, Coating, Interaction};
 use super::chart::ChartMask;
 use super::glass::Glass;
-use super::lamp::{LampSpectrum, SpectralSampler};
+use super::lamp::LampSpectrum;
 use super::spectrum::Spectrum;
 use crate::raster::Raster;
 
@@ -78,12 +78,12 @@ pub fn monochromatic(bench: &Bench, opts: &MonochromaticOptions) -> Result<Monoc
     if !(opts.usaf_pixels >= 2 && opts.usaf_pixels <= 20_000 && opts.usaf_region_m > 0.0) {
         return Err("the USAF raster needs 2 to 20000 pixels over a positive region".into());
     }
-    let mut b = bench.clone();
+    let mut b = bench.clone().into_assembly();
     let mut notes = Vec::new();
     let nm = wl * 1e9;
     let element_of_medium = |m: usize| -> String {
         bench
-            .surfaces
+            .surfaces()
             .iter()
             .find(|s| match &s.interaction {
                 Interaction::Interface { front, back, .. } => *front == m || *back == m,
@@ -92,11 +92,11 @@ pub fn monochromatic(bench: &Bench, opts: &MonochromaticOptions) -> Result<Monoc
             })
             .map_or_else(
                 || format!("medium {m}"),
-                |s| bench.elements[s.element].clone(),
+                |s| bench.elements()[s.element].clone(),
             )
     };
     // Glasses and bulk absorption.
-    for (i, m) in b.media.iter_mut().enumerate() {
+    for (i, m) in b.parts.media.iter_mut().enumerate() {
         if let Glass::Sellmeier { .. } = m.glass {
             let n = m.glass.index(wl);
             notes.push(format!(
@@ -109,30 +109,30 @@ pub fn monochromatic(bench: &Bench, opts: &MonochromaticOptions) -> Result<Monoc
         if let Some((_, el)) = &m.absorption {
             notes.push(format!(
                 "`{}`: bulk absorption dropped (Mitsuba's dielectric does not absorb)",
-                bench.elements[*el]
+                bench.elements()[*el]
             ));
             m.absorption = None;
         }
     }
     // Charts: substrate index 1 (a thin mask), chrome R = 0 and T(λ₀), USAF rasterised.
     let mut chart_media = Vec::new();
-    for s in &bench.surfaces {
+    for s in bench.surfaces() {
         if let Interaction::Chart { front, back, .. } = s.interaction {
             chart_media.push((front, back, s.element));
         }
     }
     for &(front, back, el) in &chart_media {
         for m in [front, back] {
-            if m != super::bench::AIR_MEDIUM && b.media[m].glass != Glass::Constant(1.0) {
+            if m != super::bench::AIR_MEDIUM && b.parts.media[m].glass != Glass::Constant(1.0) {
                 notes.push(format!(
                     "`{}`: chart substrate replaced by index 1 (a thin mask without refraction)",
-                    bench.elements[el]
+                    bench.elements()[el]
                 ));
-                b.media[m].glass = Glass::Constant(1.0);
+                b.parts.media[m].glass = Glass::Constant(1.0);
             }
         }
     }
-    for (k, plate) in b.charts.iter_mut().enumerate() {
+    for (k, plate) in b.parts.charts.iter_mut().enumerate() {
         let name = chart_name(bench, k);
         let rc = plate.chrome_reflectance.at(wl);
         if rc != 0.0 || !matches!(plate.chrome_reflectance, Spectrum::Constant(_)) {
@@ -149,7 +149,7 @@ pub fn monochromatic(bench: &Bench, opts: &MonochromaticOptions) -> Result<Monoc
             let n = opts.usaf_pixels;
             let side = opts.usaf_region_m;
             // The window is centred on the point of the chart face nearest the lamp axis.
-            let lamp = &bench.lamp.frame;
+            let lamp = &bench.lamp().frame;
             let f = plate.frame;
             let den = lamp.w.dot(f.w);
             let centre = if den.abs() > 1e-12 {
@@ -186,8 +186,8 @@ pub fn monochromatic(bench: &Bench, opts: &MonochromaticOptions) -> Result<Monoc
         }
     }
     // Coatings and reflectances.
-    for s in b.surfaces.iter_mut() {
-        let name = &bench.elements[s.element];
+    for s in b.parts.surfaces.iter_mut() {
+        let name = &bench.elements()[s.element];
         match &mut s.interaction {
             Interaction::Interface { coating, .. } if *coating != Coating::None => {
                 notes.push(format!(
@@ -236,17 +236,17 @@ pub fn monochromatic(bench: &Bench, opts: &MonochromaticOptions) -> Result<Monoc
     // The lamp: same in-band power, flat over 1 nm around λ₀.
     let flat = LampSpectrum::Table(Spectrum::Constant(1.0));
     let band = (wl - HALF_BAND_M, wl + HALF_BAND_M);
-    let flat_already = match &bench.lamp.spectrum {
+    let flat_already = match &bench.lamp().spectrum {
         LampSpectrum::Table(s) => s.min_value() == s.max_value(),
         _ => false,
     };
     if !flat_already
-        || (bench.band.0 - band.0).abs() > 1e-12
-        || (bench.band.1 - band.1).abs() > 1e-12
+        || (bench.band().0 - band.0).abs() > 1e-12
+        || (bench.band().1 - band.1).abs() > 1e-12
     {
         notes.push(format!(
             "lamp: the same in-band power ({:.6e} W) emitted at {nm} nm",
-            bench.lamp.band_power_w
+            bench.lamp().band_power_w
         ));
     }
     // One note per change (a lens's two faces make the same change twice).
@@ -254,7 +254,9 @@ pub fn monochromatic(bench: &Bench, opts: &MonochromaticOptions) -> Result<Monoc
     notes.retain(|n| seen.insert(n.clone()));
     b.lamp.spectrum = flat.clone();
     b.band = band;
-    b.sampler = SpectralSampler::new(&flat, band, |_| 1.0, |_| 1.0);
+    // Bulk absorption is dropped: nothing filters the spectrum any more.
+    b.filter_ods = Vec::new();
+    let b = Bench::assemble(b)?;
     Ok(Monochromatic {
         bench: b,
         notes,
@@ -264,12 +266,12 @@ pub fn monochromatic(bench: &Bench, opts: &MonochromaticOptions) -> Result<Monoc
 
 fn chart_name(bench: &Bench, chart: usize) -> String {
     bench
-        .surfaces
+        .surfaces()
         .iter()
         .find(|s| matches!(s.interaction, Interaction::Chart { chart: c, .. } if c == chart))
         .map_or_else(
             || format!("chart {chart}"),
-            |s| bench.elements[s.element].clone(),
+            |s| bench.elements()[s.element].clone(),
         )
 }
 
@@ -284,23 +286,23 @@ mod tests {
         let m = monochromatic(&bench, &MonochromaticOptions::at_nm(850.0)).unwrap();
         assert!(
             m.bench
-                .media
+                .media()
                 .iter()
                 .all(|x| matches!(x.glass, Glass::Constant(_)) && x.absorption.is_none())
         );
         // N-BK7 at 850 nm (bench-facts §3.4: 1.50984).
-        assert!(m.bench.media.iter().any(|x| match x.glass {
+        assert!(m.bench.media().iter().any(|x| match x.glass {
             Glass::Constant(n) => (n - 1.50984).abs() < 1e-5,
             _ => false,
         }));
         assert!(
             m.bench
-                .charts
+                .charts()
                 .iter()
                 .all(|c| matches!(c.mask, ChartMask::Image { .. }))
         );
         assert!(m.notes.iter().any(|n| n.contains("collimator")));
-        assert_eq!(m.bench.lamp.band_power_w, bench.lamp.band_power_w);
+        assert_eq!(m.bench.lamp().band_power_w, bench.lamp().band_power_w);
         // A second substitution changes nothing more.
         let again = monochromatic(&m.bench, &MonochromaticOptions::at_nm(850.0)).unwrap();
         assert!(again.notes.is_empty(), "{:?}", again.notes);

@@ -55,7 +55,7 @@ pub fn resolution_context(
     bench: &crate::optics::Bench,
     x: &Raster,
 ) -> Result<Option<ResolutionContext>> {
-    let (Some(plate), Some(dmd)) = (bench.charts.first(), bench.dmd.as_ref()) else {
+    let (Some(plate), Some(dmd)) = (bench.charts().first(), bench.dmd()) else {
         return Ok(None);
     };
     let crate::optics::chart::ChartMask::Usaf(chart) = &plate.mask else {

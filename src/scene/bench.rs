@@ -24,17 +24,15 @@ use serde::{Deserialize, Serialize};
 
 use crate::error::{Error, Result};
 use crate::optics::bench::{
-    AIR_MEDIUM, Bench, BenchParts, ChartPlate, Coating, DmdSetup, Interaction, LensError,
-    Photodiode, Solid, ambient_responsivity,
+    AIR_MEDIUM, Assembly, Bench, BenchParts, ChartPlate, Coating, DmdSetup, GuideRequest,
+    Interaction, LensError, Photodiode, Solid, ambient_responsivity,
 };
 use crate::optics::chart::ChartMask;
 use crate::optics::dmd::{Dmd, MirrorState, PatternArea};
 use crate::optics::geometry::{Frame, Geometry, Shape2D, sag};
 use crate::optics::glass::{GLASS_NAMES, Glass};
-use crate::optics::guide::ChartGuide;
 use crate::optics::lamp::{
-    EmitterShape, FieldOutline, FieldTarget, Lamp, LampSpectrum, SpectralSampler,
-    band_power_from_filament,
+    EmitterShape, FieldOutline, FieldTarget, Lamp, LampSpectrum, band_power_from_filament,
 };
 use crate::optics::mesh::Mesh;
 use crate::optics::spectrum::{self, Spectrum, Table};
@@ -1227,63 +1225,49 @@ impl Builder<'_> {
         ];
         self.check_overlaps()?;
         let lamp = self.lamp(&file.lamp, band)?;
-        let resp =
-            |l: f64| 0.5 * (detectors[0].responsivity.at(l) + detectors[1].responsivity.at(l));
-        let throughput = |l: f64| {
-            self.throughput
-                .iter()
-                .map(|od| 10f64.powf(-od.at(l)))
-                .product::<f64>()
-        };
-        let sampler = SpectralSampler::new(&lamp.spectrum, band, resp, throughput);
-        let mut bench = Bench {
-            band,
-            lamp,
-            sampler,
-            media: self.parts.media,
-            accel: crate::optics::bench::Accel::new(
-                &self.parts.surfaces,
-                &self.parts.meshes,
-                dmd.as_ref().map(|d| &d.dmd),
-            ),
-            surfaces: self.parts.surfaces,
-            meshes: self.parts.meshes,
-            dmd,
-            detectors,
-            charts: self.parts.charts,
-            elements: self.parts.elements,
-            lamp_housing,
-            max_interactions: file.max_interactions,
-        };
-        if let Some(g) = file
+        let path = ["lamp", "field_sampling", "chart_guided"];
+        let guide = match file
             .lamp
             .field_sampling
             .as_ref()
             .and_then(|f| f.chart_guided.as_ref())
         {
-            let path = ["lamp", "field_sampling", "chart_guided"];
-            let chart = bench
-                .element_id(&g.chart)
-                .and_then(|id| {
-                    bench.surfaces.iter().find_map(|s| match s.interaction {
-                        Interaction::Chart { chart, .. } if s.element == id => Some(chart),
-                        _ => None,
+            None => None,
+            Some(g) => {
+                let id = self.parts.elements.iter().position(|e| *e == g.chart);
+                let chart = id
+                    .and_then(|id| {
+                        self.parts
+                            .surfaces
+                            .iter()
+                            .find_map(|s| match s.interaction {
+                                Interaction::Chart { chart, .. } if s.element == id => Some(chart),
+                                _ => None,
+                            })
                     })
+                    .ok_or_else(|| {
+                        self.ctx
+                            .err_path(&path, format!("no chart named `{}`", g.chart))
+                    })?;
+                Some(GuideRequest {
+                    chart,
+                    share: g.share.0,
+                    region_m: (g.region_mm.0.0 * 1e-3, g.region_mm.1.0 * 1e-3),
                 })
-                .ok_or_else(|| {
-                    self.ctx
-                        .err_path(&path, format!("no chart named `{}`", g.chart))
-                })?;
-            let guide = ChartGuide::fit(
-                &bench,
-                chart,
-                g.share.0,
-                (g.region_mm.0.0 * 1e-3, g.region_mm.1.0 * 1e-3),
-            )
-            .map_err(|m| self.ctx.err_path(&path, m))?;
-            bench.lamp.guide = Some(guide);
-        }
-        Ok(bench)
+            }
+        };
+        Bench::assemble(Assembly {
+            band,
+            lamp,
+            parts: self.parts,
+            dmd,
+            detectors,
+            lamp_housing,
+            max_interactions: file.max_interactions,
+            filter_ods: self.throughput,
+            guide,
+        })
+        .map_err(|m| self.ctx.err_path(&path, m))
     }
 
     fn element(&mut self, el: &ElementSpec) -> Result<()> {
@@ -2143,7 +2127,7 @@ mod tests {
         let (text, path) = base();
         let b = parse_bench(&text, &path).unwrap();
         assert_eq!(b.units(), 16);
-        assert_eq!(b.elements[b.lamp_housing], "lamp_housing");
+        assert_eq!(b.elements()[b.lamp_housing()], "lamp_housing");
         // The paper bench parses as far as its chart (the USAF geometry is another module's).
         let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/paper_bench.ron");
         let file: BenchFile = crate::scene::read_ron(&p).unwrap();

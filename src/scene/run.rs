@@ -448,7 +448,7 @@ pub fn run_scene(file: &BenchFile, text: Option<&str>, path: &Path) -> Result<Ru
     let scope =
         scope_si(&file.electronics.oscilloscope).map_err(|(f, e)| locate(e, "electronics", f))?;
     let settings = settings_si(&file.run).map_err(|(f, e)| locate(e, "run", f))?;
-    if bench.dmd.is_none() {
+    if bench.dmd().is_none() {
         return Err(Error::field("dmd", "`run` needs a bench with a DMD").in_file(path));
     }
     check_relations(&bench, &scope, &settings).map_err(|(f, e)| {

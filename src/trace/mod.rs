@@ -77,9 +77,9 @@ pub fn trace(bench: &Bench, options: &TraceOptions) -> Result<Tallies> {
     let mut tallies = Tallies::new(
         across,
         down,
-        bench.elements.len(),
+        bench.elements().len(),
         options.seed,
-        bench.lamp.power_outside_cone(),
+        bench.lamp().power_outside_cone(),
     );
     let n = options.rays;
     let n_batches = n.div_ceil(RAYS_PER_BATCH);

@@ -86,9 +86,9 @@ pub fn run_batch(
     inv_rays: f64,
 ) -> BatchTally {
     let mut rng = crate::rng::stream(seed, batch);
-    let mut tally = BatchTally::new(bench.units(), bench.elements.len());
+    let mut tally = BatchTally::new(bench.units(), bench.elements().len());
     let mut stack = Vec::with_capacity(8);
-    let mut index = vec![1.0; bench.media.len()];
+    let mut index = vec![1.0; bench.media().len()];
     let n = rays as usize;
     // Latin hypercube over the batch (McKay, Beckman & Conover 1979): each of the emission's
     // five dimensions and the wavelength is cut into n strata, and an independent random
@@ -182,17 +182,17 @@ fn trace_ray(
     stack: &mut Vec<Path>,
     index: &mut [f64],
 ) {
-    let lamp = &bench.lamp;
-    let (wl, spectral) = bench.sampler.sample(u[5], u[6]);
+    let lamp = &bench.lamp();
+    let (wl, spectral) = bench.sampler().sample(u[5], u[6]);
     let e = lamp.sample([u[0], u[1], u[2], u[3], u[4]], wl);
     let w = lamp.band_power_w * e.factor * spectral * inv_rays;
-    let n_el = bench.elements.len();
+    let n_el = bench.elements().len();
     tally.ledger[COMMON][n_el + SLOT_EMITTED] += w;
     tally.rays += 1;
     if w <= 0.0 {
         return;
     }
-    for (n, m) in index.iter_mut().zip(&bench.media) {
+    for (n, m) in index.iter_mut().zip(bench.media()) {
         *n = m.glass.index(wl);
     }
     stack.clear();
@@ -232,10 +232,10 @@ fn walk(
     tally: &mut BatchTally,
     stack: &mut Vec<Path>,
 ) {
-    let n_el = bench.elements.len();
+    let n_el = bench.elements().len();
     let units = tally.x.len();
     loop {
-        if p.interactions >= bench.max_interactions {
+        if p.interactions >= bench.max_interactions() {
             book(tally, p.world, n_el + SLOT_PATH_CAP, p.w);
             return;
         }
@@ -247,11 +247,11 @@ fn walk(
         };
         match target {
             Target::Mesh(k) => {
-                book(tally, p.world, bench.meshes[k].1, p.w);
+                book(tally, p.world, bench.meshes()[k].1, p.w);
                 return;
             }
             Target::Surface(i, n) => {
-                let s = &bench.surfaces[i];
+                let s = &bench.surfaces()[i];
                 let hit = p.o + t * p.d;
                 let cos_signed = -p.d.dot(n);
                 if s.clear.is_some_and(|c| c.blocks(hit)) {
@@ -280,7 +280,7 @@ fn walk(
                             book(tally, p.world, s.element, p.w);
                             return;
                         }
-                        let det = &bench.detectors[*index];
+                        let det = &bench.detectors()[*index];
                         let current = p.w * det.responsivity.at(wl);
                         if p.world == COMMON {
                             tally.b[*index] += current;
@@ -318,7 +318,7 @@ fn walk(
                             (*back, *front, -n, -cos_signed)
                         };
                         attenuate(bench, m_in, t, wl, &mut p, tally);
-                        let plate = &bench.charts[*chart];
+                        let plate = &bench.charts()[*chart];
                         let local = plate.frame.to_local(hit);
                         let clear = plate.mask.clear_fraction(local.x, local.y);
                         let (n1, n2) = (index[m_in], index[m_out]);
@@ -352,7 +352,7 @@ fn walk(
                 }
             }
             Target::Dmd => {
-                let setup = bench.dmd.as_ref().expect("DMD target implies a DMD");
+                let setup = bench.dmd().expect("DMD target implies a DMD");
                 let dmd = &setup.dmd;
                 let pattern = dmd.pattern;
                 // Split an unsplit path at its first crossing of the pattern area.
@@ -475,7 +475,7 @@ fn chrome_event(rc: f64, tc: f64, u: f64) -> (ChromeEvent, f64) {
 /// Bulk absorption over the last segment (length t) in medium `m`.
 #[inline]
 fn attenuate(bench: &Bench, m: usize, t: f64, wl: f64, p: &mut Path, tally: &mut BatchTally) {
-    if let Some((od, element)) = &bench.media[m].absorption {
+    if let Some((od, element)) = &bench.media()[m].absorption {
         let tau = 10f64.powf(-od.at(wl) * t);
         let kept = p.w * tau;
         tally.ledger[p.world][*element] += p.w - kept;
@@ -539,13 +539,13 @@ mod tests {
     fn nearest_brute(bench: &Bench, o: DVec3, d: DVec3) -> (f64, Option<Target>) {
         let mut best = f64::INFINITY;
         let mut target = None;
-        for (i, s) in bench.surfaces.iter().enumerate() {
+        for (i, s) in bench.surfaces().iter().enumerate() {
             if let Some(h) = s.geometry.intersect(o, d, 0.0, best) {
                 best = h.t;
                 target = Some(Target::Surface(i, h.normal));
             }
         }
-        for (k, (m, _)) in bench.meshes.iter().enumerate() {
+        for (k, (m, _)) in bench.meshes().iter().enumerate() {
             if let Some(t) = m.intersect(o, d, 0.0, best)
                 && t < best
             {
@@ -553,7 +553,7 @@ mod tests {
                 target = Some(Target::Mesh(k));
             }
         }
-        if let Some(dmd) = &bench.dmd
+        if let Some(dmd) = &bench.dmd()
             && let Some(t) = dmd.dmd.slab_entry(o, d, 0.0)
             && t < best
         {

@@ -64,7 +64,7 @@ fn assert_ledger_balances(bench: &Bench, rays: u64, label: &str) {
     // The sampled emission is an unbiased estimate of the nominal band power: within 5 standard
     // errors, bounded here by the largest single-ray weight times √N (a loose but safe bound
     // would hide bias, so use the batch spread of the traced emission instead).
-    let n_el = bench.elements.len();
+    let n_el = bench.elements().len();
     let emitted: Vec<(u64, f64)> = {
         // Re-trace to get per-batch emission: cheap for the sizes used here.
         let mut v = Vec::new();
@@ -150,10 +150,18 @@ fn paper_bench_with_usaf_chart() {
 /// error for the same number of rays (measured: 5.0× smaller at 300 000 rays).
 #[test]
 fn chart_guidance_is_unbiased_and_pays() {
-    let guided = crate::scene::bench::read_bench(&scene_path("paper_bench.ron")).unwrap();
-    assert!(guided.lamp.guide.is_some());
-    let mut unguided = guided.clone();
-    unguided.lamp.guide = None;
+    let doc = crate::scene::doc::BenchDoc::read(&scene_path("paper_bench.ron")).unwrap();
+    let guided = doc.build().unwrap();
+    assert!(guided.lamp().guide.is_some());
+    // The same bench without the chart guide, built as a bench of its own.
+    let mut file = doc.file.clone();
+    if let Some(f) = file.lamp.field_sampling.as_mut() {
+        f.chart_guided = None;
+    }
+    let unguided = crate::scene::doc::BenchDoc::from_file(file, doc.path())
+        .build()
+        .unwrap();
+    assert!(unguided.lamp().guide.is_none());
     let a = transport(&guided, 300_000, 21);
     let b = transport(&unguided, 300_000, 22);
     let close = |x: &Estimate, y: &Estimate, what: &str| {

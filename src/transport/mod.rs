@@ -122,18 +122,18 @@ pub struct Ledger {
 
 impl Ledger {
     pub fn from_tallies(bench: &Bench, t: &Tallies) -> Ledger {
-        let n_el = bench.elements.len();
+        let n_el = bench.elements().len();
         let emitted = t.ledger[COMMON][n_el + SLOT_EMITTED] + t.outside_cone_w;
         let world = |branch: usize| {
             let get = |slot: usize| t.ledger[COMMON][slot] + t.ledger[branch][slot];
             let absorbed: Vec<(String, f64)> = (0..n_el)
                 .map(|e| {
-                    let extra = if e == bench.lamp_housing {
+                    let extra = if e == bench.lamp_housing() {
                         t.outside_cone_w
                     } else {
                         0.0
                     };
-                    (bench.elements[e].clone(), get(e) + extra)
+                    (bench.elements()[e].clone(), get(e) + extra)
                 })
                 .collect();
             let escaped = get(n_el + SLOT_ESCAPED);
@@ -154,7 +154,7 @@ impl Ledger {
         };
         Ledger {
             emitted_w: emitted,
-            emitted_nominal_w: bench.lamp.band_power_w,
+            emitted_nominal_w: bench.lamp().band_power_w,
             outside_cone_w: t.outside_cone_w,
             worlds: [world(BRANCH_PLUS), world(BRANCH_MINUS)],
         }
@@ -219,8 +219,8 @@ impl Transport {
                 }
             }
         }
-        let ambient_a = [0, 1].map(|d| bench.detectors[d].ambient_current_a);
-        let dark_a = [0, 1].map(|d| bench.detectors[d].dark_current_a);
+        let ambient_a = [0, 1].map(|d| bench.detectors()[d].ambient_current_a);
+        let dark_a = [0, 1].map(|d| bench.detectors()[d].dark_current_a);
         let c_traced = [0, 1].map(|d| {
             let v: Vec<(u64, f64)> = t.batches.iter().map(|b| (b.rays, b.c[d])).collect();
             total_estimate(&v)
@@ -330,8 +330,8 @@ pub fn fixed_pattern_currents(bench: &Bench, t: &Tallies) -> [Estimate; 2] {
         let e = total_estimate(&v);
         Estimate {
             value: e.value
-                + bench.detectors[d].ambient_current_a
-                + bench.detectors[d].dark_current_a,
+                + bench.detectors()[d].ambient_current_a
+                + bench.detectors()[d].dark_current_a,
             stderr: e.stderr,
         }
     })
@@ -340,7 +340,7 @@ pub fn fixed_pattern_currents(bench: &Bench, t: &Tallies) -> [Estimate; 2] {
 /// The mean responsivity used for the ambient current of a photodiode (A/W); see
 /// [`crate::optics::bench::AMBIENT_BAND_M`].
 pub fn ambient_mean_responsivity(bench: &Bench, d: usize) -> f64 {
-    ambient_responsivity(&bench.detectors[d].responsivity)
+    ambient_responsivity(&bench.detectors()[d].responsivity)
 }
 
 #[cfg(test)]

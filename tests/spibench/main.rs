@@ -4,6 +4,7 @@
 mod cli_reconstruct;
 mod cli_run;
 mod cli_simulate;
+mod cli_sweep;
 mod common;
 mod layering;
 mod paper;
