@@ -491,10 +491,6 @@ impl Bench {
         })
     }
 
-    pub fn element_id(&self, name: &str) -> Option<ElementId> {
-        self.elements.iter().position(|e| e == name)
-    }
-
     /// The nearest primitive hit by the ray (o, unit d) beyond t = 0: its distance and what it is.
     #[inline]
     pub fn nearest(&self, o: DVec3, d: DVec3) -> (f64, Option<Target>) {

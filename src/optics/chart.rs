@@ -1,7 +1,7 @@
 //! Transmittance masks for the chart plane: the analytic 1951 USAF chart, an image, or clear
 //! glass. A mask answers one question per ray: the fraction of clear glass at a chart point.
 
-use crate::objects::usaf::{Polarity, UsafChart};
+use crate::objects::usaf::UsafChart;
 use crate::raster::Raster;
 
 /// What is printed on the chrome side of a chart plate.
@@ -50,15 +50,6 @@ impl ChartMask {
                 raster.get(r, c)
             }
         }
-    }
-
-    /// A negative USAF chart of the given groups (clear bars in chrome, as the paper's R3L3S1N).
-    pub fn usaf_negative(min_group: i32, max_group: i32) -> ChartMask {
-        ChartMask::Usaf(UsafChart {
-            min_group,
-            max_group,
-            polarity: Polarity::Negative,
-        })
     }
 }
 

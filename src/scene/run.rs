@@ -425,12 +425,6 @@ impl Default for DriftSpec {
 // ---------------------------------------------------------------------------------------------
 // Reading and conversion.
 
-/// Reads a run scene (a bench file with optional `electronics` and `run` sections).
-pub fn read_run_scene(path: &Path) -> Result<RunScene> {
-    let text = crate::scene::read_text(path)?;
-    parse_run_scene(&text, path)
-}
-
 /// Parses and validates a run scene; `path` names the file in errors and anchors relative
 /// paths.
 pub fn parse_run_scene(text: &str, path: &Path) -> Result<RunScene> {

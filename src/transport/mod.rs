@@ -20,7 +20,6 @@
 //! var ≈ B/(B−1)·Σ_b (A_b − R·D_b)² / (ΣD_b)².
 
 use crate::optics::Bench;
-use crate::optics::bench::ambient_responsivity;
 use crate::reconstruction::{BitMatrix, LinearOperator, PackedOperator, PatternForm};
 use crate::trace::tally::{
     BRANCH_MINUS, BRANCH_PLUS, COMMON, SLOT_DETECTED_MINUS, SLOT_DETECTED_PLUS, SLOT_EMITTED,
@@ -335,12 +334,6 @@ pub fn fixed_pattern_currents(bench: &Bench, t: &Tallies) -> [Estimate; 2] {
             stderr: e.stderr,
         }
     })
-}
-
-/// The mean responsivity used for the ambient current of a photodiode (A/W); see
-/// [`crate::optics::bench::AMBIENT_BAND_M`].
-pub fn ambient_mean_responsivity(bench: &Bench, d: usize) -> f64 {
-    ambient_responsivity(&bench.detectors()[d].responsivity)
 }
 
 #[cfg(test)]
