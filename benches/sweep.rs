@@ -58,9 +58,10 @@ fn main() {
     .unwrap();
     let pilot_s = t.elapsed().as_secs_f64();
     let (paired, independent) = worst(&pilot);
-    // SE ∝ 1/√rays: rays to bring the worst point to the target (ratio 1).
-    let need = |r: f64| ((pilot_rays as f64) * r * r).ceil().max(2048.0) as u64;
-    let (n_crn, n_ind) = (need(paired), need(independent));
+    // SE ∝ 1/√rays: rays to bring the worst point to the target (ratio 1), with 10 % to spare.
+    // At least 50 batches, so that the batch-means errors themselves are reliable.
+    let need = |r: f64, base: u64| ((base as f64) * 1.1 * r * r).ceil().max(51_200.0) as u64;
+    let (mut n_crn, n_ind) = (need(paired, pilot_rays), need(independent, pilot_rays));
     println!(
         "sweep of {} = {}..{} ({} points + nominal), paper bench",
         vary.path, vary.start, vary.stop, vary.n
@@ -69,10 +70,19 @@ fn main() {
         "pilot at {pilot_rays} rays/point: {pilot_s:.1} s; worst SE of a difference / target: \
          {paired:.2} paired, {independent:.2} independent"
     );
-    let t = Instant::now();
-    let s = sweep(&doc, std::slice::from_ref(&vary), &opts(n_crn), &|_, _| {}).unwrap();
-    let seconds = t.elapsed().as_secs_f64();
-    let (achieved, _) = worst(&s);
+    // Confirm, raising the ray count while the worst point misses the target (the paired
+    // error's estimate is heavy-tailed: a few rays whose path the change alters dominate it).
+    let (seconds, achieved) = loop {
+        let t = Instant::now();
+        let s = sweep(&doc, std::slice::from_ref(&vary), &opts(n_crn), &|_, _| {}).unwrap();
+        let seconds = t.elapsed().as_secs_f64();
+        let (achieved, _) = worst(&s);
+        if achieved <= 1.0 || n_crn > 50 * pilot_rays {
+            break (seconds, achieved);
+        }
+        println!("  {n_crn} rays/point: worst SE / target {achieved:.2}, raising the ray count");
+        n_crn = need(achieved, n_crn);
+    };
     let per_ray = seconds / (n_crn as f64 * (vary.n + 1) as f64);
     let independent_s = per_ray * n_ind as f64 * (vary.n + 1) as f64;
     println!(
