@@ -156,5 +156,7 @@ pub fn downstream(
     })
 }
 
+pub mod summary;
+
 #[cfg(test)]
 mod tests;

@@ -26,23 +26,20 @@ use std::sync::Mutex;
 
 use anyhow::Result;
 use clap::Args;
-use serde::Serialize;
 
-use crate::acquisition::Scheme;
-use crate::detector::{Bap, Channel, FrameTiming, OUTPUT_NAMES, Scope};
-use crate::metrics::NORMALIZATION_RULE;
+use crate::detector::OUTPUT_NAMES;
 use crate::pipeline::TraceRequest;
 use crate::pipeline::cache::{CacheKey, TraceCache};
-use crate::pipeline::summary::{TraceSummary, summarize};
 use crate::report::csv::write_csv;
 use crate::report::json::write_json;
 use crate::report::montage::{Montage, write_montage};
 use crate::report::output::OutputDir;
 use crate::report::plot::{LinePlot, Series, write_plot};
 use crate::report::png::write_gray8;
-use crate::run::{RunOutcome, Saturation, SchemeResult, SequenceSummary, Stage, Timings};
+use crate::run::summary::summarize_run;
+use crate::run::{RunOutcome, SchemeResult, Stage};
 use crate::scene::doc::BenchDoc;
-use crate::scene::run::{RunScene, RunSettings};
+use crate::scene::run::RunScene;
 
 /// The paper's bench, built into the binary.
 pub const PAPER_BENCH: &str = include_str!("../../scenes/paper_bench.ron");
@@ -72,128 +69,6 @@ pub struct RunArgs {
     /// (whatever its electronics, noise or solver settings) skips the trace.
     #[arg(long, value_name = "DIR")]
     pub cache: Option<PathBuf>,
-}
-
-/// `summary.json` of `run`. SI units unless the key says otherwise; NaN and ∞ are null.
-#[derive(Serialize)]
-pub struct RunSummary<'a> {
-    /// Always "run".
-    pub command: &'static str,
-    pub spibench_version: &'static str,
-    /// The scene path, or the built-in bench's name.
-    pub scene: String,
-    pub title: &'a str,
-    pub seed: u64,
-    pub units_across: usize,
-    pub units_down: usize,
-    /// The traced transport: k±, b±, k', imbalance, standard errors, ledger (keys as in
-    /// `spibench trace`'s summary.json).
-    pub transport: TraceSummary,
-    /// The balanced detector and the oscilloscope as used.
-    pub electronics: ElectronicsSummary<'a>,
-    /// DMD frame time, settling time, oscilloscope sample rate.
-    pub frame_timing: FrameTiming,
-    /// The run settings (sampling ratios, schemes, patterns, drift, noise, solver).
-    pub settings: &'a RunSettings,
-    /// How reconstructions are brought to the ideal object's scale before scoring.
-    pub normalization: &'static str,
-    /// The ideal object: 255·x_j / max x, with max x (W).
-    pub truth: &'static str,
-    pub x_max_w: f64,
-    /// The recorded frame sequences.
-    pub sequences: &'a [SequenceSummary],
-    /// True when any output was clipped or any channel over range; see `saturation`.
-    pub saturated: bool,
-    pub saturation: &'a [Saturation],
-    /// Scheme-major, ratio-minor.
-    pub results: &'a [SchemeResult],
-    /// The USAF resolution read-out: the registration of x against the chart, the criterion,
-    /// and what x itself resolves (null without a registrable USAF chart). Each result carries
-    /// its `finest_resolved`.
-    pub resolution: Option<&'a crate::run::ResolutionContext>,
-    /// Observations computed from the results (never tuned).
-    pub findings: Findings,
-    /// Output files, relative to the output folder.
-    pub files: Vec<String>,
-    /// Wall-clock timings (s): differ between identical runs.
-    pub timings: Timings,
-}
-
-/// The electronics in summary.json.
-#[derive(Serialize)]
-pub struct ElectronicsSummary<'a> {
-    pub detector: &'a Bap,
-    /// CMRR from the diodes' flat responsivity mismatch (dB; null when infinite).
-    pub cmrr_db: Option<f64>,
-    /// Optical power difference that drives the RF output to its swing at 0.65 A/W (W).
-    pub rf_saturation_power_w_at_0_65_a_per_w: f64,
-    pub oscilloscope: &'a Scope,
-    /// The channels as set: [rf, monitor_plus, monitor_minus].
-    pub channels: ChannelsSummary,
-    /// Rms output noise of each output at the mean currents of the recorded frames (V):
-    /// shot and amplifier noise over the one-pole noise bandwidth.
-    pub output_noise_v_rms: NamedOutputs,
-}
-
-#[derive(Serialize)]
-pub struct ChannelsSummary {
-    pub rf: Channel,
-    pub monitor_plus: Channel,
-    pub monitor_minus: Channel,
-}
-
-#[derive(Serialize)]
-pub struct NamedOutputs {
-    pub rf: f64,
-    pub monitor_plus: f64,
-    pub monitor_minus: f64,
-}
-
-/// Comparisons the paper draws, computed from this run.
-#[derive(Serialize)]
-pub struct Findings {
-    /// Ratios at which secondary complementary balancing has a higher MSSIM than double-arm
-    /// dual-pixel, and at which it does not (both schemes run).
-    pub scb_beats_double_arm_at: Vec<f64>,
-    pub scb_not_above_double_arm_at: Vec<f64>,
-    /// MSSIM of secondary complementary balancing minus that of traditional CS at the highest
-    /// ratio (both schemes run).
-    pub scb_minus_traditional_mssim_at_max_ratio: Option<f64>,
-}
-
-fn findings(o: &RunOutcome) -> Findings {
-    let s = &o.settings;
-    let mut beats = Vec::new();
-    let mut not = Vec::new();
-    for (r, &ratio) in s.sampling_ratios.iter().enumerate() {
-        if let (Some(scb), Some(dbl)) = (
-            o.result(Scheme::SecondaryComplementaryBalancing, r),
-            o.result(Scheme::DoubleArm, r),
-        ) {
-            if scb.mssim > dbl.mssim {
-                beats.push(ratio);
-            } else {
-                not.push(ratio);
-            }
-        }
-    }
-    let last = s
-        .sampling_ratios
-        .iter()
-        .enumerate()
-        .max_by(|a, b| a.1.total_cmp(b.1))
-        .map(|(i, _)| i);
-    let scb_trad = last.and_then(|r| {
-        Some(
-            o.result(Scheme::SecondaryComplementaryBalancing, r)?.mssim
-                - o.result(Scheme::Traditional, r)?.mssim,
-        )
-    });
-    Findings {
-        scb_beats_double_arm_at: beats,
-        scb_not_above_double_arm_at: not,
-        scb_minus_traditional_mssim_at_max_ratio: scb_trad,
-    }
 }
 
 /// Reads the bench named on the command line (or the built-in bench) and applies `--set`.
@@ -317,66 +192,6 @@ pub(super) fn pct(r: f64) -> String {
 /// The file of a reconstruction.
 pub fn result_file(r: &SchemeResult) -> String {
     format!("images/{}__r{:.3}.png", r.scheme.key(), r.ratio)
-}
-
-/// Builds the summary of an outcome.
-pub fn summarize_run<'a>(
-    name: &str,
-    bench: &crate::optics::Bench,
-    o: &'a RunOutcome,
-    files: Vec<String>,
-) -> RunSummary<'a> {
-    let mut transport = summarize(name, bench, &o.transport, &o.metrics, o.trace_arrivals);
-    transport.files = Vec::new();
-    let mean_i = mean_currents(o);
-    let noise = o.detector.output_noise_v_rms(mean_i);
-    let cmrr = o.detector.cmrr_db();
-    RunSummary {
-        command: "run",
-        spibench_version: env!("CARGO_PKG_VERSION"),
-        scene: name.to_string(),
-        title: &o.settings.title,
-        seed: o.seed,
-        units_across: o.transport.units_across,
-        units_down: o.transport.units_down,
-        transport,
-        electronics: ElectronicsSummary {
-            detector: &o.detector,
-            cmrr_db: cmrr.is_finite().then_some(cmrr),
-            rf_saturation_power_w_at_0_65_a_per_w: o.detector.rf_saturation_power_w(0.65),
-            oscilloscope: &o.scope,
-            channels: ChannelsSummary {
-                rf: o.channels[0],
-                monitor_plus: o.channels[1],
-                monitor_minus: o.channels[2],
-            },
-            output_noise_v_rms: NamedOutputs {
-                rf: noise[0],
-                monitor_plus: noise[1],
-                monitor_minus: noise[2],
-            },
-        },
-        frame_timing: o.timing,
-        settings: &o.settings,
-        normalization: NORMALIZATION_RULE,
-        truth: "255 * x_j / max(x): x_j the traced power incident on unit j's mirrors",
-        x_max_w: o.x.max(),
-        sequences: &o.sequences,
-        saturated: !o.saturation.is_empty(),
-        saturation: &o.saturation,
-        results: &o.results,
-        resolution: o.resolution.as_ref(),
-        findings: findings(o),
-        files,
-        timings: o.timings,
-    }
-}
-
-/// Mean diode currents over a random pattern: half of each arm's pattern light plus the rest.
-fn mean_currents(o: &RunOutcome) -> [f64; 2] {
-    let t = &o.transport;
-    let light = [0, 1].map(|d| 0.5 * t.g_a[d].iter().sum::<f64>() + t.c_traced[d].value);
-    o.detector.diode_currents(light, t.ambient_a, t.dark_a)
 }
 
 /// Writes a plot as `STEM.svg` and `STEM.png` and lists both files.

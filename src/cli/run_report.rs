@@ -12,7 +12,8 @@ use crate::report::html::{Block, Page, render};
 use crate::report::output::OutputDir;
 use crate::run::RunOutcome;
 
-use super::run::{RunSummary, element_text, pct};
+use super::run::{element_text, pct};
+use crate::run::summary::RunSummary;
 
 /// Reads a file already written into the staging folder.
 fn staged(out: &OutputDir, name: &str) -> Result<Vec<u8>> {
