@@ -56,6 +56,19 @@ pub fn run(args: &TraceArgs) -> anyhow::Result<()> {
             .in_file(&args.scene)
             .into());
     }
+    let min_rays = 2 * crate::trace::RAYS_PER_BATCH;
+    if args.rays < min_rays || args.rays > crate::scene::run::MAX_RAYS {
+        return Err(Error::field(
+            "--rays",
+            format!(
+                "must lie between {min_rays} (two batches, so that every number has a standard \
+                 error) and {} (about a day on two cores), got {}",
+                crate::scene::run::MAX_RAYS,
+                args.rays
+            ),
+        )
+        .into());
+    }
     let start = std::time::Instant::now();
     let traced = trace_stage(
         &bench,
@@ -65,6 +78,8 @@ pub fn run(args: &TraceArgs) -> anyhow::Result<()> {
         },
     )?;
     let seconds = start.elapsed().as_secs_f64();
+    // No light on the pattern area is the bench's fault, not a result: exit 2, naming the cause.
+    traced.truth().map_err(|e| e.in_file(&args.scene))?;
     let t = &traced.transport;
     let mut summary = summarize(
         &args.scene.display().to_string(),

@@ -129,8 +129,88 @@ impl TryFrom<Vec<(f64, f64)>> for TableNm {
 // ---------------------------------------------------------------------------------------------
 // Shared value types.
 
-/// A point or offset in the bench frame (mm).
-pub type Mm3 = (f64, f64, f64);
+/// The largest optical density accepted (transmittance 1e-10: far beyond any filter or chrome).
+pub const MAX_OD: f64 = 10.0;
+
+/// The largest distance from the bench origin a position may have (mm): 100 m, far beyond any
+/// table, yet small enough that every product of positions stays finite.
+pub const MAX_POSITION_MM: f64 = 1e5;
+
+/// A point or vector in the bench frame (mm), each component finite and within
+/// ±[`MAX_POSITION_MM`], checked while reading so that the error carries the line.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize, Serialize)]
+#[serde(try_from = "(f64, f64, f64)", into = "(f64, f64, f64)")]
+pub struct Mm3(pub f64, pub f64, pub f64);
+
+impl From<Mm3> for (f64, f64, f64) {
+    fn from(v: Mm3) -> (f64, f64, f64) {
+        (v.0, v.1, v.2)
+    }
+}
+
+impl TryFrom<(f64, f64, f64)> for Mm3 {
+    type Error = String;
+    fn try_from(v: (f64, f64, f64)) -> std::result::Result<Self, String> {
+        for c in [v.0, v.1, v.2] {
+            if !(c.is_finite() && c.abs() <= MAX_POSITION_MM) {
+                return Err(format!(
+                    "components must be finite and within ±{MAX_POSITION_MM} mm, got {c}"
+                ));
+            }
+        }
+        Ok(Mm3(v.0, v.1, v.2))
+    }
+}
+
+/// A colour temperature (K) of a thermal source: above 0 and at most 4000 K (tungsten melts at
+/// 3695 K; a quartz-halogen filament runs at 2800–3400 K).
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize, Serialize)]
+#[serde(try_from = "f64", into = "f64")]
+pub struct Temperature(pub f64);
+
+impl From<Temperature> for f64 {
+    fn from(v: Temperature) -> f64 {
+        v.0
+    }
+}
+
+impl TryFrom<f64> for Temperature {
+    type Error = String;
+    fn try_from(v: f64) -> std::result::Result<Self, String> {
+        if v.is_finite() && v > 0.0 && v <= 4000.0 {
+            Ok(Temperature(v))
+        } else {
+            Err(format!(
+                "a filament temperature must lie in (0, 4000] K, got {v}"
+            ))
+        }
+    }
+}
+
+/// An irradiance (W/m²) of ambient light: at least 0 and at most 2000 W/m² (direct sunlight is
+/// about 1000 W/m²; a lit laboratory gives well under 10 W/m²).
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize, Serialize)]
+#[serde(try_from = "f64", into = "f64")]
+pub struct Irradiance(pub f64);
+
+impl From<Irradiance> for f64 {
+    fn from(v: Irradiance) -> f64 {
+        v.0
+    }
+}
+
+impl TryFrom<f64> for Irradiance {
+    type Error = String;
+    fn try_from(v: f64) -> std::result::Result<Self, String> {
+        if v.is_finite() && (0.0..=2000.0).contains(&v) {
+            Ok(Irradiance(v))
+        } else {
+            Err(format!(
+                "an ambient irradiance must lie in [0, 2000] W/m², got {v}"
+            ))
+        }
+    }
+}
 
 /// A direction in the bench frame (see the module notes).
 #[derive(Debug, Clone, Copy, PartialEq, Deserialize, Serialize)]
@@ -145,13 +225,19 @@ pub enum Direction {
 impl Direction {
     pub fn to_unit(self) -> std::result::Result<DVec3, String> {
         let v = match self {
-            Direction::Vector((x, y, z)) => DVec3::new(x, y, z),
+            Direction::Vector(Mm3(x, y, z)) => DVec3::new(x, y, z),
             Direction::Polar { theta_deg, phi_deg } => {
                 let (t, p) = (theta_deg.to_radians(), phi_deg.to_radians());
                 DVec3::new(t.sin() * p.cos(), t.sin() * p.sin(), t.cos())
             }
         };
-        if !v.is_finite() || v.length() < 1e-12 {
+        // Scale by the largest component first, so that no square overflows or underflows.
+        let m = v.abs().max_element();
+        if !(m.is_finite() && m > 0.0) {
+            return Err("a direction must be finite and non-zero".into());
+        }
+        let v = v / m;
+        if v.length() < 1e-12 {
             return Err("a direction must be finite and non-zero".into());
         }
         Ok(v.normalize())
@@ -335,10 +421,10 @@ pub enum FilamentSpec {
 #[serde(deny_unknown_fields)]
 pub enum LampSpectrumSpec {
     /// Planck's law × the Larrabee tungsten emissivity at `temperature_k`.
-    Tungsten { temperature_k: Positive },
+    Tungsten { temperature_k: Temperature },
     /// Planck's law × a constant emissivity.
     Graybody {
-        temperature_k: Positive,
+        temperature_k: Temperature,
         emissivity: UnitFraction,
     },
     /// A relative spectral power table (any units).
@@ -764,8 +850,8 @@ pub struct PhotodiodeSpec {
     pub responsivity: SpectrumSpec,
     /// Ambient (room) irradiance on the diode (W/m²). Converted to current with the diode area
     /// and the mean responsivity over 400–700 nm (room light is visible light).
-    #[serde(default = "zero")]
-    pub ambient_w_per_m2: NonNegative,
+    #[serde(default = "no_ambient")]
+    pub ambient_w_per_m2: Irradiance,
     /// Dark current (A).
     #[serde(default = "zero")]
     pub dark_current_a: NonNegative,
@@ -780,6 +866,10 @@ fn default_responsivity() -> SpectrumSpec {
 
 fn zero() -> NonNegative {
     NonNegative(0.0)
+}
+
+fn no_ambient() -> Irradiance {
+    Irradiance(0.0)
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -1125,7 +1215,7 @@ impl Ctx<'_> {
             }
             CoatingSpec::Reflectance(s) => {
                 let s = s.build();
-                if s.min_value() < 0.0 || s.max_value() > 1.0 {
+                if !(s.min_value() >= 0.0 && s.max_value() <= 1.0) {
                     return Err(err("a reflectance must lie in [0, 1]".into()));
                 }
                 Coating::Reflectance(s)
@@ -1139,7 +1229,7 @@ impl Ctx<'_> {
         err: impl Fn(String) -> Error,
     ) -> Result<Spectrum> {
         let s = s.build();
-        if s.min_value() < 0.0 || s.max_value() > 1.0 {
+        if !(s.min_value() >= 0.0 && s.max_value() <= 1.0) {
             return Err(err("values must lie in [0, 1]".into()));
         }
         Ok(s)
@@ -1343,8 +1433,11 @@ impl Builder<'_> {
                 let glass = self.ctx.glass(glass, |m| e("glass", m))?;
                 let coating = self.ctx.coating(coating, |m| e("coating", m))?;
                 let od = od.build();
-                if od.min_value() < 0.0 {
-                    return Err(e("od", "an optical density cannot be negative".into()));
+                if !(od.min_value() >= 0.0 && od.max_value() <= MAX_OD) {
+                    return Err(e(
+                        "od",
+                        format!("an optical density must lie in [0, {MAX_OD}]"),
+                    ));
                 }
                 let t = thickness_mm.0 * 1e-3;
                 let per_m = od.scaled(1.0 / t);
@@ -1568,10 +1661,12 @@ impl Builder<'_> {
                         .ctx
                         .fraction_spectrum(chrome_reflectance, |m| e("chrome_reflectance", m))?,
                 });
-                if chrome_od.build().min_value() < 0.0 {
+                if !(chrome_od.build().min_value() >= 0.0
+                    && chrome_od.build().max_value() <= MAX_OD)
+                {
                     return Err(e(
                         "chrome_od",
-                        "an optical density cannot be negative".into(),
+                        format!("an optical density must lie in [0, {MAX_OD}]"),
                     ));
                 }
                 let t = thickness_mm.0 * 1e-3;
@@ -1633,6 +1728,15 @@ impl Builder<'_> {
         if d.tilt_deg.0 >= 45.0 {
             return Err(e("tilt_deg", "the tilt must be below 45°".into()));
         }
+        if !(d.tilt_axis_deg.is_finite() && d.tilt_axis_deg.abs() <= 360.0) {
+            return Err(e(
+                "tilt_axis_deg",
+                format!(
+                    "the hinge angle must be finite and within ±360°, got {}",
+                    d.tilt_axis_deg
+                ),
+            ));
+        }
         let p = d.pattern;
         if p.mirrors_per_unit == 0 || p.units_across == 0 || p.units_down == 0 {
             return Err(self.ctx.err_path(
@@ -1640,8 +1744,24 @@ impl Builder<'_> {
                 "units_across, units_down and mirrors_per_unit must be at least 1",
             ));
         }
-        let end_c = p.origin.0 + p.units_across * p.mirrors_per_unit;
-        let end_r = p.origin.1 + p.units_down * p.mirrors_per_unit;
+        // Checked arithmetic: a huge count must be refused, never wrap around.
+        let end = |origin: usize, units: usize| {
+            units
+                .checked_mul(p.mirrors_per_unit)
+                .and_then(|m| m.checked_add(origin))
+        };
+        let (Some(end_c), Some(end_r)) = (
+            end(p.origin.0, p.units_across),
+            end(p.origin.1, p.units_down),
+        ) else {
+            return Err(self.ctx.err_path(
+                &["dmd", "pattern"],
+                format!(
+                    "the pattern area is larger than any DMD (at most {} × {} mirrors here)",
+                    d.columns, d.rows
+                ),
+            ));
+        };
         if end_c > d.columns || end_r > d.rows {
             return Err(self.ctx.err_path(
                 &["dmd", "pattern"],
@@ -1783,10 +1903,10 @@ impl Builder<'_> {
         let frame = Frame::new(mm(s.position_mm), normal, None);
         let radius = 0.5e-3 * s.diameter_mm.0;
         let responsivity = s.responsivity.build();
-        if responsivity.min_value() < 0.0 {
+        if !(responsivity.min_value() >= 0.0 && responsivity.max_value() <= 2.0) {
             return Err(e(
                 "responsivity",
-                "a responsivity cannot be negative".into(),
+                "a responsivity must lie in [0, 2] A/W (silicon peaks near 0.65 A/W)".into(),
             ));
         }
         let name = format!("pd_{key}");
@@ -1877,8 +1997,11 @@ impl Builder<'_> {
             },
             LampSpectrumSpec::Table(t) => {
                 let t = Table::from_nm(&t.0).expect("validated while reading");
-                if t.min_value() < 0.0 {
-                    return Err(e("spectrum", "spectral power cannot be negative".into()));
+                if !(t.min_value() >= 0.0 && t.max_value().is_finite()) {
+                    return Err(e(
+                        "spectrum",
+                        "spectral power must be finite and not negative".into(),
+                    ));
                 }
                 LampSpectrum::Table(Spectrum::Table(t))
             }
@@ -2122,6 +2245,56 @@ mod tests {
         assert!(msg.contains("symmetric_arms.ron"), "{msg}");
     }
 
+    /// Numbers that would reach the tracer as NaN, infinity, an overflow or a wrapped size are
+    /// refused where they are written, naming the field and the line.
+    #[test]
+    fn non_finite_huge_and_wrapping_numbers_are_refused_where_written() {
+        expect(
+            "position_mm: (0.0, 0.0, 100.0),",
+            "position_mm: (0.0, NaN, 100.0),",
+            "position_mm: (0.0, NaN",
+            "position_mm",
+            "finite",
+        );
+        expect(
+            "position_mm: (39.0011, -39.0011, 123.8823),",
+            "position_mm: (39.0011, -39.0011, 1e308),",
+            "1e308",
+            "position_mm",
+            "within",
+        );
+        expect(
+            "position_mm: (-17.2564, 17.2564, 54.8127),",
+            "position_mm: (-17.2564, inf, 54.8127),",
+            "inf, 54",
+            "position_mm",
+            "finite",
+        );
+        expect(
+            "axis: Vector((0.0, 0.0, -1.0)),",
+            "axis: Vector((0.0, 0.0, -1e300)),",
+            "-1e300",
+            "axis",
+            "within",
+        );
+        expect(
+            "temperature_k: 2800.0",
+            "temperature_k: 1e9",
+            "1e9",
+            "temperature_k",
+            "4000",
+        );
+        let (msg, _) = fails(
+            "units_across: 4, units_down: 4, mirrors_per_unit: 8",
+            "units_across: 4, units_down: 4, mirrors_per_unit: 4611686018427387904",
+            "mirrors_per_unit: 46",
+        );
+        assert!(
+            msg.contains("pattern") && msg.contains("larger than any DMD"),
+            "{msg}"
+        );
+    }
+
     #[test]
     fn the_test_benches_and_the_paper_bench_parse() {
         let (text, path) = base();
@@ -2145,7 +2318,10 @@ mod tests {
         .to_unit()
         .unwrap();
         assert!((v - DVec3::new(0.287_606, -0.287_606, 0.913_545)).length() < 1e-6);
-        assert!(Direction::Vector((0.0, 0.0, 0.0)).to_unit().is_err());
+        assert!(Direction::Vector(Mm3(0.0, 0.0, 0.0)).to_unit().is_err());
+        // Huge but finite components normalise without overflow.
+        let u = Direction::Vector(Mm3(1e300, 1e300, 0.0)).to_unit().unwrap();
+        assert!((u.length() - 1.0).abs() < 1e-12);
     }
 
     #[test]

@@ -579,7 +579,7 @@ fn apply_move(file: &mut BenchFile, target: &str, mv: Move, value: f64, path: &s
             // About the part's own x (u) or y (v) axis through its position: the axis turns,
             // and so does an explicit x_axis, so the part moves as a rigid body.
             let r = DMat3::from_axis_angle(if i == 0 { f.u } else { f.v }, value.to_radians());
-            let vec = |v: DVec3| Direction::Vector((v.x, v.y, v.z));
+            let vec = |v: DVec3| Direction::Vector(Mm3(v.x, v.y, v.z));
             *p.axis = vec(r * f.w);
             if let Some(x) = p.x_axis {
                 // Keep the part's in-plane orientation: the turned u is the new x hint.

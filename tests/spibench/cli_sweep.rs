@@ -187,3 +187,27 @@ fn compare(pinned: &serde_json::Value, now: &serde_json::Value, path: &str, out:
         (a, b) => out.push(format!("{path}: {a} → {b}")),
     }
 }
+
+/// `trace` refuses a ray count without standard errors (one batch) or beyond the cap, naming
+/// the flag, with exit status 2.
+#[test]
+fn trace_ray_counts_are_bounded() {
+    for rays in ["100", "18446744073709551615"] {
+        let dir = TempDir::new("trace-rays");
+        let out = dir.join("t");
+        let o = spibench(
+            &[
+                "trace",
+                &paper(),
+                "--rays",
+                rays,
+                "--out",
+                out.to_str().unwrap(),
+            ],
+            &[],
+        );
+        assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+        assert!(stderr(&o).contains("--rays"), "{}", stderr(&o));
+        assert!(!out.exists());
+    }
+}
