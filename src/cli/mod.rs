@@ -3,7 +3,9 @@
 //! Exit status: 0 on success, 2 for input a user can fix (a malformed file, an unknown field,
 //! impossible values, a missing file; also clap's usage errors), 1 for anything else.
 
+mod check;
 mod export;
+mod layout;
 mod progress;
 mod reconstruct;
 mod run;
@@ -42,6 +44,11 @@ enum Command {
     Trace(trace::TraceArgs),
     /// Export a bench as a Mitsuba 3 scene (the monochromatic, constant-index substitute unless --as-is).
     ExportMitsuba(export::ExportArgs),
+    /// Draw a bench (top view, side view, the plane of the arms) with a fan of traced rays, as
+    /// SVG and PNG.
+    Layout(layout::LayoutArgs),
+    /// Read and validate a bench without tracing it; print its paraxial design numbers.
+    Check(check::CheckArgs),
 }
 
 /// Runs the command line and returns the process exit status.
@@ -60,6 +67,8 @@ pub fn main() -> i32 {
         Command::ExportMitsuba(a) => export::run(a),
         Command::Run(a) => run::run(a),
         Command::Sweep(a) => sweep::run(a),
+        Command::Layout(a) => layout::run(a),
+        Command::Check(a) => check::run(a),
     };
     match result {
         Ok(()) => 0,

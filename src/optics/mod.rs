@@ -12,6 +12,7 @@ pub mod guide;
 pub mod lamp;
 pub mod mesh;
 pub mod monochromatic;
+pub mod outline;
 pub mod spectrum;
 
 pub use bench::Bench;

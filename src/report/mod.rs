@@ -7,6 +7,7 @@ mod font;
 pub mod heatmap;
 pub mod html;
 pub mod json;
+pub mod layout;
 pub mod montage;
 pub mod npy;
 pub mod output;

@@ -11,6 +11,7 @@
 //! Within a batch the rays' emission and wavelength coordinates form a Latin hypercube
 //! (path.rs); the physics of each interaction is documented in path.rs.
 
+pub mod fan;
 pub mod path;
 pub mod tally;
 

@@ -85,6 +85,21 @@ pub fn run_batch(
     rays: u64,
     inv_rays: f64,
 ) -> BatchTally {
+    run_batch_recorded(bench, mode, seed, batch, rays, inv_rays, &mut ())
+}
+
+/// [`run_batch`] with a [`Recorder`] that sees every path segment and the end of every ray (the
+/// ray fan of `trace::fan`). `run_batch` passes `()`, whose empty inlined methods make this the
+/// same machine code as a loop without the hooks.
+pub(super) fn run_batch_recorded<R: Recorder>(
+    bench: &Bench,
+    mode: PatternMode,
+    seed: u64,
+    batch: u64,
+    rays: u64,
+    inv_rays: f64,
+    rec: &mut R,
+) -> BatchTally {
     let mut rng = crate::rng::stream(seed, batch);
     let mut tally = BatchTally::new(bench.units(), bench.elements().len());
     let mut stack = Vec::with_capacity(8);
@@ -120,9 +135,27 @@ pub fn run_batch(
             &mut tally,
             &mut stack,
             &mut index,
+            rec,
         );
+        rec.ray_done(&tally);
     }
     tally
+}
+
+/// Sees what a trace does, for drawings: `segment(o, d, t)` for every straight piece of a path
+/// (start, unit direction, length; t = ∞ when the ray leaves the bench), `ray_done` after every
+/// lamp ray with the batch's tally so far.
+pub(super) trait Recorder {
+    fn segment(&mut self, o: DVec3, d: DVec3, t: f64);
+    fn ray_done(&mut self, tally: &BatchTally);
+}
+
+/// The recorder of an ordinary trace: records nothing.
+impl Recorder for () {
+    #[inline(always)]
+    fn segment(&mut self, _: DVec3, _: DVec3, _: f64) {}
+    #[inline(always)]
+    fn ray_done(&mut self, _: &BatchTally) {}
 }
 
 /// Identifies one lamp ray of a trace, for its random streams.
@@ -171,7 +204,7 @@ fn permutation(n: usize, rng: &mut StreamRng) -> Vec<u32> {
 /// Traces one lamp ray with all its branches, adding to `tally`. `index` is scratch space for
 /// the refractive index of every medium at the ray's wavelength (computed once per ray).
 #[allow(clippy::too_many_arguments)]
-fn trace_ray(
+fn trace_ray<R: Recorder>(
     bench: &Bench,
     mode: PatternMode,
     inv_rays: f64,
@@ -181,6 +214,7 @@ fn trace_ray(
     tally: &mut BatchTally,
     stack: &mut Vec<Path>,
     index: &mut [f64],
+    rec: &mut R,
 ) {
     let lamp = &bench.lamp();
     let (wl, spectral) = bench.sampler().sample(u[5], u[6]);
@@ -211,7 +245,7 @@ fn trace_ray(
             // The − branch of the split (pushed by `walk`) draws from its own stream.
             *rng = key.stream(STREAM_MINUS);
         }
-        walk(bench, mode, wl, index, p, key, rng, tally, stack);
+        walk(bench, mode, wl, index, p, key, rng, tally, stack, rec);
     }
 }
 
@@ -221,7 +255,7 @@ fn book(tally: &mut BatchTally, world: usize, slot: usize, w: f64) {
 }
 
 #[allow(clippy::too_many_arguments)]
-fn walk(
+fn walk<R: Recorder>(
     bench: &Bench,
     mode: PatternMode,
     wl: f64,
@@ -231,6 +265,7 @@ fn walk(
     rng: &mut StreamRng,
     tally: &mut BatchTally,
     stack: &mut Vec<Path>,
+    rec: &mut R,
 ) {
     let n_el = bench.elements().len();
     let units = tally.x.len();
@@ -241,6 +276,7 @@ fn walk(
         }
         p.interactions += 1;
         let (t, target) = bench.nearest(p.o, p.d);
+        rec.segment(p.o, p.d, t);
         let Some(target) = target else {
             book(tally, p.world, n_el + SLOT_ESCAPED, p.w);
             return;

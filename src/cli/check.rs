@@ -1,0 +1,439 @@
+//! `spibench check BENCH [--wavelength-nm L] [--out DIR]`: reads and validates a bench without
+//! tracing it and prints its paraxial design numbers: the elements, each lens's focal length and
+//! the conjugates it forms, the chart → DMD magnification, the numerical aperture of each diode
+//! and the size of the pattern area on the chart. With `--out`, the same numbers go to
+//! `DIR/check.json` (SI, unit-suffixed keys; [`CheckReport`]); without it nothing is written.
+//!
+//! **Which object each lens images.** The chief rays (`trace::fan::chief_ray`: the ray from the
+//! filament centre along the lamp axis, refracted at every interface and reflected by the DMD in
+//! either mirror state) pass the bench's elements in order. Each lens on them images the last
+//! object that precedes it: the lamp filament (the collimator), a chart (the imaging lens), the
+//! DMD's pattern area (the arm lenses), or the image formed by an earlier lens when two lenses
+//! follow each other. Distances are measured along the lens axis from the object point (where
+//! the chief ray meets it) to the front principal plane, and from the back principal plane to
+//! the image (Gaussian lens equation 1/s + 1/s' = 1/f; thick-lens f and principal planes from
+//! the lensmaker's equation, e.g. Hecht, *Optics*, §6.2).
+
+use std::path::PathBuf;
+
+use glam::DVec3;
+use serde::Serialize;
+
+use crate::error::{Error, Result};
+use crate::optics::Bench;
+use crate::optics::bench::{Interaction, thick_lens};
+use crate::optics::dmd::MirrorState;
+use crate::optics::outline::{LensPrescription, element_outlines, lenses};
+use crate::report::output::OutputDir;
+use crate::scene::bench::read_bench;
+use crate::trace::fan::{ChiefEnd, DESIGN_WAVELENGTH_M, chief_ray, dmd_axes};
+
+/// Arguments of `spibench check`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct CheckArgs {
+    /// Bench file (RON).
+    pub scene: PathBuf,
+    /// Design wavelength of the paraxial numbers (nm); default 850 nm, near the centroid of the
+    /// detected photocurrent of a tungsten lamp on silicon.
+    #[arg(long, default_value_t = DESIGN_WAVELENGTH_M * 1e9)]
+    pub wavelength_nm: f64,
+    /// Write `check.json` into this directory (nothing is written without it).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+}
+
+/// One element of the bench.
+#[derive(Debug, Clone, Serialize)]
+pub struct ElementEntry {
+    pub name: String,
+    pub kind: String,
+    /// Centre of its outline (m, bench frame).
+    pub centre_m: [f64; 3],
+}
+
+/// A lens's paraxial numbers at the design wavelength.
+#[derive(Debug, Clone, Serialize)]
+pub struct LensEntry {
+    pub name: String,
+    /// Refractive index of its glass at the design wavelength.
+    pub index: f64,
+    pub front_radius_m: Option<f64>,
+    pub back_radius_m: Option<f64>,
+    pub thickness_m: f64,
+    /// Effective focal length and back focal length (from the back vertex).
+    pub focal_length_m: f64,
+    pub back_focal_length_m: f64,
+    /// What it images (`lamp filament`, `chart NAME`, `DMD pattern centre`, `image by LENS`),
+    /// or null when no chief ray passes it.
+    pub object: Option<String>,
+    /// Object distance, object point → front principal plane, along the axis (m).
+    pub object_distance_m: Option<f64>,
+    /// Image distance, back principal plane → image, along the axis (m; negative: virtual).
+    pub image_distance_m: Option<f64>,
+    /// Lateral magnification −s'/s.
+    pub magnification: Option<f64>,
+}
+
+/// A photodiode's numerical aperture.
+#[derive(Debug, Clone, Serialize)]
+pub struct DiodeEntry {
+    pub name: String,
+    pub diameter_m: f64,
+    /// The element whose surface the arm's chief ray leaves last before the diode.
+    pub last_optic: Option<String>,
+    /// Distance from that surface (where the chief ray leaves it) to the diode centre (m).
+    pub distance_m: Option<f64>,
+    /// sin of the half-angle the diode disk subtends from there: r / √(r² + d²).
+    pub numerical_aperture: Option<f64>,
+    /// Where the arm's chief ray from the pattern centre ends.
+    pub chief_ray_end: String,
+}
+
+/// `check.json`.
+#[derive(Debug, Clone, Serialize)]
+pub struct CheckReport {
+    pub scene: String,
+    pub design_wavelength_m: f64,
+    pub elements: Vec<ElementEntry>,
+    pub lenses: Vec<LensEntry>,
+    /// Lateral magnification from the chart to the DMD (product over the lenses between).
+    pub chart_to_dmd_magnification: Option<f64>,
+    /// The pattern area on the DMD (width, height; m).
+    pub pattern_on_dmd_m: Option<[f64; 2]>,
+    /// The pattern area seen on the chart: the DMD size / |m| (m).
+    pub pattern_on_chart_m: Option<[f64; 2]>,
+    pub diodes: Vec<DiodeEntry>,
+}
+
+/// Paraxial data of a thick lens at index n: (f, BFL, front principal plane offset h1 from the
+/// front vertex, back principal plane offset h2 from the back vertex), offsets along the light.
+/// h1 = −f(n − 1)t/(n R2), h2 = −f(n − 1)t/(n R1) (Hecht §6.2).
+fn cardinal(lens: &LensPrescription, n: f64) -> (f64, f64, f64, f64) {
+    let (f, bfl) = thick_lens(n, lens.front_radius, lens.back_radius, lens.thickness);
+    let t = lens.thickness;
+    let c1 = lens.front_radius.map_or(0.0, |r| 1.0 / r);
+    let c2 = lens.back_radius.map_or(0.0, |r| 1.0 / r);
+    (
+        f,
+        bfl,
+        -f * (n - 1.0) * t * c2 / n,
+        -f * (n - 1.0) * t * c1 / n,
+    )
+}
+
+/// Computes the report (see the module notes).
+pub fn check_bench(scene: &str, bench: &Bench, wl: f64) -> Result<CheckReport> {
+    let (lo, hi) = bench.band();
+    if !(wl.is_finite() && wl >= lo && wl <= hi) {
+        return Err(Error::field(
+            "wavelength_nm",
+            format!(
+                "the design wavelength must lie in the traced band {:.0}–{:.0} nm, got {:.1} nm",
+                lo * 1e9,
+                hi * 1e9,
+                wl * 1e9
+            ),
+        ));
+    }
+    let elements = element_outlines(bench)
+        .into_iter()
+        .map(|o| {
+            let pts: Vec<DVec3> = o.polylines.iter().flatten().copied().collect();
+            let c = pts.iter().copied().sum::<DVec3>() / pts.len().max(1) as f64;
+            ElementEntry {
+                name: o.name,
+                kind: o.kind.name().into(),
+                centre_m: c.to_array(),
+            }
+        })
+        .collect();
+    let prescriptions = lenses(bench);
+    let mut entries: Vec<LensEntry> = prescriptions
+        .iter()
+        .map(|l| {
+            let n = l.glass.index(wl);
+            let (f, bfl, _, _) = cardinal(l, n);
+            LensEntry {
+                name: l.name.clone(),
+                index: n,
+                front_radius_m: l.front_radius,
+                back_radius_m: l.back_radius,
+                thickness_m: l.thickness,
+                focal_length_m: f,
+                back_focal_length_m: bfl,
+                object: None,
+                object_distance_m: None,
+                image_distance_m: None,
+                magnification: None,
+            }
+        })
+        .collect();
+
+    // Walk the two chief rays from the lamp: objects, lens conjugates, the chart → DMD chain.
+    let lamp = &bench.lamp().frame;
+    let mut chart_to_dmd = None;
+    for state in [MirrorState::Plus, MirrorState::Minus] {
+        let ray = chief_ray(bench, lamp.origin, lamp.w, wl, state);
+        let mut object: (DVec3, String) = (lamp.origin, "lamp filament".into());
+        // Magnification accumulated since the last chart.
+        let mut since_chart: Option<f64> = None;
+        let mut last: Option<usize> = None;
+        for (k, el) in ray.elements.iter().enumerate() {
+            let p = ray.points[k + 1];
+            match el {
+                None => {
+                    if chart_to_dmd.is_none() {
+                        chart_to_dmd = since_chart;
+                    }
+                    since_chart = None;
+                    object = (p, "DMD pattern centre".into());
+                    last = None;
+                }
+                Some(id) => {
+                    let name = &bench.elements()[*id];
+                    // The chart's object plane is its chrome face, whichever way it faces.
+                    if ray.surfaces[k].is_some_and(|i| {
+                        matches!(bench.surfaces()[i].interaction, Interaction::Chart { .. })
+                    }) {
+                        object = (p, format!("chart {name}"));
+                        since_chart = Some(1.0);
+                        last = Some(*id);
+                        continue;
+                    }
+                    if last == Some(*id) {
+                        continue;
+                    }
+                    last = Some(*id);
+                    let Some(i) = prescriptions.iter().position(|l| &l.name == name) else {
+                        continue;
+                    };
+                    let l = &prescriptions[i];
+                    let n = l.glass.index(wl);
+                    let (f, _, h1, h2) = cardinal(l, n);
+                    let front_h = l.vertex + h1 * l.axis;
+                    let back_h = l.vertex + (l.thickness + h2) * l.axis;
+                    let s = (front_h - object.0).dot(l.axis);
+                    let s_img = 1.0 / (1.0 / f - 1.0 / s);
+                    let m = -s_img / s;
+                    let e = &mut entries[i];
+                    if e.object.is_none() {
+                        e.object = Some(object.1.clone());
+                        e.object_distance_m = Some(s);
+                        e.image_distance_m = Some(s_img);
+                        e.magnification = Some(m);
+                    }
+                    since_chart = since_chart.map(|x| x * m);
+                    object = (back_h + s_img * l.axis, format!("image by {name}"));
+                }
+            }
+        }
+    }
+
+    let pattern_on_dmd = bench.dmd().map(|s| {
+        let d = &s.dmd;
+        let p = d.pattern;
+        let side = p.mirrors_per_unit as f64 * d.pitch;
+        [p.units_across as f64 * side, p.units_down as f64 * side]
+    });
+    let pattern_on_chart = match (pattern_on_dmd, chart_to_dmd) {
+        (Some([w, h]), Some(m)) if m != 0.0 => Some([w / m.abs(), h / m.abs()]),
+        _ => None,
+    };
+
+    // The diodes' numerical apertures along the arms' chief rays. The geometric NA of the diode
+    // disk seen from the last optic before it is chosen over an NA "seen from the DMD through
+    // the arm": it needs no paraxial model of a folded, tilted arm, and it is the number to set
+    // against the convergence of the beam arriving from that optic (a diode whose NA exceeds
+    // the beam's can catch all of it, whatever the arm does before).
+    let mut diodes = Vec::new();
+    let axes = dmd_axes(bench, wl).ok();
+    for (k, det) in bench.detectors().iter().enumerate() {
+        let name = ["pd_plus", "pd_minus"][k].to_string();
+        let mut entry = DiodeEntry {
+            name,
+            diameter_m: 2.0 * det.radius,
+            last_optic: None,
+            distance_m: None,
+            numerical_aperture: None,
+            chief_ray_end: "no DMD".into(),
+        };
+        if let Some(axes) = &axes {
+            let ray = axes.arm_chief_ray(bench, k, wl);
+            entry.chief_ray_end = match ray.end {
+                ChiefEnd::Detector(i) => format!("photodiode {}", ["+", "−"][i]),
+                ChiefEnd::Blocked(id) => format!("blocked by {}", bench.elements()[id]),
+                ChiefEnd::Escaped => "leaves the bench".into(),
+                ChiefEnd::Steps => "too many interactions".into(),
+            };
+            if ray.end == ChiefEnd::Detector(k) && ray.points.len() >= 3 {
+                let n = ray.points.len();
+                let from = ray.points[n - 2];
+                let optic = match ray.elements.get(n - 3) {
+                    Some(Some(id)) => bench.elements()[*id].clone(),
+                    _ => "dmd".into(),
+                };
+                let d = (det.frame.origin - from).length();
+                entry.last_optic = Some(optic);
+                entry.distance_m = Some(d);
+                entry.numerical_aperture = Some(det.radius / det.radius.hypot(d));
+            }
+        }
+        diodes.push(entry);
+    }
+
+    Ok(CheckReport {
+        scene: scene.to_string(),
+        design_wavelength_m: wl,
+        elements,
+        lenses: entries,
+        chart_to_dmd_magnification: chart_to_dmd,
+        pattern_on_dmd_m: pattern_on_dmd,
+        pattern_on_chart_m: pattern_on_chart,
+        diodes,
+    })
+}
+
+fn mm(x: f64) -> String {
+    format!("{:.3}", x * 1e3)
+}
+
+fn opt_mm(x: Option<f64>) -> String {
+    x.map_or("—".into(), mm)
+}
+
+fn print_report(r: &CheckReport) {
+    println!(
+        "{}: valid bench; paraxial numbers at {:.1} nm",
+        r.scene,
+        r.design_wavelength_m * 1e9
+    );
+    println!("elements:");
+    for e in &r.elements {
+        println!(
+            "  {:<22} {:<11} centre ({}, {}, {}) mm",
+            e.name,
+            e.kind,
+            mm(e.centre_m[0]),
+            mm(e.centre_m[1]),
+            mm(e.centre_m[2])
+        );
+    }
+    println!("lenses (distances along each lens axis, from/to its principal planes):");
+    for l in &r.lenses {
+        println!(
+            "  {:<22} n = {:.5}, f = {} mm, BFL = {} mm",
+            l.name,
+            l.index,
+            mm(l.focal_length_m),
+            mm(l.back_focal_length_m)
+        );
+        match &l.object {
+            Some(o) => println!(
+                "  {:<22} object: {o}, s = {} mm; image s' = {} mm; m = {}",
+                "",
+                opt_mm(l.object_distance_m),
+                opt_mm(l.image_distance_m),
+                l.magnification.map_or("—".into(), |m| format!("{m:.4}"))
+            ),
+            None => println!("  {:<22} on no chief ray: no conjugates", ""),
+        }
+    }
+    match r.chart_to_dmd_magnification {
+        Some(m) => println!("chart → DMD magnification: {m:.4}"),
+        None => println!("chart → DMD magnification: — (no chart before the DMD)"),
+    }
+    if let Some([w, h]) = r.pattern_on_dmd_m {
+        println!("pattern area on the DMD: {} × {} mm", mm(w), mm(h));
+    }
+    if let Some([w, h]) = r.pattern_on_chart_m {
+        println!("pattern area on the chart: {} × {} mm", mm(w), mm(h));
+    }
+    println!(
+        "photodiodes (geometric NA of the disk seen from the last optic on the arm's chief ray):"
+    );
+    for d in &r.diodes {
+        println!(
+            "  {:<9} Ø {} mm, chief ray ends on {}; last optic {}, {} mm away, NA = {}",
+            d.name,
+            mm(d.diameter_m),
+            d.chief_ray_end,
+            d.last_optic.as_deref().unwrap_or("—"),
+            opt_mm(d.distance_m),
+            d.numerical_aperture
+                .map_or("—".into(), |v| format!("{v:.4}"))
+        );
+    }
+}
+
+/// Runs `spibench check`.
+pub fn run(args: &CheckArgs) -> anyhow::Result<()> {
+    let bench = read_bench(&args.scene)?;
+    let report = check_bench(
+        &args.scene.display().to_string(),
+        &bench,
+        args.wavelength_nm * 1e-9,
+    )?;
+    if let Some(out) = &args.out {
+        let dir = OutputDir::create(out)?;
+        let json = serde_json::to_string_pretty(&report)
+            .map_err(|e| Error::Numerical(format!("cannot encode check.json: {e}")))?;
+        let path = dir.path("check.json");
+        std::fs::write(&path, json + "\n").map_err(|e| Error::write(&path, e))?;
+        dir.commit()?;
+    }
+    print_report(&report);
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Principal planes of a plano-convex lens used curved side first: H at the curved vertex,
+    /// H' at t/n inside the flat vertex (so BFL = f − t/n); flat side first, the mirror image.
+    #[test]
+    fn principal_planes_of_a_plano_convex_lens() {
+        let mut l = LensPrescription {
+            name: "l".into(),
+            vertex: DVec3::ZERO,
+            axis: DVec3::Z,
+            front_radius: Some(0.05),
+            back_radius: None,
+            thickness: 0.01,
+            semi_diameter: 0.02,
+            glass: crate::optics::glass::Glass::Constant(1.5),
+        };
+        let (f, bfl, h1, h2) = cardinal(&l, 1.5);
+        assert!((f - 0.1).abs() < 1e-15);
+        assert!(h1.abs() < 1e-15 && (h2 + 0.01 / 1.5).abs() < 1e-15);
+        assert!((bfl - (f + h2)).abs() < 1e-15);
+        l.front_radius = None;
+        l.back_radius = Some(-0.05);
+        let (_, bfl, h1, h2) = cardinal(&l, 1.5);
+        assert!((h1 - 0.01 / 1.5).abs() < 1e-15 && h2.abs() < 1e-15 && (bfl - 0.1).abs() < 1e-15);
+    }
+
+    /// The paper bench at 850 nm: the imaging lens at 2f–2f images the chart at −1 (the scene
+    /// places the chart at 2f for n = 1.50984), the collimator images the filament near infinity.
+    #[test]
+    fn paper_bench_numbers() {
+        let bench = crate::trace::testing::paper_bench_with_mask();
+        let r = check_bench("paper", &bench, 850e-9).unwrap();
+        let img = r.lenses.iter().find(|l| l.name == "imaging_lens").unwrap();
+        assert!(img.object.as_deref().unwrap().starts_with("chart"));
+        let m = r.chart_to_dmd_magnification.unwrap();
+        assert!((m + 1.0).abs() < 1e-3, "{m}");
+        let arm = r.lenses.iter().find(|l| l.name == "arm_plus_lens").unwrap();
+        assert_eq!(arm.object.as_deref(), Some("DMD pattern centre"));
+        let col = r.lenses.iter().find(|l| l.name == "collimator").unwrap();
+        assert_eq!(col.object.as_deref(), Some("lamp filament"));
+        assert!(col.image_distance_m.unwrap().abs() > 10.0);
+        for d in &r.diodes {
+            let na = d.numerical_aperture.unwrap();
+            // 2.5 mm at ~136 mm from the fold mirror.
+            assert!((na - 0.0184).abs() < 0.001, "{d:?}");
+            assert!(d.last_optic.as_deref().unwrap().ends_with("_fold"));
+        }
+        assert!(check_bench("paper", &bench, 200e-9).is_err());
+    }
+}

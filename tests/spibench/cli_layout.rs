@@ -1,0 +1,196 @@
+//! `spibench layout` and `spibench check` end to end: every shipped bench draws, its SVG is
+//! well-formed XML with three views and the rays of every fate its fan has; `check` of the paper
+//! bench gives the closed-form focal length, the 1:1 chart → DMD magnification and the pattern
+//! size on the chart; a broken bench is located.
+
+use std::path::{Path, PathBuf};
+
+use spibench::optics::glass::N_BK7;
+use spibench::trace::fan::{Fate, ray_fan};
+
+use crate::common::{TempDir, assert_input_error, read_json, spibench, stderr, stdout};
+
+fn scenes() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes")
+}
+
+/// The `*.ron` files of `scenes/` that parse as benches (the rest are experiment files).
+fn shipped_benches() -> Vec<PathBuf> {
+    let mut v: Vec<PathBuf> = std::fs::read_dir(scenes())
+        .unwrap()
+        .flatten()
+        .map(|e| e.path())
+        .filter(|p| p.extension().is_some_and(|e| e == "ron"))
+        .filter(|p| spibench::scene::bench::read_bench(p).is_ok())
+        .collect();
+    v.sort();
+    v
+}
+
+#[test]
+fn the_shipped_benches_are_the_paper_bench_and_fig8() {
+    let names: Vec<String> = shipped_benches()
+        .iter()
+        .map(|p| p.file_name().unwrap().to_string_lossy().into_owned())
+        .collect();
+    assert_eq!(
+        names,
+        [
+            "fig8_region_b_48.ron",
+            "fig8_region_b_96.ron",
+            "fig8_region_c_96.ron",
+            "paper_bench.ron"
+        ]
+    );
+}
+
+/// Every shipped bench draws; the SVG parses as XML, has the three views, and in each view one
+/// path per fan ray of every fate that occurs (the fan is recomputed here with the same seed:
+/// it is deterministic); the paper bench's fan lights both arms. The PNG has the SVG's size.
+#[test]
+fn layout_of_every_shipped_bench() {
+    let tmp = TempDir::new("cli-layout");
+    let rays = 160;
+    for (k, scene) in shipped_benches().iter().enumerate() {
+        let out = tmp.join(&format!("layout-{k}"));
+        let o = spibench(
+            &[
+                "layout",
+                scene.to_str().unwrap(),
+                "--rays",
+                &rays.to_string(),
+                "--seed",
+                "3",
+                "--out",
+                out.to_str().unwrap(),
+            ],
+            &[],
+        );
+        assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+        assert!(stdout(&o).contains("layout.svg"));
+        let text = std::fs::read_to_string(out.join("layout.svg")).unwrap();
+        let doc = roxmltree::Document::parse(&text).expect("well-formed SVG");
+        let class = |n: &roxmltree::Node| n.attribute("class").unwrap_or("").to_string();
+        let views: Vec<_> = doc
+            .descendants()
+            .filter(|n| n.has_tag_name("g") && class(n) == "view")
+            .collect();
+        let ids: Vec<&str> = views.iter().filter_map(|v| v.attribute("id")).collect();
+        assert_eq!(ids, ["view-top", "view-side", "view-arms"]);
+
+        let bench = spibench::scene::bench::read_bench(scene).unwrap();
+        let fan = ray_fan(&bench, rays, 3).unwrap();
+        let counts = fan.counts();
+        for v in &views {
+            for (i, fate) in Fate::ALL.iter().enumerate() {
+                let drawn = v
+                    .descendants()
+                    .filter(|n| n.has_tag_name("path") && class(n) == format!("ray {}", fate.key()))
+                    .count();
+                assert_eq!(drawn, counts[i], "{} {:?}", scene.display(), fate);
+            }
+            let outlines = v
+                .descendants()
+                .filter(|n| class(n).starts_with("element "))
+                .count();
+            assert!(outlines >= 10, "{outlines} outlines");
+        }
+        assert!(counts[0] > 0 && counts[1] > 0, "both arms lit: {counts:?}");
+        let png = image::open(out.join("layout.png")).unwrap();
+        let svg = doc.root_element();
+        assert_eq!(
+            png.width().to_string(),
+            svg.attribute("width").unwrap(),
+            "PNG size"
+        );
+    }
+}
+
+/// `check` of the paper bench: the imaging lens (LA1050, R = 51.5 mm plano-convex, N-BK7)
+/// has f = R/(n − 1) at 850 nm (the thick-lens formula for a flat back face, exact), the
+/// chart → DMD magnification is −1 to 0.1 % (the scene places the chart at 2f for
+/// n(850 nm) = 1.50984, given to 5 decimals: the residual is ~1e-5), and the pattern on the
+/// chart is the 576 × 13.68 µm pattern on the DMD divided by |m|. Without `--out` nothing is
+/// written; the printed f matches.
+#[test]
+fn check_of_the_paper_bench() {
+    let tmp = TempDir::new("cli-check");
+    let scene = scenes().join("paper_bench.ron");
+    let out = tmp.join("check");
+    let o = spibench(
+        &[
+            "check",
+            scene.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        &[],
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let v = read_json(&out.join("check.json"));
+    assert_eq!(v["design_wavelength_m"].as_f64().unwrap(), 850e-9);
+    let n = N_BK7.index(850e-9);
+    let f = 0.0515 / (n - 1.0);
+    let lens = v["lenses"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|l| l["name"] == "imaging_lens")
+        .unwrap();
+    let got = lens["focal_length_m"].as_f64().unwrap();
+    assert!((got - f).abs() < 1e-12 * f, "{got} vs {f}");
+    assert!(lens["object"].as_str().unwrap().contains("chart"));
+    assert!(
+        stdout(&o).contains(&format!("f = {:.3} mm", f * 1e3)),
+        "{}",
+        stdout(&o)
+    );
+    let m = v["chart_to_dmd_magnification"].as_f64().unwrap();
+    assert!((m + 1.0).abs() < 1e-3, "m = {m}");
+    let dmd = v["pattern_on_dmd_m"].as_array().unwrap();
+    let chart = v["pattern_on_chart_m"].as_array().unwrap();
+    for k in 0..2 {
+        let d = dmd[k].as_f64().unwrap();
+        assert!((d - 576.0 * 13.68e-6).abs() < 1e-15);
+        assert!((chart[k].as_f64().unwrap() - d / m.abs()).abs() < 1e-15);
+    }
+    for d in v["diodes"].as_array().unwrap() {
+        assert!(d["numerical_aperture"].as_f64().unwrap() > 0.0, "{d}");
+    }
+    // Without --out: the same report, no files.
+    let before: Vec<_> = std::fs::read_dir(&tmp.0).unwrap().flatten().collect();
+    let o = spibench(&["check", scene.to_str().unwrap()], &[]);
+    assert_eq!(o.status.code(), Some(0));
+    let after: Vec<_> = std::fs::read_dir(&tmp.0).unwrap().flatten().collect();
+    assert_eq!(before.len(), after.len());
+}
+
+/// A broken bench (a lens with a negative diameter on a known line): `check` and `layout` exit
+/// with status 2, name the file, the line and the field, and write nothing.
+#[test]
+fn check_and_layout_of_a_broken_bench() {
+    let tmp = TempDir::new("cli-check-bad");
+    let text = std::fs::read_to_string(scenes().join("paper_bench.ron")).unwrap();
+    let from = "            clear_diameter_mm: 45.72,\n            glass: \"N-BK7\",\n            // -A coating";
+    assert_eq!(text.matches(from).count(), 1);
+    let bad = text.replacen(from, &from.replace("45.72", "-45.72"), 1);
+    let line = bad[..bad.find("-45.72").unwrap()].matches('\n').count() + 1;
+    let scene = tmp.join("broken_bench.ron");
+    std::fs::write(&scene, bad).unwrap();
+    let out = tmp.join("out");
+    for cmd in ["check", "layout"] {
+        let o = spibench(
+            &[cmd, scene.to_str().unwrap(), "--out", out.to_str().unwrap()],
+            &[],
+        );
+        assert_input_error(
+            &o,
+            &[
+                "broken_bench.ron",
+                &format!("line {line}"),
+                "clear_diameter_mm",
+            ],
+            &out,
+        );
+    }
+}
