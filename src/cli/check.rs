@@ -195,7 +195,7 @@ pub fn check_bench(scene: &str, bench: &Bench, wl: f64) -> Result<CheckReport> {
                     if ray.surfaces[k].is_some_and(|i| {
                         matches!(bench.surfaces()[i].interaction, Interaction::Chart { .. })
                     }) {
-                        object = (p, format!("chart {name}"));
+                        object = (p, format!("chart `{name}`"));
                         since_chart = Some(1.0);
                         last = Some(*id);
                         continue;
@@ -223,7 +223,7 @@ pub fn check_bench(scene: &str, bench: &Bench, wl: f64) -> Result<CheckReport> {
                         e.magnification = Some(m);
                     }
                     since_chart = since_chart.map(|x| x * m);
-                    object = (back_h + s_img * l.axis, format!("image by {name}"));
+                    object = (back_h + s_img * l.axis, format!("image by `{name}`"));
                 }
             }
         }
@@ -328,6 +328,13 @@ fn print_report(r: &CheckReport) {
             mm(l.back_focal_length_m)
         );
         match &l.object {
+            // An image more than 1000 f away is a collimated beam for any bench.
+            Some(o) if l.magnification.is_some_and(|m| m.abs() > 1e3) => println!(
+                "  {:<22} object: {o}, s = {} mm; image at infinity (collimated, s' = {:.3} m)",
+                "",
+                opt_mm(l.object_distance_m),
+                l.image_distance_m.unwrap_or(f64::INFINITY)
+            ),
             Some(o) => println!(
                 "  {:<22} object: {o}, s = {} mm; image s' = {} mm; m = {}",
                 "",

@@ -398,8 +398,14 @@ mod tests {
             assert!((lens.semi_diameter - 25.4e-3).abs() < 1e-12);
             assert_eq!(lens.glass, super::super::glass::N_BK7);
         }
-        assert_eq!((l[0].front_radius, l[0].back_radius), (None, Some(-0.0515)));
-        assert_eq!((l[1].front_radius, l[1].back_radius), (Some(0.0515), None));
+        assert_eq!(
+            (l[0].front_radius, l[0].back_radius),
+            (None, Some(-51.5 * 1e-3))
+        );
+        assert_eq!(
+            (l[1].front_radius, l[1].back_radius),
+            (Some(51.5 * 1e-3), None)
+        );
         assert!((l[1].vertex - DVec3::new(0.0, 0.0, 0.205668)).length() < 1e-12);
         assert!((l[1].axis - DVec3::NEG_Z).length() < 1e-12);
 

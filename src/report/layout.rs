@@ -99,7 +99,7 @@ const MAX_VIEW_HEIGHT: f64 = 760.0;
 const MAX_TOTAL_WIDTH: f64 = 1700.0;
 const MARGIN: f64 = 24.0;
 const TITLE_BAND: f64 = 56.0;
-const FOOT_BAND: f64 = 96.0;
+const FOOT_BAND: f64 = 116.0;
 
 /// 1, 2 or 5 × 10^k, the largest not above `x` (x > 0).
 fn nice_below(x: f64) -> f64 {
@@ -312,13 +312,16 @@ pub fn layout_svg(bench: &Bench, fan: &RayFan, title: &str) -> Result<String> {
         );
         lx += 60.0 + 7.0 * label.chars().count() as f64;
     }
+    // The outline key on a line of its own, so that the legend fits the narrowest drawing.
+    let _ = lx;
     let _ = writeln!(
         s,
-        r##"<path d="M{a:.2} {ly:.2} L{b:.2} {ly:.2}" stroke="#555555" stroke-width="1"/><text x="{t:.2}" y="{y:.2}" font-size="12">element outlines (black: DMD and photodiodes)</text>"##,
-        a = lx,
-        b = lx + 24.0,
-        t = lx + 30.0,
-        y = ly + 4.0
+        r##"<path d="M{a:.2} {ly:.2} L{b:.2} {ly:.2}" stroke="#555555" stroke-width="1"/><text x="{t:.2}" y="{y:.2}" font-size="12">element outlines (black: DMD and photodiodes; hover an outline in a browser for its name)</text>"##,
+        a = MARGIN,
+        b = MARGIN + 24.0,
+        t = MARGIN + 30.0,
+        ly = ly + 20.0,
+        y = ly + 24.0
     );
     let _ = writeln!(s, "</g>");
     let _ = writeln!(s, "</svg>");
