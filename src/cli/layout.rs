@@ -67,3 +67,24 @@ pub fn run(args: &LayoutArgs) -> anyhow::Result<()> {
     );
     Ok(())
 }
+
+/// The bench's layout (three views with a ray fan of [`DEFAULT_FAN_RAYS`] rays, seed 1) as a
+/// report block, and the SVG text to write beside the report.
+pub(super) fn layout_block(
+    bench: &crate::optics::Bench,
+    title: &str,
+) -> crate::Result<(crate::report::html::Block, String)> {
+    let fan = ray_fan(bench, DEFAULT_FAN_RAYS, 1)?;
+    let svg = layout_svg(bench, &fan, title)?;
+    Ok((
+        crate::report::html::Block::Svg {
+            caption: format!(
+                "The bench: top view, side view and the plane of the two arms, with {} lamp rays \
+                 coloured by fate (layout.svg).",
+                fan.rays.len()
+            ),
+            svg: svg.clone(),
+        },
+        svg,
+    ))
+}

@@ -380,7 +380,7 @@ fn write_outputs(
     let count = files.len();
     let summary = summarize_run(name, bench, o, files);
     write_json(&out.path("summary.json"), &summary)?;
-    super::run_report::write_report(name, o, &summary, out)?;
+    super::run_report::write_report(name, bench, o, &summary, out)?;
     Ok(count)
 }
 

@@ -40,6 +40,7 @@ fn sci(v: f64, se: f64, unit: &str) -> String {
 /// Writes `report.html` into the staging folder.
 pub fn write_report(
     name: &str,
+    bench: &crate::optics::Bench,
     o: &RunOutcome,
     summary: &RunSummary<'_>,
     out: &OutputDir,
@@ -73,6 +74,10 @@ pub fn write_report(
         level: 2,
         text: "Bench: gains and offsets from the trace".into(),
     });
+    let (layout, svg) = super::layout::layout_block(bench, name)?;
+    let path = out.path("layout.svg");
+    std::fs::write(&path, &svg).map_err(|e| crate::Error::write(&path, e))?;
+    blocks.push(layout);
     let cmrr = o.detector.cmrr_db();
     blocks.push(Block::KeyValues(vec![
         ("k₊ (arm +)".into(), sci(t.k[0].value, t.k[0].stderr, "A/W")),

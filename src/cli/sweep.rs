@@ -182,7 +182,8 @@ pub fn run(args: &SweepArgs) -> Result<()> {
     })?;
     bar.finish_and_clear();
     let seconds = start.elapsed().as_secs_f64();
-    let files = write_outputs(&name, &s, &nominal_values, &out)?;
+    let bench = doc.build()?;
+    let files = write_outputs(&name, &bench, &s, &nominal_values, &out)?;
     let dir = out.commit()?;
     print_table(&s);
     println!(
@@ -241,7 +242,13 @@ fn short(path: &str) -> String {
     }
 }
 
-fn write_outputs(name: &str, s: &Sweep, nominal_values: &[f64], out: &OutputDir) -> Result<usize> {
+fn write_outputs(
+    name: &str,
+    bench: &crate::optics::Bench,
+    s: &Sweep,
+    nominal_values: &[f64],
+    out: &OutputDir,
+) -> Result<usize> {
     let mut files = vec![
         "summary.json".to_string(),
         "sweep.csv".to_string(),
@@ -277,6 +284,11 @@ fn write_outputs(name: &str, s: &Sweep, nominal_values: &[f64], out: &OutputDir)
         s.options.rays,
         s.options.seed
     ))];
+    let (layout, svg) = super::layout::layout_block(bench, name)?;
+    let path = out.path("layout.svg");
+    std::fs::write(&path, &svg).map_err(|e| crate::Error::write(&path, e))?;
+    files.push("layout.svg".into());
+    blocks.push(layout);
     let mut figures = Vec::new();
     match s.vary.as_slice() {
         [v] => {
