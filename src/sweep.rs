@@ -98,6 +98,9 @@ pub struct SweepPoint {
     /// The variables set on the nominal bench (empty for the nominal bench itself).
     pub settings: Vec<(String, f64)>,
     pub metrics: BenchMetrics,
+    /// The balanced detector's common-mode rejection (dB) from its electronics section (not
+    /// traced; infinite for matched diodes); None for a bench that cannot run (no DMD).
+    pub cmrr_db: Option<f64>,
     pub arrivals: u64,
     /// With `quality`: every scheme × ratio of the bench's `run` settings.
     pub quality: Option<Vec<SchemeResult>>,
@@ -183,6 +186,7 @@ pub fn sweep(
 
 fn point(doc: &BenchDoc, settings: Vec<(String, f64)>, o: &SweepOptions) -> Result<SweepPoint> {
     let req = TraceRequest::new(o.rays, o.seed);
+    let cmrr_db = doc.run_scene().ok().map(|s| s.detector.cmrr_db());
     let quiet: Progress = &|_, _, _| {};
     let (traced, quality): (Traced, _) = if o.quality {
         let scene = doc.run_scene()?;
@@ -204,6 +208,7 @@ fn point(doc: &BenchDoc, settings: Vec<(String, f64)>, o: &SweepOptions) -> Resu
     };
     Ok(SweepPoint {
         settings,
+        cmrr_db,
         arrivals: traced.arrivals(),
         metrics: traced.metrics,
         quality,

@@ -74,7 +74,9 @@ struct SweepSummary<'a> {
     vary: Vec<VarySummary<'a>>,
     /// Metric names, units and meanings (every row has `NAME`, `NAME_stderr`, `NAME_diff`,
     /// `NAME_diff_stderr`, and `NAME_diff_stderr_independent`: the standard error the
-    /// difference would have between independent runs).
+    /// difference would have between independent runs). Rows also hold `cmrr_db`, the
+    /// detector's common-mode rejection from the electronics (exact; null when infinite), and
+    /// `arrivals` (lamp rays that reached the pattern area).
     metrics: Vec<MetricDoc>,
     nominal: Map<String, Value>,
     rows: Vec<Map<String, Value>>,
@@ -121,6 +123,7 @@ fn row(p: &SweepPoint, nominal: &SweepPoint) -> Map<String, Value> {
             num(r.stderr.hypot(b.stderr())),
         );
     }
+    m.insert("cmrr_db".into(), p.cmrr_db.map_or(Value::Null, |c| num(c)));
     m.insert("arrivals".into(), Value::from(p.arrivals));
     if let Some(q) = &p.quality {
         for r in q {
