@@ -123,7 +123,7 @@ fn row(p: &SweepPoint, nominal: &SweepPoint) -> Map<String, Value> {
             num(r.stderr.hypot(b.stderr())),
         );
     }
-    m.insert("cmrr_db".into(), p.cmrr_db.map_or(Value::Null, |c| num(c)));
+    m.insert("cmrr_db".into(), p.cmrr_db.map_or(Value::Null, num));
     m.insert("arrivals".into(), Value::from(p.arrivals));
     if let Some(q) = &p.quality {
         for r in q {
