@@ -75,8 +75,9 @@ struct Path {
     x_pending: bool,
 }
 
-/// Traces `rays` lamp rays of batch `batch` from the stream `rng::stream(seed, batch)`.
-/// `inv_rays` is 1/N for the whole trace: each ray carries 1/N of the sampled power.
+/// Traces `rays` lamp rays of batch `batch`: the batch's Latin hypercube draws from
+/// `rng::stream(seed, batch)`, and each ray's interactions from streams of its own (see
+/// [`RayKey`]). `inv_rays` is 1/N for the whole trace: each ray carries 1/N of the sampled power.
 pub fn run_batch(
     bench: &Bench,
     mode: PatternMode,
