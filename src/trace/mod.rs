@@ -5,11 +5,14 @@
 //! `crate::transport::Transport::from_tallies(&bench, &tallies)`. `PatternMode::Fixed(&bits)`
 //! traces the bench with one DMD pattern instead (a direct check of the linear model).
 //!
-//! Determinism: batch b (of [`RAYS_PER_BATCH`] rays, the last one shorter) always draws from
-//! `rng::stream(seed, b)`; batches run in parallel in chunks of [`BATCHES_PER_CHUNK`] and their
-//! tallies are merged in batch order, so the result is bit-identical for any number of threads.
-//! Within a batch the rays' emission and wavelength coordinates form a Latin hypercube
-//! (path.rs); the physics of each interaction is documented in path.rs.
+//! Determinism: batch b (of [`RAYS_PER_BATCH`] rays, the last one shorter) always draws its
+//! stratification from `rng::stream(seed, b)`, and every ray its interactions from streams keyed
+//! by (seed, ray index, part of the path) (path.rs, `RayKey`); batches run in parallel in chunks
+//! of [`BATCHES_PER_CHUNK`] and their tallies are merged in batch order, so the result is
+//! bit-identical for any number of threads. Because each ray has its own streams, two benches
+//! that differ a little are traced with common random numbers ray by ray. Within a batch the
+//! rays' emission and wavelength coordinates form a Latin hypercube (path.rs); the physics of
+//! each interaction is documented in path.rs.
 
 pub mod fan;
 pub mod path;
