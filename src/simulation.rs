@@ -1,7 +1,7 @@
 //! The paper's idealised simulations: an [`Experiment`] in, scored reconstructions out.
 //!
 //! Every cell of objects × sampling ratios × cases is acquired with the scalar-gain model of the
-//! paper's Eqs. (6)–(11), reconstructed with TVAL3, brought to the ground truth's scale by the
+//! paper's Eqs. (6)–(11), reconstructed by the experiment's [`Solver`] (TVAL3 and its 0/1 handling), brought to the ground truth's scale by the
 //! one normalisation rule of [`crate::metrics::normalize_to_truth`], and scored with PSNR and
 //! MSSIM. No files are touched here; `cli::simulate` writes the outputs.
 //!
@@ -18,7 +18,8 @@ use crate::error::Result;
 use crate::metrics;
 use crate::objects;
 use crate::raster::Raster;
-use crate::reconstruction::tval3;
+use crate::reconstruction::tval3::StopReason;
+use crate::reconstruction::{PatternForm, Solver, ZeroOneHandling};
 use crate::scene::experiment::{CurveSpec, CurveX, Experiment, Metric, PatternsSpec};
 
 /// One simulated, reconstructed and scored cell. Keys are documented for summary.json.
@@ -55,8 +56,13 @@ pub struct Cell {
     /// Solver iterations and operator applications (forward + adjoint).
     pub iterations: usize,
     pub operator_applications: usize,
-    /// Whether TVAL3 met its tolerance (false: it stopped on an iteration cap).
+    /// How the 0/1 system was solved (traditional cells only).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub zero_one_handling: Option<ZeroOneHandling>,
+    /// Whether TVAL3 met its outer tolerance (`stop` is `Tolerance`).
     pub converged: bool,
+    /// Why TVAL3 stopped: `Tolerance`, `MaxOuter` (inner-loop cap) or `MaxIterations`.
+    pub stop: StopReason,
     /// ‖A u − y‖ / ‖y‖ of the raw reconstruction.
     pub relative_residual: f64,
     /// Solver CPU time, s.
@@ -161,13 +167,9 @@ fn run_cell(
         seed,
         exp.dmd_rate_hz,
     )?;
-    let sol = tval3::tval3(
-        acq.operator.as_ref(),
-        &acq.y,
-        exp.width,
-        exp.height,
-        &exp.solver,
-    )?;
+    let solver = Solver::new(exp.solver.clone(), exp.zero_one);
+    let form = case.scheme.form();
+    let sol = solver.solve(acq.operator.as_ref(), &acq.y, exp.width, exp.height, form)?;
     let norm = metrics::normalize_to_truth(&sol.image, truth)?;
     let psnr_db = metrics::psnr(truth, &norm.image, metrics::PEAK_255);
     let mssim = metrics::mssim(truth, &norm.image)?;
@@ -191,7 +193,9 @@ fn run_cell(
         normalization_offset: norm.offset,
         iterations: sol.iterations,
         operator_applications: sol.forward_applications + sol.adjoint_applications,
+        zero_one_handling: (form == PatternForm::ZeroOne).then_some(exp.zero_one),
         converged: sol.converged,
+        stop: sol.stop,
         relative_residual: sol.relative_residual,
         solver_time_s: sol.cpu_time_s,
         dmd_frames: acq.dmd_frames,

@@ -9,8 +9,8 @@ use serde::Serialize;
 use crate::error::Error;
 use crate::metrics;
 use crate::raster::Raster;
-use crate::reconstruction::tval3::{self, Tval3Options};
-use crate::reconstruction::{BitMatrix, PackedOperator, PatternForm};
+use crate::reconstruction::tval3::{StopReason, Tval3Options};
+use crate::reconstruction::{BitMatrix, PackedOperator, PatternForm, Solver, ZeroOneHandling};
 use crate::report::npy::{self, NpyData};
 use crate::report::output::OutputDir;
 
@@ -22,6 +22,17 @@ pub enum FormArg {
     /// The measurements are (2P − 1)·x (a complementary or balanced difference).
     #[value(name = "pm1")]
     PlusMinusOne,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum ZeroOneArg {
+    /// Solve the exactly equivalent zero-mean system with the DC row down-weighted (converges
+    /// like the ±1 schemes).
+    #[value(name = "zero-mean")]
+    ZeroMean,
+    /// Solve A = P as measured (the paper's handling; slow: the DC singular value).
+    #[value(name = "plain")]
+    Plain,
 }
 
 #[derive(Debug, Args)]
@@ -39,6 +50,9 @@ pub struct ReconstructArgs {
     /// How the patterns enter the measurements.
     #[arg(long, value_enum, default_value = "pm1")]
     pub form: FormArg,
+    /// With --form 01: how the 0/1 system is solved.
+    #[arg(long, value_enum, default_value = "zero-mean")]
+    pub zero_one: ZeroOneArg,
     /// Ground truth (float64, H×W or N values) to score PSNR and MSSIM against.
     #[arg(long)]
     pub truth: Option<PathBuf>,
@@ -94,11 +108,15 @@ struct Summary {
     form: &'static str,
     /// "uint8_01" or "packbits".
     patterns_encoding: &'static str,
+    /// With form "01": "zero-mean" or "plain" (how the 0/1 system was solved).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    zero_one_handling: Option<&'static str>,
     iterations: usize,
     forward_applications: usize,
     adjoint_applications: usize,
+    /// True only when TVAL3 met its outer tolerance (`stop` is "Tolerance").
     converged: bool,
-    stop: String,
+    stop: StopReason,
     /// ‖A u − y‖ / ‖y‖.
     relative_residual: f64,
     /// Solver CPU time, s.
@@ -210,8 +228,13 @@ pub fn run(args: &ReconstructArgs) -> Result<()> {
         FormArg::PlusMinusOne => PatternForm::PlusMinusOne,
     };
     let out = OutputDir::create(args.out.as_deref().unwrap_or(Path::new("out/reconstruct")))?;
+    let zero_one = match args.zero_one {
+        ZeroOneArg::ZeroMean => ZeroOneHandling::ZeroMean,
+        ZeroOneArg::Plain => ZeroOneHandling::Plain,
+    };
+    let solver = Solver::new(opts, zero_one);
     let op = PackedOperator::new(patterns, form);
-    let sol = tval3::tval3(&op, &y, w, h, &opts)?;
+    let sol = solver.solve(&op, &y, w, h, form)?;
 
     let (psnr_db, mssim) = match &truth {
         Some(t) => {
@@ -246,17 +269,18 @@ pub fn run(args: &ReconstructArgs) -> Result<()> {
             PatternForm::PlusMinusOne => "pm1",
         },
         patterns_encoding: encoding,
+        zero_one_handling: (form == PatternForm::ZeroOne).then(|| zero_one.name()),
         iterations: sol.iterations,
         forward_applications: sol.forward_applications,
         adjoint_applications: sol.adjoint_applications,
         converged: sol.converged,
-        stop: format!("{:?}", sol.stop),
+        stop: sol.stop,
         relative_residual: sol.relative_residual,
         time_s: sol.cpu_time_s,
         psnr_db,
         mssim,
         normalization: truth.as_ref().map(|_| metrics::NORMALIZATION_RULE),
-        solver: opts,
+        solver: solver.tval3,
     };
     crate::report::json::write_json(&out.path("summary.json"), &summary)?;
     let dir = out.commit()?;
@@ -267,10 +291,10 @@ pub fn run(args: &ReconstructArgs) -> Result<()> {
         sol.forward_applications,
         sol.adjoint_applications,
         sol.cpu_time_s,
-        if sol.converged {
-            ""
-        } else {
-            " (stopped at the iteration cap)"
+        match sol.stop {
+            StopReason::Tolerance => " (converged: tolerance met)",
+            StopReason::MaxOuter => " (stopped after the last inner loop, tolerance not met)",
+            StopReason::MaxIterations => " (stopped at the iteration cap, tolerance not met)",
         }
     );
     if let (Some(p), Some(s)) = (psnr_db, mssim) {

@@ -4,10 +4,12 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::Result;
-use clap::Args;
+use clap::{Args, ValueEnum};
 use serde::Serialize;
 
 use crate::metrics::NORMALIZATION_RULE;
+use crate::reconstruction::ZeroOneHandling;
+use crate::reconstruction::tval3::StopReason;
 use crate::report::csv::write_csv;
 use crate::report::json::write_json;
 use crate::report::montage::{Montage, write_montage};
@@ -24,6 +26,18 @@ pub struct SimulateArgs {
     /// Output folder (created; files of the same name are replaced). Default: out/<experiment>.
     #[arg(long)]
     pub out: Option<PathBuf>,
+    /// How traditional (0/1) measurements are solved, overriding the experiment's `zero_one`:
+    /// zero-mean (the exactly equivalent zero-mean system) or plain (A = P, the paper's).
+    #[arg(long, value_enum)]
+    pub zero_one: Option<ZeroOneArg>,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum ZeroOneArg {
+    #[value(name = "zero-mean")]
+    ZeroMean,
+    #[value(name = "plain")]
+    Plain,
 }
 
 /// summary.json of `simulate`. Units: PSNR in dB, times in s, k± dimensionless, b± and noise
@@ -43,6 +57,8 @@ struct Summary<'a> {
     sampling_ratios: &'a [f64],
     dmd_rate_hz: f64,
     seed: u64,
+    /// How traditional (0/1) measurements were solved: "ZeroMean" or "Plain".
+    zero_one: ZeroOneHandling,
     /// How reconstructions were brought to the truth's scale before scoring.
     normalization: &'static str,
     /// Every cell: object × ratio × case.
@@ -62,7 +78,12 @@ struct NamedCurve<'a> {
 }
 
 pub fn run(args: &SimulateArgs) -> Result<()> {
-    let exp = experiment::load(&args.experiment)?;
+    let mut exp = experiment::load(&args.experiment)?;
+    match args.zero_one {
+        Some(ZeroOneArg::ZeroMean) => exp.zero_one = ZeroOneHandling::ZeroMean,
+        Some(ZeroOneArg::Plain) => exp.zero_one = ZeroOneHandling::Plain,
+        None => {}
+    }
     let stem = std::path::Path::new(&args.experiment)
         .file_stem()
         .map_or_else(
@@ -153,6 +174,7 @@ fn write_outputs(
         "iterations",
         "operator_applications",
         "converged",
+        "stop",
         "solver_time_s",
         "dmd_frames",
         "detector_samples",
@@ -180,6 +202,7 @@ fn write_outputs(
                 c.iterations.to_string(),
                 c.operator_applications.to_string(),
                 c.converged.to_string(),
+                format!("{:?}", c.stop),
                 format!("{:.4}", c.solver_time_s),
                 c.dmd_frames.to_string(),
                 c.detector_samples.to_string(),
@@ -259,6 +282,7 @@ fn write_outputs(
         sampling_ratios: &exp.sampling_ratios,
         dmd_rate_hz: exp.dmd_rate_hz,
         seed: exp.seed,
+        zero_one: exp.zero_one,
         normalization: NORMALIZATION_RULE,
         cells: &res.cells,
         curves,
@@ -374,7 +398,11 @@ fn print_table(exp: &Experiment, cells: &[Cell]) {
             c.psnr_db,
             c.mssim,
             c.iterations,
-            if c.converged { "" } else { " (iteration cap)" }
+            match c.stop {
+                StopReason::Tolerance => "",
+                StopReason::MaxOuter => " (inner-loop cap)",
+                StopReason::MaxIterations => " (iteration cap)",
+            }
         );
     }
 }

@@ -315,7 +315,10 @@ mod tests {
                 let [(pm, pm_db, _), (plain, plain_db, _), (zm, zm_db, _)] = three(&truth, &set);
                 let what = format!("{name}, {m} of {n}");
                 if m == n {
-                    assert!(pm_db > 60.0 && zm_db > 60.0, "{what}: ±1 {pm_db:.2} dB, zero-mean {zm_db:.2} dB");
+                    assert!(
+                        pm_db > 60.0 && zm_db > 60.0,
+                        "{what}: ±1 {pm_db:.2} dB, zero-mean {zm_db:.2} dB"
+                    );
                 } else {
                     assert!(
                         zm_db > pm_db - 1.0,
@@ -327,8 +330,16 @@ mod tests {
                     "{what}: plain 0/1 {plain_db:.2} dB vs zero-mean {zm_db:.2} dB"
                 );
                 // The residual is reported on the measurements as given.
-                assert!(zm.relative_residual < 1e-2, "{what}: {}", zm.relative_residual);
-                assert!(pm.relative_residual < 1e-2, "{what}: {}", pm.relative_residual);
+                assert!(
+                    zm.relative_residual < 1e-2,
+                    "{what}: {}",
+                    zm.relative_residual
+                );
+                assert!(
+                    pm.relative_residual < 1e-2,
+                    "{what}: {}",
+                    pm.relative_residual
+                );
                 assert!(plain.iterations >= zm.iterations, "{what}");
                 for s in [&pm, &plain, &zm] {
                     assert_eq!(s.converged, s.stop == StopReason::Tolerance);

@@ -25,6 +25,7 @@ use serde::Deserialize;
 use crate::acquisition::{AdditiveNoise, HadamardOrdering, ScalarArms, Scheme};
 use crate::error::{Error, Result};
 use crate::objects::ObjectSpec;
+use crate::reconstruction::ZeroOneHandling;
 use crate::reconstruction::tval3::Tval3Options;
 
 /// The largest image an experiment may ask for, in pattern units (a 1024×1024 grid: the whole
@@ -53,6 +54,11 @@ pub struct ExperimentFile {
     /// TVAL3 options; unset fields take TVAL3's defaults.
     #[serde(default)]
     pub solver: Tval3Options,
+    /// How traditional (0/1) measurements are solved: `ZeroMean` (the default, the exactly
+    /// equivalent zero-mean system, which converges like the ±1 schemes) or `Plain` (A = P as
+    /// measured, the paper's handling). The ±1 schemes are not affected.
+    #[serde(default)]
+    pub zero_one: ZeroOneHandling,
     /// DMD binary pattern rate used for acquisition times, Hz (22 727 Hz = 44 µs frames).
     #[serde(default = "default_dmd_rate")]
     pub dmd_rate_hz: f64,
@@ -262,6 +268,7 @@ pub struct Experiment {
     pub sampling_ratios: Vec<f64>,
     pub cases: Vec<Case>,
     pub solver: Tval3Options,
+    pub zero_one: ZeroOneHandling,
     pub dmd_rate_hz: f64,
     pub seed: u64,
     pub montage: Option<MontageSpec>,
@@ -474,6 +481,7 @@ fn validate(f: ExperimentFile, base_dir: &Path) -> Result<Experiment> {
         sampling_ratios: f.sampling_ratios.iter().map(|r| r.0).collect(),
         cases,
         solver: f.solver,
+        zero_one: f.zero_one,
         dmd_rate_hz: f.dmd_rate_hz,
         seed: f.seed,
         montage: f.montage,

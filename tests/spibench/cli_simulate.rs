@@ -178,3 +178,50 @@ fn built_in_experiments_parse() {
         spibench::scene::experiment::load(name).unwrap_or_else(|e| panic!("{name}: {e}"));
     }
 }
+
+/// `simulate` runs traditional cells with either handling of the 0/1 system: the experiment's
+/// default (zero-mean) and `--zero-one plain`; the ±1 cells are the same either way, and each
+/// cell reports its stop reason consistently with `converged`.
+#[test]
+fn simulate_runs_both_zero_one_handlings() {
+    let dir = TempDir::new("sim-01");
+    let file = dir.join("small.ron");
+    std::fs::write(&file, SMALL).unwrap();
+    let mut summaries = Vec::new();
+    for (name, extra) in [("zero-mean", None), ("plain", Some("plain"))] {
+        let out = dir.join(name);
+        let mut args = vec![
+            "simulate",
+            file.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ];
+        if let Some(z) = extra {
+            args.extend(["--zero-one", z]);
+        }
+        let o = spibench(&args, &[]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let s = read_json(&out.join("summary.json"));
+        let want = if name == "plain" { "Plain" } else { "ZeroMean" };
+        assert_eq!(s["zero_one"], want, "{s}");
+        for c in s["cells"].as_array().unwrap() {
+            let traditional = c["scheme"] == "traditional";
+            assert_eq!(c["zero_one_handling"].is_null(), !traditional, "{c}");
+            if traditional {
+                assert_eq!(c["zero_one_handling"], want);
+            }
+            assert_eq!(
+                c["converged"].as_bool().unwrap(),
+                c["stop"] == "Tolerance",
+                "{c}"
+            );
+        }
+        summaries.push(s);
+    }
+    let (a, b) = (&summaries[0]["cells"], &summaries[1]["cells"]);
+    for i in 0..a.as_array().unwrap().len() {
+        if a[i]["scheme"] != "traditional" {
+            assert_eq!(a[i]["psnr_db"], b[i]["psnr_db"], "cell {i}");
+        }
+    }
+}
