@@ -14,6 +14,19 @@ detector's directions find a small filament through the bench (hours for 0.1 %),
 with an `irradiancemeter` is wrong (mitsuba-notes.md). The `path` integrator is still used for
 the closed-form and spectral cases (run_references.py), where it is efficient.
 
+Position independence: Mitsuba pushes the start of every new segment off the surface by about
+(1 + max|p|) x 8.9e-5 in scene units (its RayEpsilon scaled by the largest coordinate), so in
+millimetres 18 um at 200 mm from the origin and 90 um at 1 m. That offset is a physical error for
+a lens (a ray refracted at the front surface starts 18 um along the normal, not on the surface):
+lens_focus, with its lens at z = 200 mm, read 0.1 % lower than the same case at the origin, and a
+lens at 1 m 3.5 % lower. `load` therefore re-centres every case before tracing: it appends a
+translation to every shape's to_world that puts the centre of the scene's bounding box at the
+origin (and moves the lamp frame of the manifest with it), so the offset is that of a bench of
+the case's own size, whatever coordinates the bench file uses. The translation is exact for the
+analytic shapes (disks) and rounds each mesh vertex once, to float32 (about 1e-5 mm at 200 mm),
+far below any tolerance. `check_translation` (run_references.py --check-translation) verifies
+that a case moved by +-200 mm gives the same answer.
+
 Standard errors: the per-ray scores are independent, so se = std(score) / sqrt(N) (accumulated
 in float64 over passes of `--rays-per-pass` rays).
 """
@@ -22,14 +35,38 @@ import json
 import math
 import os
 import sys
+import tempfile
+import xml.etree.ElementTree as ET
 
 import numpy as np
 
 
-def load(scene_dir, variant="llvm_ad_mono"):
+def translate_scene(scene_dir, out_dir, shift_mm):
+    """Copies the exported case in `scene_dir` to `out_dir` with every shape translated by
+    `shift_mm` (a translation appended to each shape's to_world, so applied after the shape's own
+    transform) and the manifest's lamp origin moved with it. Mesh files are linked, not copied."""
+    tree = ET.parse(os.path.join(scene_dir, "scene.xml"))
+    value = " ".join(f"{float(c):.9e}" for c in shift_mm)
+    for shape in tree.getroot().iter("shape"):
+        tf = shape.find("transform[@name='to_world']")
+        if tf is None:
+            tf = ET.Element("transform", {"name": "to_world"})
+            shape.insert(0, tf)
+        ET.SubElement(tf, "translate", {"value": value})
+    tree.write(os.path.join(out_dir, "scene.xml"))
+    with open(os.path.join(scene_dir, "manifest.json")) as f:
+        manifest = json.load(f)
+    manifest["lamp"]["origin_mm"] = [o + d for o, d in zip(manifest["lamp"]["origin_mm"], shift_mm)]
+    with open(os.path.join(out_dir, "manifest.json"), "w") as f:
+        json.dump(manifest, f)
+    for name in os.listdir(scene_dir):
+        if name not in ("scene.xml", "manifest.json"):
+            os.symlink(os.path.join(os.path.abspath(scene_dir), name), os.path.join(out_dir, name))
+
+
+def _load_file(scene_dir):
     import mitsuba as mi
 
-    mi.set_variant(variant)
     with open(os.path.join(scene_dir, "manifest.json")) as f:
         manifest = json.load(f)
     cwd = os.getcwd()
@@ -39,6 +76,34 @@ def load(scene_dir, variant="llvm_ad_mono"):
     finally:
         os.chdir(cwd)
     return scene, manifest
+
+
+def load(scene_dir, variant="llvm_ad_mono", recentre=True, offset_mm=(0.0, 0.0, 0.0)):
+    """Loads an exported case. With `recentre`, the scene is translated so that the centre of
+    its bounding box sits at `offset_mm` (the origin by default; the module documentation says
+    why). Returns (scene, manifest, shift_mm)."""
+    import mitsuba as mi
+
+    mi.set_variant(variant)
+    scene, manifest = _load_file(scene_dir)
+    if not recentre:
+        return scene, manifest, [0.0, 0.0, 0.0]
+    bbox = scene.bbox()
+    centre = [0.5 * (float(bbox.min[i]) + float(bbox.max[i])) for i in range(3)]
+    shift = [offset_mm[i] - centre[i] for i in range(3)]
+    with tempfile.TemporaryDirectory() as tmp:
+        translate_scene(scene_dir, tmp, shift)
+        scene, manifest = _load_file(tmp)
+    return scene, manifest, shift
+
+
+def pass_seed(seed, pass_index):
+    """The 32-bit sampler seed of one pass: SplitMix64 of (seed, pass) (Mitsuba's sampler seed is
+    32-bit, so the old `seed * 1_000_003 + pass` overflowed for seeds >= 4295)."""
+    z = ((seed << 32) + pass_index + 0x9E3779B97F4A7C15) & 0xFFFFFFFFFFFFFFFF
+    z = ((z ^ (z >> 30)) * 0xBF58476D1CE4E5B9) & 0xFFFFFFFFFFFFFFFF
+    z = ((z ^ (z >> 27)) * 0x94D049BB133111EB) & 0xFFFFFFFFFFFFFFFF
+    return (z ^ (z >> 31)) & 0xFFFFFFFF
 
 
 def trace(scene, manifest, rays, seed, rays_per_pass=1 << 20, max_depth=None):
@@ -67,7 +132,7 @@ def trace(scene, manifest, rays, seed, rays_per_pass=1 << 20, max_depth=None):
     while done < rays:
         n = int(min(rays_per_pass, rays - done))
         sampler = mi.load_dict({"type": "independent"})
-        sampler.seed(seed * 1_000_003 + pass_index, n)
+        sampler.seed(pass_seed(seed, pass_index), n)
         # Position on the filament.
         p2 = sampler.next_2d()
         if shape["type"] == "rect":
@@ -132,6 +197,6 @@ def trace(scene, manifest, rays, seed, rays_per_pass=1 << 20, max_depth=None):
 
 if __name__ == "__main__":
     scene_dir, rays, seed = sys.argv[1], int(float(sys.argv[2])), int(sys.argv[3])
-    scene, manifest = load(scene_dir)
+    scene, manifest, _ = load(scene_dir)
     res, n = trace(scene, manifest, rays, seed)
     print(json.dumps({"rays": n, "plus": res[0], "minus": res[1]}))

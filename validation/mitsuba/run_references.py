@@ -56,7 +56,7 @@ CASES = [
          rays=2e7, what="arm - misaligned (imbalance), every unit in state -"),
     dict(name="ghost_plate", bench=C + "ghost_plate.ron", pattern="all-plus", rays=1e7,
          what="tilted glass plate: the - diode sees only its surface reflections"),
-    dict(name="paper_bench", bench="scenes/paper_bench.ron", pattern="random:5", rays=1e8,
+    dict(name="paper_bench", bench="scenes/paper_bench.ron", pattern="random:5", rays=5e8,
          what="the full paper bench (850 nm substitute), random pattern"),
     dict(name="paper_all_plus", bench="scenes/paper_bench.ron", pattern="all-plus", rays=4e7,
          what="the full paper bench (850 nm substitute), every unit in state + (off-arm leak)"),
@@ -76,84 +76,67 @@ def export(spibench, case, out, spectral=False):
         return json.load(f)
 
 
-def render_forward(case, scene_dir, seed):
+def render_forward(case, scene_dir, seed, recentre=True, offset_mm=(0.0, 0.0, 0.0)):
     import forward
 
-    scene, manifest = forward.load(scene_dir, "llvm_ad_mono")
+    scene, manifest, shift = forward.load(scene_dir, "llvm_ad_mono", recentre=recentre,
+                                          offset_mm=offset_mm)
     res, n = forward.trace(scene, manifest, int(case["rays"]), seed)
-    return res, dict(variant="llvm_ad_mono", method="forward light tracer (forward.py)",
-                     samples=n)
+    return res, dict(variant="llvm_ad_mono",
+                     method="forward light tracer (forward.py), re-centred" if recentre
+                     else "forward light tracer (forward.py)",
+                     samples=n, shift_mm=[round(x, 6) for x in shift])
 
 
-def render_spectral(case, scene_dir, seed):
-    import drjit as dr
-    import mitsuba as mi
-    import numpy as np
+# The harness check of position independence: a case moved by this much along each axis sign.
+TRANSLATION_MM = 200.0
+# |value(moved) - value(centred)| must stay below this many standard errors of the centred
+# value. Both renders use the same seed, so the same rays: the difference measures the position
+# dependence alone, not sampling noise (before re-centring, lens_focus moved by 200 mm read
+# 0.1 %, about 2.3 standard errors of its 3e7-ray reference, lower).
+TRANSLATION_TOLERANCE_SE = 1.5
 
-    mi.set_variant("llvm_ad_spectral")
-    with open(os.path.join(scene_dir, "manifest.json")) as f:
-        m = json.load(f)
-    lamp = m["lamp"]
-    sp = lamp["spectrum"]
-    b0, b1 = m["band_nm"]
 
-    def to_world(o, u, v, w, s):
-        return mi.ScalarTransform4f(
-            [[u[0] * s, v[0] * s, w[0], o[0]], [u[1] * s, v[1] * s, w[1], o[1]],
-             [u[2] * s, v[2] * s, w[2], o[2]], [0, 0, 0, 1]])
+def check_translation(spibench, names, scale, recentre=True):
+    """Moves each named forward case by +-TRANSLATION_MM along z and along x (every exported
+    shape and the lamp, as if the bench file placed the bench elsewhere), renders it as the
+    references are rendered, and checks that the answer moves by less than
+    TRANSLATION_TOLERANCE_SE standard errors. Returns True when every comparison passes.
+    With recentre=False it shows the old behaviour (each case traced where it sits), which
+    fails: lens_focus moved by 200 mm read 0.08-0.11 % lower (z = -1.8 to -2.5 at 3e7 rays)."""
+    import forward
 
-    # Scene units: metres here, so that the blackbody's W m^-2 sr^-1 nm^-1 needs no scaling.
-    mm = 1e-3
-    o = [x * mm for x in lamp["origin_mm"]]
-    emitter = {
-        "type": "disk",
-        "to_world": to_world(o, lamp["u"], lamp["v"], lamp["w"],
-                             lamp["shape"]["radius_mm"] * mm),
-        "bsdf": {"type": "diffuse", "reflectance": 0.0},
-        "emitter": {"type": "area", "radiance": {
-            "type": "blackbody", "temperature": sp["temperature_k"],
-            "wavelength_min": b0, "wavelength_max": b1}},
-    }
-    results = []
-    for d in m["detectors"]:
-        table = d["responsivity_table_nm_a_per_w"]
-        c = [x * mm for x in d["center_mm"]]
-        n = d["normal"]
-        nv = np.array(n, dtype=float)
-        helper = np.array([1.0, 0, 0]) if abs(nv[0]) < 0.9 else np.array([0, 1.0, 0])
-        su = helper - helper.dot(nv) * nv
-        su /= np.linalg.norm(su)
-        sv = np.cross(nv, su)
-        srf = {"type": "irregular",
-               "wavelengths": ", ".join(f"{t[0]:.6f}" for t in table),
-               "values": ", ".join(f"{t[1]:.6f}" for t in table)}
-        vals = []
-        for k in range(case["renders"]):
-            scene = mi.load_dict({
-                "type": "scene",
-                "integrator": {"type": "path", "max_depth": 8, "rr_depth": 8},
-                "lamp": emitter,
-                "det": {
-                    "type": "disk",
-                    "to_world": to_world(c, list(su), list(sv), list(nv), d["radius_mm"] * mm),
-                    "bsdf": {"type": "diffuse", "reflectance": 0.0},
-                    "sensor": {
-                        "type": "irradiancemeter",
-                        "sampler": {"type": "independent", "sample_count": case["spp"],
-                                    "seed": seed * 1000 + k},
-                        "film": {"type": "specfilm", "width": 1, "height": 1,
-                                 "rfilter": {"type": "box"}, "srf": srf},
-                    },
-                },
-            })
-            img = np.array(mi.render(scene), dtype=np.float64).ravel()
-            area_m2 = math.pi * (d["radius_mm"] * mm) ** 2
-            vals.append(float(img[0]) * area_m2 * sp["emissivity"])
-        vals = np.array(vals)
-        results.append((float(vals.mean()), float(vals.std(ddof=1) / math.sqrt(len(vals)))))
-    return results, dict(variant="llvm_ad_spectral",
-                         method="path integrator + irradiancemeter + specfilm (SRF = responsivity)",
-                         samples=case["renders"] * case["spp"])
+    ok = True
+    for i, case in enumerate(CASES):
+        if case["name"] not in names or case.get("method", "forward") != "forward":
+            continue
+        case = dict(case)
+        case["rays"] = int(case["rays"] * scale)
+        seed = 1000 + i
+        with tempfile.TemporaryDirectory() as tmp:
+            export(spibench, case, tmp)
+            base, _ = render_forward(case, tmp, seed, recentre=recentre)
+            for axis in (2, 0):
+                for sign in (1.0, -1.0):
+                    d = [0.0, 0.0, 0.0]
+                    d[axis] = sign * TRANSLATION_MM
+                    with tempfile.TemporaryDirectory() as moved:
+                        forward.translate_scene(tmp, moved, d)
+                        res, _ = render_forward(case, moved, seed, recentre=recentre)
+                    for k, diode in enumerate(("plus", "minus")):
+                        (v0, se0), (v1, _) = base[k], res[k]
+                        if se0 == 0.0:
+                            z = 0.0 if v1 == v0 else math.inf
+                        else:
+                            z = (v1 - v0) / se0
+                        passed = abs(z) < TRANSLATION_TOLERANCE_SE
+                        ok &= passed
+                        print(json.dumps({"check": "translation", "case": case["name"],
+                                          "diode": diode, "moved_mm": d, "base": v0,
+                                          "moved": v1, "se": se0, "z": round(z, 3),
+                                          "rel": (v1 - v0) / v0 if v0 else 0.0,
+                                          "pass": passed}), flush=True)
+    return ok
 
 
 def main():
@@ -162,9 +145,22 @@ def main():
     ap.add_argument("--only", nargs="*", default=None)
     ap.add_argument("--scale", type=float, default=1.0, help="multiply every ray count")
     ap.add_argument("--out", default=os.path.join(HERE, "references.json"))
+    ap.add_argument("--check-translation", nargs="*", default=None, metavar="CASE",
+                    help="instead of rendering references, check that moving these cases "
+                         f"(default lens_focus, paper_bench) by +-{TRANSLATION_MM:g} mm leaves "
+                         "Mitsuba's answer unchanged; exit status 1 if not")
+    ap.add_argument("--no-recentre", action="store_true",
+                    help="with --check-translation: trace where the bench file puts the case "
+                         "(the old behaviour), to see the check fail")
     args = ap.parse_args()
     import drjit
     import mitsuba
+
+    if args.check_translation is not None:
+        names = args.check_translation or ["lens_focus", "paper_bench"]
+        ok = check_translation(args.spibench, names, args.scale, recentre=not args.no_recentre)
+        print("translation check:", "pass" if ok else "FAIL")
+        sys.exit(0 if ok else 1)
 
     refs = {"cases": []}
     if os.path.exists(args.out):
@@ -205,6 +201,8 @@ def main():
             "variant": info["variant"],
             "render_seconds": round(seconds, 1),
         }
+        if "shift_mm" in info:
+            entry["recentre_shift_mm"] = info["shift_mm"]
         if "closed_form" in case:
             entry["closed_form"] = case["closed_form"]
         by_name[case["name"]] = entry
