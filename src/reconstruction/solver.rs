@@ -272,7 +272,7 @@ mod tests {
             );
             out.push((sol, p, s));
         }
-        out.try_into().ok().expect("three solutions")
+        out.try_into().expect("three solutions")
     }
 
     /// Traditional CS solved on the zero-mean system comes within 1 dB of single-arm
