@@ -22,8 +22,8 @@
 //! at most `TIGHT_REL` = 0.4 %: about 3 combined standard errors of at most
 //! √(0.1² + 0.1²) = 0.14 %. Today that is lens_focus (a lens 200 mm from the bench file's
 //! origin, reference ±0.044 %); paper_bench joins it when its reference is re-rendered at the
-//! 5e8 rays run_references.py now asks for (±0.09 %; the file still holds the 1e8-ray render,
-//! ±0.21 %, made before re-centring).
+//! 5e8 rays run_references.py now asks for (±0.09 %; the file holds a re-centred 1e8-ray
+//! render, ±0.21 %).
 
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
