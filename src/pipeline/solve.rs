@@ -11,7 +11,7 @@ use crate::metrics;
 use crate::metrics::resolution::{ChartToImage, ResolutionOptions, read_resolution};
 use crate::objects::usaf::UsafChart;
 use crate::raster::Raster;
-use crate::reconstruction::tval3::{self, Tval3Options};
+use crate::reconstruction::Solver;
 
 /// A resolved USAF element and its spatial frequency on the chart.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
@@ -129,7 +129,10 @@ pub struct SchemeResult {
     pub normalization_gain: f64,
     pub normalization_offset: f64,
     pub iterations: usize,
+    /// True only when the solver met its tolerance (see `stop`).
     pub converged: bool,
+    /// Why the solver stopped: its tolerance, or an iteration cap.
+    pub stop: crate::reconstruction::StopReason,
     pub relative_residual: f64,
     /// True when an output this scheme read was clipped at its swing, or its oscilloscope
     /// channel over range, in a frame it used: the result is not trustworthy.
@@ -146,7 +149,7 @@ pub struct SchemeResult {
 }
 
 /// The solve stage: for every scheme × sampling ratio of `schemes` and `ratios` (scheme-major),
-/// forms the scheme's measurements from its record, reconstructs them with TVAL3 and scores
+/// forms the scheme's measurements from its record, reconstructs them with `solver` and scores
 /// the reconstruction against `truth` (and reads its USAF resolution when `resolution` is
 /// given). Cells run in parallel and are collected in order.
 pub fn solve_stage(
@@ -154,7 +157,7 @@ pub fn solve_stage(
     schemes: &[Scheme],
     ratios: &[f64],
     truth: &Raster,
-    solver: &Tval3Options,
+    solver: &Solver,
     resolution: Option<&ResolutionContext>,
     progress: Progress,
 ) -> Result<Vec<SchemeResult>> {
@@ -184,7 +187,7 @@ pub fn solve_stage(
                 rec.clipped_frames(o.index(), frames) + rec.over_range_frames(o.index(), frames) > 0
             });
             let op = set.operator(scheme.form());
-            let sol = tval3::tval3(op.as_ref(), &y, across, down, solver)?;
+            let sol = solver.solve(op.as_ref(), &y, across, down, scheme.form())?;
             let scores = metrics::score(truth, &sol.image)?;
             let finest_resolved = match resolution {
                 Some(c) => finest(
@@ -208,6 +211,7 @@ pub fn solve_stage(
                 normalization_offset: scores.offset,
                 iterations: sol.iterations,
                 converged: sol.converged,
+                stop: sol.stop,
                 relative_residual: sol.relative_residual,
                 saturated,
                 solver_time_s: sol.cpu_time_s,

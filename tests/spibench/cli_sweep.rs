@@ -140,7 +140,8 @@ fn two_dimensional_sweeps_and_bad_paths() {
 /// `tests/fixtures/run_default_seed1_summary.json` (written by this version at 300 000 rays),
 /// apart from timings and keys added later. The pipeline refactor into stages was checked this
 /// way against the output before it (identical apart from added keys); the pin keeps every
-/// later change to a traced or reconstructed number deliberate.
+/// later change to a traced or reconstructed number deliberate. Re-pinned when `converged`
+/// came to mean "met the tolerance" (every cell here stops at the outer-iteration cap).
 #[test]
 fn run_summary_of_the_default_bench_is_pinned() {
     let dir = TempDir::new("run-pin");
