@@ -99,7 +99,7 @@ pub struct SweepPoint {
     pub settings: Vec<(String, f64)>,
     pub metrics: BenchMetrics,
     /// The balanced detector's common-mode rejection (dB) from its electronics section (not
-    /// traced; infinite for matched diodes); None for a bench that cannot run (no DMD).
+    /// traced; infinite for matched diodes); None when the electronics are invalid.
     pub cmrr_db: Option<f64>,
     pub arrivals: u64,
     /// With `quality`: every scheme × ratio of the bench's `run` settings.
@@ -186,7 +186,10 @@ pub fn sweep(
 
 fn point(doc: &BenchDoc, settings: Vec<(String, f64)>, o: &SweepOptions) -> Result<SweepPoint> {
     let req = TraceRequest::new(o.rays, o.seed);
-    let cmrr_db = doc.run_scene().ok().map(|s| s.detector.cmrr_db());
+    // The electronics alone (no bench build): the detector's CMRR is not traced.
+    let cmrr_db = crate::scene::run::detector_si(&doc.file.electronics.detector)
+        .ok()
+        .map(|d| d.cmrr_db());
     let quiet: Progress = &|_, _, _| {};
     let (traced, quality): (Traced, _) = if o.quality {
         let scene = doc.run_scene()?;

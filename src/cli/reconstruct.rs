@@ -10,7 +10,7 @@ use crate::error::Error;
 use crate::metrics;
 use crate::raster::Raster;
 use crate::reconstruction::tval3::{StopReason, Tval3Options};
-use crate::reconstruction::{BitMatrix, PackedOperator, PatternForm, Solver, ZeroOneHandling};
+use crate::reconstruction::{BitMatrix, PackedOperator, PatternForm, Solver};
 use crate::report::npy::{self, NpyData};
 use crate::report::output::OutputDir;
 
@@ -22,17 +22,6 @@ pub enum FormArg {
     /// The measurements are (2P − 1)·x (a complementary or balanced difference).
     #[value(name = "pm1")]
     PlusMinusOne,
-}
-
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum ZeroOneArg {
-    /// Solve the exactly equivalent zero-mean system with the DC row down-weighted (converges
-    /// like the ±1 schemes).
-    #[value(name = "zero-mean")]
-    ZeroMean,
-    /// Solve A = P as measured (the paper's handling; slow: the DC singular value).
-    #[value(name = "plain")]
-    Plain,
 }
 
 #[derive(Debug, Args)]
@@ -52,7 +41,7 @@ pub struct ReconstructArgs {
     pub form: FormArg,
     /// With --form 01: how the 0/1 system is solved.
     #[arg(long, value_enum, default_value = "zero-mean")]
-    pub zero_one: ZeroOneArg,
+    pub zero_one: super::ZeroOneArg,
     /// Ground truth (float64, H×W or N values) to score PSNR and MSSIM against.
     #[arg(long)]
     pub truth: Option<PathBuf>,
@@ -228,11 +217,7 @@ pub fn run(args: &ReconstructArgs) -> Result<()> {
         FormArg::PlusMinusOne => PatternForm::PlusMinusOne,
     };
     let out = OutputDir::create(args.out.as_deref().unwrap_or(Path::new("out/reconstruct")))?;
-    let zero_one = match args.zero_one {
-        ZeroOneArg::ZeroMean => ZeroOneHandling::ZeroMean,
-        ZeroOneArg::Plain => ZeroOneHandling::Plain,
-    };
-    let solver = Solver::new(opts, zero_one);
+    let solver = Solver::new(opts, args.zero_one.into());
     let op = PackedOperator::new(patterns, form);
     let sol = solver.solve(&op, &y, w, h, form)?;
 
@@ -269,7 +254,7 @@ pub fn run(args: &ReconstructArgs) -> Result<()> {
             PatternForm::PlusMinusOne => "pm1",
         },
         patterns_encoding: encoding,
-        zero_one_handling: (form == PatternForm::ZeroOne).then(|| zero_one.name()),
+        zero_one_handling: (form == PatternForm::ZeroOne).then(|| solver.zero_one.name()),
         iterations: sol.iterations,
         forward_applications: sol.forward_applications,
         adjoint_applications: sol.adjoint_applications,

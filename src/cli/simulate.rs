@@ -4,7 +4,7 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::Result;
-use clap::{Args, ValueEnum};
+use clap::Args;
 use serde::Serialize;
 
 use crate::metrics::NORMALIZATION_RULE;
@@ -29,15 +29,7 @@ pub struct SimulateArgs {
     /// How traditional (0/1) measurements are solved, overriding the experiment's `zero_one`:
     /// zero-mean (the exactly equivalent zero-mean system) or plain (A = P, the paper's).
     #[arg(long, value_enum)]
-    pub zero_one: Option<ZeroOneArg>,
-}
-
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum ZeroOneArg {
-    #[value(name = "zero-mean")]
-    ZeroMean,
-    #[value(name = "plain")]
-    Plain,
+    pub zero_one: Option<super::ZeroOneArg>,
 }
 
 /// summary.json of `simulate`. Units: PSNR in dB, times in s, k± dimensionless, b± and noise
@@ -79,10 +71,8 @@ struct NamedCurve<'a> {
 
 pub fn run(args: &SimulateArgs) -> Result<()> {
     let mut exp = experiment::load(&args.experiment)?;
-    match args.zero_one {
-        Some(ZeroOneArg::ZeroMean) => exp.zero_one = ZeroOneHandling::ZeroMean,
-        Some(ZeroOneArg::Plain) => exp.zero_one = ZeroOneHandling::Plain,
-        None => {}
+    if let Some(z) = args.zero_one {
+        exp.zero_one = z.into();
     }
     let stem = std::path::Path::new(&args.experiment)
         .file_stem()

@@ -208,9 +208,6 @@ fn print_table(s: &Sweep) {
         line += &format!(" {h:>22}");
     }
     println!("{line}");
-    fn get<'p>(p: &'p SweepPoint, n: &str) -> Option<&'p crate::transport::metrics::Metric> {
-        p.metrics.get(n)
-    }
     for p in &s.points {
         let mut line = p
             .settings
@@ -223,7 +220,7 @@ fn print_table(s: &Sweep) {
             ("k_plus", false),
             ("k_minus", false),
         ] {
-            let (Some(a), Some(b)) = (get(p, n), get(&s.nominal, n)) else {
+            let (Some(a), Some(b)) = (p.metrics.get(n), s.nominal.metrics.get(n)) else {
                 continue;
             };
             let e = if diff { a.diff(b) } else { a.estimate() };

@@ -39,7 +39,7 @@ impl CacheKey {
         h.update(b"spibench trace cache\n");
         h.update(env!("CARGO_PKG_VERSION").as_bytes());
         h.update([0]);
-        h.update(crate::scene::doc::to_ron(&file).as_bytes());
+        h.update(crate::scene::doc::to_ron(&file)?.as_bytes());
         for el in &file.elements {
             if let ElementSpec::Chart {
                 pattern: ChartPatternSpec::Image { path, .. },

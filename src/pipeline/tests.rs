@@ -28,7 +28,7 @@ fn tallies(doc: &BenchDoc, rays: u64, seed: u64) -> Tallies {
 #[test]
 fn a_bench_written_out_and_read_back_traces_bit_identically() {
     let doc = paper();
-    let back = BenchDoc::parse(&doc.to_ron(), doc.path()).unwrap();
+    let back = BenchDoc::parse(&doc.to_ron().unwrap(), doc.path()).unwrap();
     assert_eq!(tallies(&doc, 20_000, 3), tallies(&back, 20_000, 3));
 }
 

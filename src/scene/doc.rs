@@ -105,7 +105,7 @@ impl BenchDoc {
 
     /// The bench as RON text (every field written, defaults filled in), which every command
     /// reads back into the identical bench.
-    pub fn to_ron(&self) -> String {
+    pub fn to_ron(&self) -> Result<String> {
         to_ron(&self.file)
     }
 
@@ -125,15 +125,17 @@ impl BenchDoc {
 }
 
 /// The canonical RON text of a bench file: every field written, in declaration order.
-pub fn to_ron(file: &BenchFile) -> String {
+pub fn to_ron(file: &BenchFile) -> Result<String> {
     let config = ron::ser::PrettyConfig::new()
         .struct_names(false)
         .indentor("    ".to_string())
         .separate_tuple_members(false)
         .enumerate_arrays(false);
     let body = ron::ser::to_string_pretty(file, config)
-        .expect("a BenchFile holds only finite numbers, strings and plain data");
-    format!("// A spibench bench file (millimetres and degrees), written by spibench.\n{body}\n")
+        .map_err(|e| Error::Numerical(format!("the bench cannot be written as RON: {e}")))?;
+    Ok(format!(
+        "// A spibench bench file (millimetres and degrees), written by spibench.\n{body}\n"
+    ))
 }
 
 #[cfg(test)]
@@ -156,11 +158,11 @@ mod tests {
                 .join("scenes")
                 .join(name);
             let doc = BenchDoc::read(&path).unwrap();
-            let text = doc.to_ron();
+            let text = doc.to_ron().unwrap();
             let back = BenchDoc::parse(&text, &path).unwrap();
             assert_eq!(back.file, doc.file, "{name}");
             // Written twice, the text is the same: the form is canonical.
-            assert_eq!(back.to_ron(), text, "{name}");
+            assert_eq!(back.to_ron().unwrap(), text, "{name}");
         }
     }
 
