@@ -167,7 +167,8 @@ fn run_cell(
         seed,
         exp.dmd_rate_hz,
     )?;
-    let solver = Solver::new(exp.solver.clone(), exp.zero_one);
+    let zero_one = case.scheme.zero_one().unwrap_or(exp.zero_one);
+    let solver = Solver::new(exp.solver.clone(), zero_one);
     let form = case.scheme.form();
     let sol = solver.solve(acq.operator.as_ref(), &acq.y, exp.width, exp.height, form)?;
     let norm = metrics::normalize_to_truth(&sol.image, truth)?;
@@ -193,7 +194,7 @@ fn run_cell(
         normalization_offset: norm.offset,
         iterations: sol.iterations,
         operator_applications: sol.forward_applications + sol.adjoint_applications,
-        zero_one_handling: (form == PatternForm::ZeroOne).then_some(exp.zero_one),
+        zero_one_handling: (form == PatternForm::ZeroOne).then_some(zero_one),
         converged: sol.converged,
         stop: sol.stop,
         relative_residual: sol.relative_residual,

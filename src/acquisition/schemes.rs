@@ -39,6 +39,32 @@
 //! paper's SCB needs), and recorded samples are numbered in that order: for the two-sample
 //! schemes, sample 2i belongs to P_i (or arm + of frame i) and sample 2i + 1 to 1 − P_i (or
 //! arm −). Noise draw t goes to sample t.
+//!
+//! # Two baselines a competent experimenter would use instead
+//!
+//! The paper compares SCB against traditional CS solved as measured and against uncalibrated
+//! double-arm detection. Two fairer baselines are schemes of their own:
+//!
+//! - **traditional CS, zero-mean solve** ([`Scheme::TraditionalZeroMean`]): the same frames and
+//!   samples as traditional CS, reconstructed through the exactly equivalent zero-mean ±1
+//!   system ([`crate::reconstruction::ZeroOneHandling::ZeroMean`]) instead of the 0/1 system
+//!   whose DC singular value stalls TVAL3;
+//! - **double-arm, calibrated** ([`Scheme::DoubleArmCalibrated`]): before the patterns the DMD
+//!   shows [`CALIBRATION_PAIRS`] pairs of all-on and all-off frames (counted in its frame
+//!   budget). Each arm's response is affine in the light it receives, V± = k±·(light) + b±,
+//!   whatever its gain, bias, dark current, ambient light or off-arm leak (a leak proportional
+//!   to the + light only changes the − arm's effective gain). Two points fix an affine map, so
+//!   with the averaged calibration values V₊(1), V₊(0), V₋(1), V₋(0) each arm is normalised to
+//!   the fraction of the object it sees, and
+//!
+//!   ```text
+//!   y_i = (V₊(P_i) − V₊(0)) / (V₊(1) − V₊(0)) − (V₋(P_i) − V₋(1)) / (V₋(0) − V₋(1))
+//!       = P_i·x/Σx − (Σx − P_i·x)/Σx = Â_i·x / Σx,
+//!   ```
+//!
+//!   a ±1 system with neither imbalance nor offset. What remains is the calibration's own noise
+//!   and any departure from an affine, uniform response (per-unit differences between the two
+//!   arms' transport maps on a traced bench).
 
 use std::fmt;
 use std::sync::Arc;
@@ -48,11 +74,17 @@ use serde::{Deserialize, Serialize};
 use super::noise::AdditiveNoise;
 use super::patterns::PatternSet;
 use crate::error::{Error, Result};
-use crate::reconstruction::{LinearOperator, PatternForm};
+use crate::reconstruction::{LinearOperator, PatternForm, ZeroOneHandling};
 
 /// The DMD pattern rate used for acquisition times unless told otherwise: one global reset per
 /// 44 µs (DLP7000 through a ViALUX controller; the paper's "up to 22 kHz"; bench-facts §0.6).
 pub const DEFAULT_DMD_RATE_HZ: f64 = 22_727.0;
+
+/// Pairs of all-on / all-off calibration frames the calibrated double-arm scheme shows before
+/// its patterns. Eight pairs average each calibration value over eight frames, so the
+/// calibration's noise is about a third of one frame's while costing 16 frames, under 14 % of
+/// the 5 % sampling budget (115 frames) of a 48 × 48 pattern and under 1 % at 100 %.
+pub const CALIBRATION_PAIRS: usize = 8;
 
 /// The frame sequences a DMD shows.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -62,6 +94,8 @@ pub enum Sequence {
     Base,
     /// P₁, 1 − P₁, P₂, 1 − P₂, …: a complementary pair back to back.
     Complementary,
+    /// [`CALIBRATION_PAIRS`] × (all on, all off), then P₁, P₂, …
+    CalibratedBase,
 }
 
 impl Sequence {
@@ -69,7 +103,17 @@ impl Sequence {
         match self {
             Sequence::Base => "base",
             Sequence::Complementary => "complementary",
+            Sequence::CalibratedBase => "calibrated_base",
         }
+    }
+
+    /// Every sequence, in the order records are kept.
+    pub fn all() -> [Sequence; 3] {
+        [
+            Sequence::Base,
+            Sequence::Complementary,
+            Sequence::CalibratedBase,
+        ]
     }
 
     /// Frames shown for `m` base patterns.
@@ -77,6 +121,15 @@ impl Sequence {
         match self {
             Sequence::Base => m,
             Sequence::Complementary => 2 * m,
+            Sequence::CalibratedBase => m + 2 * CALIBRATION_PAIRS,
+        }
+    }
+
+    /// Frames shown before the first pattern (calibration frames).
+    pub fn lead_frames(self) -> usize {
+        match self {
+            Sequence::CalibratedBase => 2 * CALIBRATION_PAIRS,
+            Sequence::Base | Sequence::Complementary => 0,
         }
     }
 }
@@ -104,10 +157,12 @@ impl Output {
     }
 }
 
-/// The four acquisition schemes of the paper (§2 and §3).
+/// The four acquisition schemes of the paper (§2 and §3), and two fairer baselines (module
+/// documentation).
 ///
 /// Experiment files spell them in snake_case: `traditional`, `single_arm_complementary`,
-/// `double_arm`, `secondary_complementary_balancing`.
+/// `double_arm`, `secondary_complementary_balancing`, `traditional_zero_mean`,
+/// `double_arm_calibrated`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
 // Files spell variants as Rust does (`CakeCutting`), the RON convention, or in snake_case
 // (`cake_cutting`), which is what JSON output and benches written by spibench use.
@@ -125,6 +180,12 @@ pub enum Scheme {
     /// Secondary complementary balancing: RF output over P then 1 − P, difference, Â.
     #[serde(alias = "secondary_complementary_balancing")]
     SecondaryComplementaryBalancing,
+    /// Traditional CS's frames and samples, solved through the zero-mean ±1 system.
+    #[serde(alias = "traditional_zero_mean")]
+    TraditionalZeroMean,
+    /// Double-arm with a two-point calibration of each arm from all-on / all-off frames.
+    #[serde(alias = "double_arm_calibrated")]
+    DoubleArmCalibrated,
 }
 
 /// The noise-free measurement as an affine function of the object:
@@ -137,13 +198,35 @@ pub struct AffineModel {
 }
 
 impl Scheme {
-    pub fn all() -> [Scheme; 4] {
+    /// The paper's four schemes followed by the two baselines.
+    pub fn all() -> [Scheme; 6] {
+        [
+            Scheme::Traditional,
+            Scheme::SingleArmComplementary,
+            Scheme::DoubleArm,
+            Scheme::SecondaryComplementaryBalancing,
+            Scheme::TraditionalZeroMean,
+            Scheme::DoubleArmCalibrated,
+        ]
+    }
+
+    /// The paper's four schemes.
+    pub fn paper() -> [Scheme; 4] {
         [
             Scheme::Traditional,
             Scheme::SingleArmComplementary,
             Scheme::DoubleArm,
             Scheme::SecondaryComplementaryBalancing,
         ]
+    }
+
+    /// How this scheme's 0/1 measurements must be solved, when the scheme fixes it
+    /// (`TraditionalZeroMean`); otherwise the solver's own setting applies.
+    pub fn zero_one(self) -> Option<ZeroOneHandling> {
+        match self {
+            Scheme::TraditionalZeroMean => Some(ZeroOneHandling::ZeroMean),
+            _ => None,
+        }
     }
 
     /// Name for plots and summaries.
@@ -153,6 +236,8 @@ impl Scheme {
             Scheme::SingleArmComplementary => "Single-arm complementary",
             Scheme::DoubleArm => "Double-arm dual-pixel",
             Scheme::SecondaryComplementaryBalancing => "Secondary complementary balancing",
+            Scheme::TraditionalZeroMean => "Traditional CS, zero-mean solve",
+            Scheme::DoubleArmCalibrated => "Double-arm, calibrated",
         }
     }
 
@@ -163,13 +248,15 @@ impl Scheme {
             Scheme::SingleArmComplementary => "single_arm_complementary",
             Scheme::DoubleArm => "double_arm",
             Scheme::SecondaryComplementaryBalancing => "secondary_complementary_balancing",
+            Scheme::TraditionalZeroMean => "traditional_zero_mean",
+            Scheme::DoubleArmCalibrated => "double_arm_calibrated",
         }
     }
 
     /// How the base patterns enter the reconstruction operator.
     pub fn form(self) -> PatternForm {
         match self {
-            Scheme::Traditional => PatternForm::ZeroOne,
+            Scheme::Traditional | Scheme::TraditionalZeroMean => PatternForm::ZeroOne,
             _ => PatternForm::PlusMinusOne,
         }
     }
@@ -181,19 +268,19 @@ impl Scheme {
 
     /// Detector samples recorded for `m` base patterns.
     pub fn detector_samples(self, m: usize) -> usize {
-        match self {
-            Scheme::Traditional => m,
-            _ => 2 * m,
-        }
+        self.dmd_frames(m) * self.outputs().len()
     }
 
     /// The frame sequence the scheme's DMD shows.
     pub fn sequence(self) -> Sequence {
         match self {
-            Scheme::Traditional | Scheme::DoubleArm => Sequence::Base,
+            Scheme::Traditional | Scheme::TraditionalZeroMean | Scheme::DoubleArm => {
+                Sequence::Base
+            }
             Scheme::SingleArmComplementary | Scheme::SecondaryComplementaryBalancing => {
                 Sequence::Complementary
             }
+            Scheme::DoubleArmCalibrated => Sequence::CalibratedBase,
         }
     }
 
@@ -201,8 +288,12 @@ impl Scheme {
     /// schemes, both monitors for double-arm, the balanced RF output for SCB.
     pub fn outputs(self) -> &'static [Output] {
         match self {
-            Scheme::Traditional | Scheme::SingleArmComplementary => &[Output::MonitorPlus],
-            Scheme::DoubleArm => &[Output::MonitorPlus, Output::MonitorMinus],
+            Scheme::Traditional | Scheme::TraditionalZeroMean | Scheme::SingleArmComplementary => {
+                &[Output::MonitorPlus]
+            }
+            Scheme::DoubleArm | Scheme::DoubleArmCalibrated => {
+                &[Output::MonitorPlus, Output::MonitorMinus]
+            }
             Scheme::SecondaryComplementaryBalancing => &[Output::Rf],
         }
     }
@@ -216,15 +307,20 @@ impl Scheme {
     /// | single-arm complementary | V₊(P_i) − V₊(1 − P_i) |
     /// | double-arm dual-pixel | V₊(P_i) − V₋(P_i) |
     /// | secondary complementary balancing | V_rf(P_i) − V_rf(1 − P_i) |
+    /// | traditional CS, zero-mean solve | V₊(P_i) |
+    /// | double-arm, calibrated | two-point normalised V₊(P_i) − V₋(P_i) (module documentation) |
     pub fn measurements(self, frames: &[[f64; 3]], m: usize) -> Vec<f64> {
         let (rf, mp, mm) = (
             Output::Rf.index(),
             Output::MonitorPlus.index(),
             Output::MonitorMinus.index(),
         );
+        let calibration = Calibration::from_frames(frames);
+        let base = &frames[self.sequence().lead_frames()..];
         (0..m)
             .map(|i| match self {
-                Scheme::Traditional => frames[i][mp],
+                Scheme::Traditional | Scheme::TraditionalZeroMean => frames[i][mp],
+                Scheme::DoubleArmCalibrated => calibration.normalise(base[i][mp], base[i][mm]),
                 Scheme::DoubleArm => frames[i][mp] - frames[i][mm],
                 Scheme::SingleArmComplementary => frames[2 * i][mp] - frames[2 * i + 1][mp],
                 Scheme::SecondaryComplementaryBalancing => {
@@ -234,11 +330,17 @@ impl Scheme {
             .collect()
     }
 
-    /// The noise-free model of the scheme (module documentation).
-    pub fn model(self, arms: &ScalarArms) -> AffineModel {
+    /// The noise-free model of the scheme (module documentation) for an object of total
+    /// `total` = Σx (only the calibrated scheme's gain depends on it).
+    pub fn model(self, arms: &ScalarArms, total: f64) -> AffineModel {
         let (kp, km) = (arms.k_plus, arms.k_minus);
         match self {
-            Scheme::Traditional => AffineModel {
+            Scheme::DoubleArmCalibrated => AffineModel {
+                gain: 1.0 / total,
+                sum_coefficient: 0.0,
+                constant: 0.0,
+            },
+            Scheme::Traditional | Scheme::TraditionalZeroMean => AffineModel {
                 gain: kp,
                 sum_coefficient: 0.0,
                 constant: arms.b_plus,
@@ -259,6 +361,43 @@ impl Scheme {
                 constant: 0.0,
             },
         }
+    }
+}
+
+/// The two-point calibration of the arms from the [`CALIBRATION_PAIRS`] (all on, all off)
+/// frame pairs that open a [`Sequence::CalibratedBase`] record: each monitor's mean over the
+/// all-on and over the all-off frames, summed in frame order.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Calibration {
+    pub plus_on: f64,
+    pub plus_off: f64,
+    pub minus_on: f64,
+    pub minus_off: f64,
+}
+
+impl Calibration {
+    /// The calibration read from the first 2 × [`CALIBRATION_PAIRS`] frames (fewer if the
+    /// record is shorter; an empty record gives NaN values, which the solver rejects).
+    pub fn from_frames(frames: &[[f64; 3]]) -> Calibration {
+        let (mp, mm) = (Output::MonitorPlus.index(), Output::MonitorMinus.index());
+        let pairs = (frames.len() / 2).min(CALIBRATION_PAIRS);
+        let mean = |parity: usize, o: usize| {
+            let sum: f64 = (0..pairs).map(|k| frames[2 * k + parity][o]).sum();
+            sum / pairs as f64
+        };
+        Calibration {
+            plus_on: mean(0, mp),
+            plus_off: mean(1, mp),
+            minus_on: mean(0, mm),
+            minus_off: mean(1, mm),
+        }
+    }
+
+    /// The calibrated double-arm measurement of a frame with monitor values `v_plus`, `v_minus`:
+    /// the + arm's fraction of its full-scale light minus the − arm's (module documentation).
+    pub fn normalise(&self, v_plus: f64, v_minus: f64) -> f64 {
+        (v_plus - self.plus_off) / (self.plus_on - self.plus_off)
+            - (v_minus - self.minus_on) / (self.minus_off - self.minus_on)
     }
 }
 
@@ -431,9 +570,34 @@ pub fn acquire(
 
     let mut samples = Vec::with_capacity(count);
     let mut y = Vec::with_capacity(m);
+    if scheme == Scheme::DoubleArmCalibrated {
+        // Both monitors on every frame of the calibrated sequence: (all on, all off) pairs,
+        // then the patterns; sample 2t is MONITOR+ of frame t, sample 2t + 1 MONITOR−.
+        let lead = scheme.sequence().lead_frames();
+        let light = |t: usize| -> (f64, f64) {
+            match t.checked_sub(lead) {
+                Some(i) => (px[i], cx[i]),
+                None if t % 2 == 0 => (total, 0.0),
+                None => (0.0, total),
+            }
+        };
+        let mut frames = Vec::with_capacity(lead + m);
+        for t in 0..lead + m {
+            let (on, off) = light(t);
+            let sp = monitor_plus(on, e[2 * t]);
+            let sm = monitor_minus(off, e[2 * t + 1]);
+            samples.extend([sp, sm]);
+            let mut f = [0.0; 3];
+            f[Output::MonitorPlus.index()] = sp;
+            f[Output::MonitorMinus.index()] = sm;
+            frames.push(f);
+        }
+        y = scheme.measurements(&frames, m);
+    }
     for i in 0..m {
         match scheme {
-            Scheme::Traditional => {
+            Scheme::DoubleArmCalibrated => break,
+            Scheme::Traditional | Scheme::TraditionalZeroMean => {
                 let s = monitor_plus(px[i], e[i]);
                 samples.push(s);
                 y.push(s);
@@ -515,11 +679,43 @@ mod tests {
             b_minus: bm,
         } = *arms;
         let (mut y, mut s) = (Vec::new(), Vec::new());
+        if scheme == Scheme::DoubleArmCalibrated {
+            // Eqs. (6) and (7) on every frame: 8 × (all on, all off), then the patterns; the
+            // calibration values averaged, each arm mapped to its fraction of the object.
+            let total: f64 = x.iter().sum();
+            let lead = 2 * CALIBRATION_PAIRS;
+            let mut v = Vec::new();
+            for t in 0..lead + p.len() {
+                let (on, off) = if t < lead {
+                    if t % 2 == 0 { (total, 0.0) } else { (0.0, total) }
+                } else {
+                    let a = dot(&p[t - lead], x);
+                    (a, total - a)
+                };
+                let yp = kp * (on + e[2 * t]) + bp;
+                let ym = km * (off + e[2 * t + 1]) + bm;
+                s.extend([yp, ym]);
+                v.push((yp, ym));
+            }
+            let mean = |f: &dyn Fn(&(f64, f64)) -> f64, parity: usize| {
+                (0..CALIBRATION_PAIRS)
+                    .map(|k| f(&v[2 * k + parity]))
+                    .sum::<f64>()
+                    / CALIBRATION_PAIRS as f64
+            };
+            let (p1, p0) = (mean(&|a| a.0, 0), mean(&|a| a.0, 1));
+            let (m1, m0) = (mean(&|a| a.1, 0), mean(&|a| a.1, 1));
+            for &(yp, ym) in &v[lead..] {
+                y.push((yp - p0) / (p1 - p0) - (ym - m1) / (m0 - m1));
+            }
+            return (y, s);
+        }
         for (i, row) in p.iter().enumerate() {
             let a_plus = row.clone();
             let a_minus: Vec<f64> = row.iter().map(|v| 1.0 - v).collect();
             match scheme {
-                Scheme::Traditional => {
+                Scheme::DoubleArmCalibrated => unreachable!("returned above"),
+                Scheme::Traditional | Scheme::TraditionalZeroMean => {
                     let v = kp * (dot(&a_plus, x) + e[i]) + bp;
                     s.push(v);
                     y.push(v);
@@ -577,7 +773,7 @@ mod tests {
                         let a = acquire(scheme, &x, &set, &arms, noise.as_ref(), 9, 1e3).unwrap();
                         let e = match &noise {
                             Some(n) => n.samples(9, scheme.detector_samples(20)),
-                            None => vec![0.0; 40],
+                            None => vec![0.0; scheme.detector_samples(20)],
                         };
                         let (y, s) = dense_equations(scheme, &x, &p, &arms, &e);
                         assert_eq!(a.y.len(), 20);
@@ -611,7 +807,7 @@ mod tests {
             ] {
                 for scheme in Scheme::all() {
                     let a = acquire(scheme, &x, &set, &arms, None, 0, 1e3).unwrap();
-                    let model = scheme.model(&arms);
+                    let model = scheme.model(&arms, sum);
                     for (row, &yi) in p.iter().zip(&a.y) {
                         let ax = match scheme.form() {
                             PatternForm::ZeroOne => dot(row, &x),
@@ -624,10 +820,10 @@ mod tests {
                     }
                 }
                 // The stated closed forms of the two paper identities.
-                let scb = Scheme::SecondaryComplementaryBalancing.model(&arms);
+                let scb = Scheme::SecondaryComplementaryBalancing.model(&arms, sum);
                 assert_eq!(scb.gain, arms.k_prime());
                 assert_eq!((scb.sum_coefficient, scb.constant), (0.0, 0.0));
-                let da = Scheme::DoubleArm.model(&arms);
+                let da = Scheme::DoubleArm.model(&arms, sum);
                 assert_eq!(da.gain, arms.k_prime() / 2.0);
                 assert_eq!(da.sum_coefficient, (arms.k_plus - arms.k_minus) / 2.0);
                 assert_eq!(da.constant, arms.b_plus - arms.b_minus);
@@ -676,6 +872,8 @@ mod tests {
             (Scheme::SingleArmComplementary, 40, 40),
             (Scheme::DoubleArm, 20, 40),
             (Scheme::SecondaryComplementaryBalancing, 40, 40),
+            (Scheme::TraditionalZeroMean, 20, 20),
+            (Scheme::DoubleArmCalibrated, 36, 72),
         ];
         for (scheme, frames, samples) in expect {
             let a = acquire(
@@ -729,19 +927,28 @@ mod tests {
         for scheme in Scheme::all() {
             let clean = acquire(scheme, &x, &set, &arms, None, 0, 1e3).unwrap();
             let noisy = acquire(scheme, &x, &set, &arms, Some(&noise), 3, 1e3).unwrap();
+            // The calibrated scheme's measurements are fractions of the object total: scale
+            // them back. Its calibration means (8 frames each) are shared by every
+            // measurement, so their error does not average out over M.
+            let scale = match scheme {
+                Scheme::DoubleArmCalibrated => x.iter().sum::<f64>(),
+                _ => 1.0,
+            };
             let mean = noisy
                 .y
                 .iter()
                 .zip(&clean.y)
-                .map(|(a, b)| a - b)
+                .map(|(a, b)| (a - b) * scale)
                 .sum::<f64>()
                 / 4096.0;
-            let expected = if scheme == Scheme::Traditional {
-                10.0
-            } else {
-                0.0
+            let expected = match scheme {
+                Scheme::Traditional | Scheme::TraditionalZeroMean => 10.0,
+                _ => 0.0,
             };
-            let se = 10.0 * 2f64.sqrt() / 64.0;
+            let se = match scheme {
+                Scheme::DoubleArmCalibrated => 10.0 * (2.0 / 8.0 + 2.0 / 4096f64).sqrt(),
+                _ => 10.0 * 2f64.sqrt() / 64.0,
+            };
             assert!((mean - expected).abs() < 5.0 * se, "{scheme:?}: {mean}");
         }
     }

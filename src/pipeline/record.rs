@@ -4,7 +4,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use super::{Progress, Stage, Traced};
-use crate::acquisition::{AdditiveNoise, PatternSet, Sequence};
+use crate::acquisition::{AdditiveNoise, PatternSet, Sequence, schemes::CALIBRATION_PAIRS};
 use crate::detector::{
     self, Bap, Channel, DriftPath, FrameTiming, Illumination, OUTPUT_NAMES, Record, Scope,
     SignalTrace,
@@ -78,6 +78,7 @@ fn sequence_seed(seed: u64, s: Sequence) -> u64 {
     let index = match s {
         Sequence::Base => 0,
         Sequence::Complementary => 1,
+        Sequence::CalibratedBase => 2,
     };
     rng::mix64(seed ^ rng::mix64(0x5EC0_0000 + index))
 }
@@ -103,13 +104,27 @@ pub fn record_stage(
         settling_s: s.settling_time_s,
         sample_rate_hz: scope.sample_rate_hz,
     };
-    let needed: Vec<Sequence> = [Sequence::Base, Sequence::Complementary]
+    let needed: Vec<Sequence> = Sequence::all()
         .into_iter()
         .filter(|q| s.schemes.iter().any(|k| k.sequence() == *q))
         .collect();
     let lights: Vec<Vec<[f64; 2]>> = needed
         .iter()
-        .map(|&q| transport.frame_currents(&bits, max_m, q == Sequence::Complementary))
+        .map(|&q| match q {
+            Sequence::Base => transport.frame_currents(&bits, max_m, false),
+            Sequence::Complementary => transport.frame_currents(&bits, max_m, true),
+            Sequence::CalibratedBase => {
+                // All-on frames shown as complementary pairs give (all on, all off).
+                let on = crate::reconstruction::BitMatrix::from_fn(
+                    CALIBRATION_PAIRS,
+                    bits.cols(),
+                    |_, _| true,
+                );
+                let mut l = transport.frame_currents(&on, CALIBRATION_PAIRS, true);
+                l.extend(transport.frame_currents(&bits, max_m, false));
+                l
+            }
+        })
         .collect();
     let illum: Vec<Illumination> = lights
         .iter()

@@ -187,7 +187,14 @@ pub fn solve_stage(
                 rec.clipped_frames(o.index(), frames) + rec.over_range_frames(o.index(), frames) > 0
             });
             let op = set.operator(scheme.form());
-            let sol = solver.solve(op.as_ref(), &y, across, down, scheme.form())?;
+            let sol = match scheme.zero_one() {
+                Some(zero_one) => Solver {
+                    zero_one,
+                    ..solver.clone()
+                }
+                .solve(op.as_ref(), &y, across, down, scheme.form())?,
+                None => solver.solve(op.as_ref(), &y, across, down, scheme.form())?,
+            };
             let scores = metrics::score(truth, &sol.image)?;
             let finest_resolved = match resolution {
                 Some(c) => finest(
