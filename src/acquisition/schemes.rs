@@ -46,9 +46,10 @@
 //! double-arm detection. Two fairer baselines are schemes of their own:
 //!
 //! - **traditional CS, zero-mean solve** ([`Scheme::TraditionalZeroMean`]): the same frames and
-//!   samples as traditional CS, reconstructed through the exactly equivalent zero-mean ±1
-//!   system ([`crate::reconstruction::ZeroOneHandling::ZeroMean`]) instead of the 0/1 system
-//!   whose DC singular value stalls TVAL3;
+//!   samples as traditional CS, reconstructed through the zero-mean ±1 system
+//!   ([`crate::reconstruction::ZeroOneHandling::ZeroMeanOffset`], which also ignores the
+//!   constant offset b₊ of the monitor) instead of the 0/1 system whose DC singular value
+//!   stalls TVAL3;
 //! - **double-arm, calibrated** ([`Scheme::DoubleArmCalibrated`]): before the patterns the DMD
 //!   shows [`CALIBRATION_PAIRS`] pairs of all-on and all-off frames (counted in its frame
 //!   budget). Each arm's response is affine in the light it receives, V± = k±·(light) + b±,
@@ -224,7 +225,7 @@ impl Scheme {
     /// (`TraditionalZeroMean`); otherwise the solver's own setting applies.
     pub fn zero_one(self) -> Option<ZeroOneHandling> {
         match self {
-            Scheme::TraditionalZeroMean => Some(ZeroOneHandling::ZeroMean),
+            Scheme::TraditionalZeroMean => Some(ZeroOneHandling::ZeroMeanOffset),
             _ => None,
         }
     }
@@ -274,9 +275,7 @@ impl Scheme {
     /// The frame sequence the scheme's DMD shows.
     pub fn sequence(self) -> Sequence {
         match self {
-            Scheme::Traditional | Scheme::TraditionalZeroMean | Scheme::DoubleArm => {
-                Sequence::Base
-            }
+            Scheme::Traditional | Scheme::TraditionalZeroMean | Scheme::DoubleArm => Sequence::Base,
             Scheme::SingleArmComplementary | Scheme::SecondaryComplementaryBalancing => {
                 Sequence::Complementary
             }
@@ -687,7 +686,11 @@ mod tests {
             let mut v = Vec::new();
             for t in 0..lead + p.len() {
                 let (on, off) = if t < lead {
-                    if t % 2 == 0 { (total, 0.0) } else { (0.0, total) }
+                    if t % 2 == 0 {
+                        (total, 0.0)
+                    } else {
+                        (0.0, total)
+                    }
                 } else {
                     let a = dot(&p[t - lead], x);
                     (a, total - a)

@@ -86,6 +86,10 @@ pub enum ZeroOneArg {
     /// like the ±1 schemes).
     #[value(name = "zero-mean")]
     ZeroMean,
+    /// The zero-mean system without the DC row: for data with an unknown constant offset
+    /// (detector bias, dark current, ambient light).
+    #[value(name = "zero-mean-offset")]
+    ZeroMeanOffset,
     /// Solve A = P as measured (the paper's handling; slow: the DC singular value).
     #[value(name = "plain")]
     Plain,
@@ -95,6 +99,7 @@ impl From<ZeroOneArg> for crate::reconstruction::ZeroOneHandling {
     fn from(a: ZeroOneArg) -> Self {
         match a {
             ZeroOneArg::ZeroMean => Self::ZeroMean,
+            ZeroOneArg::ZeroMeanOffset => Self::ZeroMeanOffset,
             ZeroOneArg::Plain => Self::Plain,
         }
     }
