@@ -159,6 +159,7 @@ pub fn downstream(
     })
 }
 
+pub mod repeats;
 pub mod summary;
 
 #[cfg(test)]
