@@ -576,7 +576,7 @@ pub fn acquire(
         let light = |t: usize| -> (f64, f64) {
             match t.checked_sub(lead) {
                 Some(i) => (px[i], cx[i]),
-                None if t % 2 == 0 => (total, 0.0),
+                None if t.is_multiple_of(2) => (total, 0.0),
                 None => (0.0, total),
             }
         };
@@ -686,7 +686,7 @@ mod tests {
             let mut v = Vec::new();
             for t in 0..lead + p.len() {
                 let (on, off) = if t < lead {
-                    if t % 2 == 0 {
+                    if t.is_multiple_of(2) {
                         (total, 0.0)
                     } else {
                         (0.0, total)

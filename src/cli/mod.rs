@@ -9,6 +9,7 @@ mod layout;
 mod progress;
 mod reconstruct;
 mod run;
+mod run_repeats;
 mod run_report;
 mod simulate;
 mod sweep;

@@ -69,6 +69,11 @@ pub struct RunArgs {
     /// (whatever its electronics, noise or solver settings) skips the trace.
     #[arg(long, value_name = "DIR")]
     pub cache: Option<PathBuf>,
+    /// Repeat every random process after the trace N times (noise, drift, random patterns):
+    /// mean ± SD per scheme and ratio, paired differences (`repeats.json`, `repeats.csv`,
+    /// `*_vs_frames` plots). The other outputs are those of repeat 1, the plain run.
+    #[arg(long, default_value_t = 1, value_name = "N")]
+    pub repeats: usize,
 }
 
 /// Reads the bench named on the command line (or the built-in bench) and applies `--set`.
@@ -147,7 +152,9 @@ pub fn run(args: &RunArgs) -> Result<()> {
         cache: cache.as_ref().zip(key.as_ref()),
         ..TraceRequest::new(scene.settings.rays, args.seed)
     };
-    let outcome = crate::run::run(&scene, args.seed, &request, &progress)?;
+    let (outcomes, repeats) =
+        crate::run::repeats::run_repeats(&scene, args.seed, &request, args.repeats, &progress)?;
+    let outcome = &outcomes[0];
     if let (Some(c), Some(k)) = (&cache, &key) {
         match &outcome.cache {
             crate::pipeline::CacheStatus::Hit => {
@@ -168,9 +175,11 @@ pub fn run(args: &RunArgs) -> Result<()> {
     {
         b.finish_and_clear();
     }
-    let summary_files = write_outputs(&name, &scene.bench, &outcome, &out)?;
+    let summary_files = write_outputs(&name, &scene.bench, outcome, &out)?
+        + super::run_repeats::write(&repeats, &scene.settings, &out)?.len();
     let dir = out.commit()?;
-    print_report(&name, &outcome);
+    print_report(&name, outcome);
+    super::run_repeats::print(&repeats);
     println!(
         "wrote {} ({} files, {:.1} s)",
         dir.display(),
@@ -482,6 +491,7 @@ mod tests {
             rays: Some(1000),
             set: Vec::new(),
             cache: None,
+            repeats: 1,
         };
         let (name, _, scene) = load_scene(&args).unwrap();
         assert_eq!(name, PAPER_BENCH_NAME);
