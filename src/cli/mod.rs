@@ -4,9 +4,10 @@
 //! impossible values, a missing file; also clap's usage errors), 1 for anything else.
 
 mod check;
+mod completions;
 mod export;
 mod layout;
-mod progress;
+pub(crate) mod progress;
 mod reconstruct;
 mod run;
 mod run_repeats;
@@ -15,7 +16,7 @@ mod simulate;
 mod sweep;
 mod trace;
 
-use clap::{Parser, Subcommand};
+use clap::{CommandFactory, Parser, Subcommand};
 
 #[derive(Debug, Parser)]
 #[command(
@@ -26,6 +27,16 @@ use clap::{Parser, Subcommand};
 struct Cli {
     #[command(subcommand)]
     command: Command,
+    /// Worker threads (default: all cores; RAYON_NUM_THREADS also works). Results are
+    /// identical for any count.
+    #[arg(long, global = true, value_name = "N")]
+    threads: Option<usize>,
+    /// Errors and warnings only: no progress and no notes on stderr.
+    #[arg(long, short, global = true, conflicts_with = "verbose")]
+    quiet: bool,
+    /// Also print stage timings and settings on stderr.
+    #[arg(long, short, global = true)]
+    verbose: bool,
 }
 
 #[derive(Debug, Subcommand)]
@@ -50,6 +61,10 @@ enum Command {
     Layout(layout::LayoutArgs),
     /// Read and validate a bench without tracing it; print its paraxial design numbers.
     Check(check::CheckArgs),
+    /// Print a shell completion script (bash, zsh, fish, elvish, powershell) to stdout.
+    Completions(completions::CompletionsArgs),
+    /// Write the man pages (spibench.1 and one per command) into a folder.
+    Man(completions::ManArgs),
 }
 
 /// Runs the command line and returns the process exit status.
@@ -61,6 +76,26 @@ pub fn main() -> i32 {
             return if e.use_stderr() { 2 } else { 0 };
         }
     };
+    progress::set_verbosity(if cli.quiet {
+        progress::Verbosity::Quiet
+    } else if cli.verbose {
+        progress::Verbosity::Verbose
+    } else {
+        progress::Verbosity::Normal
+    });
+    if let Some(n) = cli.threads {
+        if n == 0 || n > 4096 {
+            eprintln!("error: --threads must lie between 1 and 4096, got {n}");
+            return 2;
+        }
+        if let Err(e) = rayon::ThreadPoolBuilder::new()
+            .num_threads(n)
+            .build_global()
+        {
+            eprintln!("error: cannot start {n} threads: {e}");
+            return 1;
+        }
+    }
     let result = match &cli.command {
         Command::Simulate(a) => simulate::run(a),
         Command::Reconstruct(a) => reconstruct::run(a),
@@ -70,6 +105,8 @@ pub fn main() -> i32 {
         Command::Sweep(a) => sweep::run(a),
         Command::Layout(a) => layout::run(a),
         Command::Check(a) => check::run(a),
+        Command::Completions(a) => completions::completions(a, Cli::command()),
+        Command::Man(a) => completions::man(a, Cli::command()),
     };
     match result {
         Ok(()) => 0,

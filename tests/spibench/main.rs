@@ -2,6 +2,7 @@
 //! counts, and the paper's claims on small problems. One binary, so CI links once.
 
 mod cli_layout;
+mod cli_misc;
 mod cli_reconstruct;
 mod cli_run;
 mod cli_simulate;
