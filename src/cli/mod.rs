@@ -8,6 +8,7 @@ mod completions;
 mod export;
 mod layout;
 pub(crate) mod progress;
+mod provenance;
 mod reconstruct;
 mod run;
 mod run_repeats;

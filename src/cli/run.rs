@@ -31,7 +31,6 @@ use crate::detector::OUTPUT_NAMES;
 use crate::pipeline::TraceRequest;
 use crate::pipeline::cache::{CacheKey, TraceCache};
 use crate::report::csv::write_csv;
-use crate::report::json::write_json;
 use crate::report::montage::{Montage, write_montage};
 use crate::report::output::OutputDir;
 use crate::report::plot::{LinePlot, Series, write_plot};
@@ -175,7 +174,8 @@ pub fn run(args: &RunArgs) -> Result<()> {
     {
         b.finish_and_clear();
     }
-    let summary_files = write_outputs(&name, &scene.bench, outcome, &out)?
+    let provenance = bench_provenance(&name, &doc, &[args.seed])?;
+    let summary_files = write_outputs(&name, &scene.bench, outcome, &provenance, &out)?
         + super::run_repeats::write(&repeats, &scene.settings, &out)?.len();
     let dir = out.commit()?;
     print_report(&name, outcome);
@@ -220,10 +220,30 @@ fn write_plot_pair(
     Ok(())
 }
 
+/// The provenance of a command that reads a bench: the bench file (or the built-in text) and
+/// every image it loads.
+pub(super) fn bench_provenance(
+    name: &str,
+    doc: &BenchDoc,
+    seeds: &[u64],
+) -> crate::Result<super::provenance::Provenance> {
+    let p = super::provenance::Provenance::new(seeds);
+    let mut p = if name == PAPER_BENCH_NAME {
+        p.text(PAPER_BENCH_NAME, PAPER_BENCH)
+    } else {
+        p.file(doc.path())?
+    };
+    for f in doc.input_files() {
+        p = p.file(&f)?;
+    }
+    Ok(p)
+}
+
 fn write_outputs(
     name: &str,
     bench: &crate::optics::Bench,
     o: &RunOutcome,
+    provenance: &super::provenance::Provenance,
     out: &OutputDir,
 ) -> crate::Result<usize> {
     let mut files = Vec::new();
@@ -388,7 +408,7 @@ fn write_outputs(
     files.push("summary.json".to_string());
     let count = files.len();
     let summary = summarize_run(name, bench, o, files);
-    write_json(&out.path("summary.json"), &summary)?;
+    super::provenance::write_summary(out, &summary, provenance)?;
     super::run_report::write_report(name, bench, o, &summary, out)?;
     Ok(count)
 }

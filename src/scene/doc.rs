@@ -98,6 +98,24 @@ impl BenchDoc {
         Ok(d)
     }
 
+    /// The files this bench reads besides itself (chart mask images), as paths resolved
+    /// against the bench file's folder, in element order.
+    pub fn input_files(&self) -> Vec<PathBuf> {
+        use crate::scene::bench::{ChartPatternSpec, ElementSpec};
+        let base = self.path.parent().unwrap_or(Path::new("."));
+        self.file
+            .elements
+            .iter()
+            .filter_map(|el| match el {
+                ElementSpec::Chart {
+                    pattern: ChartPatternSpec::Image { path, .. },
+                    ..
+                } => Some(base.join(path)),
+                _ => None,
+            })
+            .collect()
+    }
+
     /// The value of a bench variable.
     pub fn get(&self, path: &str) -> Result<f64> {
         crate::scene::variables::get(&self.file, path).map_err(|e| e.in_file(&self.path))
