@@ -137,7 +137,6 @@ fn run_writes_every_output_identically_on_one_and_two_threads() {
             "dmd_frames",
             "acquisition_time_s",
             "iterations",
-            "solver_time_s",
         ] {
             assert!(r.get(key).is_some(), "results[].{key}");
         }
