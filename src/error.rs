@@ -40,8 +40,9 @@ pub enum Error {
     #[error("{}{message}", if .location == &Location::default() { String::new() } else { format!("{location}: ") })]
     Input { location: Location, message: String },
 
-    /// A file that could not be read or written.
-    #[error("cannot {action} {}: {source}", .path.display())]
+    /// A file that could not be read or written. The message names the path and says what
+    /// went wrong in words (with the system's text after it), and what a user can do.
+    #[error("cannot {action} {}: {}", .path.display(), describe_io(.source))]
     Io {
         action: &'static str,
         path: PathBuf,
@@ -88,6 +89,19 @@ impl Error {
         self
     }
 
+    /// Puts the field of an input error inside `parent` (`tol` → `solver.tol`); an error
+    /// without a field gets `parent` as its field.
+    pub fn within(mut self, parent: &str) -> Self {
+        if let Error::Input { location, .. } = &mut self {
+            location.field = Some(match location.field.take() {
+                Some(f) if !parent.is_empty() => format!("{parent}.{f}"),
+                Some(f) => f,
+                None => parent.to_string(),
+            });
+        }
+        self
+    }
+
     pub fn at_line(mut self, line: usize, column: usize) -> Self {
         if let Error::Input { location, .. } = &mut self {
             location.line = Some(line);
@@ -121,10 +135,61 @@ impl Error {
         }
     }
 
-    /// True for problems the user caused and can fix (exit status 2 at the command line).
+    /// True for problems the user caused and can fix (exit status 2 at the command line):
+    /// bad input, a file that cannot be read, and a write refused for a reason a user can
+    /// remove (permissions, a read-only or full filesystem, a file or folder in the way).
     pub fn is_user_error(&self) -> bool {
-        matches!(self, Error::Input { .. } | Error::Io { action: "read", .. })
+        match self {
+            Error::Input { .. } | Error::Io { action: "read", .. } => true,
+            Error::Io { source, .. } => user_fixable(source.kind()),
+            Error::Numerical(_) => false,
+        }
     }
+}
+
+fn user_fixable(kind: std::io::ErrorKind) -> bool {
+    use std::io::ErrorKind as K;
+    matches!(
+        kind,
+        K::PermissionDenied
+            | K::ReadOnlyFilesystem
+            | K::AlreadyExists
+            | K::NotADirectory
+            | K::IsADirectory
+            | K::DirectoryNotEmpty
+            | K::StorageFull
+            | K::QuotaExceeded
+            | K::NotFound
+    )
+}
+
+/// An I/O error in words a user can act on, followed by the system's own text.
+fn describe_io(e: &std::io::Error) -> String {
+    use std::io::ErrorKind as K;
+    let hint = match e.kind() {
+        K::PermissionDenied => {
+            "permission denied (check the folder's permissions or choose another path)"
+        }
+        K::ReadOnlyFilesystem => "the filesystem is read-only (choose another path)",
+        K::AlreadyExists => {
+            "something is already in the way at this path (remove it or choose another path)"
+        }
+        K::NotADirectory => {
+            "a file is in the way where a folder is needed (remove it or choose another path)"
+        }
+        K::IsADirectory => {
+            "a folder is in the way where a file is needed (remove it or choose another path)"
+        }
+        K::DirectoryNotEmpty => {
+            "a folder that is not empty is in the way (remove it or choose another path)"
+        }
+        K::StorageFull | K::QuotaExceeded => {
+            "no space left (free some space or choose another path)"
+        }
+        K::NotFound => "no such file or folder",
+        _ => return e.to_string(),
+    };
+    format!("{hint}; {e}")
 }
 
 #[cfg(test)]

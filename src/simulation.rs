@@ -65,7 +65,9 @@ pub struct Cell {
     pub stop: StopReason,
     /// ‖A u − y‖ / ‖y‖ of the raw reconstruction.
     pub relative_residual: f64,
-    /// Solver CPU time, s.
+    /// Solver CPU time, s: a timing, written to timings.json and kept out of the deterministic
+    /// outputs.
+    #[serde(skip)]
     pub solver_time_s: f64,
     /// DMD frames shown, detector samples recorded, and acquisition time at the DMD rate, s.
     pub dmd_frames: usize,
@@ -96,7 +98,7 @@ pub fn run(exp: &Experiment, progress: &(dyn Fn(usize, usize) + Sync)) -> Result
         .enumerate()
         .map(|(i, o)| {
             objects::render_object(&o.object, exp.width, exp.height, &exp.base_dir)
-                .map_err(|e| e.at_field(format!("objects[{i}].object")))
+                .map_err(|e| e.within(&format!("objects[{i}].object")))
         })
         .collect::<Result<_>>()?;
 

@@ -81,6 +81,20 @@ fn export(args: &ExportArgs) -> Result<ExportSummary> {
     let (bench, notes, wl) = if args.as_is || args.spectral {
         (bench, Vec::new(), None)
     } else {
+        // The substitute stands for the traced bench at one wavelength: outside the band the
+        // bench traces, its indices and spectra are extrapolations nobody asked for.
+        let (lo, hi) = bench.band();
+        let (lo_nm, hi_nm) = (lo * 1e9, hi * 1e9);
+        let nm = args.wavelength_nm;
+        if !(nm.is_finite() && nm >= lo_nm - 1e-9 && nm <= hi_nm + 1e-9) {
+            return Err(Error::field(
+                "--wavelength-nm",
+                format!(
+                    "{nm} nm is outside the traced band of {} ({lo_nm:.0}–{hi_nm:.0} nm)",
+                    args.scene.display()
+                ),
+            ));
+        }
         let m = monochromatic(&bench, &MonochromaticOptions::at_nm(args.wavelength_nm))
             .map_err(|m| Error::field("--wavelength-nm", m))?;
         (m.bench, m.notes, Some(m.wavelength_m))

@@ -97,6 +97,8 @@ pub fn main() -> i32 {
             return 1;
         }
     }
+    // SIGINT and SIGTERM remove the staging folders of a run in progress (exit 130, 143).
+    crate::report::output::install_signal_cleanup();
     let result = match &cli.command {
         Command::Simulate(a) => simulate::run(a),
         Command::Reconstruct(a) => reconstruct::run(a),

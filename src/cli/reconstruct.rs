@@ -162,6 +162,19 @@ fn load_patterns(path: &Path, n: usize) -> crate::Result<(BitMatrix, &'static st
 
 fn load_vector(path: &Path, what: &str) -> crate::Result<Vec<f64>> {
     let arr = npy::read(path)?;
+    // A vector is 1-D, or a column or row (M, 1) / (1, M); a (64, 2) array is not 128 values.
+    let vector = match arr.shape.as_slice() {
+        [_] => true,
+        [a, b] => *a == 1 || *b == 1,
+        _ => false,
+    };
+    if !vector {
+        return Err(Error::input(format!(
+            "{what} must be a 1-D array (or one row or column), got shape {:?}",
+            arr.shape
+        ))
+        .in_file(path));
+    }
     let v = arr.to_f64();
     if let Some(i) = v.iter().position(|x| !x.is_finite()) {
         return Err(

@@ -7,9 +7,10 @@
 //! - `summary.json`: the transport (as `spibench trace`), the electronics and oscilloscope
 //!   settings, the run settings, the recorded sequences, saturation findings, and for every
 //!   scheme × ratio PSNR, MSSIM, frames, acquisition time, solver iterations (keys on
-//!   [`RunSummary`]). Everything but `timings` and `results[*].solver_time_s` is identical for
-//!   the same scene and seed on any number of threads.
-//! - `results.csv`: the results table.
+//!   [`RunSummary`]). Byte-identical for the same scene and seed on any number of threads.
+//! - `results.csv`: the results table (byte-identical for a seed, like summary.json).
+//! - `timings.json`: wall-clock times of the trace, record and solve stages and each solve's
+//!   CPU time: the only output figures that differ between two identical runs.
 //! - `images/x.png` (the ideal object, 255·x / max x) and `images/<scheme>__r<ratio>.png` (each
 //!   normalised reconstruction on the same 0–255 scale).
 //! - `montage.png`: laid out like the paper's Fig. 6 (the object, then one row per scheme, one
@@ -31,6 +32,7 @@ use crate::detector::OUTPUT_NAMES;
 use crate::pipeline::TraceRequest;
 use crate::pipeline::cache::{CacheKey, TraceCache};
 use crate::report::csv::write_csv;
+use crate::report::json::write_json;
 use crate::report::montage::{Montage, write_montage};
 use crate::report::output::OutputDir;
 use crate::report::plot::{LinePlot, Series, write_plot};
@@ -267,7 +269,6 @@ fn write_outputs(
         "iterations",
         "converged",
         "saturated",
-        "solver_time_s",
         "finest_group",
         "finest_element",
         "finest_lp_per_mm",
@@ -287,7 +288,6 @@ fn write_outputs(
                 r.iterations.to_string(),
                 r.converged.to_string(),
                 r.saturated.to_string(),
-                format!("{:.4}", r.solver_time_s),
                 r.finest_resolved
                     .map(|e| e.group.to_string())
                     .unwrap_or_default(),
@@ -406,11 +406,31 @@ fn write_outputs(
 
     files.push("report.html".to_string());
     files.push("summary.json".to_string());
+    files.push("timings.json".to_string());
     let count = files.len();
     let summary = summarize_run(name, bench, o, files);
     super::provenance::write_summary(out, &summary, provenance)?;
+    write_json(&out.path("timings.json"), &run_timings(o))?;
     super::run_report::write_report(name, bench, o, &summary, out)?;
     Ok(count)
+}
+
+/// timings.json of `run`: the wall-clock times of the stages and each solve's CPU time, the
+/// only figures that differ between two runs with one seed (summary.json and results.csv are
+/// byte-identical).
+fn run_timings(o: &RunOutcome) -> serde_json::Value {
+    serde_json::json!({
+        "date_utc": super::provenance::utc_now(),
+        "trace_s": o.timings.trace_s,
+        "record_s": o.timings.record_s,
+        "solve_s": o.timings.solve_s,
+        "total_s": o.timings.total_s,
+        "results": o.results.iter().map(|r| serde_json::json!({
+            "scheme": r.scheme.key(),
+            "ratio": r.ratio,
+            "solver_time_s": r.solver_time_s,
+        })).collect::<Vec<_>>(),
+    })
 }
 
 /// "g/e" of a resolved element, or "none".

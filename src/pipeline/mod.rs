@@ -128,6 +128,17 @@ impl Traced {
             ))
             .at_field("rays"));
         }
+        // An arm that detects nothing leaves its leak ratios 0/0: a blocked or misplaced
+        // photodiode is the bench's fault, reported like no light at all.
+        for (arm, k) in ["+", "−"].iter().zip(&self.transport.k) {
+            if !(k.value.is_finite() && k.value > 0.0) {
+                return Err(Error::input(format!(
+                    "no traced light reached the photodiode of arm {arm} ({} rays): check the                      positions and axes of the arm's lens and photodiode (`spibench layout`                      draws the bench), or trace more rays",
+                    self.rays
+                ))
+                .at_field("detectors"));
+            }
+        }
         Ok(x.map(|v| 255.0 * v / x_max))
     }
 }

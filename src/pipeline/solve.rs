@@ -137,7 +137,9 @@ pub struct SchemeResult {
     /// True when an output this scheme read was clipped at its swing, or its oscilloscope
     /// channel over range, in a frame it used: the result is not trustworthy.
     pub saturated: bool,
-    /// Solver CPU time (s): a timing, different from run to run.
+    /// Solver CPU time (s): a timing, different from run to run, so written to timings.json
+    /// rather than to the deterministic outputs.
+    #[serde(skip)]
     pub solver_time_s: f64,
     /// The finest USAF element resolved in the reconstruction (metrics::resolution, both bar
     /// orientations above the Michelson-contrast threshold); None when the chart is not a USAF

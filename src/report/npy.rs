@@ -58,9 +58,26 @@ fn bad(path: &Path, msg: impl Into<String>) -> Error {
     Error::input(format!("not a readable .npy array: {}", msg.into())).in_file(path)
 }
 
-/// Reads a `.npy` file.
+/// The largest `.npy` file spibench reads: 1 GiB (a 4096 × 4096-mirror DMD's full 0/1 pattern
+/// set at 100 % sampling is 16 Mi × 16 Mi bits packed, far beyond; measurements and images
+/// are megabytes). Larger is a wrong path, such as a device.
+pub const MAX_NPY_BYTES: u64 = 1 << 30;
+
+/// Reads a `.npy` file of at most [`MAX_NPY_BYTES`], without reading past the limit (so that
+/// `/dev/zero` fails at once).
 pub fn read(path: &Path) -> Result<NpyArray> {
-    let bytes = std::fs::read(path).map_err(|e| Error::read(path, e))?;
+    use std::io::Read;
+    let file = std::fs::File::open(path).map_err(|e| Error::read(path, e))?;
+    let mut bytes = Vec::new();
+    file.take(MAX_NPY_BYTES + 1)
+        .read_to_end(&mut bytes)
+        .map_err(|e| Error::read(path, e))?;
+    if bytes.len() as u64 > MAX_NPY_BYTES {
+        return Err(bad(
+            path,
+            format!("the file is larger than {} MiB", MAX_NPY_BYTES >> 20),
+        ));
+    }
     parse(&bytes).map_err(|m| bad(path, m))
 }
 

@@ -1,39 +1,131 @@
-//! Staged output directories: a command writes every file into a fresh hidden sibling of its
-//! output directory and moves them into place only when the whole run has succeeded, so that a
-//! failed or interrupted run leaves nothing half written in the output directory (DESIGN.md,
-//! command-line contract: "no partial output left behind").
+//! Staged output directories: a command writes every file into a fresh hidden staging directory
+//! on the destination's own filesystem and swaps it into place only when the whole run has
+//! succeeded, so that a failed or interrupted run leaves nothing half written, and a folder that
+//! existed before is either replaced as a whole or left exactly as it was.
+//!
+//! The contract, in order of the steps of a run:
+//!
+//! - **Lock.** `create` takes an advisory lock (`flock`) on `.NAME.spibench-lock` beside the
+//!   destination `NAME`, so a second run into the same folder fails at once with an input error
+//!   (exit 2) instead of silently overwriting the first. The kernel drops the lock when a
+//!   process dies, however it dies.
+//! - **Sweep.** With the lock held, hidden staging (`.NAME.spibench-partial-PID-N`) and
+//!   replaced (`.NAME.spibench-old-PID-N`) folders of processes that no longer run (Linux:
+//!   no `/proc/PID`) are removed; a replaced folder whose swap was cut short (the destination
+//!   is missing) is put back first.
+//! - **Stage.** Files are written into a hidden sibling of the destination, or inside the
+//!   destination (`NAME/.spibench-partial-PID-N`) when the destination is a mount point (a
+//!   container volume) or its parent is not writable: a rename never crosses filesystems.
+//! - **Commit.** A new destination is the staging folder renamed. An existing one is replaced:
+//!   `NAME → .NAME.spibench-old-PID-N`, staging → `NAME`, then the old folder is removed; if the
+//!   second rename fails the first is undone. When renaming the destination fails because it is
+//!   a mount point (`EXDEV`, `EBUSY`), the staged files are moved (copied when they sit on
+//!   another device) into the destination and swapped entry by entry, the old entries kept
+//!   aside until the new ones are all in place.
+//! - **Signals.** SIGINT and SIGTERM (after [`install_signal_cleanup`]) remove every live
+//!   staging folder and lock file and end the process with status 130 or 143. A commit in
+//!   progress finishes first, so the destination is never left between two states.
 
+use std::collections::BTreeSet;
+use std::ffi::OsString;
+use std::fs::File;
 use std::path::{Component, Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Mutex, MutexGuard};
 
 use crate::error::{Error, Result};
 
-/// Distinguishes several staging directories of one process for the same output directory.
+/// Distinguishes several staging directories of one process.
 static COUNTER: AtomicU64 = AtomicU64::new(0);
 
+/// Staging folders and lock files of this process that are live now, removed by the signal
+/// handler. Commits hold this lock while they swap folders, so a signal never interrupts a swap.
+static LIVE: Mutex<Vec<Live>> = Mutex::new(Vec::new());
+
+#[derive(Debug)]
+struct Live {
+    id: u64,
+    staging: PathBuf,
+    lock_file: PathBuf,
+}
+
+fn live() -> MutexGuard<'static, Vec<Live>> {
+    LIVE.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+/// Test hook: when this environment variable is set, renaming an existing destination fails
+/// with `EXDEV`, as it does when the destination is a mount point, so that the fallback can be
+/// tested on machines where no second filesystem can be mounted.
+pub const TEST_EXDEV_ENV: &str = "SPIBENCH_TEST_OUTPUT_EXDEV";
+
+/// Installs handlers for SIGINT and SIGTERM that remove every live staging folder and lock file
+/// of this process and then exit with status 128 + signal (130, 143). Called once by the command
+/// line; a second call does nothing.
+pub fn install_signal_cleanup() {
+    static ONCE: std::sync::Once = std::sync::Once::new();
+    ONCE.call_once(|| {
+        #[cfg(unix)]
+        {
+            use signal_hook::consts::{SIGINT, SIGTERM};
+            // The handler itself only writes to a pipe (signal-hook's iterator); the cleanup runs
+            // on an ordinary thread, where removing folders is allowed.
+            if let Ok(mut signals) = signal_hook::iterator::Signals::new([SIGINT, SIGTERM]) {
+                std::thread::spawn(move || {
+                    if let Some(sig) = signals.forever().next() {
+                        let entries = live();
+                        for e in entries.iter() {
+                            let _ = std::fs::remove_dir_all(&e.staging);
+                            let _ = std::fs::remove_file(&e.lock_file);
+                        }
+                        std::process::exit(128 + sig);
+                    }
+                });
+            }
+        }
+    });
+}
+
+/// Where the staging folder lives relative to the destination.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Mode {
+    /// A hidden sibling `.NAME.spibench-partial-PID-N`, swapped in by renames.
+    Sibling,
+    /// Inside the destination (a mount point), swapped in entry by entry.
+    Inside,
+}
+
 /// An output directory being written. Files go to [`OutputDir::path`] (inside the staging
-/// directory) and appear in the final directory only at [`OutputDir::commit`]; dropping an
-/// uncommitted `OutputDir` removes the staging directory and leaves the final one untouched.
+/// directory) and appear in the final directory only at [`OutputDir::commit`], which replaces
+/// the final directory as a whole; dropping an uncommitted `OutputDir` removes the staging
+/// directory and leaves the final one untouched.
 #[derive(Debug)]
 pub struct OutputDir {
+    /// The destination as the caller named it (returned by `commit`).
     final_dir: PathBuf,
+    /// The destination with a name of its own (`dir/.` resolved), used for renames.
+    target: PathBuf,
     staging: PathBuf,
-    /// Ancestors of the staging directory that `create` made, deepest first, removed again
-    /// (when empty) if the run is abandoned.
+    mode: Mode,
+    id: u64,
+    /// Ancestors of the destination that `create` made, deepest first, removed again (when
+    /// empty) if the run is abandoned.
     created_parents: Vec<PathBuf>,
+    lock: Option<DirLock>,
     committed: bool,
 }
 
 impl OutputDir {
-    /// Starts staging output for `final_dir` in a new hidden sibling directory named
-    /// `.NAME.spibench-partial-PID-N`. Missing parent directories are created.
+    /// Locks `final_dir` against other runs, sweeps stale staging folders of dead processes and
+    /// starts staging output in a new hidden directory (see the module docs for where). Missing
+    /// parent directories are created. A destination locked by another run, a file in the way
+    /// or a destination that contains the current directory are input errors.
     pub fn create(final_dir: &Path) -> Result<OutputDir> {
-        // `.` or `run/..` have no name of their own: stage beside the directory they resolve to.
-        let resolved = match final_dir.file_name() {
+        // `.` or `run/..` have no name of their own: resolve them to the directory they name.
+        let target = match final_dir.file_name() {
             Some(_) => final_dir.to_path_buf(),
             None => std::fs::canonicalize(final_dir).unwrap_or_else(|_| final_dir.to_path_buf()),
         };
-        let name = resolved
+        let name = target
             .file_name()
             .and_then(|n| n.to_str())
             .filter(|n| !n.is_empty())
@@ -42,36 +134,86 @@ impl OutputDir {
                     .in_file(final_dir)
             })?
             .to_string();
-        if let Ok(meta) = std::fs::metadata(final_dir)
+        let existing = std::fs::metadata(&target).ok();
+        if let Some(meta) = &existing
             && !meta.is_dir()
         {
-            return Err(
-                Error::input("the output path exists and is not a directory").in_file(final_dir),
-            );
+            return Err(Error::input(
+                "the output path exists and is not a directory: remove the file or choose \
+                 another output folder",
+            )
+            .in_file(final_dir));
         }
-        let parent = match resolved.parent() {
+        if existing.is_some() {
+            refuse_current_dir(&target, final_dir)?;
+        }
+        let parent = match target.parent() {
             Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
             _ => PathBuf::from("."),
         };
         let created_parents = create_missing(&parent).map_err(|e| Error::write(&parent, e))?;
+        let abandon = |e: Error| {
+            remove_empty(&created_parents);
+            e
+        };
+
+        // A destination on another device than its parent is a mount point: it cannot be
+        // renamed, so stage inside it.
+        let mount_point = existing.is_some() && is_mount_point(&target, &parent);
+        let mut mode = if mount_point {
+            Mode::Inside
+        } else {
+            Mode::Sibling
+        };
+        let lock = match mode {
+            Mode::Sibling => {
+                match DirLock::acquire(&parent.join(format!(".{name}.spibench-lock")), final_dir) {
+                    Ok(l) => l,
+                    // A parent we may not write into, around a destination we may: stage inside.
+                    Err(e) if existing.is_some() && is_permission(&e) => {
+                        mode = Mode::Inside;
+                        DirLock::acquire(&target.join(".spibench-lock"), final_dir)
+                            .map_err(abandon)?
+                    }
+                    Err(e) => return Err(abandon(e)),
+                }
+            }
+            Mode::Inside => DirLock::acquire(&target.join(".spibench-lock"), final_dir)?,
+        };
+        sweep_stale(&parent, &name, &target);
+
         let pid = std::process::id();
+        let mut live_entries = live();
         loop {
-            let n = COUNTER.fetch_add(1, Ordering::Relaxed);
-            let staging = parent.join(format!(".{name}.spibench-partial-{pid}-{n}"));
+            let id = COUNTER.fetch_add(1, Ordering::Relaxed);
+            let staging = match mode {
+                Mode::Sibling => parent.join(format!(".{name}.spibench-partial-{pid}-{id}")),
+                Mode::Inside => target.join(format!(".spibench-partial-{pid}-{id}")),
+            };
             match std::fs::create_dir(&staging) {
                 Ok(()) => {
+                    live_entries.push(Live {
+                        id,
+                        staging: staging.clone(),
+                        lock_file: lock.path.clone(),
+                    });
                     return Ok(OutputDir {
                         final_dir: final_dir.to_path_buf(),
+                        target,
                         staging,
+                        mode,
+                        id,
                         created_parents,
+                        lock: Some(lock),
                         committed: false,
                     });
                 }
                 // A stale directory from an earlier process with the same id: try the next name.
                 Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => continue,
                 Err(e) => {
-                    remove_empty(&created_parents);
-                    return Err(Error::write(&staging, e));
+                    drop(live_entries);
+                    drop(lock);
+                    return Err(abandon(Error::write(&staging, e)));
                 }
             }
         }
@@ -126,70 +268,374 @@ impl OutputDir {
         Ok(full)
     }
 
-    /// Moves every staged file into the final directory and removes the staging directory.
-    /// The final directory is created if needed (then the staging directory is simply renamed,
-    /// in one step); in an existing one, same-named files are replaced and other files are left
-    /// alone. Returns the final directory.
-    pub fn commit(mut self) -> Result<PathBuf> {
+    /// Replaces the final directory by the staged one (see the module docs) and releases the
+    /// lock. On failure the final directory is as it was before and the staging is removed.
+    /// Returns the final directory.
+    pub fn commit(self) -> Result<PathBuf> {
+        let exdev = std::env::var_os(TEST_EXDEV_ENV).is_some();
+        self.finish(exdev)
+    }
+
+    /// [`OutputDir::commit`], with renaming an existing destination failing as on a mount
+    /// point when `exdev` is set.
+    fn finish(mut self, exdev: bool) -> Result<PathBuf> {
         self.committed = true;
-        let result = self.move_into_place();
-        if result.is_err() {
-            // Leave no staging directory behind; whatever was moved stays moved.
+        let result = {
+            // Hold the registry while swapping so that a signal waits for the swap to finish.
+            let mut entries = live();
+            let result = self.swap_into_place(exdev);
             let _ = std::fs::remove_dir_all(&self.staging);
-        }
+            entries.retain(|e| e.id != self.id);
+            result
+        };
+        self.lock.take();
         result.map(|()| self.final_dir.clone())
     }
 
-    fn move_into_place(&self) -> Result<()> {
-        match std::fs::symlink_metadata(&self.final_dir) {
-            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
-                // Nothing to merge with: the whole tree appears at once.
-                return std::fs::rename(&self.staging, &self.final_dir)
-                    .map_err(|e| Error::write(&self.final_dir, e));
+    fn swap_into_place(&mut self, exdev: bool) -> Result<()> {
+        match self.mode {
+            Mode::Inside => replace_entries(&self.staging, &self.target),
+            Mode::Sibling => {
+                match std::fs::symlink_metadata(&self.target) {
+                    Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+                        // Nothing to replace: the whole tree appears at once.
+                        return std::fs::rename(&self.staging, &self.target)
+                            .map_err(|e| Error::write(&self.target, e));
+                    }
+                    Err(e) => return Err(Error::write(&self.target, e)),
+                    Ok(_) => {}
+                }
+                let parent = self.staging.parent().unwrap_or(Path::new("."));
+                let name = self
+                    .target
+                    .file_name()
+                    .unwrap_or_default()
+                    .to_string_lossy();
+                let old = parent.join(format!(
+                    ".{name}.spibench-old-{}-{}",
+                    std::process::id(),
+                    self.id
+                ));
+                let moved = if exdev {
+                    Err(std::io::Error::from_raw_os_error(EXDEV))
+                } else {
+                    std::fs::rename(&self.target, &old)
+                };
+                match moved {
+                    Ok(()) => {}
+                    Err(e) if is_cross_device(&e) => {
+                        // The destination is a mount point after all: bring the staged files
+                        // onto its filesystem and swap entry by entry there.
+                        let inner = self.target.join(format!(
+                            ".spibench-partial-{}-{}",
+                            std::process::id(),
+                            self.id
+                        ));
+                        let copied = move_tree(&self.staging, &inner)
+                            .and_then(|()| replace_entries(&inner, &self.target));
+                        let _ = std::fs::remove_dir_all(&inner);
+                        return copied;
+                    }
+                    Err(e) => return Err(Error::write(&self.target, e)),
+                }
+                if let Err(e) = std::fs::rename(&self.staging, &self.target) {
+                    // Undo the first rename: the old folder comes back unchanged.
+                    let _ = std::fs::rename(&old, &self.target);
+                    return Err(Error::write(&self.target, e));
+                }
+                // A failure here leaves a hidden folder that the next run's sweep removes.
+                let _ = std::fs::remove_dir_all(&old);
+                Ok(())
             }
-            Err(e) => return Err(Error::write(&self.final_dir, e)),
-            Ok(_) => {}
         }
-        merge(&self.staging, &self.final_dir)?;
-        std::fs::remove_dir_all(&self.staging).map_err(|e| Error::write(&self.staging, e))
     }
 }
 
 impl Drop for OutputDir {
     fn drop(&mut self) {
         if !self.committed {
+            let mut entries = live();
             let _ = std::fs::remove_dir_all(&self.staging);
+            entries.retain(|e| e.id != self.id);
+            drop(entries);
+            self.lock.take();
             remove_empty(&self.created_parents);
         }
     }
 }
 
-/// Moves the entries of `from` into `to` (an existing directory), recursing into directories
-/// that exist on both sides and replacing files.
-fn merge(from: &Path, to: &Path) -> Result<()> {
-    let entries = std::fs::read_dir(from).map_err(|e| Error::write(from, e))?;
-    let mut names: Vec<_> = entries
-        .map(|e| e.map(|e| e.file_name()))
-        .collect::<std::io::Result<_>>()
-        .map_err(|e| Error::write(from, e))?;
-    names.sort();
-    for name in names {
-        let src = from.join(&name);
-        let dst = to.join(&name);
-        let src_is_dir = std::fs::symlink_metadata(&src)
-            .map_err(|e| Error::write(&src, e))?
-            .is_dir();
-        let dst_meta = std::fs::symlink_metadata(&dst).ok();
-        match (src_is_dir, dst_meta) {
-            (true, Some(m)) if m.is_dir() => merge(&src, &dst)?,
-            (_, Some(m)) if m.is_dir() => {
-                return Err(Error::write(
-                    &dst,
-                    std::io::Error::other("a directory is in the way of an output file"),
-                ));
+const EXDEV: i32 = 18;
+const EBUSY: i32 = 16;
+
+/// True for the errors a rename gives when source and destination are on different mounts, or
+/// when the directory renamed is a mount point.
+fn is_cross_device(e: &std::io::Error) -> bool {
+    e.kind() == std::io::ErrorKind::CrossesDevices
+        || e.kind() == std::io::ErrorKind::ResourceBusy
+        || matches!(e.raw_os_error(), Some(EXDEV | EBUSY))
+}
+
+fn is_permission(e: &Error) -> bool {
+    matches!(e, Error::Io { source, .. }
+        if matches!(source.kind(), std::io::ErrorKind::PermissionDenied
+            | std::io::ErrorKind::ReadOnlyFilesystem))
+}
+
+#[cfg(unix)]
+fn is_mount_point(dir: &Path, parent: &Path) -> bool {
+    use std::os::unix::fs::MetadataExt;
+    match (std::fs::metadata(dir), std::fs::metadata(parent)) {
+        (Ok(a), Ok(b)) => a.dev() != b.dev(),
+        _ => false,
+    }
+}
+
+#[cfg(not(unix))]
+fn is_mount_point(_dir: &Path, _parent: &Path) -> bool {
+    false
+}
+
+/// A run replaces its output folder: refuse a destination that holds the current directory, so
+/// that `--out .` cannot wipe a working tree.
+fn refuse_current_dir(target: &Path, given: &Path) -> Result<()> {
+    if let (Ok(t), Ok(cwd)) = (
+        std::fs::canonicalize(target),
+        std::env::current_dir().and_then(std::fs::canonicalize),
+    ) && cwd.starts_with(&t)
+    {
+        return Err(Error::input(
+            "the output folder contains the current directory; a run replaces its output \
+             folder as a whole, so choose a folder of its own (for example `out/run`)",
+        )
+        .in_file(given));
+    }
+    Ok(())
+}
+
+/// An advisory lock on a lock file, removed again when released.
+#[derive(Debug)]
+struct DirLock {
+    path: PathBuf,
+    _file: File,
+}
+
+impl DirLock {
+    /// Takes the lock or reports the run that holds it as an input error about `dest`.
+    fn acquire(path: &Path, dest: &Path) -> Result<DirLock> {
+        loop {
+            let file = std::fs::OpenOptions::new()
+                .create(true)
+                .truncate(false)
+                .write(true)
+                .open(path)
+                .map_err(|e| Error::write(path, e))?;
+            match file.try_lock() {
+                Ok(()) => {}
+                Err(std::fs::TryLockError::WouldBlock) => {
+                    return Err(Error::input(format!(
+                        "another spibench run is writing into this output folder (it holds {}); \
+                         wait for it to finish or choose another output folder",
+                        path.display()
+                    ))
+                    .in_file(dest));
+                }
+                Err(std::fs::TryLockError::Error(e)) => return Err(Error::write(path, e)),
             }
-            // A file, or a directory with nothing in the way: rename replaces a file atomically.
-            _ => std::fs::rename(&src, &dst).map_err(|e| Error::write(&dst, e))?,
+            // A run that finished between our open and our lock removed the file it locked;
+            // then the lock we hold is on a file nobody else sees: take it again on the new one.
+            if same_file(&file, path) {
+                return Ok(DirLock {
+                    path: path.to_path_buf(),
+                    _file: file,
+                });
+            }
+        }
+    }
+}
+
+impl Drop for DirLock {
+    fn drop(&mut self) {
+        // Removed while still locked (the file closes after this), so a waiting run re-checks.
+        let _ = std::fs::remove_file(&self.path);
+    }
+}
+
+#[cfg(unix)]
+fn same_file(file: &File, path: &Path) -> bool {
+    use std::os::unix::fs::MetadataExt;
+    match (file.metadata(), std::fs::metadata(path)) {
+        (Ok(a), Ok(b)) => a.dev() == b.dev() && a.ino() == b.ino(),
+        _ => false,
+    }
+}
+
+#[cfg(not(unix))]
+fn same_file(_file: &File, path: &Path) -> bool {
+    path.exists()
+}
+
+/// The process id in a name `PREFIX{pid}-{n}`, if it has that shape.
+fn pid_in(name: &str, prefix: &str) -> Option<u32> {
+    let rest = name.strip_prefix(prefix)?;
+    let (pid, n) = rest.split_once('-')?;
+    n.parse::<u64>().ok()?;
+    pid.parse().ok()
+}
+
+/// True when process `pid` is known not to run any more. Only Linux's `/proc` is consulted;
+/// elsewhere nothing is taken for dead. A staging folder of this very process that is not live
+/// is stale too (left by an earlier process with the same id).
+fn is_dead(pid: u32, path: &Path) -> bool {
+    if pid == std::process::id() {
+        return !live().iter().any(|e| e.staging == path);
+    }
+    Path::new("/proc/self").exists() && !Path::new("/proc").join(pid.to_string()).exists()
+}
+
+/// Removes what dead runs left for destination `target` (named `name`, in `parent`): staging
+/// folders, and replaced folders (put back first when the destination is missing). Called with
+/// the destination's lock held.
+fn sweep_stale(parent: &Path, name: &str, target: &Path) {
+    let partial = format!(".{name}.spibench-partial-");
+    let old = format!(".{name}.spibench-old-");
+    for entry in sorted_names(parent) {
+        let Some(s) = entry.to_str() else { continue };
+        let path = parent.join(&entry);
+        if let Some(pid) = pid_in(s, &partial) {
+            if is_dead(pid, &path) {
+                let _ = std::fs::remove_dir_all(&path);
+            }
+        } else if let Some(pid) = pid_in(s, &old)
+            && is_dead(pid, &path)
+        {
+            if std::fs::symlink_metadata(target).is_err() {
+                let _ = std::fs::rename(&path, target);
+            } else {
+                let _ = std::fs::remove_dir_all(&path);
+            }
+        }
+    }
+    if target.is_dir() {
+        for entry in sorted_names(target) {
+            let Some(s) = entry.to_str() else { continue };
+            let path = target.join(&entry);
+            if let Some(pid) = pid_in(s, ".spibench-partial-") {
+                if is_dead(pid, &path) {
+                    let _ = std::fs::remove_dir_all(&path);
+                }
+            } else if let Some(pid) = pid_in(s, ".spibench-old-")
+                && is_dead(pid, &path)
+            {
+                // An entry-by-entry swap cut short: the old entries go back where they were.
+                for e in sorted_names(&path) {
+                    let back = target.join(&e);
+                    remove_any(&back);
+                    let _ = std::fs::rename(path.join(&e), &back);
+                }
+                let _ = std::fs::remove_dir_all(&path);
+            }
+        }
+    }
+}
+
+fn sorted_names(dir: &Path) -> Vec<OsString> {
+    let mut v: Vec<OsString> = std::fs::read_dir(dir)
+        .map(|it| it.flatten().map(|e| e.file_name()).collect())
+        .unwrap_or_default();
+    v.sort();
+    v
+}
+
+fn remove_any(path: &Path) {
+    match std::fs::symlink_metadata(path) {
+        Ok(m) if m.is_dir() => {
+            let _ = std::fs::remove_dir_all(path);
+        }
+        Ok(_) => {
+            let _ = std::fs::remove_file(path);
+        }
+        Err(_) => {}
+    }
+}
+
+/// True for the hidden bookkeeping entries of a destination used in place.
+fn is_bookkeeping(name: &OsString) -> bool {
+    name.to_str().is_some_and(|s| s.starts_with(".spibench-"))
+}
+
+/// Replaces the entries of `dest` by those of `staging` (a folder inside `dest`): the current
+/// entries move aside into `dest/.spibench-old-PID-N`, the staged ones move in, and the old ones
+/// are removed; if a move in fails, the moved-in entries are removed and the old ones put back.
+fn replace_entries(staging: &Path, dest: &Path) -> Result<()> {
+    let id = COUNTER.fetch_add(1, Ordering::Relaxed);
+    let aside = dest.join(format!(".spibench-old-{}-{id}", std::process::id()));
+    std::fs::create_dir(&aside).map_err(|e| Error::write(&aside, e))?;
+    let current: Vec<OsString> = sorted_names(dest)
+        .into_iter()
+        .filter(|n| !is_bookkeeping(n))
+        .collect();
+    let mut set_aside = Vec::new();
+    let mut moved_in = BTreeSet::new();
+    let mut failure = None;
+    for n in &current {
+        match std::fs::rename(dest.join(n), aside.join(n)) {
+            Ok(()) => set_aside.push(n.clone()),
+            Err(e) => {
+                failure = Some(Error::write(&dest.join(n), e));
+                break;
+            }
+        }
+    }
+    if failure.is_none() {
+        for n in sorted_names(staging) {
+            match std::fs::rename(staging.join(&n), dest.join(&n)) {
+                Ok(()) => {
+                    moved_in.insert(n);
+                }
+                Err(e) => {
+                    failure = Some(Error::write(&dest.join(&n), e));
+                    break;
+                }
+            }
+        }
+    }
+    if let Some(e) = failure {
+        for n in &moved_in {
+            remove_any(&dest.join(n));
+        }
+        for n in &set_aside {
+            let _ = std::fs::rename(aside.join(n), dest.join(n));
+        }
+        let _ = std::fs::remove_dir_all(&aside);
+        return Err(e);
+    }
+    let _ = std::fs::remove_dir_all(&aside);
+    Ok(())
+}
+
+/// Moves the tree `from` to `to` (which must not exist): a rename when both are on one
+/// filesystem, else a copy followed by removing `from`.
+fn move_tree(from: &Path, to: &Path) -> Result<()> {
+    match std::fs::rename(from, to) {
+        Ok(()) => Ok(()),
+        Err(e) if is_cross_device(&e) => {
+            copy_tree(from, to)?;
+            let _ = std::fs::remove_dir_all(from);
+            Ok(())
+        }
+        Err(e) => Err(Error::write(to, e)),
+    }
+}
+
+fn copy_tree(from: &Path, to: &Path) -> Result<()> {
+    std::fs::create_dir(to).map_err(|e| Error::write(to, e))?;
+    for n in sorted_names(from) {
+        let (s, d) = (from.join(&n), to.join(&n));
+        let meta = std::fs::symlink_metadata(&s).map_err(|e| Error::read(&s, e))?;
+        if meta.is_dir() {
+            copy_tree(&s, &d)?;
+        } else {
+            std::fs::copy(&s, &d).map_err(|e| Error::write(&d, e))?;
         }
     }
     Ok(())
@@ -257,6 +703,7 @@ mod tests {
         assert_eq!(std::fs::read(fin.join("summary.json")).unwrap(), b"{}");
         assert_eq!(std::fs::read(fin.join("images/a.png")).unwrap(), b"png");
         assert!(!staging.exists());
+        // Neither staging nor the lock file remains.
         assert_eq!(entries(&root), vec!["run".to_string()]);
         let _ = std::fs::remove_dir_all(&root);
     }
@@ -292,30 +739,72 @@ mod tests {
     }
 
     #[test]
-    fn commit_into_existing_dir_keeps_unrelated_files() {
-        let root = scratch("merge");
+    fn commit_replaces_an_existing_dir() {
+        let root = scratch("replace");
         let fin = root.join("run");
         std::fs::create_dir_all(fin.join("images")).unwrap();
-        std::fs::write(fin.join("notes.txt"), b"keep me").unwrap();
+        std::fs::write(fin.join("stale.txt"), b"stale").unwrap();
         std::fs::write(fin.join("summary.json"), b"old").unwrap();
         std::fs::write(fin.join("images/old.png"), b"old png").unwrap();
         let out = OutputDir::create(&fin).unwrap();
         std::fs::write(out.path("summary.json"), b"new").unwrap();
         std::fs::write(out.path("images/new.png"), b"new png").unwrap();
-        std::fs::write(out.path("plots/p.svg"), b"<svg/>").unwrap();
         out.commit().unwrap();
-        assert_eq!(std::fs::read(fin.join("notes.txt")).unwrap(), b"keep me");
+        assert_eq!(entries(&fin), vec!["images", "summary.json"]);
+        assert_eq!(entries(&fin.join("images")), vec!["new.png"]);
         assert_eq!(std::fs::read(fin.join("summary.json")).unwrap(), b"new");
-        assert_eq!(
-            std::fs::read(fin.join("images/old.png")).unwrap(),
-            b"old png"
-        );
-        assert_eq!(
-            std::fs::read(fin.join("images/new.png")).unwrap(),
-            b"new png"
-        );
-        assert_eq!(std::fs::read(fin.join("plots/p.svg")).unwrap(), b"<svg/>");
         assert_eq!(entries(&root), vec!["run".to_string()]);
+        let _ = std::fs::remove_dir_all(&root);
+    }
+
+    #[test]
+    fn a_failed_rename_falls_back_to_an_in_place_swap() {
+        let root = scratch("exdev");
+        let fin = root.join("run");
+        std::fs::create_dir_all(fin.join("sub")).unwrap();
+        std::fs::write(fin.join("stale.txt"), b"stale").unwrap();
+        let out = OutputDir::create(&fin).unwrap();
+        std::fs::write(out.path("summary.json"), b"new").unwrap();
+        std::fs::write(out.path("sub/a.txt"), b"a").unwrap();
+        out.finish(true).unwrap();
+        assert_eq!(entries(&fin), vec!["sub", "summary.json"]);
+        assert_eq!(entries(&fin.join("sub")), vec!["a.txt"]);
+        assert_eq!(entries(&root), vec!["run".to_string()]);
+        // Copying across devices keeps every byte.
+        copy_tree(&fin, &root.join("copy")).unwrap();
+        assert_eq!(std::fs::read(root.join("copy/sub/a.txt")).unwrap(), b"a");
+        let _ = std::fs::remove_dir_all(&root);
+    }
+
+    #[test]
+    fn a_second_run_is_locked_out_and_stale_stagings_are_swept() {
+        let root = scratch("lock");
+        let fin = root.join("run");
+        let out = OutputDir::create(&fin).unwrap();
+        let e = OutputDir::create(&fin).unwrap_err();
+        assert!(e.is_user_error(), "{e}");
+        assert!(e.to_string().contains("another spibench run"), "{e}");
+        drop(out);
+        // A staging folder and a replaced folder of a process that is gone: with no `run`,
+        // the replaced folder is put back; the staging folder is removed.
+        if Path::new("/proc/self").exists() {
+            let dead = u32::MAX - 7;
+            std::fs::create_dir_all(root.join(format!(".run.spibench-partial-{dead}-0"))).unwrap();
+            let old = root.join(format!(".run.spibench-old-{dead}-1"));
+            std::fs::create_dir_all(&old).unwrap();
+            std::fs::write(old.join("kept.txt"), b"kept").unwrap();
+            let out = OutputDir::create(&fin).unwrap();
+            let staging = out.staging_dir().file_name().unwrap().to_owned();
+            let mut want = vec![
+                ".run.spibench-lock".to_string(),
+                staging.to_string_lossy().into_owned(),
+                "run".to_string(),
+            ];
+            want.sort();
+            assert_eq!(entries(&root), want);
+            assert_eq!(std::fs::read(fin.join("kept.txt")).unwrap(), b"kept");
+            drop(out);
+        }
         let _ = std::fs::remove_dir_all(&root);
     }
 
@@ -331,10 +820,7 @@ mod tests {
         assert!(out.try_path("/x").is_err());
         assert!(out.try_path("").is_err());
         assert!(out.try_path("a/b.txt").unwrap().parent().unwrap().is_dir());
-        // Two stagings for the same directory in one process do not collide.
-        let other = OutputDir::create(&root.join("run")).unwrap();
-        assert_ne!(other.staging_dir(), out.staging_dir());
-        drop((out, other));
+        drop(out);
         assert!(entries(&root).is_empty(), "{:?}", entries(&root));
         let _ = std::fs::remove_dir_all(&root);
     }
@@ -348,9 +834,10 @@ mod tests {
         assert!(e.is_user_error());
         assert!(e.to_string().contains("run"), "{e}");
         assert!(OutputDir::create(Path::new("/")).is_err());
-        // A directory given as `dir/.` stages beside `dir` and commits into it.
+        // A directory given as `dir/.` stages beside `dir` and replaces it.
         let dotted = root.join("dotted");
         std::fs::create_dir_all(&dotted).unwrap();
+        std::fs::write(dotted.join("stale.txt"), b"s").unwrap();
         let out = OutputDir::create(&dotted.join(".")).unwrap();
         assert_eq!(
             out.staging_dir().parent().unwrap(),
@@ -358,7 +845,7 @@ mod tests {
         );
         std::fs::write(out.path("x.txt"), b"x").unwrap();
         out.commit().unwrap();
-        assert_eq!(std::fs::read(dotted.join("x.txt")).unwrap(), b"x");
+        assert_eq!(entries(&dotted), vec!["x.txt"]);
         let _ = std::fs::remove_dir_all(&root);
     }
 }

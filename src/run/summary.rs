@@ -52,7 +52,9 @@ pub struct RunSummary<'a> {
     pub findings: Findings,
     /// Output files, relative to the output folder.
     pub files: Vec<String>,
-    /// Wall-clock timings (s): differ between identical runs.
+    /// Wall-clock timings (s): differ between identical runs, so they are not serialised here
+    /// (summary.json is byte-identical for a seed); the CLI writes them to timings.json.
+    #[serde(skip)]
     pub timings: Timings,
 }
 

@@ -55,10 +55,12 @@ impl From<Positive> for f64 {
 impl TryFrom<f64> for Positive {
     type Error = String;
     fn try_from(v: f64) -> std::result::Result<Self, String> {
-        if v.is_finite() && v > 0.0 {
+        if v.is_finite() && v > 0.0 && v <= MAX_SCALAR {
             Ok(Positive(v))
         } else {
-            Err(format!("must be a positive number, got {v}"))
+            Err(format!(
+                "must be a positive number of at most {MAX_SCALAR:e}, got {v:e}"
+            ))
         }
     }
 }
@@ -77,13 +79,74 @@ impl From<NonNegative> for f64 {
 impl TryFrom<f64> for NonNegative {
     type Error = String;
     fn try_from(v: f64) -> std::result::Result<Self, String> {
-        if v.is_finite() && v >= 0.0 {
+        if v.is_finite() && (0.0..=MAX_SCALAR).contains(&v) {
             Ok(NonNegative(v))
         } else {
-            Err(format!("must be a non-negative number, got {v}"))
+            Err(format!(
+                "must be a non-negative number of at most {MAX_SCALAR:e}, got {v:e}"
+            ))
         }
     }
 }
+
+/// The largest plain positive or non-negative number a bench may hold (gains, bandwidths,
+/// noise densities): far above any real one, and far from overflowing in products.
+pub const MAX_SCALAR: f64 = 1e15;
+
+/// Declares a validated scalar newtype: finite and within `(lo, hi]`, with the unit in the
+/// error message, so that a new field of that kind cannot forget its check.
+macro_rules! bounded {
+    ($(#[$m:meta])* $name:ident, $lo:expr, $hi:expr, $unit:expr) => {
+        $(#[$m])*
+        #[derive(Debug, Clone, Copy, PartialEq, Deserialize, Serialize)]
+        #[serde(try_from = "f64", into = "f64")]
+        pub struct $name(pub f64);
+
+        impl From<$name> for f64 {
+            fn from(v: $name) -> f64 {
+                v.0
+            }
+        }
+
+        impl TryFrom<f64> for $name {
+            type Error = String;
+            fn try_from(v: f64) -> std::result::Result<Self, String> {
+                if v.is_finite() && v > $lo && v <= $hi {
+                    Ok($name(v))
+                } else {
+                    Err(format!(
+                        "must be above {} and at most {} {}, got {v:e}",
+                        $lo, $hi, $unit
+                    ))
+                }
+            }
+        }
+    };
+}
+
+bounded!(
+    /// A length (mm) of a part: positive and at most [`MAX_POSITION_MM`] (100 m).
+    LengthMm,
+    0.0,
+    MAX_POSITION_MM,
+    "mm"
+);
+
+bounded!(
+    /// An angle (degrees) that is a size (a cone half-angle, a mirror tilt): in (0, 180].
+    AngleDeg,
+    0.0,
+    180.0,
+    "degrees"
+);
+
+bounded!(
+    /// A radiant power (W): positive and at most 1 MW (a lamp of a bench draws tens of watts).
+    PowerW,
+    0.0,
+    1e6,
+    "W"
+);
 
 /// A number in (0, 1].
 #[derive(Debug, Clone, Copy, PartialEq, Deserialize, Serialize)]
@@ -154,7 +217,7 @@ impl TryFrom<(f64, f64, f64)> for Mm3 {
         for c in [v.0, v.1, v.2] {
             if !(c.is_finite() && c.abs() <= MAX_POSITION_MM) {
                 return Err(format!(
-                    "components must be finite and within ±{MAX_POSITION_MM} mm, got {c}"
+                    "components must be finite and within ±{MAX_POSITION_MM} mm, got {c:e}"
                 ));
             }
         }
@@ -309,11 +372,11 @@ pub enum CoatingSpec {
 #[serde(deny_unknown_fields)]
 pub enum Outline {
     Round {
-        diameter_mm: Positive,
+        diameter_mm: LengthMm,
     },
     Rect {
-        width_mm: Positive,
-        height_mm: Positive,
+        width_mm: LengthMm,
+        height_mm: LengthMm,
     },
 }
 
@@ -408,11 +471,11 @@ pub struct LampSpec {
 #[serde(deny_unknown_fields)]
 pub enum FilamentSpec {
     Rect {
-        width_mm: Positive,
-        height_mm: Positive,
+        width_mm: LengthMm,
+        height_mm: LengthMm,
     },
     Disk {
-        diameter_mm: Positive,
+        diameter_mm: LengthMm,
     },
 }
 
@@ -436,13 +499,13 @@ pub enum LampSpectrumSpec {
 #[serde(deny_unknown_fields)]
 pub enum LampPowerSpec {
     /// Radiant power emitted in the traced band (W).
-    InBand { watts: Positive },
+    InBand { watts: PowerW },
     /// Electrical power (W) times the in-band radiant efficiency (W radiated in the traced band
     /// per W electrical). A QTH lamp radiates ~85–90 % of its input; at 2800 K a blackbody puts
     /// 32 % of its radiation into 350–1150 nm (tungsten somewhat more, its emissivity falling in
     /// the infrared), so ≈ 0.3 for the default band (estimate, confidence L).
     Electrical {
-        watts: Positive,
+        watts: PowerW,
         in_band_efficiency: UnitFraction,
     },
     /// From the filament's area and temperature: area·∫ε(λ)·π·B_λ(T) dλ over the band (thermal
@@ -457,7 +520,7 @@ pub enum EmissionSpec {
     /// The whole hemisphere.
     Hemisphere,
     /// A cone of the given half-angle (degrees, 0–90) around the filament normal.
-    Cone { half_angle_deg: Positive },
+    Cone { half_angle_deg: AngleDeg },
     /// The smallest cone (plus 0.1°) that contains the named element as seen from every point of
     /// the filament: usually the collimator.
     Toward { element: String },
@@ -520,13 +583,13 @@ pub enum ElementSpec {
         #[serde(default)]
         back_radius_mm: Option<f64>,
         /// Centre thickness (mm).
-        thickness_mm: Positive,
+        thickness_mm: LengthMm,
         /// Mechanical diameter (mm).
-        diameter_mm: Positive,
+        diameter_mm: LengthMm,
         /// Clear aperture (mm); the ring outside it is covered by the mount (black). Default =
         /// the diameter.
         #[serde(default)]
-        clear_diameter_mm: Option<Positive>,
+        clear_diameter_mm: Option<LengthMm>,
         /// Glass: a catalogue name (N-BK7, N-SF11, fused-silica, MgF2) or a constant index such
         /// as "1.5".
         glass: String,
@@ -555,7 +618,7 @@ pub enum ElementSpec {
         /// Outline.
         outline: Outline,
         /// Thickness (mm).
-        thickness_mm: Positive,
+        thickness_mm: LengthMm,
         /// Substrate glass (name or constant index), for refraction and Fresnel reflection.
         glass: String,
         /// Internal optical density through the full thickness at normal incidence (excluding
@@ -578,9 +641,9 @@ pub enum ElementSpec {
         /// Plane normal.
         axis: Direction,
         /// Hole diameter (mm).
-        inner_diameter_mm: Positive,
+        inner_diameter_mm: LengthMm,
         /// Outer diameter of the black annulus (mm).
-        outer_diameter_mm: Positive,
+        outer_diameter_mm: LengthMm,
     },
     /// A black tube (lens tube, lamp housing): the side of a cylinder, analytic (every lamp ray
     /// starts inside the lamp housing, where a faceted mesh is the slowest thing to trace).
@@ -592,9 +655,9 @@ pub enum ElementSpec {
         /// Tube axis (the tube runs from `position_mm` along it).
         axis: Direction,
         /// Inner diameter (mm).
-        diameter_mm: Positive,
+        diameter_mm: LengthMm,
         /// Length (mm).
-        length_mm: Positive,
+        length_mm: LengthMm,
     },
     /// A black plate with a circular hole (baffle, field stop) as a triangle mesh (obvhs).
     Baffle {
@@ -608,10 +671,10 @@ pub enum ElementSpec {
         #[serde(default)]
         x_axis: Option<Direction>,
         /// Plate width and height (mm).
-        width_mm: Positive,
-        height_mm: Positive,
+        width_mm: LengthMm,
+        height_mm: LengthMm,
         /// Hole diameter (mm).
-        hole_diameter_mm: Positive,
+        hole_diameter_mm: LengthMm,
         /// Sides of the hole's polygon (default 64).
         #[serde(default = "default_segments")]
         segments: usize,
@@ -636,7 +699,7 @@ pub enum ElementSpec {
         reflectance: SpectrumSpec,
         /// Substrate thickness behind the face (mm; only used to detect overlaps). Default 6.
         #[serde(default = "default_mirror_thickness")]
-        thickness_mm: Positive,
+        thickness_mm: LengthMm,
         /// Alignment tilt (degrees) about local x then y.
         #[serde(default)]
         tilt_deg: Option<(f64, f64)>,
@@ -658,7 +721,7 @@ pub enum ElementSpec {
         /// Plate width and height (mm).
         plate_mm: (Positive, Positive),
         /// Substrate thickness (mm).
-        thickness_mm: Positive,
+        thickness_mm: LengthMm,
         /// Substrate glass.
         glass: String,
         /// What is printed.
@@ -697,8 +760,8 @@ fn default_segments() -> usize {
     64
 }
 
-fn default_mirror_thickness() -> Positive {
-    Positive(6.0)
+fn default_mirror_thickness() -> LengthMm {
+    LengthMm(6.0)
 }
 
 fn default_chrome_od() -> SpectrumSpec {
@@ -725,8 +788,8 @@ pub enum ChartPatternSpec {
     /// physical size, centred on the plate centre; `path` is relative to the bench file.
     Image {
         path: String,
-        width_mm: Positive,
-        height_mm: Positive,
+        width_mm: LengthMm,
+        height_mm: LengthMm,
     },
     /// No chrome: a plain glass plate.
     Clear,
@@ -758,7 +821,7 @@ pub struct DmdSpec {
     /// Mirror area / cell area (mirror side = pitch·√fill).
     pub fill_factor: UnitFraction,
     /// Landed tilt angle (degrees); state + is +tilt about the hinge axis.
-    pub tilt_deg: Positive,
+    pub tilt_deg: AngleDeg,
     /// Hinge axis angle from +x toward +y (degrees); 45 = the mirror diagonal.
     #[serde(default = "default_hinge")]
     pub tilt_axis_deg: f64,
@@ -791,9 +854,9 @@ pub struct WindowSpec {
     /// Glass (name or constant index).
     pub glass: String,
     /// Thickness (mm).
-    pub thickness_mm: Positive,
+    pub thickness_mm: LengthMm,
     /// Gap between the array plane and the window's inner face (mm).
-    pub gap_mm: Positive,
+    pub gap_mm: LengthMm,
     /// Clear window size (mm), centred on the array.
     pub size_mm: (Positive, Positive),
     /// Coating of both faces.
@@ -844,7 +907,7 @@ pub struct PhotodiodeSpec {
     /// The direction the active area faces (toward the incoming light).
     pub normal: Direction,
     /// Active-area diameter (mm).
-    pub diameter_mm: Positive,
+    pub diameter_mm: LengthMm,
     /// Responsivity (A/W) against wavelength; default the typical Si-PIN table.
     #[serde(default = "default_responsivity")]
     pub responsivity: SpectrumSpec,
@@ -857,7 +920,7 @@ pub struct PhotodiodeSpec {
     pub dark_current_a: NonNegative,
     /// Outer diameter of the black front plate around the diode (mm); omit for none.
     #[serde(default)]
-    pub housing_diameter_mm: Option<Positive>,
+    pub housing_diameter_mm: Option<LengthMm>,
 }
 
 fn default_responsivity() -> SpectrumSpec {
@@ -1019,7 +1082,7 @@ impl<'a> Locator<'a> {
 }
 
 /// Skips a comment or string starting at i, returning the index after it.
-fn skip_trivia(b: &[u8], i: usize) -> Option<usize> {
+pub(super) fn skip_trivia(b: &[u8], i: usize) -> Option<usize> {
     if b[i] == b'/' && i + 1 < b.len() && b[i + 1] == b'/' {
         let mut j = i;
         while j < b.len() && b[j] != b'\n' {
@@ -1167,8 +1230,7 @@ fn mm(p: Mm3) -> DVec3 {
 impl Ctx<'_> {
     /// An error at a top-level path of fields.
     fn err_path(&self, path: &[&str], msg: impl Into<String>) -> Error {
-        let field = path.last().copied().unwrap_or("");
-        let mut e = Error::field(field, msg).in_file(self.path);
+        let mut e = Error::field(path.join("."), msg).in_file(self.path);
         if let Some(loc) = &self.loc
             && let Some(p) = loc.path(path)
         {
@@ -1180,7 +1242,7 @@ impl Ctx<'_> {
 
     /// An error at a field of a named element.
     fn err_el(&self, element: &str, field: &str, msg: impl Into<String>) -> Error {
-        let mut e = Error::field(field, format!("`{element}`: {}", msg.into())).in_file(self.path);
+        let mut e = Error::field(format!("elements[{element}].{field}"), msg).in_file(self.path);
         if let Some(loc) = &self.loc
             && let Some(p) = loc.element_field(element, field)
         {
@@ -2240,7 +2302,11 @@ mod tests {
             msg.contains(&format!("line {line}")),
             "{msg} (expected line {line})"
         );
-        assert!(msg.contains(&format!("field `{field}`")), "{msg}");
+        assert!(
+            msg.contains("field `")
+                && (msg.contains(&format!("{field}`")) || msg.contains(&format!("{field}["))),
+            "{msg}"
+        );
         assert!(msg.contains(words), "{msg}");
         assert!(msg.contains("symmetric_arms.ron"), "{msg}");
     }

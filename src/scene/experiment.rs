@@ -32,6 +32,19 @@ use crate::reconstruction::tval3::Tval3Options;
 /// DMD at one mirror per unit). Larger grids are almost certainly a typing error.
 pub const MAX_UNITS: usize = 1 << 20;
 
+/// The largest arm gain k± (dimensionless; the paper's are near 1).
+pub const MAX_ARM_GAIN: f64 = 1e3;
+
+/// The largest |b±| and noise standard deviation, in grey levels summed over units: far above
+/// the largest possible signal (255 × 2²⁰ ≈ 2.7e8), and far from overflowing when squared.
+pub const MAX_ARM_OFFSET: f64 = 1e12;
+
+/// The largest DMD pattern rate, Hz (DMDs reach a few tens of kHz).
+pub const MAX_DMD_RATE_HZ: f64 = 1e6;
+
+/// The most TVAL3 outer iterations and inner-loop restarts an experiment may ask for.
+pub const MAX_SOLVER_ITERATIONS: usize = 1_000_000;
+
 /// The file as written. Every field is documented because the file is the user interface.
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields, rename = "Experiment")]
@@ -181,6 +194,20 @@ impl TryFrom<ArmsFields> for ArmsSpec {
             b_minus: a.b_minus,
         };
         arms.validate().map_err(|e| e.to_string())?;
+        for (name, k) in [("k_plus", a.k_plus), ("k_minus", a.k_minus)] {
+            if k > MAX_ARM_GAIN {
+                return Err(format!(
+                    "field `{name}`: an arm gain must be at most {MAX_ARM_GAIN:e}, got {k:e}"
+                ));
+            }
+        }
+        for (name, b) in [("b_plus", a.b_plus), ("b_minus", a.b_minus)] {
+            if b.abs() > MAX_ARM_OFFSET {
+                return Err(format!(
+                    "field `{name}`: an arm offset must lie within ±{MAX_ARM_OFFSET:e} grey levels, got {b:e}"
+                ));
+            }
+        }
         Ok(ArmsSpec(arms))
     }
 }
@@ -200,6 +227,12 @@ impl TryFrom<AdditiveNoise> for NoiseSpec {
     type Error = String;
     fn try_from(n: AdditiveNoise) -> std::result::Result<Self, String> {
         n.validate().map_err(|e| e.to_string())?;
+        if n.std > MAX_ARM_OFFSET {
+            return Err(format!(
+                "field `std`: the noise standard deviation must be at most {MAX_ARM_OFFSET:e} grey levels, got {:e}",
+                n.std
+            ));
+        }
         Ok(NoiseSpec(n))
     }
 }
@@ -275,6 +308,17 @@ pub struct Experiment {
     pub curves: Vec<CurveSpec>,
     /// Folder that relative object paths resolve against.
     pub base_dir: PathBuf,
+    /// The file (or `<built-in NAME>`) and its text, to locate errors found later.
+    pub source_path: PathBuf,
+    pub source_text: String,
+}
+
+impl Experiment {
+    /// Gives an input error found after validation (rendering an object, say) the experiment's
+    /// file and the line and column of its field.
+    pub fn locate(&self, e: Error) -> Error {
+        locate(e, &self.source_text, &self.source_path)
+    }
 }
 
 #[derive(Debug, Clone)]
@@ -307,7 +351,10 @@ pub fn load(name_or_path: &str) -> Result<Experiment> {
             Path::new("."),
         );
     }
-    let text = std::fs::read_to_string(path).map_err(|e| {
+    let text = super::read_text(path).map_err(|e| {
+        let Error::Io { source: e, .. } = e else {
+            return e;
+        };
         let names: Vec<&str> = BUILT_IN.iter().map(|(n, _)| *n).collect();
         match e.kind() {
             std::io::ErrorKind::NotFound => Error::input(format!(
@@ -328,10 +375,15 @@ pub fn load(name_or_path: &str) -> Result<Experiment> {
 /// Parses and validates experiment text; `path` names it in errors, `base_dir` resolves files.
 pub fn parse(text: &str, path: &Path, base_dir: &Path) -> Result<Experiment> {
     let file: ExperimentFile = super::parse_ron(text, path)?;
-    validate(file, base_dir).map_err(|e| locate(e, text, path))
+    let mut exp = validate(file, base_dir).map_err(|e| locate(e, text, path))?;
+    exp.source_path = path.to_path_buf();
+    exp.source_text = text.to_string();
+    Ok(exp)
 }
 
-/// Adds the file and, for a named field, the line of its first occurrence.
+/// Adds the file and, for a named field, the line and column where that field (by its full
+/// path, `cases[1].label`) is written; a field left at its default is located at the nearest
+/// enclosing field that is written.
 fn locate(e: Error, text: &str, path: &Path) -> Error {
     let e = e.in_file(path);
     let field = match &e {
@@ -339,35 +391,34 @@ fn locate(e: Error, text: &str, path: &Path) -> Error {
         _ => None,
     };
     if let Some(field) = field {
-        let key = field.split(['[', '.']).next().unwrap_or(&field).to_string();
-        if let Some((line, col)) = find_key(text, &key) {
-            return e.at_line(line, col);
-        }
-    }
-    e
-}
-
-/// Line and column (1-based) of the first `key:` in the text.
-fn find_key(text: &str, key: &str) -> Option<(usize, usize)> {
-    for (i, line) in text.lines().enumerate() {
-        let trimmed = line.trim_start();
-        if trimmed.starts_with("//") {
-            continue;
-        }
-        if let Some(pos) = line.find(&format!("{key}:")) {
-            let before = line[..pos].chars().last();
-            if before.is_none_or(|c| !(c.is_alphanumeric() || c == '_')) {
-                return Some((i + 1, pos + 1));
+        let mut probe = field.as_str();
+        loop {
+            if let Some(pos) = super::find_path(text, probe) {
+                let (line, col) = super::line_col(text, pos);
+                return e.at_line(line, col);
+            }
+            // Up one level: `a.b[2].c` → `a.b[2]` → `a.b` → `a`.
+            match probe.rfind(['.', '[']) {
+                Some(i) => probe = &probe[..i],
+                None => break,
             }
         }
+        if let Some((line, col)) =
+            super::find_path(text, field.split(['[', '.']).next().unwrap_or(&field))
+                .map(|p| super::line_col(text, p))
+        {
+            return e.at_line(line, col);
+        }
+        // A field not written at all: the top of the file.
+        return e.at_line(1, 1);
     }
-    None
+    e
 }
 
 fn validate(f: ExperimentFile, base_dir: &Path) -> Result<Experiment> {
     if f.width == 0 || f.height == 0 {
         return Err(Error::field(
-            "width",
+            if f.width == 0 { "width" } else { "height" },
             format!("the image must have pixels, got {}×{}", f.width, f.height),
         ));
     }
@@ -375,7 +426,7 @@ fn validate(f: ExperimentFile, base_dir: &Path) -> Result<Experiment> {
         return Err(Error::field(
             "width",
             format!(
-                "{}×{} units is more than the {} units of a 1024×1024 grid",
+                "{}×{} units is more than the {} units of a 1024×1024 grid (at most 1024 × 1024 units)",
                 f.width, f.height, MAX_UNITS
             ),
         ));
@@ -428,11 +479,35 @@ fn validate(f: ExperimentFile, base_dir: &Path) -> Result<Experiment> {
             noise: c.noise.map(|n| n.0),
         });
     }
-    if !(f.dmd_rate_hz.is_finite() && f.dmd_rate_hz > 0.0) {
+    if !(f.dmd_rate_hz.is_finite() && f.dmd_rate_hz > 0.0 && f.dmd_rate_hz <= MAX_DMD_RATE_HZ) {
         return Err(Error::field(
             "dmd_rate_hz",
-            format!("the DMD rate must be positive, got {}", f.dmd_rate_hz),
+            format!(
+                "the DMD rate must be positive and at most {MAX_DMD_RATE_HZ:e} Hz, got {}",
+                f.dmd_rate_hz
+            ),
         ));
+    }
+    f.solver.validate().map_err(|e| e.within("solver"))?;
+    for (name, n) in [("maxit", f.solver.maxit), ("maxcnt", f.solver.maxcnt)] {
+        if n > MAX_SOLVER_ITERATIONS {
+            return Err(Error::field(
+                format!("solver.{name}"),
+                format!("must be at most {MAX_SOLVER_ITERATIONS}, got {n}"),
+            ));
+        }
+    }
+    for (i, c) in f.curves.iter().enumerate() {
+        for (name, v) in [("at_ratio", c.at_ratio), ("at_k_prime", c.at_k_prime)] {
+            if let Some(v) = v
+                && !v.is_finite()
+            {
+                return Err(Error::field(
+                    format!("curves[{i}].{name}"),
+                    format!("must be a finite number, got {v}"),
+                ));
+            }
+        }
     }
     if let PatternsSpec::Hadamard { .. } = f.patterns {
         let side = f.width;
@@ -449,13 +524,13 @@ fn validate(f: ExperimentFile, base_dir: &Path) -> Result<Experiment> {
     if let Some(m) = &f.montage {
         if m.rows == m.columns {
             return Err(Error::field(
-                "montage",
+                "montage.columns",
                 "montage rows and columns must be different axes",
             ));
         }
         if m.tile_px == 0 || m.tile_px > 1024 {
             return Err(Error::field(
-                "montage",
+                "montage.tile_px",
                 format!("tile_px must be 1..=1024, got {}", m.tile_px),
             ));
         }
@@ -487,5 +562,7 @@ fn validate(f: ExperimentFile, base_dir: &Path) -> Result<Experiment> {
         montage: f.montage,
         curves: f.curves,
         base_dir: base_dir.to_path_buf(),
+        source_path: PathBuf::new(),
+        source_text: String::new(),
     })
 }

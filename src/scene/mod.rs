@@ -60,14 +60,9 @@ pub fn read_text(path: &Path) -> Result<String> {
 fn ron_error(text: &str, path: &Path, e: ron::error::SpannedError) -> Error {
     use ron::Error as R;
     let (line, col) = (e.span.start.line, e.span.start.col);
-    let field = match &e.code {
-        R::NoSuchStructField { found, .. } => Some(found.clone()),
-        R::MissingStructField { field, .. } | R::DuplicateStructField { field, .. } => {
-            Some(field.to_string())
-        }
-        _ => field_before(text, line, col),
-    };
-    let message = match &e.code {
+    let offset = offset_of(text, line, col);
+    let enclosing = path_at(text, offset);
+    let mut message = match &e.code {
         R::Message(m) => m.clone(),
         other => {
             let mut m = other.to_string();
@@ -77,11 +72,191 @@ fn ron_error(text: &str, path: &Path, e: ron::error::SpannedError) -> Error {
             m
         }
     };
-    let mut err = Error::input(message).in_file(path).at_line(line, col);
+    // A value checked while parsing (a `try_from` type) may name its own field inside the
+    // value just read: "field `k_plus`: must be …". That field, within the enclosing one, is
+    // the one to report, at its own line (the last `k_plus:` before the error).
+    let inner = message
+        .strip_prefix("field `")
+        .and_then(|m| m.split_once("`: "))
+        .map(|(f, rest)| (f.to_string(), rest.to_string()));
+    let mut at = (line, col);
+    let field = match (&e.code, inner) {
+        (R::NoSuchStructField { found, .. }, _) => Some(join_path(enclosing.as_deref(), found)),
+        (R::MissingStructField { field, .. } | R::DuplicateStructField { field, .. }, _) => {
+            Some(join_path(enclosing.as_deref(), field))
+        }
+        (_, Some((f, rest))) => {
+            message = rest;
+            match last_key_before(text, &f, offset) {
+                Some(p) => {
+                    at = line_col(text, p);
+                    path_at(text, p + f.len() + 1).or(Some(f))
+                }
+                None => Some(join_path(enclosing.as_deref(), &f)),
+            }
+        }
+        _ => enclosing.or_else(|| field_before(text, line, col)),
+    };
+    let mut err = Error::input(message).in_file(path).at_line(at.0, at.1);
     if let Some(f) = field {
         err = err.at_field(f);
     }
     err
+}
+
+fn join_path(base: Option<&str>, field: &str) -> String {
+    match base {
+        Some(b) if !b.is_empty() && !b.ends_with(field) => format!("{b}.{field}"),
+        Some(b) if !b.is_empty() => b.to_string(),
+        _ => field.to_string(),
+    }
+}
+
+/// Byte offset of a 1-based line and column.
+fn offset_of(text: &str, line: usize, col: usize) -> usize {
+    let mut offset = 0;
+    for (i, l) in text.split_inclusive('\n').enumerate() {
+        if i + 1 == line {
+            return offset
+                + l.char_indices()
+                    .nth(col.saturating_sub(1))
+                    .map_or(l.len(), |(b, _)| b);
+        }
+        offset += l.len();
+    }
+    text.len()
+}
+
+/// 1-based line and column of a byte offset.
+pub(crate) fn line_col(text: &str, pos: usize) -> (usize, usize) {
+    let mut pos = pos.min(text.len());
+    while !text.is_char_boundary(pos) {
+        pos -= 1;
+    }
+    let before = &text[..pos];
+    let line = before.matches('\n').count() + 1;
+    let col = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
+    (line, col)
+}
+
+/// Offset of the last `key:` (as a whole word, outside comments and strings) before `pos`.
+fn last_key_before(text: &str, key: &str, pos: usize) -> Option<usize> {
+    keys(text)
+        .into_iter()
+        .filter(|&(p, k)| k == key && p < pos)
+        .map(|(p, _)| p)
+        .next_back()
+}
+
+/// Every `identifier:` of the text outside comments and strings: (offset, identifier).
+fn keys(text: &str) -> Vec<(usize, &str)> {
+    let b = text.as_bytes();
+    let mut out = Vec::new();
+    let mut i = 0;
+    while i < b.len() {
+        if let Some(next) = bench::skip_trivia(b, i) {
+            i = next;
+            continue;
+        }
+        if b[i].is_ascii_alphabetic() || b[i] == b'_' {
+            let start = i;
+            while i < b.len() && (b[i].is_ascii_alphanumeric() || b[i] == b'_') {
+                i += 1;
+            }
+            let mut j = i;
+            while j < b.len() && b[j].is_ascii_whitespace() {
+                j += 1;
+            }
+            if j < b.len() && b[j] == b':' && b.get(j + 1) != Some(&b':') {
+                out.push((start, &text[start..i]));
+            }
+            continue;
+        }
+        i += 1;
+    }
+    out
+}
+
+/// The full path (`cases[1].arms.b_minus`) of the field whose value holds byte offset `pos`:
+/// struct fields joined by `.`, list items by their index. None outside every field.
+pub fn path_at(text: &str, pos: usize) -> Option<String> {
+    enum Frame {
+        Struct(Option<String>),
+        List(usize),
+    }
+    let b = text.as_bytes();
+    let end = pos.min(b.len());
+    let mut stack: Vec<Frame> = Vec::new();
+    let mut i = 0;
+    while i < end {
+        if let Some(next) = bench::skip_trivia(b, i) {
+            i = next;
+            continue;
+        }
+        match b[i] {
+            b'(' | b'{' => stack.push(Frame::Struct(None)),
+            b'[' => stack.push(Frame::List(0)),
+            b')' | b']' | b'}' => {
+                stack.pop();
+            }
+            b',' => match stack.last_mut() {
+                Some(Frame::List(n)) => *n += 1,
+                Some(Frame::Struct(f)) => *f = None,
+                None => {}
+            },
+            c if c.is_ascii_alphabetic() || c == b'_' => {
+                let start = i;
+                while i < b.len() && (b[i].is_ascii_alphanumeric() || b[i] == b'_') {
+                    i += 1;
+                }
+                let mut j = i;
+                while j < b.len() && b[j].is_ascii_whitespace() {
+                    j += 1;
+                }
+                if j < b.len()
+                    && b[j] == b':'
+                    && b.get(j + 1) != Some(&b':')
+                    && let Some(Frame::Struct(f)) = stack.last_mut()
+                {
+                    *f = Some(text[start..i].to_string());
+                }
+                continue;
+            }
+            _ => {}
+        }
+        i += 1;
+    }
+    let mut path = String::new();
+    for f in &stack {
+        match f {
+            Frame::Struct(Some(name)) => {
+                if !path.is_empty() {
+                    path.push('.');
+                }
+                path.push_str(name);
+            }
+            Frame::Struct(None) => {}
+            Frame::List(n) => path.push_str(&format!("[{n}]")),
+        }
+    }
+    (!path.is_empty()).then_some(path)
+}
+
+/// Offset of the field at a full path (`cases[1].label`, as [`path_at`] writes it): the
+/// first `key:` whose path is that one. None when the field is not written in the text.
+pub fn find_path(text: &str, path: &str) -> Option<usize> {
+    let last = path.rsplit('.').next().unwrap_or(path);
+    let last = last.split('[').next().unwrap_or(last);
+    keys(text)
+        .into_iter()
+        .filter(|&(_, k)| k == last)
+        .map(|(p, k)| (p, p + k.len() + 1))
+        .find(|&(_, after)| {
+            path_at(text, after + 1).is_some_and(|found| {
+                found == path || found.strip_prefix(path).is_some_and(|r| r.starts_with('['))
+            })
+        })
+        .map(|(p, _)| p)
 }
 
 /// The name of the field whose value contains the position (1-based line and column): the last
@@ -156,6 +331,18 @@ mod tests {
             s.contains("line 2") && s.contains("field `focal_length_mm`"),
             "{s}"
         );
+    }
+
+    #[test]
+    fn paths_name_list_items_and_nested_fields() {
+        let text = "Experiment(\n  cases: [\n    (label: \"a\", arms: (k_plus: 1)),\n    (label: \"b\", // x: y\n     arms: (k_plus: 1, b_minus: NaN)),\n  ],\n)\n";
+        let pos = text.find("NaN").unwrap();
+        assert_eq!(path_at(text, pos).as_deref(), Some("cases[1].arms.b_minus"));
+        let at = find_path(text, "cases[1].label").unwrap();
+        assert_eq!(line_col(text, at), (4, 6));
+        let at = find_path(text, "cases[0].arms.k_plus").unwrap();
+        assert_eq!(line_col(text, at).0, 3);
+        assert!(find_path(text, "cases[2].label").is_none());
     }
 
     #[test]

@@ -1,6 +1,7 @@
 //! The integration tests: the command line end to end, bad input, determinism across thread
 //! counts, and the paper's claims on small problems. One binary, so CI links once.
 
+mod bad_input;
 mod cli_layout;
 mod cli_misc;
 mod cli_reconstruct;
@@ -8,6 +9,8 @@ mod cli_run;
 mod cli_simulate;
 mod cli_sweep;
 mod common;
+mod fuzz;
 mod layering;
+mod output_dirs;
 mod paper;
 mod validation;

@@ -1,0 +1,378 @@
+//! A deterministic mutation fuzzer over the shipped scenes and experiments: deleted and
+//! duplicated lines, numbers replaced by NaN, ±inf, ±1e308, wrapping integers or random
+//! magnitudes, swapped tokens and truncation, every mutant keyed by (scene, index) through
+//! SplitMix64 so a failure names a mutant that can be rebuilt exactly.
+//!
+//! Every mutant goes through parsing and validation and, when it is accepted, a tiny trace
+//! (two batches of rays), in-process and with panics caught; a few dozen also go through the
+//! `spibench trace` binary. What must hold: no panic, every error an input error (exit 2), and
+//! every accepted bench traced to finite numbers or refused as an input error (no light on the
+//! pattern area), never NaN or infinity in a summary. For longer runs, see `fuzz/` (cargo-fuzz).
+
+use std::panic::{AssertUnwindSafe, catch_unwind};
+use std::path::Path;
+
+use spibench::pipeline::{TraceRequest, trace_stage};
+use spibench::scene::doc::BenchDoc;
+
+use crate::common::{TempDir, spibench};
+
+/// SplitMix64 (Steele, Lea & Flood 2014): a tiny keyed generator, enough for mutations.
+struct Mix(u64);
+
+impl Mix {
+    fn new(a: u64, b: u64) -> Mix {
+        Mix(a.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ b.wrapping_add(0x632B_E59B_D9B4_E019))
+    }
+    fn next(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+    fn below(&mut self, n: usize) -> usize {
+        (self.next() % n.max(1) as u64) as usize
+    }
+}
+
+/// Byte ranges of the number literals of a RON text (outside comments and strings).
+fn numbers(text: &str) -> Vec<(usize, usize)> {
+    let b = text.as_bytes();
+    let mut out = Vec::new();
+    let mut i = 0;
+    while i < b.len() {
+        if b[i] == b'/' && b.get(i + 1) == Some(&b'/') {
+            while i < b.len() && b[i] != b'\n' {
+                i += 1;
+            }
+            continue;
+        }
+        if b[i] == b'"' {
+            i += 1;
+            while i < b.len() && b[i] != b'"' {
+                i += 1;
+            }
+            i += 1;
+            continue;
+        }
+        let ident_before = i > 0 && (b[i - 1].is_ascii_alphanumeric() || b[i - 1] == b'_');
+        if !ident_before
+            && (b[i].is_ascii_digit()
+                || (b[i] == b'-' && b.get(i + 1).is_some_and(|c| c.is_ascii_digit())))
+        {
+            let start = i;
+            i += 1;
+            while i < b.len()
+                && (b[i].is_ascii_alphanumeric()
+                    || b[i] == b'.'
+                    || ((b[i] == b'-' || b[i] == b'+') && matches!(b[i - 1], b'e' | b'E')))
+            {
+                i += 1;
+            }
+            out.push((start, i));
+            continue;
+        }
+        i += 1;
+    }
+    out
+}
+
+/// Word-like tokens (identifiers and numbers) for swapping.
+fn tokens(text: &str) -> Vec<(usize, usize)> {
+    let b = text.as_bytes();
+    let mut out = Vec::new();
+    let mut i = 0;
+    while i < b.len() {
+        if b[i].is_ascii_alphanumeric() || b[i] == b'_' || b[i] == b'.' || b[i] == b'-' {
+            let s = i;
+            while i < b.len()
+                && (b[i].is_ascii_alphanumeric() || b[i] == b'_' || b[i] == b'.' || b[i] == b'-')
+            {
+                i += 1;
+            }
+            out.push((s, i));
+        } else {
+            i += 1;
+        }
+    }
+    out
+}
+
+const SPECIAL: [&str; 10] = [
+    "NaN",
+    "inf",
+    "-inf",
+    "1e308",
+    "-1e308",
+    "18446744073709551615",
+    "4611686018427387904",
+    "0",
+    "-1",
+    "1e-308",
+];
+
+/// One mutation of `text`, chosen by `rng`.
+fn mutate_once(text: &str, rng: &mut Mix) -> String {
+    let lines: Vec<&str> = text.split_inclusive('\n').collect();
+    match rng.below(8) {
+        0 if !lines.is_empty() => {
+            let k = rng.below(lines.len());
+            lines
+                .iter()
+                .enumerate()
+                .filter(|(i, _)| *i != k)
+                .map(|(_, l)| *l)
+                .collect()
+        }
+        1 if !lines.is_empty() => {
+            let k = rng.below(lines.len());
+            let mut out = String::new();
+            for (i, l) in lines.iter().enumerate() {
+                out.push_str(l);
+                if i == k {
+                    out.push_str(l);
+                }
+            }
+            out
+        }
+        2..=4 => {
+            let nums = numbers(text);
+            if nums.is_empty() {
+                return text.to_string();
+            }
+            let (s, e) = nums[rng.below(nums.len())];
+            let with = if rng.below(3) == 0 {
+                // A random magnitude: ±m × 10^k, k anywhere in the f64 range.
+                let sign = if rng.below(2) == 0 { "" } else { "-" };
+                let k = rng.below(617) as i32 - 308;
+                format!("{sign}{}.{}e{k}", 1 + rng.below(9), rng.below(1000))
+            } else {
+                SPECIAL[rng.below(SPECIAL.len())].to_string()
+            };
+            format!("{}{with}{}", &text[..s], &text[e..])
+        }
+        5 | 6 => {
+            let t = tokens(text);
+            if t.len() < 2 {
+                return text.to_string();
+            }
+            let (mut a, mut b) = (t[rng.below(t.len())], t[rng.below(t.len())]);
+            if a.0 > b.0 {
+                std::mem::swap(&mut a, &mut b);
+            }
+            if a.1 > b.0 {
+                return text.to_string();
+            }
+            format!(
+                "{}{}{}{}{}",
+                &text[..a.0],
+                &text[b.0..b.1],
+                &text[a.1..b.0],
+                &text[a.0..a.1],
+                &text[b.1..]
+            )
+        }
+        _ => {
+            let mut cut = rng.below(text.len());
+            while !text.is_char_boundary(cut) {
+                cut -= 1;
+            }
+            text[..cut].to_string()
+        }
+    }
+}
+
+/// Mutant `index` of `text`: one to three mutations.
+fn mutant(text: &str, scene_key: u64, index: u64) -> String {
+    let mut rng = Mix::new(scene_key, index);
+    let mut t = text.to_string();
+    for _ in 0..1 + rng.below(3) {
+        t = mutate_once(&t, &mut rng);
+    }
+    t
+}
+
+fn shipped(rel: &str) -> String {
+    std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join(rel)).unwrap()
+}
+
+/// What happened to one mutant, for the tally and for naming failures.
+#[derive(Debug, PartialEq, Eq, Clone, Copy)]
+enum Fate {
+    Refused,
+    Traced,
+    NoLight,
+}
+
+/// Parses, validates and (when accepted) traces one bench mutant in-process with a tiny ray
+/// count. Returns its fate, or a description of what broke the rules.
+fn check_bench(text: &str, path: &Path, seed: u64) -> Result<Fate, String> {
+    let parsed = catch_unwind(AssertUnwindSafe(|| {
+        BenchDoc::parse(text, path).and_then(|d| d.run_scene())
+    }))
+    .map_err(|_| "panicked while parsing".to_string())?;
+    let scene = match parsed {
+        Ok(s) => s,
+        Err(e) if e.is_user_error() => {
+            let msg = e.to_string();
+            if !msg.contains(&path.display().to_string()) {
+                return Err(format!("an input error that names no file: {msg}"));
+            }
+            return Ok(Fate::Refused);
+        }
+        Err(e) => return Err(format!("not an input error: {e}")),
+    };
+    if scene.bench.dmd().is_none() {
+        return Ok(Fate::Refused);
+    }
+    let rays = 2 * spibench::trace::RAYS_PER_BATCH;
+    let traced = catch_unwind(AssertUnwindSafe(|| {
+        trace_stage(&scene.bench, &TraceRequest::new(rays, seed))
+    }))
+    .map_err(|_| "panicked while tracing".to_string())?;
+    let traced = match traced {
+        Ok(t) => t,
+        Err(e) if e.is_user_error() => return Ok(Fate::Refused),
+        Err(e) => return Err(format!("trace failed with a non-input error: {e}")),
+    };
+    match traced.truth() {
+        Err(e) if e.is_user_error() => return Ok(Fate::NoLight),
+        Err(e) => return Err(format!("truth failed with a non-input error: {e}")),
+        Ok(_) => {}
+    }
+    let metrics = format!("{:?} {:?}", traced.metrics, traced.transport.k);
+    if metrics.contains("NaN") || metrics.contains("inf") {
+        let at = metrics
+            .find("NaN")
+            .or_else(|| metrics.find("inf"))
+            .unwrap_or(0);
+        let from = at.saturating_sub(200);
+        let to = (at + 40).min(metrics.len());
+        return Err(format!(
+            "non-finite numbers in an accepted trace: …{}",
+            metrics.get(from..to).unwrap_or(&metrics)
+        ));
+    }
+    Ok(Fate::Traced)
+}
+
+/// 2 000 bench mutants and 600 experiment mutants, in-process.
+#[test]
+fn mutants_of_the_shipped_scenes_end_in_an_input_error_or_finite_numbers() {
+    let benches = [
+        ("scenes/paper_bench.ron", 900u64),
+        ("scenes/fig8_region_b_48.ron", 300),
+        ("scenes/tests/symmetric_arms.ron", 500),
+        ("scenes/tests/disk_to_disk.ron", 300),
+    ];
+    let mut failures = Vec::new();
+    let mut tally = [0usize; 3];
+    for (k, (rel, count)) in benches.iter().enumerate() {
+        let text = shipped(rel);
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join(rel);
+        for i in 0..*count {
+            let m = mutant(&text, k as u64, i);
+            match check_bench(&m, &path, i) {
+                Ok(f) => tally[f as usize] += 1,
+                Err(why) => failures.push(format!("{rel} mutant {i}: {why}")),
+            }
+        }
+    }
+    let experiments = [
+        "scenes/fig1.ron",
+        "scenes/fig2.ron",
+        "scenes/fig3.ron",
+        "scenes/fig4.ron",
+    ];
+    for (k, rel) in experiments.iter().enumerate() {
+        let text = shipped(rel);
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join(rel);
+        for i in 0..150u64 {
+            let m = mutant(&text, 100 + k as u64, i);
+            let r = catch_unwind(AssertUnwindSafe(|| {
+                spibench::scene::experiment::parse(&m, &path, Path::new("scenes"))
+            }));
+            match r {
+                Err(_) => failures.push(format!("{rel} mutant {i}: panicked while parsing")),
+                Ok(Err(e)) if !e.is_user_error() => {
+                    failures.push(format!("{rel} mutant {i}: not an input error: {e}"))
+                }
+                Ok(Err(e)) if !e.to_string().contains(&path.display().to_string()) => {
+                    failures.push(format!("{rel} mutant {i}: no file named: {e}"))
+                }
+                Ok(Ok(exp)) => {
+                    let finite = exp.sampling_ratios.iter().all(|r| r.is_finite())
+                        && exp.dmd_rate_hz.is_finite()
+                        && exp.cases.iter().all(|c| {
+                            [c.arms.k_plus, c.arms.k_minus, c.arms.b_plus, c.arms.b_minus]
+                                .iter()
+                                .all(|v| v.is_finite())
+                        })
+                        && exp.solver.validate().is_ok();
+                    if !finite {
+                        failures.push(format!("{rel} mutant {i}: accepted non-finite values"));
+                    }
+                }
+                Ok(Err(_)) => {}
+            }
+        }
+    }
+    eprintln!(
+        "fuzz: {} refused, {} traced, {} without light on the pattern",
+        tally[0], tally[1], tally[2]
+    );
+    assert!(
+        failures.is_empty(),
+        "{} of the mutants broke the rules:\n{}",
+        failures.len(),
+        failures.join("\n")
+    );
+}
+
+/// A few dozen mutants through the binary: exit 0 or 2 only, and a summary without NaN.
+#[test]
+fn mutants_through_the_cli_exit_0_or_2_with_finite_summaries() {
+    let dir = TempDir::new("fuzz-cli");
+    let text = shipped("scenes/tests/symmetric_arms.ron");
+    let mut failures = Vec::new();
+    for i in 0..30u64 {
+        let m = mutant(&text, 7, i);
+        let scene = dir.join(&format!("m{i}.ron"));
+        std::fs::write(&scene, &m).unwrap();
+        let out = dir.join(&format!("out{i}"));
+        let o = spibench(
+            &[
+                "trace",
+                scene.to_str().unwrap(),
+                "--rays",
+                "2048",
+                "--out",
+                out.to_str().unwrap(),
+            ],
+            &[("RAYON_NUM_THREADS", "1")],
+        );
+        match o.status.code() {
+            Some(0) => {
+                let s = std::fs::read_to_string(out.join("summary.json")).unwrap_or_default();
+                if s.contains("NaN") || s.contains("null") && s.contains("\"k_plus\": null") {
+                    failures.push(format!("mutant {i}: NaN in summary.json"));
+                }
+            }
+            Some(2) => {
+                let err = String::from_utf8_lossy(&o.stderr);
+                if !err.contains(&format!("m{i}.ron")) && !err.contains("--rays") {
+                    failures.push(format!("mutant {i}: exit 2 without the file: {err}"));
+                }
+                if out.exists() {
+                    failures.push(format!("mutant {i}: output left after exit 2"));
+                }
+            }
+            other => failures.push(format!(
+                "mutant {i}: exit {other:?}: {}",
+                String::from_utf8_lossy(&o.stderr)
+            )),
+        }
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
