@@ -329,7 +329,8 @@ pub struct RunSpec {
     /// Sampling ratios M/N, each in (0, 1]. Default the paper's Fig. 6: 5, 10, 15, 20, 40, 60,
     /// 80 and 100 %.
     pub sampling_ratios: Vec<Ratio>,
-    /// Schemes to run. Default all four, in the paper's order.
+    /// Schemes to run. Default the paper's four in its order, then the two fairer baselines
+    /// (traditional CS solved zero-mean, calibrated double-arm).
     pub schemes: Vec<Scheme>,
     /// Base patterns: `Random(seed: S)` (default, seed 1) or `Hadamard(ordering: O)`
     /// (2^m × 2^m units only).
@@ -793,7 +794,7 @@ mod tests {
         assert_eq!(s.detector.responsivity_scale, [1.0, 0.97]);
         assert_eq!(s.scope.sample_rate_hz, 10e6);
         assert_eq!(s.settings.sampling_ratios.len(), 8);
-        assert_eq!(s.settings.schemes.len(), 4);
+        assert_eq!(s.settings.schemes.len(), 6);
         assert!((s.settings.settling_time_s - 13e-6).abs() < 1e-18);
         assert_eq!(s.settings.solver.maxit, 300);
         assert!(s.settings.solver.nonneg);
