@@ -160,15 +160,16 @@ fn load_patterns(path: &Path, n: usize) -> crate::Result<(BitMatrix, &'static st
     }
 }
 
-fn load_vector(path: &Path, what: &str) -> crate::Result<Vec<f64>> {
+fn load_vector(path: &Path, what: &str, one_d: bool) -> crate::Result<Vec<f64>> {
     let arr = npy::read(path)?;
-    // A vector is 1-D, or a column or row (M, 1) / (1, M); a (64, 2) array is not 128 values.
+    // Measurements are 1-D, or a column or row (M, 1) / (1, M): a (64, 2) array is not 128
+    // measurements. A truth image may be 2-D (its size is checked against --size).
     let vector = match arr.shape.as_slice() {
         [_] => true,
         [a, b] => *a == 1 || *b == 1,
         _ => false,
     };
-    if !vector {
+    if one_d && !vector {
         return Err(Error::input(format!(
             "{what} must be a 1-D array (or one row or column), got shape {:?}",
             arr.shape
@@ -188,7 +189,7 @@ pub fn run(args: &ReconstructArgs) -> Result<()> {
     let (w, h) = args.size;
     let n = w * h;
     let (patterns, encoding) = load_patterns(&args.patterns, n)?;
-    let y = load_vector(&args.measurements, "measurement")?;
+    let y = load_vector(&args.measurements, "measurement", true)?;
     if y.len() != patterns.rows() {
         return Err(Error::input(format!(
             "{} measurements for {} patterns: the counts must match",
@@ -201,7 +202,7 @@ pub fn run(args: &ReconstructArgs) -> Result<()> {
     let truth = match &args.truth {
         None => None,
         Some(p) => {
-            let t = load_vector(p, "truth")?;
+            let t = load_vector(p, "truth", false)?;
             if t.len() != n {
                 return Err(Error::input(format!(
                     "the truth has {} values, the image {w}x{h} has {n}",

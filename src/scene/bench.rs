@@ -115,7 +115,7 @@ macro_rules! bounded {
                     Ok($name(v))
                 } else {
                     Err(format!(
-                        "must be above {} and at most {} {}, got {v:e}",
+                        "must be a positive number (above {}) of at most {} {}, got {v:e}",
                         $lo, $hi, $unit
                     ))
                 }

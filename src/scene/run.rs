@@ -50,6 +50,9 @@ pub const MAX_SCOPE_SAMPLES: f64 = 2e9;
 /// The largest number of rays a run may trace (10¹⁰ rays is about a day on two cores).
 pub const MAX_RAYS: u64 = 10_000_000_000;
 
+/// The largest output or oscilloscope offset (V): far beyond any amplifier or scope input.
+pub const MAX_OFFSET_V: f64 = 1e3;
+
 /// The run settings in SI (the `run` section of a bench file, validated).
 #[derive(Debug, Clone, Serialize)]
 pub struct RunSettings {
@@ -517,10 +520,12 @@ fn stage(
     noise: AmplifierNoiseSpec,
     name: &'static str,
 ) -> FieldResult<OutputStage> {
-    if !offset_v.is_finite() {
+    if !(offset_v.is_finite() && offset_v.abs() <= MAX_OFFSET_V) {
         return Err((
             name,
-            Error::input(format!("offset_v must be a finite number, got {offset_v}")),
+            Error::input(format!(
+                "offset_v must be a finite number within ±{MAX_OFFSET_V} V, got {offset_v:e}"
+            )),
         ));
     }
     let (gain, swing) = match load {
@@ -606,8 +611,13 @@ pub fn scope_si(s: &ScopeSpec) -> FieldResult<Scope> {
                 volts_per_div,
                 offset_v,
             } => {
-                if !offset_v.is_finite() {
-                    return Err((name, Error::input("offset_v must be a finite number")));
+                if !(offset_v.is_finite() && offset_v.abs() <= MAX_OFFSET_V) {
+                    return Err((
+                        name,
+                        Error::input(format!(
+                            "offset_v must be a finite number within ±{MAX_OFFSET_V} V"
+                        )),
+                    ));
                 }
                 Ok(ChannelRange::Fixed {
                     volts_per_div: volts_per_div.0,

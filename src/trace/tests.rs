@@ -213,7 +213,7 @@ fn chart_guidance_errors_name_the_field() {
             .count()
             + 1;
         assert!(
-            msg.contains("field `chart_guided`") && msg.contains(&format!("line {line},")),
+            msg.contains("chart_guided`") && msg.contains(&format!("line {line},")),
             "{msg}"
         );
         assert!(msg.contains(words), "{msg}");

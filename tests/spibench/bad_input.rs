@@ -227,3 +227,28 @@ fn a_file_in_the_way_of_the_output_folder_is_an_input_error() {
     );
     assert_eq!(std::fs::read(&out).unwrap(), b"a file");
 }
+
+#[test]
+fn a_two_column_measurement_array_is_not_read_as_one_vector() {
+    let dir = TempDir::new("bad-npy");
+    let (pp, yp) = (dir.join("p.npy"), dir.join("y.npy"));
+    // 128 patterns of 16 units, and measurements shaped (64, 2): 128 values, but not a vector.
+    spibench::report::npy::write_u8(&pp, &[128, 16], &vec![1u8; 128 * 16]).unwrap();
+    spibench::report::npy::write_f64(&yp, &[64, 2], &[1.0; 128]).unwrap();
+    let out = dir.join("out");
+    let o = spibench(
+        &[
+            "reconstruct",
+            "--patterns",
+            pp.to_str().unwrap(),
+            "--measurements",
+            yp.to_str().unwrap(),
+            "--size",
+            "4x4",
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        &[],
+    );
+    assert_input_error(&o, &["y.npy", "1-D", "[64, 2]"], &out);
+}
