@@ -447,18 +447,24 @@ pub fn unit_map_svg(m: &UnitMap) -> Result<String> {
         esc(&m.label),
         esc(&unit)
     );
-    let note = format!(
-        "hatched: {dark} of {n} units with x_j < {:.0} % of the mean x_j; colours span the {:.0}th–{:.0}th percentiles of the others",
-        DARK_FRACTION * 100.0,
-        RANGE_PERCENTILES.0,
-        RANGE_PERCENTILES.1
-    );
-    let _ = writeln!(
-        out,
-        r##"<text x="{left}" y="{}" font-size="13">{}</text>"##,
-        top + bar_h + 28,
-        esc(&note)
-    );
+    let notes = [
+        format!(
+            "hatched: {dark} of {n} units with x_j below {:.0} % of the mean x_j",
+            DARK_FRACTION * 100.0
+        ),
+        format!(
+            "colour range: the {}–{} % percentiles of the other units",
+            RANGE_PERCENTILES.0, RANGE_PERCENTILES.1
+        ),
+    ];
+    for (k, note) in notes.iter().enumerate() {
+        let _ = writeln!(
+            out,
+            r##"<text x="{left}" y="{}" font-size="13">{}</text>"##,
+            top + bar_h + 24 + 18 * k,
+            esc(note)
+        );
+    }
     let _ = writeln!(out, "</svg>");
     Ok(out)
 }

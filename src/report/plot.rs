@@ -626,6 +626,8 @@ pub struct ScopePlot {
 /// Width and height of a scope figure (px, SVG user units).
 pub const SCOPE_WIDTH_PX: u32 = 960;
 pub const SCOPE_PANEL_PX: u32 = 220;
+/// The band under the bottom panel for the shared time axis' ticks and label.
+const SCOPE_AXIS_PX: u32 = 76;
 
 fn draw_scope<DB: DrawingBackend>(
     root: &DrawingArea<DB, Shift>,
@@ -643,7 +645,7 @@ fn draw_scope<DB: DrawingBackend>(
     let n = p.channels.len().max(1);
     let (_, h) = root.dim_in_pixel();
     // The bottom panel also holds the shared time axis' labels.
-    let axis_h = 58;
+    let axis_h = SCOPE_AXIS_PX as i32;
     let panel_h = (h as i32 - axis_h) / n as i32;
     let mut rest = root.clone();
     for (k, (name, v)) in p.channels.iter().enumerate() {
@@ -754,7 +756,7 @@ pub fn scope_svg(p: &ScopePlot) -> Result<String> {
             "every oscilloscope channel needs one value per sample time".into(),
         ));
     }
-    let h = SCOPE_PANEL_PX * p.channels.len().max(1) as u32 + 58;
+    let h = SCOPE_PANEL_PX * p.channels.len().max(1) as u32 + SCOPE_AXIS_PX;
     let mut svg = String::new();
     {
         let root = SVGBackend::with_string(&mut svg, (SCOPE_WIDTH_PX, h)).into_drawing_area();
@@ -960,7 +962,7 @@ mod tests {
         assert_eq!(svg.matches("time (µs)").count(), 1, "one shared time axis");
         assert!(!svg.contains("<circle"), "samples are a line, not markers");
         let (w, h, _) = crate::report::svg::svg_to_rgb(&svg).unwrap();
-        assert_eq!((w, h), (SCOPE_WIDTH_PX, 3 * SCOPE_PANEL_PX + 58));
+        assert_eq!((w, h), (SCOPE_WIDTH_PX, 3 * SCOPE_PANEL_PX + SCOPE_AXIS_PX));
     }
 
     #[test]
