@@ -126,13 +126,19 @@ fn double_arm_blocks(t: &crate::transport::Transport, bap: &Bap) -> Vec<Block> {
     } else {
         f64::NAN
     };
+    let all_plus = &t.ledger.worlds[0].detected_w;
+    let ledger_ratio = if all_plus[0] > 0.0 {
+        all_plus[1] / all_plus[0]
+    } else {
+        f64::NAN
+    };
     let mut rows: Vec<Vec<String>> = parts
         .iter()
         .map(|(name, v)| {
             vec![
                 name.to_string(),
                 eng(*v, "V"),
-                format!("{:.1} %", 100.0 * v / total),
+                format!("{:.1} %", 100.0 * v / total).replace('-', "−"),
             ]
         })
         .collect();
@@ -158,12 +164,17 @@ fn double_arm_blocks(t: &crate::transport::Transport, bap: &Bap) -> Vec<Block> {
              its measurements carry an offset: the value read when the pattern splits the light \
              in half, where a balanced scheme reads 0. On this bench the offset is {} against a \
              largest signal of {} ({:.0} % of it), and TV reconstruction cannot tell a constant \
-             offset from a bright object. With every mirror in state +, {:.1} % of the + diode's \
-             current reaches the − diode (the off-arm leak). The parts below are computed from \
-             the traced transport and the electronics and add up to the offset.",
+             offset from a bright object. With every pattern unit in state +, the − diode \
+             receives {:.1} % of the + diode's power (flux ledger), but the pattern units in state + \
+             send it only {:.2} % of the + diode's current (the off-arm leak proper): the rest \
+             comes from the mirrors outside the pattern, which stay in state − and feed arm − \
+             whatever the pattern. \
+             The parts below are computed from the traced transport and the electronics and add \
+             up to the offset.",
             eng(total, "V"),
             eng(signal, "V"),
             100.0 * (total / signal).abs(),
+            100.0 * ledger_ratio,
             100.0 * leak
         )),
         Block::Table {
