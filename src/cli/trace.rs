@@ -278,7 +278,7 @@ mod tests {
         for d in 0..2 {
             let nonzero = t.k_map[d].iter().filter(|k| **k != 0.0).count();
             let unresolved: Vec<usize> = (0..t.k_map[d].len())
-                .filter(|&j| t.k_map[d][j] != 0.0 && t.k_map_stderr[d][j].is_nan())
+                .filter(|&j| t.k_map[d][j] != 0.0 && t.k_map_stderr[d][j].is_infinite())
                 .collect();
             let zero_se = (0..t.k_map[d].len())
                 .filter(|&j| t.k_map[d][j] != 0.0 && t.k_map_stderr[d][j] == 0.0)
