@@ -185,6 +185,36 @@ fn load_vector(path: &Path, what: &str, one_d: bool) -> crate::Result<Vec<f64>> 
     Ok(v)
 }
 
+/// A warning when the measurements look like the other `--form`. For a non-negative object,
+/// 0/1 patterns with about half the mirrors on give y_i = P_i·x ≈ Σx/2 for every i, a mean far
+/// above the spread between measurements, and never a negative value; ±1 patterns give
+/// y_i = (2P_i − 1)·x, which scatters around 0 (random patterns: mean ≈ 0, spread ≈ ‖x‖;
+/// Hadamard rows other than the first sum to 0). A mean above 3 standard deviations with
+/// every y ≥ 0 is taken as 0/1 data, a mean below one standard deviation with a tenth or more
+/// of the values negative as ±1 data.
+pub fn form_hint(y: &[f64], form: PatternForm) -> Option<String> {
+    if y.len() < 8 {
+        return None;
+    }
+    let n = y.len() as f64;
+    let mean = y.iter().sum::<f64>() / n;
+    let sd = (y.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>() / (n - 1.0)).sqrt();
+    let negative = y.iter().filter(|v| **v < 0.0).count() as f64 / n;
+    match form {
+        PatternForm::PlusMinusOne if negative == 0.0 && mean > 3.0 * sd => Some(format!(
+            "the measurements look like 0/1 data (all ≥ 0, mean {mean:.4e} = {:.1} standard \
+             deviations): if they are P·x, pass --form 01",
+            mean / sd.max(f64::MIN_POSITIVE)
+        )),
+        PatternForm::ZeroOne if negative >= 0.1 && mean.abs() < sd => Some(format!(
+            "{:.0} % of the measurements are negative and their mean is within one standard \
+             deviation of 0, as (2P − 1)·x data are: if they are, pass --form pm1",
+            100.0 * negative
+        )),
+        _ => None,
+    }
+}
+
 pub fn run(args: &ReconstructArgs) -> Result<()> {
     let (w, h) = args.size;
     let n = w * h;
@@ -230,6 +260,9 @@ pub fn run(args: &ReconstructArgs) -> Result<()> {
         FormArg::ZeroOne => PatternForm::ZeroOne,
         FormArg::PlusMinusOne => PatternForm::PlusMinusOne,
     };
+    if let Some(hint) = form_hint(&y, form) {
+        eprintln!("warning: {hint}");
+    }
     let out = OutputDir::create(args.out.as_deref().unwrap_or(Path::new("out/reconstruct")))?;
     let solver = Solver::new(opts, args.zero_one.into());
     let op = PackedOperator::new(patterns, form);
@@ -301,4 +334,23 @@ pub fn run(args: &ReconstructArgs) -> Result<()> {
     }
     println!("wrote {}", dir.display());
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn warns_when_the_data_look_like_the_other_form() {
+        // 0/1 patterns on a positive object: every y near Σx/2.
+        let zero_one: Vec<f64> = (0..64).map(|i| 100.0 + (i % 7) as f64).collect();
+        assert!(form_hint(&zero_one, PatternForm::PlusMinusOne).is_some());
+        assert!(form_hint(&zero_one, PatternForm::ZeroOne).is_none());
+        // ±1 data scatter around 0.
+        let pm: Vec<f64> = (0..64)
+            .map(|i| ((i * 37 % 17) as f64 - 8.0) * 3.0)
+            .collect();
+        assert!(form_hint(&pm, PatternForm::PlusMinusOne).is_none());
+        assert!(form_hint(&pm, PatternForm::ZeroOne).is_some());
+    }
 }

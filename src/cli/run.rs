@@ -8,16 +8,24 @@
 //!   settings, the run settings, the recorded sequences, saturation findings, and for every
 //!   scheme × ratio PSNR, MSSIM, frames, acquisition time, solver iterations (keys on
 //!   [`RunSummary`]). Byte-identical for the same scene and seed on any number of threads.
-//! - `results.csv`: the results table (byte-identical for a seed, like summary.json).
 //! - `timings.json`: wall-clock times of the trace, record and solve stages and each solve's
 //!   CPU time: the only output figures that differ between two identical runs.
+//! - `results.csv`: the results table, one row per scheme × ratio, in the schema `simulate`'s
+//!   `cells.csv` shares (`report::csv::ResultRow`), LF line ends; byte-identical for a seed,
+//!   like summary.json.
+//! - `repeats.json`, `repeats.csv`, `mssim_vs_frames.*`, `psnr_vs_frames.*`: the statistics of
+//!   `--repeats N` and the scores against the frames shown (cli::run_repeats).
+//! - `bench.ron`: the effective bench (every default written out, the traced ray count), which
+//!   `spibench run bench.ron --seed S` reads back to reproduce the run.
 //! - `images/x.png` (the ideal object, 255·x / max x) and `images/<scheme>__r<ratio>.png` (each
 //!   normalised reconstruction on the same 0–255 scale).
-//! - `montage.png`: laid out like the paper's Fig. 6 (the object, then one row per scheme, one
-//!   column per ratio, PSNR / MSSIM under each tile).
-//! - `mssim_vs_ratio.{svg,png}` (the paper's Fig. 7) and `psnr_vs_ratio.{svg,png}`.
-//! - `signals_<sequence>.{svg,png}`: the first frames of each recorded sequence as the
-//!   oscilloscope sampled them.
+//! - `montage.png`: laid out like the paper's Fig. 6 (one row per scheme, the object x at the
+//!   head of each row, then one column per ratio, PSNR / MSSIM under each tile).
+//! - `mssim_vs_ratio.{svg,png,pdf}` (the paper's Fig. 7) and `psnr_vs_ratio.{svg,png,pdf}`;
+//!   the PNG and the PDF are renderings of the SVG.
+//! - `signals_<sequence>.{svg,png,pdf}`: the first frames of each recorded sequence as the
+//!   oscilloscope sampled them, one panel per output on a shared time axis, with the frame
+//!   boundaries and the averaged settled windows marked.
 //! - `report.html`: one self-contained page (images embedded as data: URIs, no network) with the
 //!   bench summary, the per-unit efficiency maps, the ledger, the signal traces, the montage,
 //!   the curves, the resolution read-out and the settings that reproduce the run.
@@ -28,14 +36,13 @@ use std::sync::Mutex;
 use anyhow::Result;
 use clap::Args;
 
-use crate::detector::OUTPUT_NAMES;
 use crate::pipeline::TraceRequest;
 use crate::pipeline::cache::{CacheKey, TraceCache};
-use crate::report::csv::write_csv;
+use crate::report::csv::{ResultRow, write_results};
 use crate::report::json::write_json;
 use crate::report::montage::{Montage, write_montage};
 use crate::report::output::OutputDir;
-use crate::report::plot::{LinePlot, Series, write_plot};
+use crate::report::plot::{LinePlot, ScopePlot, Series, write_plot, write_scope};
 use crate::report::png::write_gray8;
 use crate::run::summary::summarize_run;
 use crate::run::{RunOutcome, SchemeResult, Stage};
@@ -177,8 +184,15 @@ pub fn run(args: &RunArgs) -> Result<()> {
         b.finish_and_clear();
     }
     let provenance = bench_provenance(&name, &doc, &[args.seed])?;
-    let summary_files = write_outputs(&name, &scene.bench, outcome, &provenance, &out)?
-        + super::run_repeats::write(&repeats, &scene.settings, &out)?.len();
+    let settings_ron = super::run_report::effective_ron(&doc, outcome.transport.rays)?;
+    let summary_files = write_outputs(
+        &name,
+        &scene.bench,
+        outcome,
+        &settings_ron,
+        &provenance,
+        &out,
+    )? + super::run_repeats::write(&repeats, &scene.settings, &out)?.len();
     let dir = out.commit()?;
     print_report(&name, outcome);
     super::run_repeats::print(&repeats);
@@ -205,7 +219,7 @@ pub fn result_file(r: &SchemeResult) -> String {
     format!("images/{}__r{:.3}.png", r.scheme.key(), r.ratio)
 }
 
-/// Writes a plot as `STEM.svg` and `STEM.png` and lists both files.
+/// Writes a plot as `STEM.svg`, `STEM.png` and `STEM.pdf` and lists the files.
 fn write_plot_pair(
     plot: &LinePlot,
     stem: &str,
@@ -219,6 +233,7 @@ fn write_plot_pair(
     )?;
     files.push(format!("{stem}.svg"));
     files.push(format!("{stem}.png"));
+    files.push(format!("{stem}.pdf"));
     Ok(())
 }
 
@@ -245,10 +260,14 @@ fn write_outputs(
     name: &str,
     bench: &crate::optics::Bench,
     o: &RunOutcome,
+    settings_ron: &str,
     provenance: &super::provenance::Provenance,
     out: &OutputDir,
 ) -> crate::Result<usize> {
     let mut files = Vec::new();
+    let bench_path = out.path("bench.ron");
+    std::fs::write(&bench_path, settings_ron).map_err(|e| crate::Error::write(&bench_path, e))?;
+    files.push("bench.ron".to_string());
     write_gray8(&out.path("images/x.png"), &o.truth, 0.0, 255.0)?;
     files.push("images/x.png".to_string());
     for r in &o.results {
@@ -258,69 +277,55 @@ fn write_outputs(
     }
 
     let s = &o.settings;
-    let header = [
-        "scheme",
-        "ratio",
-        "measurements",
-        "dmd_frames",
-        "acquisition_time_s",
-        "psnr_db",
-        "mssim",
-        "iterations",
-        "converged",
-        "saturated",
-        "finest_group",
-        "finest_element",
-        "finest_lp_per_mm",
-    ];
-    let rows: Vec<Vec<String>> = o
+    let t = &o.transport;
+    let rows: Vec<ResultRow> = o
         .results
         .iter()
-        .map(|r| {
-            vec![
-                r.scheme.key().to_string(),
-                format!("{}", r.ratio),
-                r.measurements.to_string(),
-                r.dmd_frames.to_string(),
-                format!("{:.6}", r.acquisition_time_s),
-                format!("{:.4}", r.psnr_db),
-                format!("{:.6}", r.mssim),
-                r.iterations.to_string(),
-                r.converged.to_string(),
-                r.saturated.to_string(),
-                r.finest_resolved
-                    .map(|e| e.group.to_string())
-                    .unwrap_or_default(),
-                r.finest_resolved
-                    .map(|e| e.element.to_string())
-                    .unwrap_or_default(),
-                r.finest_resolved
-                    .map(|e| format!("{:.4}", e.lp_per_mm))
-                    .unwrap_or_default(),
-            ]
+        .map(|r| ResultRow {
+            command: "run".into(),
+            scene: name.to_string(),
+            seed: o.seed,
+            object: "chart".into(),
+            case: s.title.clone(),
+            scheme: r.scheme.key().to_string(),
+            ratio: r.ratio,
+            measurements: r.measurements as u64,
+            dmd_frames: r.dmd_frames as u64,
+            detector_samples: r.detector_samples as u64,
+            acquisition_time_s: r.acquisition_time_s,
+            k_plus: t.k[0].value,
+            k_minus: t.k[1].value,
+            k_prime: t.k_prime.value,
+            gain_units: "A/W".into(),
+            b_plus: t.b[0].value,
+            b_minus: t.b[1].value,
+            offset_units: "A".into(),
+            noise: None,
+            noise_std: None,
+            psnr_db: r.psnr_db,
+            mssim: r.mssim,
+            iterations: r.iterations as u64,
+            converged: r.converged,
+            stop: format!("{:?}", r.stop),
+            saturated: Some(r.saturated),
+            finest_group: r.finest_resolved.map(|e| e.group),
+            finest_element: r.finest_resolved.map(|e| u32::from(e.element)),
+            finest_lp_per_mm: r.finest_resolved.map(|e| e.lp_per_mm),
         })
         .collect();
-    write_csv(&out.path("results.csv"), &header, &rows)?;
+    write_results(&out.path("results.csv"), &rows)?;
     files.push("results.csv".to_string());
 
-    // Fig. 6: the object, then one row per scheme.
+    // Fig. 6: one row per scheme, the object x at the head of every row.
     let n_ratio = s.sampling_ratios.len();
-    let mut tiles = vec![{
-        let mut row = vec![None; n_ratio];
-        row[0] = Some(o.truth.clone());
-        row
-    }];
-    let mut captions = vec![{
-        let mut row = vec![String::new(); n_ratio];
-        row[0] = "ideal object x".to_string();
-        row
-    }];
-    let mut row_labels = vec!["(a) object".to_string()];
+    let mut tiles = Vec::new();
+    let mut captions = Vec::new();
+    let mut row_labels = Vec::new();
     for (k, scheme) in s.schemes.iter().enumerate() {
-        let letter = (b'b' + k as u8) as char;
+        let letter = (b'a' + k as u8) as char;
         row_labels.push(format!("({letter}) {}", scheme.label()));
-        let mut trow = Vec::new();
-        let mut crow = Vec::new();
+        let mut trow = vec![Some(o.truth.clone())];
+        let mut crow = vec!["ideal object x".to_string()];
         for r in 0..n_ratio {
             let res = &o.results[k * n_ratio + r];
             trow.push(Some(res.reconstruction.clone()));
@@ -337,7 +342,9 @@ fn write_outputs(
     let montage = Montage {
         title: format!("{}: reconstructions against sampling ratio", s.title),
         row_labels,
-        col_labels: s.sampling_ratios.iter().map(|&r| pct(r)).collect(),
+        col_labels: std::iter::once("object".to_string())
+            .chain(s.sampling_ratios.iter().map(|&r| pct(r)))
+            .collect(),
         tiles,
         captions,
     };
@@ -375,33 +382,33 @@ fn write_outputs(
         write_plot_pair(&plot, stem, out, &mut files)?;
     }
 
-    // Signal traces: at most ~400 points per series (the plot marks every point).
+    // Signal traces: one panel per output on a shared time axis, every sample on the line.
     for (q, tr) in &o.traces {
         if tr.t_s.is_empty() {
             continue;
         }
-        let step = tr.t_s.len().div_ceil(400).max(1);
-        let series = (0..3)
-            .map(|k| Series {
-                label: OUTPUT_NAMES[k].replace('_', " "),
-                x: tr.t_s.iter().step_by(step).map(|t| t * 1e6).collect(),
-                y: tr.v[k].iter().step_by(step).copied().collect(),
-                y_err: None,
-            })
-            .collect();
-        let plot = LinePlot {
-            title: format!(
-                "{} sequence: first {} frames as recorded (every {step}th sample)",
-                q.key(),
-                tr.frames
-            ),
-            x_label: "time (µs)".to_string(),
-            y_label: "output (V)".to_string(),
-            series,
-            log_x: false,
+        let scope = ScopePlot {
+            t_us: tr.t_s.iter().map(|t| t * 1e6).collect(),
+            channels: (0..3)
+                .map(|k| {
+                    (
+                        ["RF", "MONITOR+", "MONITOR−"][k].to_string(),
+                        tr.v[k].clone(),
+                    )
+                })
+                .collect(),
+            frame_us: o.timing.frame_s * 1e6,
+            settling_us: o.timing.settling_s * 1e6,
         };
         let stem = format!("signals_{}", q.key());
-        write_plot_pair(&plot, &stem, out, &mut files)?;
+        write_scope(
+            &scope,
+            &out.path(&format!("{stem}.svg")),
+            &out.path(&format!("{stem}.png")),
+        )?;
+        for ext in ["svg", "png", "pdf"] {
+            files.push(format!("{stem}.{ext}"));
+        }
     }
 
     files.push("report.html".to_string());
@@ -412,7 +419,7 @@ fn write_outputs(
     let summary = summarize_run(name, bench, o, files);
     super::provenance::write_summary(out, &summary, provenance)?;
     write_json(&out.path("timings.json"), &run_timings(o))?;
-    super::run_report::write_report(name, bench, o, &summary, out)?;
+    super::run_report::write_report(name, bench, o, &summary, settings_ron, out)?;
     Ok(count)
 }
 

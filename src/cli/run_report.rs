@@ -6,9 +6,10 @@
 //! into the staging folder (read back and embedded), so the page shows exactly the files beside
 //! it.
 
+use crate::detector::bap::Bap;
 use crate::error::{Error, Result};
-use crate::raster::Raster;
-use crate::report::html::{Block, Page, render};
+use crate::report::heatmap::{UnitMap, unit_map_svg};
+use crate::report::html::{Block, Page, concise_unit, eng, render};
 use crate::report::output::OutputDir;
 use crate::run::RunOutcome;
 
@@ -34,7 +35,162 @@ fn staged_svg(out: &OutputDir, name: &str, caption: &str) -> Result<Option<Block
 }
 
 fn sci(v: f64, se: f64, unit: &str) -> String {
-    format!("{v:.5e} ± {se:.1e} {unit}")
+    concise_unit(v, se, unit)
+}
+
+/// The sums over the pattern units that double-arm's offset is made of, per diode d (0 = +).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ArmSums {
+    /// Σ_j T[d][s][j] (A): diode d's light from units in state s.
+    pub t_a: [[f64; 2]; 2],
+    /// Traced light that never met the pattern units (A): mirrors outside the pattern, the
+    /// window, ghosts.
+    pub outside_a: [f64; 2],
+    pub ambient_a: [f64; 2],
+    pub dark_a: [f64; 2],
+}
+
+impl ArmSums {
+    pub fn of(t: &crate::transport::Transport) -> ArmSums {
+        let units = t.units_across * t.units_down;
+        let sum = |d: usize, s: usize| t.t_a[(d * 2 + s) * units..][..units].iter().sum::<f64>();
+        ArmSums {
+            t_a: [[sum(0, 0), sum(0, 1)], [sum(1, 0), sum(1, 1)]],
+            outside_a: [t.c_traced[0].value, t.c_traced[1].value],
+            ambient_a: t.ambient_a,
+            dark_a: t.dark_a,
+        }
+    }
+}
+
+/// Double-arm's offset (V) split into its causes, and the offset computed directly.
+///
+/// Double-arm reads y = V₊(P) − V₋(P) from the two monitors, with
+/// V± = G±·(s±·(light± + ambient±) + dark±) + offset± (`detector::bap`). With g±_j = T[±][±]_j − T[±][∓]_j, diode + sees
+/// ΣT[+][−] + g₊·P + c₊ and diode − sees ΣT[−][+] + g₋·(1 − P) + c₋. Its offset is y at the
+/// pattern that splits the light in half (g·P = Σg/2, i.e. Âx = 0, where a balanced scheme reads
+/// 0), which is exactly the sum of:
+/// - arm imbalance: ḡ·(Σg₊ − Σg₋)/2, with ḡ = (G₊s₊ + G₋s₋)/2 (k₊ ≠ k₋ from the optics);
+/// - responsivity and monitor-gain mismatch: (G₊s₊ − G₋s₋)·(Σg₊ + Σg₋)/4;
+/// - off-arm leak: G₊s₊·ΣT[+][−] − G₋s₋·ΣT[−][+] (light of one arm reaching the other diode);
+/// - light outside the pattern: G₊s₊·c₊ − G₋s₋·c₋;
+/// - ambient light: G₊s₊·a₊ − G₋s₋·a₋; dark current: G₊·d₊ − G₋·d₋;
+/// - amplifier offsets: offset₊ − offset₋.
+pub fn double_arm_offset(a: &ArmSums, bap: &Bap) -> (Vec<(&'static str, f64)>, f64) {
+    let gs = [0, 1].map(|d| bap.monitors[d].gain_v_per_a * bap.responsivity_scale[d]);
+    let g = [a.t_a[0][0] - a.t_a[0][1], a.t_a[1][1] - a.t_a[1][0]];
+    let mean_gs = 0.5 * (gs[0] + gs[1]);
+    let diff = |v: [f64; 2]| gs[0] * v[0] - gs[1] * v[1];
+    let parts = vec![
+        ("arm imbalance, k₊ ≠ k₋", mean_gs * (g[0] - g[1]) / 2.0),
+        (
+            "responsivity and monitor-gain mismatch",
+            (gs[0] - gs[1]) * (g[0] + g[1]) / 4.0,
+        ),
+        ("off-arm leak", diff([a.t_a[0][1], a.t_a[1][0]])),
+        ("light from outside the pattern", diff(a.outside_a)),
+        ("ambient light", diff(a.ambient_a)),
+        (
+            "dark current",
+            bap.monitors[0].gain_v_per_a * a.dark_a[0] - bap.monitors[1].gain_v_per_a * a.dark_a[1],
+        ),
+        (
+            "amplifier offsets",
+            bap.monitors[0].offset_v - bap.monitors[1].offset_v,
+        ),
+    ];
+    // The direct value: both monitors at the half-light pattern.
+    let light = [
+        a.t_a[0][1] + g[0] / 2.0 + a.outside_a[0],
+        a.t_a[1][0] + g[1] / 2.0 + a.outside_a[1],
+    ];
+    let i = bap.diode_currents(light, a.ambient_a, a.dark_a);
+    let direct = bap.monitors[0].ideal_v(i[0]) - bap.monitors[1].ideal_v(i[1]);
+    (parts, direct)
+}
+
+/// The page's "why double-arm fails" section: the offset's parts in volts and as a share of
+/// the offset, beside the signal it sits on.
+fn double_arm_blocks(t: &crate::transport::Transport, bap: &Bap) -> Vec<Block> {
+    let sums = ArmSums::of(t);
+    let (parts, total) = double_arm_offset(&sums, bap);
+    let gs = [0, 1].map(|d| bap.monitors[d].gain_v_per_a * bap.responsivity_scale[d]);
+    let g = [
+        sums.t_a[0][0] - sums.t_a[0][1],
+        sums.t_a[1][1] - sums.t_a[1][0],
+    ];
+    // The largest signal double-arm sees: (k'/2)·Σx through the mean monitor gain.
+    let signal = 0.5 * (gs[0] + gs[1]) * (g[0] + g[1]) / 2.0;
+    let leak = if sums.t_a[0][0] > 0.0 {
+        sums.t_a[1][0] / sums.t_a[0][0]
+    } else {
+        f64::NAN
+    };
+    let all_plus = &t.ledger.worlds[0].detected_w;
+    let ledger_ratio = if all_plus[0] > 0.0 {
+        all_plus[1] / all_plus[0]
+    } else {
+        f64::NAN
+    };
+    let mut rows: Vec<Vec<String>> = parts
+        .iter()
+        .map(|(name, v)| {
+            vec![
+                name.to_string(),
+                eng(*v, "V"),
+                format!("{:.1} %", 100.0 * v / total).replace('-', "−"),
+            ]
+        })
+        .collect();
+    let sum: f64 = parts.iter().map(|(_, v)| v).sum();
+    rows.push(vec![
+        "sum of the parts".into(),
+        eng(sum, "V"),
+        format!("{:.1} %", 100.0 * sum / total),
+    ]);
+    rows.push(vec![
+        "offset, both monitors computed directly".into(),
+        eng(total, "V"),
+        "100 %".into(),
+    ]);
+    vec![
+        Block::Heading {
+            level: 2,
+            text: "Why double-arm fails".into(),
+        },
+        Block::Paragraph(format!(
+            "Double-arm subtracts the two monitor outputs of one frame, V₊(P) − V₋(P). Unlike \
+             the complementary schemes it never cancels what does not depend on the pattern, so \
+             its measurements carry an offset: the value read when the pattern splits the light \
+             in half, where a balanced scheme reads 0. On this bench the offset is {} against a \
+             largest signal of {} ({:.0} % of it), and TV reconstruction cannot tell a constant \
+             offset from a bright object. With every pattern unit in state +, the − diode \
+             receives {:.1} % of the + diode's power (flux ledger), but the pattern units in state + \
+             send it only {:.2} % of the + diode's current (the off-arm leak proper): the rest \
+             comes from the mirrors outside the pattern, which stay in state − and feed arm − \
+             whatever the pattern. \
+             The parts below are computed from the traced transport and the electronics and add \
+             up to the offset.",
+            eng(total, "V"),
+            eng(signal, "V"),
+            100.0 * (total / signal).abs(),
+            100.0 * ledger_ratio,
+            100.0 * leak
+        )),
+        Block::Table {
+            caption: Some("Double-arm's offset by cause (monitor volts)".into()),
+            header: vec!["cause".into(), "offset".into(), "share".into()],
+            rows,
+        },
+    ]
+}
+
+/// The effective bench of a run as canonical RON (every default written out), with the ray
+/// count the run traced, which `spibench run` reads back.
+pub fn effective_ron(doc: &crate::scene::doc::BenchDoc, rays: u64) -> Result<String> {
+    let mut doc = doc.clone();
+    doc.file.run.rays = rays;
+    doc.to_ron()
 }
 
 /// Writes `report.html` into the staging folder.
@@ -43,6 +199,7 @@ pub fn write_report(
     bench: &crate::optics::Bench,
     o: &RunOutcome,
     summary: &RunSummary<'_>,
+    settings_ron: &str,
     out: &OutputDir,
 ) -> Result<()> {
     let t = &o.transport;
@@ -112,36 +269,28 @@ pub fn write_report(
             },
         ),
     ]));
-    let kmax = t.k_map[0]
-        .iter()
-        .chain(&t.k_map[1])
-        .copied()
-        .filter(|v| v.is_finite())
-        .fold(0.0f64, f64::max)
-        .max(1e-30);
-    let xr = Raster::new(w, h, t.x_w.clone())?;
-    let kp = Raster::new(w, h, t.k_map[0].clone())?;
-    let km = Raster::new(w, h, t.k_map[1].clone())?;
-    blocks.push(Block::Figures(vec![
-        Block::gray_image(
-            format!("ideal object x_j (0 … {:.3e} W)", o.x.max()),
-            &xr,
-            0.0,
-            o.x.max().max(1e-300),
-        )?,
-        Block::gray_image(
-            format!("k₊_j = g₊_j / x_j (0 … {kmax:.3} A/W)"),
-            &kp,
-            0.0,
-            kmax,
-        )?,
-        Block::gray_image(
-            format!("k₋_j = g₋_j / x_j (0 … {kmax:.3} A/W)"),
-            &km,
-            0.0,
-            kmax,
-        )?,
-    ]));
+    let mut maps = Vec::new();
+    for (label, unit, values, caption) in [
+        ("x_j", "W", &t.x_w, "power on each pattern unit, x_j"),
+        ("k₊_j", "A/W", &t.k_map[0], "k₊_j = g₊_j / x_j"),
+        ("k₋_j", "A/W", &t.k_map[1], "k₋_j = g₋_j / x_j"),
+    ] {
+        let svg = unit_map_svg(&UnitMap {
+            label: label.into(),
+            unit: unit.into(),
+            width: w,
+            height: h,
+            values: values.clone(),
+            light_w: t.x_w.clone(),
+            from_zero: true,
+        })?;
+        maps.push(Block::Svg {
+            caption: caption.into(),
+            svg,
+        });
+    }
+    blocks.push(Block::Figures(maps));
+    blocks.extend(double_arm_blocks(t, &o.detector));
 
     // ---- The ledger.
     blocks.push(Block::Heading {
@@ -150,22 +299,18 @@ pub fn write_report(
     });
     let l = &t.ledger;
     blocks.push(Block::Paragraph(format!(
-        "Emitted in the traced band: {:.6e} W (nominal {:.6e} W; {:.6e} W outside the traced \
-         cone, booked to the lamp housing). Each column is one world: every pattern unit in \
-         state + or every unit in state −.",
-        l.emitted_w, l.emitted_nominal_w, l.outside_cone_w
+        "Emitted in the traced band: {} (nominal {}; {} outside the traced cone, booked to the \
+         lamp housing). Each column is one world: every pattern unit in state + or every unit \
+         in state −.",
+        eng(l.emitted_w, "W"),
+        eng(l.emitted_nominal_w, "W"),
+        eng(l.outside_cone_w, "W")
     )));
     let mut rows: Vec<Vec<String>> = l.worlds[0]
         .absorbed_w
         .iter()
         .zip(&l.worlds[1].absorbed_w)
-        .map(|((n, a), (_, b))| {
-            vec![
-                format!("absorbed: {n}"),
-                format!("{a:.6e}"),
-                format!("{b:.6e}"),
-            ]
-        })
+        .map(|((n, a), (_, b))| vec![format!("absorbed: {n}"), eng(*a, "W"), eng(*b, "W")])
         .collect();
     for (label, f) in [
         (
@@ -179,12 +324,12 @@ pub fn write_report(
     ] {
         rows.push(vec![
             label.to_string(),
-            format!("{:.6e}", f(&l.worlds[0])),
-            format!("{:.6e}", f(&l.worlds[1])),
+            eng(f(&l.worlds[0]), "W"),
+            eng(f(&l.worlds[1]), "W"),
         ]);
     }
     blocks.push(Block::Table {
-        caption: Some("Where the light went (W)".into()),
+        caption: Some("Where the light went".into()),
         header: vec!["".into(), "all units +".into(), "all units −".into()],
         rows,
     });
@@ -196,7 +341,15 @@ pub fn write_report(
     });
     for (q, _) in &o.traces {
         let file = format!("signals_{}.svg", q.key());
-        if let Some(b) = staged_svg(out, &file, &format!("{} sequence, first frames", q.key()))? {
+        if let Some(b) = staged_svg(
+            out,
+            &file,
+            &format!(
+                "{} sequence, first frames: one panel per output; shaded, the settled window of \
+             each frame that is averaged; grey lines, frame boundaries",
+                q.key()
+            ),
+        )? {
             blocks.push(b);
         }
     }
@@ -246,7 +399,7 @@ pub fn write_report(
                     r.iterations,
                     if r.converged { "" } else { " (cap)" }
                 ),
-                if r.saturated { "yes" } else { "" }.to_string(),
+                if r.saturated { "yes" } else { "no" }.to_string(),
             ]
         })
         .collect();
@@ -257,9 +410,9 @@ pub fn write_report(
     });
     if let Some(c) = &o.resolution {
         blocks.push(Block::Paragraph(format!(
-            "Resolution read-out: {} Threshold {:.2}. The chart was registered against x \
+            "Resolution read-out: {}. Threshold {:.2}. The chart was registered against x \
              (correlation {:.3}); x itself resolves {} (group/element).",
-            c.criterion,
+            c.criterion.trim().trim_end_matches('.'),
             c.threshold,
             c.registration_correlation,
             element_text(c.ideal_finest_resolved)
@@ -307,27 +460,82 @@ pub fn write_report(
         level: 2,
         text: "Settings that reproduce this page".into(),
     });
-    let scene_arg = if name.starts_with('<') {
-        String::new()
-    } else {
-        format!(" {name}")
-    };
+    blocks.push(Block::Paragraph(
+        "The effective bench, with every default written out and the ray count of this run, is \
+         bench.ron beside this page (and below). Run it again with:"
+            .into(),
+    ));
     blocks.push(Block::Preformatted(format!(
-        "spibench run{scene_arg} --seed {} --rays {}",
-        o.seed, t.rays
+        "spibench run bench.ron --seed {}",
+        o.seed
     )));
-    let settings = serde_json::to_string_pretty(&serde_json::json!({
-        "run": summary.settings,
-        "electronics": &summary.electronics,
-        "frame_timing": summary.frame_timing,
-    }))
-    .map_err(|e| Error::Numerical(format!("cannot encode the settings: {e}")))?;
-    blocks.push(Block::Preformatted(settings));
-
-    let page = Page {
-        title: format!("spibench run: {}", s.title),
-        blocks,
+    blocks.push(Block::Preformatted(settings_ron.to_string()));
+    // The run's title defaults to "spibench run"; the page never says it twice.
+    let title = if s.title.trim().is_empty() || s.title.trim() == "spibench run" {
+        format!("spibench run: {name}")
+    } else if s.title.starts_with("spibench") {
+        s.title.clone()
+    } else {
+        format!("spibench run: {}", s.title)
     };
+    let page = Page { title, blocks };
     let path = out.path("report.html");
     std::fs::write(&path, render(&page)).map_err(|e| Error::write(&path, e))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The parts of double-arm's offset add up to the offset computed from both monitors.
+    #[test]
+    fn double_arm_offset_parts_sum_to_the_offset() {
+        let sums = ArmSums {
+            t_a: [[3.1e-6, 2.0e-8], [2.1e-7, 2.9e-6]],
+            outside_a: [4.0e-8, 7.0e-8],
+            ambient_a: [1.0e-9, 1.2e-9],
+            dark_a: [1.5e-9, 1.8e-9],
+        };
+        let stage = |gain: f64, offset: f64| crate::detector::bap::OutputStage {
+            gain_v_per_a: gain,
+            swing_v: 10.0,
+            offset_v: offset,
+            bandwidth_hz: 1e6,
+            input_noise_a_per_rthz: 2.3e-12,
+        };
+        let bap = Bap {
+            load: crate::detector::bap::Load::HighImpedance,
+            rf: stage(350e3, 2e-3),
+            monitors: [stage(17.5e3, 1e-3), stage(17.7e3, -1e-3)],
+            responsivity_scale: [1.0, 0.97],
+            shot_noise: true,
+        };
+        let (parts, direct) = double_arm_offset(&sums, &bap);
+        let sum: f64 = parts.iter().map(|(_, v)| v).sum();
+        assert!(
+            (sum - direct).abs() <= 1e-12 * direct.abs().max(1e-9),
+            "{sum} vs {direct}"
+        );
+        assert!(parts.iter().all(|(_, v)| *v != 0.0));
+    }
+
+    /// "Settings that reproduce this page" is RON that `run` reads back into the same bench
+    /// and run settings.
+    #[test]
+    fn effective_bench_reads_back() {
+        let doc = crate::scene::doc::BenchDoc::parse(
+            super::super::run::PAPER_BENCH,
+            std::path::Path::new("paper_bench.ron"),
+        )
+        .unwrap();
+        let text = effective_ron(&doc, 12_345).unwrap();
+        let back =
+            crate::scene::doc::BenchDoc::parse(&text, std::path::Path::new("bench.ron")).unwrap();
+        assert_eq!(back.to_ron().unwrap(), text);
+        let scene = back.run_scene().unwrap();
+        assert_eq!(scene.settings.rays, 12_345);
+        let mut original = doc.clone();
+        original.file.run.rays = 12_345;
+        assert_eq!(back.file, original.file);
+    }
 }

@@ -10,7 +10,7 @@ use serde::Serialize;
 use crate::metrics::NORMALIZATION_RULE;
 use crate::reconstruction::ZeroOneHandling;
 use crate::reconstruction::tval3::StopReason;
-use crate::report::csv::write_csv;
+use crate::report::csv::{ResultRow, write_csv, write_results};
 use crate::report::json::write_json;
 use crate::report::montage::{Montage, write_montage};
 use crate::report::output::OutputDir;
@@ -163,59 +163,42 @@ fn write_outputs(
         write_gray8(&out.path(&cell_file(c)), img, 0.0, 255.0)?;
     }
 
-    let header = [
-        "object",
-        "case",
-        "scheme",
-        "ratio",
-        "measurements",
-        "k_plus",
-        "k_minus",
-        "b_plus",
-        "b_minus",
-        "k_prime",
-        "noise",
-        "noise_std",
-        "psnr_db",
-        "mssim",
-        "iterations",
-        "operator_applications",
-        "converged",
-        "stop",
-        "dmd_frames",
-        "detector_samples",
-        "acquisition_time_s",
-    ];
-    let rows: Vec<Vec<String>> = res
+    let rows: Vec<ResultRow> = res
         .cells
         .iter()
-        .map(|c| {
-            vec![
-                c.object.clone(),
-                c.case.clone(),
-                c.scheme.label().to_string(),
-                format!("{}", c.ratio),
-                c.measurements.to_string(),
-                format!("{}", c.k_plus),
-                format!("{}", c.k_minus),
-                format!("{}", c.b_plus),
-                format!("{}", c.b_minus),
-                format!("{}", c.k_prime),
-                c.noise.map_or(String::new(), |n| format!("{n:?}")),
-                format!("{}", c.noise_std),
-                format!("{:.4}", c.psnr_db),
-                format!("{:.6}", c.mssim),
-                c.iterations.to_string(),
-                c.operator_applications.to_string(),
-                c.converged.to_string(),
-                format!("{:?}", c.stop),
-                c.dmd_frames.to_string(),
-                c.detector_samples.to_string(),
-                format!("{:.6}", c.acquisition_time_s),
-            ]
+        .map(|c| ResultRow {
+            command: "simulate".into(),
+            scene: source.to_string(),
+            seed: exp.seed,
+            object: c.object.clone(),
+            case: c.case.clone(),
+            scheme: c.scheme.key().to_string(),
+            ratio: c.ratio,
+            measurements: c.measurements as u64,
+            dmd_frames: c.dmd_frames as u64,
+            detector_samples: c.detector_samples as u64,
+            acquisition_time_s: c.acquisition_time_s,
+            k_plus: c.k_plus,
+            k_minus: c.k_minus,
+            k_prime: c.k_prime,
+            gain_units: "1".into(),
+            b_plus: c.b_plus,
+            b_minus: c.b_minus,
+            offset_units: "object".into(),
+            noise: c.noise.map(|n| format!("{n:?}")),
+            noise_std: Some(c.noise_std),
+            psnr_db: c.psnr_db,
+            mssim: c.mssim,
+            iterations: c.iterations as u64,
+            converged: c.converged,
+            stop: format!("{:?}", c.stop),
+            saturated: None,
+            finest_group: None,
+            finest_element: None,
+            finest_lp_per_mm: None,
         })
         .collect();
-    write_csv(&out.path("cells.csv"), &header, &rows)?;
+    write_results(&out.path("cells.csv"), &rows)?;
 
     let mut curves = Vec::new();
     for spec in &exp.curves {
@@ -384,12 +367,29 @@ fn montages(
         } else {
             exp.title.clone()
         };
+        let mut row_labels: Vec<String> = (0..count(rows)).map(|i| label(rows, i)).collect();
+        let mut col_labels: Vec<String> = (0..count(cols)).map(|i| label(cols, i)).collect();
+        // The ground truth beside the reconstructions: a leading row when objects run along
+        // the columns, otherwise a leading column (each row's object, or this montage's).
+        const TRUTH: &str = "ground truth";
+        if cols == Axis::Object {
+            row_labels.insert(0, TRUTH.into());
+            tiles.insert(0, res.truths.iter().cloned().map(Some).collect());
+            captions.insert(0, vec![String::new(); n_obj]);
+        } else {
+            col_labels.insert(0, TRUTH.into());
+            for (r, (trow, crow)) in tiles.iter_mut().zip(captions.iter_mut()).enumerate() {
+                let object = if rows == Axis::Object { r } else { t };
+                trow.insert(0, Some(res.truths[object].clone()));
+                crow.insert(0, String::new());
+            }
+        }
         out.push((
             suffix,
             Montage {
                 title,
-                row_labels: (0..count(rows)).map(|i| label(rows, i)).collect(),
-                col_labels: (0..count(cols)).map(|i| label(cols, i)).collect(),
+                row_labels,
+                col_labels,
                 tiles,
                 captions,
             },

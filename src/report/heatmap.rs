@@ -1,6 +1,7 @@
 //! Heatmaps of a quantity over a 2-D grid of two variables (a sweep), with a colour bar in the
-//! quantity's units and a marked reference point (the nominal bench). SVG and PNG are drawn
-//! by the same code on plotters' two backends.
+//! quantity's units and a marked reference point (the nominal bench); and per-unit maps of the
+//! pattern area ([`UnitMap`]: x_j, g±_j, k±_j) whose colour range comes from the units that
+//! carry light. Both are drawn once as SVG; the PNG is that SVG rendered (`report::svg`).
 
 use std::path::Path;
 
@@ -215,6 +216,286 @@ pub fn write_heatmap(h: &Heatmap, svg_path: &Path, png_path: &Path) -> Result<()
     write_atomic(png_path, &png)
 }
 
+/// Units whose incident power x_j is below this fraction of the mean x_j are "dark": they are
+/// hatched on per-unit maps and left out of the colour range. A ratio such as k_j = g_j / x_j
+/// over a unit that a few stray rays reach is dominated by those rays (the paper bench has
+/// units with 2e-12 W whose k₊_j exceeds silicon's peak responsivity), so it says nothing about
+/// the bench.
+pub const DARK_FRACTION: f64 = 0.1;
+
+/// The percentiles of the lit units' values that bound a per-unit map's colour range, so that a
+/// handful of outliers does not wash out the rest (matplotlib users pass `vmin`/`vmax` from
+/// `np.percentile(v, [1, 99])` for the same reason).
+pub const RANGE_PERCENTILES: (f64, f64) = (1.0, 99.0);
+
+/// A per-unit map of the pattern area (row-major, row 0 = the top row), drawn with one square
+/// per unit (nearest-neighbour enlargement), a colour bar in `unit`, and the dark units
+/// hatched (see [`DARK_FRACTION`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct UnitMap {
+    /// What is shown, e.g. "k₊_j".
+    pub label: String,
+    /// The unit of the values, e.g. "A/W".
+    pub unit: String,
+    pub width: usize,
+    pub height: usize,
+    pub values: Vec<f64>,
+    /// x_j (W), which decides the dark units.
+    pub light_w: Vec<f64>,
+    /// Start the colour range at 0 when all lit values are ≥ 0 (powers, responsivities).
+    pub from_zero: bool,
+}
+
+/// The units that carry light: x_j ≥ `fraction` × mean x_j (and x_j > 0).
+pub fn lit_units(light_w: &[f64], fraction: f64) -> Vec<bool> {
+    let finite: Vec<f64> = light_w.iter().copied().filter(|v| v.is_finite()).collect();
+    let mean = if finite.is_empty() {
+        0.0
+    } else {
+        finite.iter().sum::<f64>() / finite.len() as f64
+    };
+    light_w
+        .iter()
+        .map(|&x| x.is_finite() && x > 0.0 && x >= fraction * mean)
+        .collect()
+}
+
+/// The `p`-th percentile (0–100) of sorted values, by linear interpolation between closest
+/// ranks (numpy's default).
+fn percentile(sorted: &[f64], p: f64) -> f64 {
+    let pos = (p / 100.0).clamp(0.0, 1.0) * (sorted.len() - 1) as f64;
+    let (i, f) = (pos.floor() as usize, pos.fract());
+    if i + 1 < sorted.len() {
+        sorted[i] + f * (sorted[i + 1] - sorted[i])
+    } else {
+        sorted[i]
+    }
+}
+
+/// The colour range of a per-unit map: [`RANGE_PERCENTILES`] of the finite values of the lit
+/// units (all finite values when no unit is lit), from 0 when `from_zero` and none is
+/// negative; always a non-empty interval.
+pub fn unit_range(values: &[f64], lit: &[bool], from_zero: bool) -> (f64, f64) {
+    let pick = |only_lit: bool| -> Vec<f64> {
+        let mut v: Vec<f64> = values
+            .iter()
+            .zip(lit)
+            .filter(|(v, l)| v.is_finite() && (**l || !only_lit))
+            .map(|(v, _)| *v)
+            .collect();
+        v.sort_by(f64::total_cmp);
+        v
+    };
+    let mut v = pick(true);
+    if v.is_empty() {
+        v = pick(false);
+    }
+    if v.is_empty() {
+        return (0.0, 1.0);
+    }
+    let mut lo = percentile(&v, RANGE_PERCENTILES.0);
+    let hi = percentile(&v, RANGE_PERCENTILES.1);
+    if from_zero && v[0] >= 0.0 {
+        lo = 0.0;
+    }
+    if hi > lo {
+        (lo, hi)
+    } else {
+        let p = if lo == 0.0 { 1.0 } else { lo.abs() * 0.5 };
+        (lo - p, lo + p)
+    }
+}
+
+fn hex(c: RGBColor) -> String {
+    format!("#{:02x}{:02x}{:02x}", c.0, c.1, c.2)
+}
+
+fn esc(s: &str) -> String {
+    s.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
+}
+
+/// Per-unit maps are enlarged to at least this many pixels across their longer side.
+const UNIT_MAP_MIN_PX: usize = 480;
+
+/// The SVG of a per-unit map (see [`UnitMap`]).
+pub fn unit_map_svg(m: &UnitMap) -> Result<String> {
+    use std::fmt::Write as _;
+    let n = m.width * m.height;
+    if n == 0 || m.values.len() != n || m.light_w.len() != n {
+        return Err(Error::Numerical(format!(
+            "a {}×{} unit map needs {n} values and {n} powers, got {} and {}",
+            m.width,
+            m.height,
+            m.values.len(),
+            m.light_w.len()
+        )));
+    }
+    let lit = lit_units(&m.light_w, DARK_FRACTION);
+    let (lo, hi) = unit_range(&m.values, &lit, m.from_zero);
+    // Nearest-neighbour enlargement: every unit is an s × s square.
+    let s = UNIT_MAP_MIN_PX.div_ceil(m.width.max(m.height)).max(1);
+    let (mw, mh) = (m.width * s, m.height * s);
+    let (left, top) = (20usize, 20usize);
+    let bar_x = left + mw + 30;
+    let total_w = bar_x + 24 + 130;
+    let total_h = top + mh.max(240) + 70;
+    let mut out = String::new();
+    let _ = writeln!(
+        out,
+        r##"<svg xmlns="http://www.w3.org/2000/svg" width="{total_w}" height="{total_h}" viewBox="0 0 {total_w} {total_h}" font-family="DejaVu Sans, sans-serif">"##
+    );
+    let _ = writeln!(
+        out,
+        r##"<defs><pattern id="dark" patternUnits="userSpaceOnUse" width="6" height="6"><rect width="6" height="6" fill="#e6e6e6"/><path d="M-1,1 l2,-2 M0,6 l6,-6 M5,7 l2,-2" stroke="#8c8c8c" stroke-width="1"/></pattern></defs>"##
+    );
+    let _ = writeln!(
+        out,
+        r##"<rect width="{total_w}" height="{total_h}" fill="#ffffff"/>"##
+    );
+    // Each row: runs of units of the same colour as one rectangle (crisp edges, small file).
+    let _ = writeln!(
+        out,
+        r##"<g shape-rendering="crispEdges" transform="translate({left},{top})">"##
+    );
+    let mut dark = 0usize;
+    for r in 0..m.height {
+        let mut c = 0;
+        while c < m.width {
+            let j = r * m.width + c;
+            let fill = |j: usize| -> String {
+                if !lit[j] {
+                    "url(#dark)".into()
+                } else {
+                    hex(colour((m.values[j] - lo) / (hi - lo)))
+                }
+            };
+            let f = fill(j);
+            let mut e = c + 1;
+            while e < m.width && fill(r * m.width + e) == f {
+                e += 1;
+            }
+            if !lit[j] {
+                dark += e - c;
+            }
+            let _ = writeln!(
+                out,
+                r##"<rect x="{}" y="{}" width="{}" height="{s}" fill="{f}"/>"##,
+                c * s,
+                r * s,
+                (e - c) * s
+            );
+            c = e;
+        }
+    }
+    let _ = writeln!(
+        out,
+        r##"<rect width="{mw}" height="{mh}" fill="none" stroke="#000000" stroke-width="1"/></g>"##
+    );
+    // The colour bar with ticks in the map's unit.
+    let bar_h = mh.max(240);
+    let steps = 64;
+    let _ = writeln!(out, r##"<g shape-rendering="crispEdges">"##);
+    for k in 0..steps {
+        let y0 = top as f64 + bar_h as f64 * (1.0 - (k + 1) as f64 / steps as f64);
+        let _ = writeln!(
+            out,
+            r##"<rect x="{bar_x}" y="{y0:.2}" width="24" height="{:.2}" fill="{}"/>"##,
+            bar_h as f64 / steps as f64 + 0.5,
+            hex(colour((k as f64 + 0.5) / steps as f64))
+        );
+    }
+    let _ = writeln!(
+        out,
+        r##"<rect x="{bar_x}" y="{top}" width="24" height="{bar_h}" fill="none" stroke="#000000"/></g>"##
+    );
+    let ticks = super::plot::linear_ticks(lo, hi);
+    let scale = ticks
+        .iter()
+        .map(|t| t.abs())
+        .fold(0.0f64, f64::max)
+        .max(hi.abs());
+    // One power of ten for the whole bar, so tick text stays short ("1.2", "× 1e-6").
+    let exp = if scale > 0.0 && !(1e-2..1e4).contains(&scale) {
+        (scale.log10().floor() as i32 / 3) * 3
+    } else {
+        0
+    };
+    let div = 10f64.powi(exp);
+    for t in &ticks {
+        let y = top as f64 + bar_h as f64 * (1.0 - (t - lo) / (hi - lo));
+        let _ = writeln!(
+            out,
+            r##"<line x1="{}" y1="{y:.2}" x2="{}" y2="{y:.2}" stroke="#000000"/><text x="{}" y="{y:.2}" dy="0.35em" font-size="14">{}</text>"##,
+            bar_x + 24,
+            bar_x + 29,
+            bar_x + 32,
+            esc(&super::plot::format_tick(t / div).replace('-', "−"))
+        );
+    }
+    let unit = if exp == 0 {
+        m.unit.clone()
+    } else {
+        format!("10{} {}", superscript(exp), m.unit)
+    };
+    let _ = writeln!(
+        out,
+        r##"<text transform="translate({},{}) rotate(-90)" text-anchor="middle" font-size="15">{} ({})</text>"##,
+        bar_x + 118,
+        top + bar_h / 2,
+        esc(&m.label),
+        esc(&unit)
+    );
+    let notes = [
+        format!(
+            "hatched: {dark} of {n} units with x_j below {:.0} % of the mean x_j",
+            DARK_FRACTION * 100.0
+        ),
+        format!(
+            "colour range: the {}–{} % percentiles of the other units",
+            RANGE_PERCENTILES.0, RANGE_PERCENTILES.1
+        ),
+    ];
+    for (k, note) in notes.iter().enumerate() {
+        let _ = writeln!(
+            out,
+            r##"<text x="{left}" y="{}" font-size="13">{}</text>"##,
+            top + bar_h + 24 + 18 * k,
+            esc(note)
+        );
+    }
+    let _ = writeln!(out, "</svg>");
+    Ok(out)
+}
+
+fn superscript(e: i32) -> String {
+    e.to_string()
+        .chars()
+        .map(|c| match c {
+            '-' => '⁻',
+            '0' => '⁰',
+            '1' => '¹',
+            '2' => '²',
+            '3' => '³',
+            '4' => '⁴',
+            '5' => '⁵',
+            '6' => '⁶',
+            '7' => '⁷',
+            '8' => '⁸',
+            _ => '⁹',
+        })
+        .collect()
+}
+
+/// Writes a per-unit map as SVG and as its PNG rendering.
+pub fn write_unit_map(m: &UnitMap, svg_path: &Path, png_path: &Path) -> Result<()> {
+    let svg = unit_map_svg(m)?;
+    let png = super::svg::svg_to_png(&svg)?;
+    write_atomic(svg_path, svg.as_bytes())?;
+    write_atomic(png_path, &png)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -240,5 +521,40 @@ mod tests {
         assert!(render(&bad).is_err());
         assert_eq!(colour(0.0), RGBColor(68, 1, 84));
         assert_eq!(colour(1.0), RGBColor(253, 231, 37));
+    }
+
+    /// A few dark units with a huge ratio (stray light over 2e-12 W) do not set the colour
+    /// range; the lit units do, and the dark ones are hatched.
+    #[test]
+    fn map_colour_range_ignores_dark_units() {
+        let (w, h) = (10, 10);
+        let mut light = vec![1e-6; w * h];
+        let mut k: Vec<f64> = (0..w * h).map(|j| 0.30 + 0.001 * (j % 10) as f64).collect();
+        for j in [0, 1, 2, 99] {
+            light[j] = 2e-12;
+            k[j] = 1.15;
+        }
+        let lit = lit_units(&light, DARK_FRACTION);
+        assert_eq!(lit.iter().filter(|l| !**l).count(), 4);
+        let (lo, hi) = unit_range(&k, &lit, true);
+        assert_eq!(lo, 0.0);
+        assert!(hi < 0.31 && hi > 0.30, "hi = {hi}");
+        // Without the mask the outliers would have set the top of the range.
+        let all = vec![true; w * h];
+        assert!(unit_range(&k, &all, true).1 > 1.0);
+        let m = UnitMap {
+            label: "k₊_j".into(),
+            unit: "A/W".into(),
+            width: w,
+            height: h,
+            values: k,
+            light_w: light,
+            from_zero: true,
+        };
+        let svg = unit_map_svg(&m).unwrap();
+        assert!(svg.contains("k₊_j (A/W)"));
+        assert_eq!(svg.matches("url(#dark)").count(), 2); // a run of 3 and a single unit
+        let (pw, ph, _) = crate::report::svg::svg_to_rgb(&svg).unwrap();
+        assert!(pw >= 480 && ph >= 480, "{pw}×{ph}");
     }
 }

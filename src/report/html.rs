@@ -122,6 +122,145 @@ pub fn png_bytes_gray8(image: &Raster, lo: f64, hi: f64) -> Result<Vec<u8>> {
     super::png::encode_gray8(image, lo, hi)
 }
 
+/// A value with its standard error in concise (parenthesis) notation, as metrology writes it
+/// (JCGM 100:2008, the GUM, §7.2.2): `0.3531(3)` is 0.3531 ± 0.0003. The uncertainty keeps two
+/// significant digits when its first digit is 1 or 2 (so rounding it costs at most ~25 %) and
+/// one otherwise, and the value is rounded to the same decimal place. Magnitudes outside
+/// 10⁻³…10⁵ get a power of ten: `1.2345(12)×10⁻⁶`. A zero standard error shows the value alone
+/// (six significant digits); a NaN one appends "(unresolved)".
+pub fn concise(v: f64, se: f64) -> String {
+    if !v.is_finite() {
+        return v.to_string();
+    }
+    let exp = |m: f64| -> i32 {
+        if m != 0.0 && !(1e-3..1e5).contains(&m.abs()) {
+            m.abs().log10().floor() as i32
+        } else {
+            0
+        }
+    };
+    if se.is_nan() || se == 0.0 || se.is_infinite() {
+        let e = exp(v);
+        let m = v / 10f64.powi(e);
+        let text = if v == 0.0 {
+            "0".to_string()
+        } else {
+            let digits = (5 - m.abs().log10().floor() as i32).clamp(0, 12) as usize;
+            trim_zeros(format!("{m:.digits$}"))
+        };
+        let text = text + &times_ten(e);
+        return if se.is_nan() {
+            format!("{text} (unresolved)")
+        } else {
+            text
+        };
+    }
+    let se = se.abs();
+    let e = if v != 0.0 { exp(v) } else { exp(se) };
+    let scale = 10f64.powi(e);
+    let (m, s) = (v / scale, se / scale);
+    let mut lead = s.log10().floor() as i32;
+    // The first digit after rounding to two significant digits (9.96 → 10 moves up a decade).
+    let first = (s / 10f64.powi(lead - 1)).round() / 10.0;
+    if first >= 10.0 {
+        lead += 1;
+    }
+    let first = (s / 10f64.powi(lead)).floor().max(1.0);
+    let digits = if first < 3.0 { 2 } else { 1 };
+    let place = lead - (digits - 1);
+    let unc = (s / 10f64.powi(place)).round() as u64;
+    let body = if place >= 0 {
+        let q = 10f64.powi(place);
+        format!(
+            "{:.0}({})",
+            (m / q).round() * q,
+            unc * 10u64.pow(place as u32)
+        )
+    } else {
+        let decimals = (-place) as usize;
+        format!("{m:.decimals$}({unc})")
+    };
+    body.replace('-', "−") + &times_ten(e)
+}
+
+fn trim_zeros(s: String) -> String {
+    if s.contains('.') {
+        s.trim_end_matches('0').trim_end_matches('.').to_string()
+    } else {
+        s
+    }
+}
+
+fn times_ten(e: i32) -> String {
+    if e == 0 {
+        return String::new();
+    }
+    let sup: String = e
+        .to_string()
+        .chars()
+        .map(|c| match c {
+            '-' => '⁻',
+            '0' => '⁰',
+            '1' => '¹',
+            '2' => '²',
+            '3' => '³',
+            '4' => '⁴',
+            '5' => '⁵',
+            '6' => '⁶',
+            '7' => '⁷',
+            '8' => '⁸',
+            _ => '⁹',
+        })
+        .collect();
+    format!("×10{sup}")
+}
+
+/// `concise(v, se)` followed by the unit (none when `unit` is empty).
+pub fn concise_unit(v: f64, se: f64, unit: &str) -> String {
+    if unit.is_empty() {
+        concise(v, se)
+    } else {
+        format!("{} {unit}", concise(v, se))
+    }
+}
+
+/// A value in engineering notation with an SI prefix and five significant digits
+/// (`1.2346 mW`, `−48.000 nA`); an exact zero is `0 W`.
+pub fn eng(v: f64, unit: &str) -> String {
+    if v == 0.0 {
+        return format!("0 {unit}");
+    }
+    if !v.is_finite() {
+        return format!("{v} {unit}");
+    }
+    const PREFIXES: [(i32, &str); 11] = [
+        (-24, "y"),
+        (-21, "z"),
+        (-18, "a"),
+        (-15, "f"),
+        (-12, "p"),
+        (-9, "n"),
+        (-6, "µ"),
+        (-3, "m"),
+        (0, ""),
+        (3, "k"),
+        (6, "M"),
+    ];
+    let mut e3 = (v.abs().log10().floor() as i32).div_euclid(3) * 3;
+    // Rounding to five significant digits may carry into the next group (999.996 → 1000.0).
+    let mut m = v / 10f64.powi(e3);
+    let decimals = |m: f64| (4 - m.abs().log10().floor() as i32).clamp(0, 4) as usize;
+    let rounded: f64 = format!("{m:.*}", decimals(m)).parse().unwrap_or(m);
+    if rounded.abs() >= 1000.0 {
+        e3 += 3;
+        m = v / 10f64.powi(e3);
+    }
+    match PREFIXES.iter().find(|(p, _)| *p == e3) {
+        Some((_, prefix)) => format!("{:.*} {prefix}{unit}", decimals(m), m).replace('-', "−"),
+        None => format!("{v:.4e} {unit}").replace('-', "−"),
+    }
+}
+
 /// Base64 of `bytes` with the standard alphabet and `=` padding (RFC 4648 §4), no line breaks.
 pub fn base64(bytes: &[u8]) -> String {
     const ALPHABET: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
@@ -474,6 +613,27 @@ fn render_block(out: &mut String, block: &Block, next_heading: &mut usize) {
 
 #[cfg(test)]
 mod tests {
+    use super::concise;
+
+    #[test]
+    fn concise_notation() {
+        assert_eq!(concise(0.35313, 0.00031), "0.3531(3)");
+        assert_eq!(concise(0.35313, 0.00014), "0.35313(14)");
+        assert_eq!(concise(17.14, 0.5), "17.1(5)");
+        assert_eq!(concise(1.2345e-6, 1.2e-9), "1.2345(12)×10⁻⁶");
+        assert_eq!(concise(-0.0123, 0.0009), "−0.0123(9)");
+        assert_eq!(concise(0.02, 0.0), "0.02");
+        assert_eq!(concise(0.0, 0.0), "0");
+        assert_eq!(concise(0.3, f64::NAN), "0.3 (unresolved)");
+        assert_eq!(concise(12345.0, 560.0), "12300(600)");
+        assert_eq!(concise(0.1, 0.0996), "0.10(10)");
+        assert_eq!(super::eng(0.0, "W"), "0 W");
+        assert_eq!(super::eng(1.23456e-3, "W"), "1.2346 mW");
+        assert_eq!(super::eng(-4.8e-8, "A"), "−48.000 nA");
+        assert_eq!(super::eng(999.9996e-6, "W"), "1.0000 mW");
+        assert_eq!(super::eng(2.5, "W"), "2.5000 W");
+    }
+
     use super::*;
     use crate::objects::usaf::{PaperRegion, Polarity, UsafChart};
 

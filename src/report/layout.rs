@@ -328,41 +328,10 @@ pub fn layout_svg(bench: &Bench, fan: &RayFan, title: &str) -> Result<String> {
     Ok(s)
 }
 
-static DEJAVU_SANS: &[u8] = include_bytes!("fonts/DejaVuSans.ttf");
-
 /// Renders SVG text to PNG bytes at its own size (1 px per SVG unit) with resvg, text set in the
-/// embedded DejaVu Sans (no system fonts are consulted).
+/// embedded DejaVu Sans (no system fonts are consulted); see `report::svg`.
 pub fn svg_to_png(svg: &str) -> Result<Vec<u8>> {
-    let mut opt = resvg::usvg::Options {
-        font_family: "DejaVu Sans".into(),
-        ..Default::default()
-    };
-    {
-        let db = opt.fontdb_mut();
-        db.load_font_data(DEJAVU_SANS.to_vec());
-        db.set_sans_serif_family("DejaVu Sans");
-    }
-    let tree = resvg::usvg::Tree::from_str(svg, &opt)
-        .map_err(|e| Error::Numerical(format!("cannot parse the layout SVG: {e}")))?;
-    let size = tree.size().to_int_size();
-    let mut pixmap = resvg::tiny_skia::Pixmap::new(size.width(), size.height())
-        .ok_or_else(|| Error::Numerical("the layout has no area".into()))?;
-    resvg::render(
-        &tree,
-        resvg::tiny_skia::Transform::default(),
-        &mut pixmap.as_mut(),
-    );
-    let (w, h) = (pixmap.width(), pixmap.height());
-    let rgba = pixmap.take_demultiplied();
-    let img = image::RgbaImage::from_raw(w, h, rgba)
-        .ok_or_else(|| Error::Numerical("the rendered layout has the wrong size".into()))?;
-    let mut bytes = Vec::new();
-    img.write_to(
-        &mut std::io::Cursor::new(&mut bytes),
-        image::ImageFormat::Png,
-    )
-    .map_err(|e| Error::Numerical(format!("cannot encode the layout PNG: {e}")))?;
-    Ok(bytes)
+    super::svg::svg_to_png(svg)
 }
 
 #[cfg(test)]

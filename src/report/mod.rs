@@ -13,3 +13,4 @@ pub mod npy;
 pub mod output;
 pub mod plot;
 pub mod png;
+pub mod svg;

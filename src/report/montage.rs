@@ -266,7 +266,21 @@ pub fn render_montage(m: &Montage, tile_px: u32) -> Result<(MontageLayout, Vec<u
 
 /// Draws the title, labels and captions over the tiles' white surroundings.
 fn draw_text(m: &Montage, lay: &MontageLayout, rgb: &mut [u8]) -> std::result::Result<(), String> {
-    let root = BitMapBackend::with_buffer(rgb, (lay.width, lay.height)).into_drawing_area();
+    // The text is drawn as SVG and rendered by resvg over the tiles (report::svg), so glyphs
+    // are spaced by the font's own advances, as in every other figure.
+    let mut svg = String::new();
+    {
+        let root = SVGBackend::with_string(&mut svg, (lay.width, lay.height)).into_drawing_area();
+        draw_labels(m, lay, &root)?;
+    }
+    super::svg::render_over(&svg, lay.width, lay.height, rgb).map_err(|e| e.to_string())
+}
+
+fn draw_labels<DB: DrawingBackend>(
+    m: &Montage,
+    lay: &MontageLayout,
+    root: &DrawingArea<DB, plotters::coord::Shift>,
+) -> std::result::Result<(), String> {
     let size = lay.font_px as f64;
     // Labels that do not fit on two lines shrink down to this before being shortened.
     let min_size = (size * 0.75).round().max(9.0);
@@ -275,7 +289,7 @@ fn draw_text(m: &Montage, lay: &MontageLayout, rgb: &mut [u8]) -> std::result::R
             .color(&BLACK)
             .pos(Pos::new(HPos::Center, VPos::Center))
     };
-    let err = |e: DrawingAreaErrorKind<_>| e.to_string();
+    let err = |e: DrawingAreaErrorKind<DB::ErrorType>| e.to_string();
     let line = lay.line_px as i32;
     if lay.title_h > 0 {
         let (lines, ts) = font::fit_lines(

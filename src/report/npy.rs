@@ -1,6 +1,11 @@
-//! NumPy `.npy` (format 1.0/2.0) reading and writing, little-endian, C order.
+//! NumPy `.npy` (format 1.0/2.0/3.0) reading and writing, little-endian; C-order and
+//! Fortran-order arrays are read (the latter reordered to C order), C order is written.
 //!
-//! Hand-written because the format is small and a crate for it pulls a C build or `ndarray`.
+//! Hand-written rather than `npyz`: the format is a text header and raw little-endian data,
+//! spibench reads exactly five element types (patterns as uint8/bool, measurements as
+//! float64/float32/int64) and writes two, and neither `.npz` archives nor structured dtypes are
+//! used by any command; this file does that in ~300 lines with no dependency and with error
+//! messages that name the file and the problem.
 
 use std::io::Write;
 use std::path::Path;
@@ -105,9 +110,7 @@ pub fn parse(bytes: &[u8]) -> std::result::Result<NpyArray, String> {
     let descr = dict_value(header, "descr").ok_or("header has no 'descr'")?;
     let descr = descr.trim().trim_matches(|c| c == '\'' || c == '"');
     let fortran = dict_value(header, "fortran_order").ok_or("header has no 'fortran_order'")?;
-    if fortran.trim().starts_with("True") {
-        return Err("Fortran-order arrays are not supported; save with C order".into());
-    }
+    let fortran = fortran.trim().starts_with("True");
     let shape_txt = dict_value(header, "shape").ok_or("header has no 'shape'")?;
     let shape_txt = shape_txt.trim();
     let inner = shape_txt
@@ -165,7 +168,43 @@ pub fn parse(bytes: &[u8]) -> std::result::Result<NpyArray, String> {
             ));
         }
     };
+    let data = if fortran && shape.len() > 1 {
+        let order = fortran_to_c(&shape);
+        match data {
+            NpyData::F64(v) => NpyData::F64(order.iter().map(|&i| v[i]).collect()),
+            NpyData::F32(v) => NpyData::F32(order.iter().map(|&i| v[i]).collect()),
+            NpyData::U8(v) => NpyData::U8(order.iter().map(|&i| v[i]).collect()),
+            NpyData::Bool(v) => NpyData::Bool(order.iter().map(|&i| v[i]).collect()),
+            NpyData::I64(v) => NpyData::I64(order.iter().map(|&i| v[i]).collect()),
+        }
+    } else {
+        data
+    };
     Ok(NpyArray { shape, data })
+}
+
+/// For each element in C (row-major) order, its position in Fortran (column-major) storage.
+fn fortran_to_c(shape: &[usize]) -> Vec<usize> {
+    let count: usize = shape.iter().product();
+    // Fortran strides: the first index varies fastest.
+    let mut strides = vec![1usize; shape.len()];
+    for k in 1..shape.len() {
+        strides[k] = strides[k - 1] * shape[k - 1];
+    }
+    let mut idx = vec![0usize; shape.len()];
+    let mut out = Vec::with_capacity(count);
+    for _ in 0..count {
+        out.push(idx.iter().zip(&strides).map(|(i, s)| i * s).sum());
+        // Advance the C-order multi-index: the last index varies fastest.
+        for k in (0..shape.len()).rev() {
+            idx[k] += 1;
+            if idx[k] < shape[k] {
+                break;
+            }
+            idx[k] = 0;
+        }
+    }
+    out
 }
 
 /// The text after `'key':` in a Python dict literal, up to the next top-level comma.
@@ -265,6 +304,19 @@ pub fn write_u8(path: &Path, shape: &[usize], data: &[u8]) -> Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// numpy.asfortranarray(np.arange(6, dtype=np.uint8).reshape(2, 3)) stores 0 3 1 4 2 5; it
+    /// reads back as the C-order array 0 1 2 3 4 5.
+    #[test]
+    fn reads_fortran_order() {
+        let mut bytes = encode_u8(&[2, 3], &[0, 3, 1, 4, 2, 5]);
+        let at = bytes.windows(5).position(|w| w == b"False").unwrap();
+        bytes[at..at + 5].copy_from_slice(b"True ");
+        let a = parse(&bytes).unwrap();
+        assert_eq!(a.shape, vec![2, 3]);
+        assert_eq!(a.data, NpyData::U8(vec![0, 1, 2, 3, 4, 5]));
+        assert_eq!(fortran_to_c(&[2, 2, 2]), vec![0, 4, 2, 6, 1, 5, 3, 7]);
+    }
 
     #[test]
     fn round_trip_f64_and_u8() {

@@ -1,8 +1,15 @@
-//! Line plots with markers, optional ±1σ error bars, labelled axes and a legend, written as SVG
-//! (for papers) and PNG (for quick looks) from the same drawing code.
+//! Line plots with markers and line styles, optional ±1σ error bars, labelled axes and a
+//! legend, drawn once as SVG (plotters' SVG backend) and written as SVG, PDF (for LaTeX) and
+//! PNG; the PNG and the PDF are renderings of that SVG (`report::svg`), so all three agree.
 //!
-//! Text uses the embedded DejaVu Sans (see `font`), so rendering needs no system font. The
-//! legend sits in its own column to the right of the axes, so it never covers data.
+//! Text uses the embedded DejaVu Sans, so rendering needs no system font. The legend sits in a
+//! band below the axes, in as many columns as fit, so it never covers data and leaves the axes
+//! the figure's whole width. Figures carry no title: the caption belongs to the page or paper
+//! that shows them ([`LinePlot::title`] is kept for that caption and for alt text).
+//!
+//! Each series has a colour (Okabe–Ito), a marker shape and a dash pattern, all cycling with
+//! different periods, so curves that coincide (single-arm and SCB on a balanced bench) stay
+//! visible under each other and series stay distinct in grayscale print.
 
 use std::ops::Range;
 use std::path::Path;
@@ -10,6 +17,7 @@ use std::path::Path;
 use plotters::coord::Shift;
 use plotters::coord::ranged1d::{DefaultFormatting, KeyPointHint, Ranged};
 use plotters::coord::types::RangedCoordf64;
+use plotters::element::DashedPathElement;
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 
@@ -29,6 +37,8 @@ pub struct Series {
 
 #[derive(Debug, Clone, PartialEq)]
 pub struct LinePlot {
+    /// The figure's caption: not drawn in the figure (captions go in the page), kept for the
+    /// page that shows it.
     pub title: String,
     pub x_label: String,
     pub y_label: String,
@@ -41,14 +51,23 @@ pub struct LinePlot {
 pub const PLOT_WIDTH_PX: u32 = 960;
 pub const PLOT_HEIGHT_PX: u32 = 600;
 
-const TITLE_SIZE: f64 = 28.0;
 const AXIS_DESC_SIZE: f64 = 22.0;
 const TICK_SIZE: f64 = 17.0;
 const LEGEND_SIZE: f64 = 18.0;
 const MARGIN_PX: i32 = 18;
-const LEGEND_LINE_PX: i32 = 22;
-const LEGEND_GAP_PX: i32 = 12;
-const LEGEND_SAMPLE_PX: i32 = 36;
+const LEGEND_LINE_PX: i32 = 26;
+const LEGEND_GAP_PX: i32 = 28;
+const LEGEND_SAMPLE_PX: i32 = 52;
+
+/// Dash patterns (dash, gap) in px, cycled with a period (5) coprime to the palette's (7) and
+/// the markers' (6); `None` is a solid line.
+const DASHES: [Option<(i32, i32)>; 5] = [
+    None,
+    Some((12, 6)),
+    Some((3, 4)),
+    Some((20, 5)),
+    Some((7, 3)),
+];
 
 /// Okabe–Ito colours, distinguishable with the common colour-vision deficiencies.
 const PALETTE: [RGBColor; 7] = [
@@ -264,7 +283,7 @@ fn format_styled(v: f64, style: TickStyle) -> String {
 
 /// "Nice" tick positions covering `[lo, hi]`: the finest step of 1, 2 or 5 × 10^k that gives
 /// at most eight intervals.
-fn linear_ticks(lo: f64, hi: f64) -> Vec<f64> {
+pub(crate) fn linear_ticks(lo: f64, hi: f64) -> Vec<f64> {
     let span = hi - lo;
     if span <= 0.0 || !span.is_finite() {
         return vec![lo];
@@ -362,6 +381,25 @@ where
     r.map_err(|e| e.to_string())
 }
 
+/// Draws a polyline in series `i`'s colour and dash pattern.
+fn draw_line<DB, CT>(
+    area: &DrawingArea<DB, CT>,
+    points: Vec<CT::From>,
+    i: usize,
+) -> std::result::Result<(), String>
+where
+    DB: DrawingBackend,
+    CT: plotters::coord::CoordTranslate,
+    CT::From: Clone,
+{
+    let style = PALETTE[i % PALETTE.len()].stroke_width(2);
+    match DASHES[i % DASHES.len()] {
+        None => area.draw(&PathElement::new(points, style)),
+        Some((dash, gap)) => area.draw(&DashedPathElement::new(points, dash, gap, style)),
+    }
+    .map_err(|e| e.to_string())
+}
+
 fn draw_chart<DB, XR>(
     area: &DrawingArea<DB, Shift>,
     plot: &LinePlot,
@@ -412,11 +450,7 @@ where
         let color = PALETTE[i % PALETTE.len()];
         for run in &s.runs {
             if run.len() > 1 {
-                area.draw(&PathElement::new(
-                    run.iter().map(|&(x, y, _)| (x, y)).collect::<Vec<_>>(),
-                    color.stroke_width(2),
-                ))
-                .map_err(|e| e.to_string())?;
+                draw_line(area, run.iter().map(|&(x, y, _)| (x, y)).collect(), i)?;
             }
             for &(x, y, e) in run {
                 if e > 0.0 {
@@ -438,6 +472,32 @@ where
     Ok(())
 }
 
+/// The legend's entries (series index, label) placed in rows: each row holds as many
+/// entries as fit in `width`, left to right.
+fn legend_rows(series: &[Prepared], width: u32) -> Vec<Vec<(usize, String)>> {
+    let max_text = width.saturating_sub(LEGEND_SAMPLE_PX as u32 + 3 * LEGEND_GAP_PX as u32);
+    let mut rows: Vec<Vec<(usize, String)>> = Vec::new();
+    let mut used = 0u32;
+    for (i, s) in series.iter().enumerate() {
+        if s.label.trim().is_empty() {
+            continue;
+        }
+        let label = font::fit_text(&s.label, LEGEND_SIZE, max_text);
+        let w = entry_width(&label);
+        if rows.is_empty() || used + w > width.saturating_sub(2 * MARGIN_PX as u32) {
+            rows.push(Vec::new());
+            used = 0;
+        }
+        used += w;
+        rows.last_mut().expect("a row was pushed").push((i, label));
+    }
+    rows
+}
+
+fn entry_width(label: &str) -> u32 {
+    LEGEND_SAMPLE_PX as u32 + 8 + font::text_width(label, LEGEND_SIZE) + LEGEND_GAP_PX as u32
+}
+
 /// Draws the whole figure on `root` (already `width × height`).
 fn draw_figure<DB: DrawingBackend>(
     root: &DrawingArea<DB, Shift>,
@@ -450,32 +510,14 @@ fn draw_figure<DB: DrawingBackend>(
         return Err(font::unavailable().to_string());
     }
     root.fill(&WHITE).map_err(|e| e.to_string())?;
-    let (w, _) = root.dim_in_pixel();
-    let body = if plot.title.trim().is_empty() {
-        root.clone()
-    } else {
-        let title = font::fit_text(&plot.title, TITLE_SIZE, w.saturating_sub(40));
-        root.margin(MARGIN_PX / 2, 0, 0, 0)
-            .titled(&title, (FAMILY, TITLE_SIZE))
-            .map_err(|e| e.to_string())?
-    };
-    // The legend column is as wide as its longest label, but at most 2/5 of the figure.
-    let labelled: Vec<(usize, &Prepared)> = series
-        .iter()
-        .enumerate()
-        .filter(|(_, s)| !s.label.trim().is_empty())
-        .collect();
-    let text_px = labelled
-        .iter()
-        .map(|(_, s)| font::text_width(&s.label, LEGEND_SIZE))
-        .max()
-        .unwrap_or(0);
-    let legend_w = if labelled.is_empty() {
+    let (w, h) = root.dim_in_pixel();
+    let rows = legend_rows(series, w);
+    let legend_h = if rows.is_empty() {
         0
     } else {
-        (text_px + LEGEND_SAMPLE_PX as u32 + 30).min(w * 2 / 5)
+        rows.len() as i32 * LEGEND_LINE_PX + MARGIN_PX
     };
-    let (chart_area, legend_area) = body.split_horizontally(w - legend_w);
+    let (chart_area, legend_area) = root.split_vertically(h as i32 - legend_h);
     if plot.log_x {
         let ticks = log_ticks(x.start, x.end);
         let inner: LogCoord<f64> = x.log_scale().into();
@@ -485,63 +527,63 @@ fn draw_figure<DB: DrawingBackend>(
         let inner = RangedCoordf64::from(x);
         draw_chart(&chart_area, plot, series, Ticked { inner, ticks }, y)?;
     }
-    if legend_w > 0 {
-        let max_text = legend_w.saturating_sub(LEGEND_SAMPLE_PX as u32 + 24);
-        let style = TextStyle::from((FAMILY, LEGEND_SIZE).into_font())
-            .color(&BLACK)
-            .pos(Pos::new(HPos::Left, VPos::Center));
-        // Long labels wrap onto up to three lines rather than being cut.
-        let mut top = MARGIN_PX;
-        for (i, s) in &labelled {
+    let style = TextStyle::from((FAMILY, LEGEND_SIZE).into_font())
+        .color(&BLACK)
+        .pos(Pos::new(HPos::Left, VPos::Center));
+    for (r, row) in rows.iter().enumerate() {
+        // Each row is centred under the figure.
+        let row_w: u32 =
+            row.iter().map(|(_, l)| entry_width(l)).sum::<u32>() - LEGEND_GAP_PX as u32;
+        let mut left = (w.saturating_sub(row_w) / 2) as i32;
+        let yc = r as i32 * LEGEND_LINE_PX + LEGEND_LINE_PX / 2;
+        for (i, label) in row {
             let color = PALETTE[i % PALETTE.len()];
-            let lines = font::wrap_text(&s.label, LEGEND_SIZE, max_text, 3);
-            let yc = top + LEGEND_LINE_PX / 2;
+            draw_line(
+                &legend_area,
+                vec![(left, yc), (left + LEGEND_SAMPLE_PX, yc)],
+                *i,
+            )?;
+            draw_marker(&legend_area, (left + LEGEND_SAMPLE_PX / 2, yc), *i, color)?;
             legend_area
-                .draw(&PathElement::new(
-                    vec![(4, yc), (4 + LEGEND_SAMPLE_PX, yc)],
-                    color.stroke_width(2),
+                .draw(&Text::new(
+                    label.clone(),
+                    (left + LEGEND_SAMPLE_PX + 8, yc),
+                    style.clone(),
                 ))
                 .map_err(|e| e.to_string())?;
-            draw_marker(&legend_area, (4 + LEGEND_SAMPLE_PX / 2, yc), *i, color)?;
-            for (k, line) in lines.iter().enumerate() {
-                let y = yc + k as i32 * LEGEND_LINE_PX;
-                legend_area
-                    .draw(&Text::new(
-                        line.clone(),
-                        (LEGEND_SAMPLE_PX + 14, y),
-                        style.clone(),
-                    ))
-                    .map_err(|e| e.to_string())?;
-            }
-            top += lines.len() as i32 * LEGEND_LINE_PX + LEGEND_GAP_PX;
+            left += entry_width(label) as i32;
         }
     }
     root.present().map_err(|e| e.to_string())
 }
 
-/// The SVG text and the RGB pixels (row-major, 3 bytes each) of a plot.
-fn render(plot: &LinePlot, width: u32, height: u32) -> Result<(String, Vec<u8>)> {
+/// The SVG text of a plot.
+pub fn render_svg(plot: &LinePlot, width: u32, height: u32) -> Result<String> {
     let (series, x, y) = prepare(plot)?;
     let mut svg = String::new();
     {
         let root = SVGBackend::with_string(&mut svg, (width, height)).into_drawing_area();
-        draw_figure(&root, plot, &series, x.clone(), y.clone()).map_err(Error::Numerical)?;
-    }
-    let mut rgb = vec![255u8; width as usize * height as usize * 3];
-    {
-        let root = BitMapBackend::with_buffer(&mut rgb, (width, height)).into_drawing_area();
         draw_figure(&root, plot, &series, x, y).map_err(Error::Numerical)?;
     }
+    Ok(svg)
+}
+
+/// The SVG text and the RGB pixels (row-major, 3 bytes each) of a plot; the pixels are the
+/// SVG rendered by resvg.
+fn render(plot: &LinePlot, width: u32, height: u32) -> Result<(String, Vec<u8>)> {
+    let svg = render_svg(plot, width, height)?;
+    let (_, _, rgb) = super::svg::svg_to_rgb(&svg)?;
     Ok((svg, rgb))
 }
 
-/// Writes the plot as SVG and PNG at the default size ([`PLOT_WIDTH_PX`] × [`PLOT_HEIGHT_PX`]).
+/// Writes the plot as SVG, PNG and PDF at the default size ([`PLOT_WIDTH_PX`] ×
+/// [`PLOT_HEIGHT_PX`]); the PDF goes beside the SVG, with the extension `.pdf`.
 pub fn write_plot(plot: &LinePlot, svg_path: &Path, png_path: &Path) -> Result<()> {
     write_plot_sized(plot, svg_path, png_path, PLOT_WIDTH_PX, PLOT_HEIGHT_PX)
 }
 
-/// Writes the plot as SVG and PNG of `width × height` pixels (each from 320 to 8000).
-/// Both are rendered in memory first, so a drawing failure writes neither.
+/// Writes the plot as SVG, PNG and PDF (beside the SVG) of `width × height` pixels (each from
+/// 320 to 8000). All three are rendered in memory first, so a drawing failure writes none.
 pub fn write_plot_sized(
     plot: &LinePlot,
     svg_path: &Path,
@@ -555,12 +597,182 @@ pub fn write_plot_sized(
         ))
         .in_file(png_path));
     }
-    let (svg, rgb) = render(plot, width, height).map_err(|e| match e {
+    let fail = |e: Error| match e {
         Error::Numerical(msg) => Error::write(svg_path, std::io::Error::other(msg)),
         other => other.in_file(svg_path),
-    })?;
+    };
+    let (svg, rgb) = render(plot, width, height).map_err(fail)?;
+    let pdf = super::svg::svg_to_pdf(&svg).map_err(fail)?;
     write_atomic(svg_path, svg.as_bytes())?;
+    write_atomic(&svg_path.with_extension("pdf"), &pdf)?;
     super::png::write_rgb8(png_path, width, height, &rgb)
+}
+
+/// Oscilloscope channels over the first frames of a sequence: one panel per channel on a
+/// shared time axis, each drawn as a line, with the frame boundaries marked and the settled
+/// window of every frame (the samples that are averaged) shaded.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ScopePlot {
+    /// Sample times (µs).
+    pub t_us: Vec<f64>,
+    /// (channel name, volts at each sample), one panel each, top to bottom.
+    pub channels: Vec<(String, Vec<f64>)>,
+    /// Frame period and the excluded start of each frame (µs); frame f spans
+    /// [f·frame_us, (f+1)·frame_us) and its settled window starts settling_us after its start.
+    pub frame_us: f64,
+    pub settling_us: f64,
+}
+
+/// Width and height of a scope figure (px, SVG user units).
+pub const SCOPE_WIDTH_PX: u32 = 960;
+pub const SCOPE_PANEL_PX: u32 = 220;
+/// The band under the bottom panel for the shared time axis' ticks and label.
+const SCOPE_AXIS_PX: u32 = 76;
+
+fn draw_scope<DB: DrawingBackend>(
+    root: &DrawingArea<DB, Shift>,
+    p: &ScopePlot,
+) -> std::result::Result<(), String> {
+    if !font::ensure_registered() {
+        return Err(font::unavailable().to_string());
+    }
+    root.fill(&WHITE).map_err(|e| e.to_string())?;
+    let (t0, t1) = (
+        p.t_us.first().copied().unwrap_or(0.0),
+        p.t_us.last().copied().unwrap_or(1.0),
+    );
+    let x = if t1 > t0 { t0..t1 } else { t0..t0 + 1.0 };
+    let n = p.channels.len().max(1);
+    let (_, h) = root.dim_in_pixel();
+    // The bottom panel also holds the shared time axis' labels.
+    let axis_h = SCOPE_AXIS_PX as i32;
+    let panel_h = (h as i32 - axis_h) / n as i32;
+    let mut rest = root.clone();
+    for (k, (name, v)) in p.channels.iter().enumerate() {
+        let last = k + 1 == n;
+        let (panel, below) = if last {
+            (rest.clone(), rest.clone())
+        } else {
+            rest.split_vertically(panel_h)
+        };
+        rest = below;
+        let finite = v.iter().copied().filter(|y| y.is_finite());
+        let (lo, hi) = finite.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), y| {
+            (a.min(y), b.max(y))
+        });
+        let y = if lo.is_finite() {
+            pad_range(lo, hi, 0.08)
+        } else {
+            -1.0..1.0
+        };
+        let y_ticks = linear_ticks(y.start, y.end);
+        let y_style = tick_style(&y_ticks);
+        let tick_w = y_ticks
+            .iter()
+            .map(|t| font::text_width(&format_styled(*t, y_style).replace('-', "−"), TICK_SIZE))
+            .max()
+            .unwrap_or(0);
+        let x_ticks = linear_ticks(x.start, x.end);
+        let x_style = tick_style(&x_ticks);
+        let mut chart = ChartBuilder::on(&panel)
+            .margin_left(MARGIN_PX)
+            .margin_right(MARGIN_PX)
+            .margin_top(if k == 0 { MARGIN_PX } else { 4 })
+            .margin_bottom(if last { MARGIN_PX } else { 4 })
+            .x_label_area_size(if last { axis_h - MARGIN_PX } else { 0 })
+            .y_label_area_size(140.max(tick_w + 52))
+            .build_cartesian_2d(
+                Ticked {
+                    inner: RangedCoordf64::from(x.clone()),
+                    ticks: x_ticks,
+                },
+                Ticked {
+                    inner: RangedCoordf64::from(y.clone()),
+                    ticks: y_ticks,
+                },
+            )
+            .map_err(|e| e.to_string())?;
+        let x_formatter = |v: &f64| format_styled(*v, x_style).replace('-', "−");
+        let y_formatter = |v: &f64| format_styled(*v, y_style).replace('-', "−");
+        let y_desc = format!("{name} (V)");
+        let mut mesh = chart.configure_mesh();
+        mesh.y_desc(y_desc.as_str())
+            .axis_desc_style((FAMILY, AXIS_DESC_SIZE))
+            .label_style((FAMILY, TICK_SIZE))
+            .x_label_formatter(&x_formatter)
+            .y_label_formatter(&y_formatter)
+            .bold_line_style(RGBColor(0, 0, 0).mix(0.10));
+        if last {
+            mesh.x_desc("time (µs)");
+        } else {
+            mesh.x_labels(0);
+        }
+        mesh.draw().map_err(|e| e.to_string())?;
+        let area = chart.plotting_area();
+        // The settled windows (averaged) shaded, the frame boundaries as grey lines.
+        if p.frame_us > 0.0 {
+            let first = (x.start / p.frame_us).floor() as i64;
+            let last_f = (x.end / p.frame_us).ceil() as i64;
+            for f in first..last_f {
+                let a = (f as f64 * p.frame_us + p.settling_us).max(x.start);
+                let b = ((f + 1) as f64 * p.frame_us).min(x.end);
+                if b > a {
+                    area.draw(&Rectangle::new(
+                        [(a, y.start), (b, y.end)],
+                        RGBColor(0, 114, 178).mix(0.10).filled(),
+                    ))
+                    .map_err(|e| e.to_string())?;
+                }
+                let edge = f as f64 * p.frame_us;
+                if edge >= x.start && edge <= x.end {
+                    area.draw(&PathElement::new(
+                        vec![(edge, y.start), (edge, y.end)],
+                        RGBColor(90, 90, 90).stroke_width(1),
+                    ))
+                    .map_err(|e| e.to_string())?;
+                }
+            }
+        }
+        let pts: Vec<(f64, f64)> = p
+            .t_us
+            .iter()
+            .zip(v)
+            .filter(|(_, y)| y.is_finite())
+            .map(|(&t, &y)| (t, y))
+            .collect();
+        area.draw(&PathElement::new(pts, BLACK.stroke_width(1)))
+            .map_err(|e| e.to_string())?;
+        if last {
+            break;
+        }
+    }
+    root.present().map_err(|e| e.to_string())
+}
+
+/// The SVG of an oscilloscope figure.
+pub fn scope_svg(p: &ScopePlot) -> Result<String> {
+    if p.channels.iter().any(|(_, v)| v.len() != p.t_us.len()) || p.t_us.is_empty() {
+        return Err(Error::Numerical(
+            "every oscilloscope channel needs one value per sample time".into(),
+        ));
+    }
+    let h = SCOPE_PANEL_PX * p.channels.len().max(1) as u32 + SCOPE_AXIS_PX;
+    let mut svg = String::new();
+    {
+        let root = SVGBackend::with_string(&mut svg, (SCOPE_WIDTH_PX, h)).into_drawing_area();
+        draw_scope(&root, p).map_err(Error::Numerical)?;
+    }
+    Ok(svg)
+}
+
+/// Writes an oscilloscope figure as SVG, its PNG rendering, and PDF beside the SVG.
+pub fn write_scope(p: &ScopePlot, svg_path: &Path, png_path: &Path) -> Result<()> {
+    let svg = scope_svg(p).map_err(|e| e.in_file(svg_path))?;
+    let png = super::svg::svg_to_png(&svg)?;
+    let pdf = super::svg::svg_to_pdf(&svg)?;
+    write_atomic(svg_path, svg.as_bytes())?;
+    write_atomic(&svg_path.with_extension("pdf"), &pdf)?;
+    write_atomic(png_path, &png)
 }
 
 #[cfg(test)]
@@ -609,8 +821,9 @@ mod tests {
             write_plot(&plot, &svg_path, &png_path).unwrap();
             let svg = std::fs::read_to_string(&svg_path).unwrap();
             assert!(svg.starts_with("<svg") && svg.trim_end().ends_with("</svg>"));
+            // No title in the figure: the caption belongs to the page.
+            assert!(!svg.contains("PSNR versus sampling ratio"));
             for text in [
-                "PSNR versus sampling ratio",
                 "sampling ratio M/N",
                 "PSNR (dB)",
                 "single detector",
@@ -619,28 +832,84 @@ mod tests {
             ] {
                 assert!(svg.contains(text), "SVG lacks {text:?}");
             }
+            let pdf = std::fs::read(svg_path.with_extension("pdf")).unwrap();
+            assert!(pdf.starts_with(b"%PDF-") && pdf.len() > 1000);
             let img = image::open(&png_path).unwrap().to_rgb8();
             let _ = std::fs::remove_file(&svg_path);
             let _ = std::fs::remove_file(&png_path);
+            let _ = std::fs::remove_file(svg_path.with_extension("pdf"));
             assert_eq!(img.dimensions(), (PLOT_WIDTH_PX, PLOT_HEIGHT_PX));
-            let first = img.get_pixel(0, 0);
-            assert!(img.pixels().any(|p| p != first), "PNG is a single colour");
+            // The PNG is the SVG file rendered: pixel for pixel the same.
+            let (w, h, rgb) = crate::report::svg::svg_to_rgb(&svg).unwrap();
+            assert_eq!((w, h), img.dimensions());
+            assert!(rgb == img.as_raw().as_slice(), "PNG and SVG differ");
             // Every series colour appears (lines and markers were drawn), not just text.
             for c in &PALETTE[..3] {
                 let n = img.pixels().filter(|p| p.0 == [c.0, c.1, c.2]).count();
                 assert!(n > 50, "colour {c:?} drawn on only {n} pixels");
             }
-            // Dark pixels exist (text and axes) in the title band at the top.
-            let dark_in_title = (0..PLOT_WIDTH_PX)
-                .flat_map(|x| (0..40).map(move |y| (x, y)))
-                .filter(|&(x, y)| img.get_pixel(x, y).0.iter().all(|&v| v < 100))
+            // The legend sits below the axes: the bottom band holds series colours.
+            let bottom = (0..PLOT_WIDTH_PX)
+                .flat_map(|x| (PLOT_HEIGHT_PX - 60..PLOT_HEIGHT_PX).map(move |y| (x, y)))
+                .filter(|&(x, y)| {
+                    img.get_pixel(x, y).0 == [PALETTE[1].0, PALETTE[1].1, PALETTE[1].2]
+                })
                 .count();
-            assert!(
-                dark_in_title > 100,
-                "title band has {dark_in_title} dark pixels"
-            );
+            assert!(bottom > 20, "no legend sample below the axes ({bottom} px)");
         }
         let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    /// A label rendered inside a plot has the width the font's advances give it and no gap
+    /// inside a word (the bitmap backend's "bal ancing" / "0.3 85").
+    #[test]
+    fn rendered_label_matches_the_reference_rendering() {
+        let label = "balancing";
+        let plot = LinePlot {
+            title: String::new(),
+            x_label: label.into(),
+            y_label: String::new(),
+            series: vec![Series {
+                label: String::new(),
+                x: vec![0.0, 1.0],
+                y: vec![0.0, 1.0],
+                y_err: None,
+            }],
+            log_x: false,
+        };
+        let svg = render_svg(&plot, 640, 400).unwrap();
+        let (w, h, rgb) = crate::report::svg::svg_to_rgb(&svg).unwrap();
+        // The x-axis description sits in the bottom BAND px, alone on its rows.
+        const BAND: u32 = 48;
+        let band: Vec<u8> = rgb[(w * (h - BAND) * 3) as usize..].to_vec();
+        let cols = crate::report::svg::tests::ink_columns(w, BAND, &band);
+        let ink = (cols.iter().rposition(|&c| c).unwrap() - cols.iter().position(|&c| c).unwrap()
+            + 1) as f64;
+        // plotters writes font-size = size / 1.24 into the SVG.
+        let px = AXIS_DESC_SIZE / 1.24;
+        let advance = crate::report::svg::tests::advance_px(label, px);
+        assert!(
+            ink <= advance + 1.0 && ink > advance - 0.2 * px,
+            "ink {ink} px against advances {advance:.1} px"
+        );
+        let gap = crate::report::svg::tests::widest_inner_gap(&cols) as f64;
+        assert!(gap < 0.3 * px, "a {gap} px gap inside {label:?}");
+        // And the same text set directly by resvg, at the same place, gives the same pixels.
+        let texts: Vec<&str> = svg.split("</text>").collect();
+        let axis_text = texts
+            .iter()
+            .find(|t| t.contains(label))
+            .map(|t| format!("{}</text>", &t[t.find("<text").unwrap()..]))
+            .unwrap();
+        let reference = format!(
+            r#"<svg xmlns="http://www.w3.org/2000/svg" width="{w}" height="{h}">{axis_text}</svg>"#
+        );
+        let (_, _, ref_rgb) = crate::report::svg::svg_to_rgb(&reference).unwrap();
+        let ref_band = &ref_rgb[(w * (h - BAND) * 3) as usize..];
+        assert!(
+            band == ref_band,
+            "the label differs from its reference rendering"
+        );
     }
 
     #[test]
@@ -665,6 +934,35 @@ mod tests {
         // Only x ≤ 0 on a log axis: nothing to draw.
         assert!(write_plot(&p, &svg, &png).unwrap_err().is_user_error());
         assert!(!svg.exists() && !png.exists());
+    }
+
+    /// Three panels, one line each (no markers), shaded settled windows.
+    #[test]
+    fn scope_has_a_panel_per_channel() {
+        let t_us: Vec<f64> = (0..300).map(|i| i as f64 * 0.1).collect();
+        let sq = |a: f64| {
+            t_us.iter()
+                .map(|t| a * ((t / 10.0).floor() % 2.0))
+                .collect()
+        };
+        let p = ScopePlot {
+            channels: vec![
+                ("RF".into(), sq(1.0)),
+                ("MONITOR+".into(), sq(0.5)),
+                ("MONITOR−".into(), sq(-0.5)),
+            ],
+            t_us,
+            frame_us: 10.0,
+            settling_us: 2.0,
+        };
+        let svg = scope_svg(&p).unwrap();
+        for name in ["RF (V)", "MONITOR+ (V)", "MONITOR− (V)", "time (µs)"] {
+            assert!(svg.contains(name), "{name}");
+        }
+        assert_eq!(svg.matches("time (µs)").count(), 1, "one shared time axis");
+        assert!(!svg.contains("<circle"), "samples are a line, not markers");
+        let (w, h, _) = crate::report::svg::svg_to_rgb(&svg).unwrap();
+        assert_eq!((w, h), (SCOPE_WIDTH_PX, 3 * SCOPE_PANEL_PX + SCOPE_AXIS_PX));
     }
 
     #[test]

@@ -176,7 +176,10 @@ pub struct Transport {
     pub g_a: [Vec<f64>; 2],
     /// k±_j = g±_j / x_j (A/W); 0 where no light reached the unit.
     pub k_map: [Vec<f64>; 2],
-    /// Standard error of k±_j (A/W).
+    /// Standard error of k±_j (A/W), from the spread of the batch ratios; +∞ where light reached
+    /// the unit in fewer than two batches (unresolved: one batch's ratio has no spread to
+    /// measure, and the batch formula would give exactly 0). Infinite rather than NaN so that
+    /// two identical transports compare equal.
     pub k_map_stderr: [Vec<f64>; 2],
     /// c± (A) = traced pattern-independent current + ambient + dark.
     pub c_a: [f64; 2],
@@ -213,6 +216,14 @@ impl Transport {
                 if x > 0.0 {
                     let k = g_a[d][j] / x;
                     k_map[d][j] = k;
+                    // Σ_b x_bj² = (Σ_b x_bj)² exactly when one batch holds all of x_j (the
+                    // batch ratio estimator's residuals then vanish identically), and is below
+                    // it by at least 2·x_min·x_max otherwise; 1e-9 separates the two cases far
+                    // above rounding.
+                    if x * x - t.x2[j] <= 1e-9 * x * x {
+                        k_map_stderr[d][j] = f64::INFINITY;
+                        continue;
+                    }
                     let q = t.g2[d][j] - 2.0 * k * t.gx[d][j] + k * k * t.x2[j];
                     k_map_stderr[d][j] = (q.max(0.0) * bfac).sqrt() / x;
                 }

@@ -68,6 +68,7 @@ fn run_writes_every_output_identically_on_one_and_two_threads() {
         "results.csv".to_string(),
         "montage.png".to_string(),
         "images/x.png".to_string(),
+        "bench.ron".to_string(),
     ];
     for stem in [
         "mssim_vs_ratio",
@@ -77,6 +78,7 @@ fn run_writes_every_output_identically_on_one_and_two_threads() {
     ] {
         files.push(format!("{stem}.svg"));
         files.push(format!("{stem}.png"));
+        files.push(format!("{stem}.pdf"));
     }
     for scheme in [
         "traditional",
@@ -176,8 +178,31 @@ fn run_writes_every_output_identically_on_one_and_two_threads() {
     assert!(oc.status.success(), "{}", stderr(&oc));
     assert_ne!(
         without_timings(read_json(&c.join("summary.json")))["results"],
-        without_timings(sa)["results"]
+        without_timings(sa.clone())["results"]
     );
+    // The page's settings (bench.ron) reproduce the run: the same transport and results.
+    let d = dir.join("again");
+    let od = spibench(
+        &[
+            "run",
+            a.join("bench.ron").to_str().unwrap(),
+            "--out",
+            d.to_str().unwrap(),
+            "--seed",
+            "4",
+        ],
+        &[("RAYON_NUM_THREADS", "1")],
+    );
+    assert!(od.status.success(), "{}", stderr(&od));
+    let sd = without_timings(read_json(&d.join("summary.json")));
+    let sa = without_timings(sa);
+    assert_eq!(sd["results"], sa["results"]);
+    assert_eq!(sd["transport"]["k_plus"], sa["transport"]["k_plus"]);
+    // results.csv: LF only, one row per result, the run-identifying columns filled in.
+    let csv = std::fs::read_to_string(a.join("results.csv")).unwrap();
+    assert!(!csv.contains('\r'));
+    assert_eq!(csv.lines().count(), 9);
+    assert!(csv.starts_with("command,scene,seed,"), "{csv}");
 }
 
 #[test]
