@@ -21,8 +21,9 @@
 //!   (S. M. Robinson, "Analysis of sample-path optimization", *Math. Oper. Res.* 21, 513–528,
 //!   1996): its minimiser converges to the true one as the sample grows.
 //! - **A growing sample.** A stage stops when the objective values across the simplex differ by
-//!   less than the objective's standard error (smaller differences would fit the sample path,
-//!   not the bench) or when the simplex has shrunk below a set size; the next stage traces 4×
+//!   less than the standard error of the objective's difference from the stage's first point
+//!   (paired, with common random numbers; smaller differences would fit the sample path, not
+//!   the bench) or when the simplex has shrunk below a set size; the next stage traces 4×
 //!   the rays and restarts the simplex at the best point with half the step. Raising the sample
 //!   size as the search converges is the variable-sample scheme of T. Homem-de-Mello,
 //!   "Variable-sample methods for stochastic optimization", *ACM TOMACS* 13, 108–133 (2003).
@@ -149,8 +150,22 @@ fn value(m: &BenchMetrics, name: &str) -> (f64, f64) {
 }
 
 /// The objective (to minimise) and its standard error, given the reference k (see the module
-/// notes).
-fn objective(obj: &Objective, m: &BenchMetrics, k_ref: f64) -> (f64, f64) {
+/// notes). With `paired`, the standard error is that of the difference from the `paired`
+/// bench traced with the same random numbers: the noise that matters when two nearby points
+/// are compared.
+fn objective(
+    obj: &Objective,
+    m: &BenchMetrics,
+    k_ref: f64,
+    paired: Option<&BenchMetrics>,
+) -> (f64, f64) {
+    let value = |m: &BenchMetrics, name: &str| -> (f64, f64) {
+        let (v, se) = value(m, name);
+        match (paired.and_then(|p| p.get(name)), m.get(name)) {
+            (Some(r), Some(x)) => (v, x.diff(r).stderr),
+            _ => (v, se),
+        }
+    };
     let (imb, imb_se) = value(m, "imbalance");
     let (kp, _) = value(m, "k_plus");
     let (km, _) = value(m, "k_minus");
@@ -292,6 +307,7 @@ pub fn align(
         ));
     }
     let history: std::cell::RefCell<Vec<Evaluation>> = std::cell::RefCell::new(Vec::new());
+    let reference: std::cell::RefCell<Option<(usize, BenchMetrics)>> = Default::default();
     let evaluate = |u: &[f64], stage: usize, rays: u64| -> Result<(f64, f64)> {
         let x = to_x(u);
         let Some(p) = trace(&x, rays)? else {
@@ -309,7 +325,12 @@ pub fn align(
             progress(history.borrow().len());
             return Ok((f64::INFINITY, f64::NAN));
         };
-        let (f, se) = objective(obj, &p.metrics, k_ref);
+        // The stage's first point is the reference of its paired standard errors.
+        let mut r = reference.borrow_mut();
+        if r.as_ref().is_none_or(|(s, _)| *s != stage) {
+            *r = Some((stage, p.metrics.clone()));
+        }
+        let (f, se) = objective(obj, &p.metrics, k_ref, r.as_ref().map(|(_, m)| m));
         let (imb, imb_se) = value(&p.metrics, "imbalance");
         history.borrow_mut().push(Evaluation {
             stage,
@@ -481,4 +502,105 @@ fn nelder_mead(f: &mut ObjectiveFn, u0: &[f64], step: f64, budget: usize) -> Res
     }
     order(&mut simplex);
     Ok(simplex.swap_remove(0).0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::path::Path;
+
+    fn symmetric() -> BenchDoc {
+        let mut d = BenchDoc::read(
+            &Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/tests/symmetric_arms.ron"),
+        )
+        .unwrap();
+        // Diodes barely larger than the lamp's image (about 1 mm), so that a displaced diode
+        // loses light and the optimum is sharp.
+        d.set("detectors.plus.diameter_mm", 1.6).unwrap();
+        d.set("detectors.minus.diameter_mm", 1.6).unwrap();
+        d
+    }
+
+    fn position(d: &BenchDoc) -> glam::DVec3 {
+        let p = d.file.detectors.minus.position_mm;
+        glam::DVec3::new(p.0, p.1, p.2)
+    }
+
+    /// The − diode displaced 1 mm and tilted 3° on a bench with otherwise symmetric arms:
+    /// balancing brings it back onto its spot and the imbalance below 3 standard errors.
+    ///
+    /// What the noise (and the physics) allows: the lamp's image is about 1 mm across on a
+    /// 1.6 mm diode, so every position within ~0.3 mm of the centre collects the whole spot and
+    /// balances the arms equally well; the test asks for 0.4 mm. The diode's tilt about its own
+    /// centre changes only its Fresnel loss (≈1e-4 of k₋ at 3°), below the imbalance's
+    /// standard error at these ray counts, so the tilt is not resolved and not asserted
+    /// (measured: the search leaves it within ±7° of nominal).
+    #[test]
+    fn balance_recovers_a_displaced_diode() {
+        let nominal = symmetric();
+        let moved = nominal
+            .with(&[
+                ("detectors.minus.decenter_mm.x".into(), 1.0),
+                ("detectors.minus.tilt_deg.x".into(), 3.0),
+            ])
+            .unwrap();
+        let free = [
+            Free::parse("detectors.minus.decenter_mm.x=-2:2").unwrap(),
+            Free::parse("detectors.minus.decenter_mm.y=-2:2").unwrap(),
+            Free::parse("detectors.minus.tilt_deg.x=-6:6").unwrap(),
+        ];
+        let o = AlignOptions {
+            start_rays: 8192,
+            max_rays: 65_536,
+            seed: 11,
+            max_evaluations: 150,
+        };
+        let a = align(
+            &moved,
+            &free,
+            &Objective::Balance { min_fraction: 0.9 },
+            &o,
+            &|_| {},
+        )
+        .unwrap();
+        let aligned = moved.with(&a.settings()).unwrap();
+        let miss = (position(&aligned) - position(&nominal)).length();
+        let n0 = nominal.file.detectors.minus.normal.to_unit().unwrap();
+        let n1 = aligned.file.detectors.minus.normal.to_unit().unwrap();
+        let tilt = n0.dot(n1).clamp(-1.0, 1.0).acos().to_degrees();
+        let imb = a.best.metrics.get("imbalance").unwrap();
+        let start = a.start.metrics.get("imbalance").unwrap();
+        eprintln!(
+            "{} evaluations; diode {miss:.3} mm and {tilt:.2}° from nominal; imbalance {:.2e} ± \
+             {:.1e} (start {:.2e}); values {:?}",
+            a.history.len(),
+            imb.value,
+            imb.stderr(),
+            start.value,
+            a.best_values
+        );
+        assert!(imb.value.abs() < 3.0 * imb.stderr(), "{}", imb.value);
+        assert!(miss < 0.4, "the diode is {miss} mm from its nominal place");
+    }
+
+    #[test]
+    fn free_parses() {
+        let f = Free::parse("a.b=-1:2.5").unwrap();
+        assert_eq!((f.lo, f.hi), (-1.0, 2.5));
+        for bad in ["a", "a=1", "a=2:1", "a=x:1", "a=1:inf"] {
+            assert!(Free::parse(bad).unwrap_err().is_user_error(), "{bad}");
+        }
+    }
+
+    #[test]
+    fn nelder_mead_finds_a_quadratic_minimum() {
+        let mut f = |u: &[f64]| -> Result<(f64, f64)> {
+            Ok(((u[0] - 0.3).powi(2) + 2.0 * (u[1] - 0.7).powi(2), 0.0))
+        };
+        let u = nelder_mead(&mut f, &[0.5, 0.5], 0.25, 500).unwrap();
+        assert!(
+            (u[0] - 0.3).abs() < 2e-3 && (u[1] - 0.7).abs() < 2e-3,
+            "{u:?}"
+        );
+    }
 }

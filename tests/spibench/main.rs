@@ -6,6 +6,7 @@ mod cli_reconstruct;
 mod cli_run;
 mod cli_simulate;
 mod cli_sweep;
+mod cli_tolerance;
 mod common;
 mod layering;
 mod paper;
