@@ -151,8 +151,8 @@ pub fn run(args: &ToleranceArgs) -> Result<()> {
         return Ok(());
     }
     let out = OutputDir::create(&args.out)?;
-    // Every trial's bench must be buildable before the long traces? No: a perturbed bench that
-    // is not valid is a failed trial, recorded as such.
+    // A trial whose perturbed bench is not valid is not an input error: it is recorded as a
+    // failed trial (a built bench that does not work).
     let start = std::time::Instant::now();
     eprintln!(
         "{name}: {} tolerance(s), {} compensator(s); {} rays per trace (seed {}){}",
