@@ -29,7 +29,7 @@ fn main() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let doc = BenchDoc::read(&root.join("scenes/paper_bench.ron")).expect("the paper bench");
     let set = ToleranceSet::read(
-        &root.join("scenes/paper_bench.tolerances.ron"),
+        &root.join("scenes/tolerances/paper_bench.ron"),
         &doc,
         &is_metric,
     )
@@ -116,7 +116,7 @@ fn main() {
     );
 
     // With one compensator: the − diode re-centred for balance.
-    let mut text = std::fs::read_to_string(root.join("scenes/paper_bench.tolerances.ron")).unwrap();
+    let mut text = std::fs::read_to_string(root.join("scenes/tolerances/paper_bench.ron")).unwrap();
     text = text.replacen(
         "compensators: [],",
         "compensators: [(path: \"detectors.minus.decenter_mm.x\", range: PlusMinus(1.0), \

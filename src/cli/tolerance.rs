@@ -34,7 +34,7 @@ use crate::tolerance::{
 pub struct ToleranceArgs {
     /// Bench file (RON); default: the paper's bench built into the binary.
     pub scene: Option<PathBuf>,
-    /// Tolerance file (RON; see `scenes/paper_bench.tolerances.ron`).
+    /// Tolerance file (RON; see `scenes/tolerances/paper_bench.ron`).
     #[arg(long, required_unless_present = "merge")]
     pub tolerances: Option<PathBuf>,
     /// Monte Carlo trials (0: the sensitivity table only).

@@ -492,7 +492,7 @@ mod tests {
 
     #[test]
     fn shipped_file_reads() {
-        let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/paper_bench.tolerances.ron");
+        let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/tolerances/paper_bench.ron");
         let s = ToleranceSet::read(&p, &doc(), &|_| true).unwrap();
         assert!(s.tolerances.len() >= 10);
         assert!(s.tolerances.iter().any(|t| t.path == "dmd.tilt_deg"));

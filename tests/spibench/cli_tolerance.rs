@@ -25,7 +25,7 @@ fn tolerance(args: &[&str], out: &Path) -> std::process::Output {
 fn shards_merge_to_the_unsharded_run_and_trials_rebuild() {
     let dir = TempDir::new("tolerance-shards");
     let bench = scene("tests/symmetric_arms.ron");
-    let tol = scene("tests/symmetric_arms.tolerances.ron");
+    let tol = scene("tolerances/symmetric_arms.ron");
     let base = [
         bench.as_str(),
         "--tolerances",
@@ -140,7 +140,7 @@ fn bad_tolerance_input_is_located() {
     .unwrap();
     let o = tolerance(&[&bench, "--tolerances", bad.to_str().unwrap()], &out);
     assert_input_error(&o, &["bad.ron, line 1"], &out);
-    let tol = scene("tests/symmetric_arms.tolerances.ron");
+    let tol = scene("tolerances/symmetric_arms.ron");
     let o = tolerance(&[&bench, "--tolerances", &tol, "--shard", "2/2"], &out);
     assert_input_error(&o, &["--shard"], &out);
     let o = spibench(
