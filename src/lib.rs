@@ -6,6 +6,7 @@
 //! → reconstruction → metrics → report. See ARCHITECTURE.md for the code map and invariants.
 
 pub mod acquisition;
+pub mod align;
 pub mod cli;
 pub mod detector;
 pub mod error;
@@ -22,6 +23,7 @@ pub mod run;
 pub mod scene;
 pub mod simulation;
 pub mod sweep;
+pub mod tolerance;
 pub mod trace;
 pub mod transport;
 

@@ -184,7 +184,9 @@ pub fn sweep(
     })
 }
 
-fn point(doc: &BenchDoc, settings: Vec<(String, f64)>, o: &SweepOptions) -> Result<SweepPoint> {
+/// Traces one bench (and with `quality` runs the whole pipeline on it): one point of a sweep, or
+/// one bench of a tolerance analysis or an alignment.
+pub fn point(doc: &BenchDoc, settings: Vec<(String, f64)>, o: &SweepOptions) -> Result<SweepPoint> {
     let req = TraceRequest::new(o.rays, o.seed);
     // The electronics alone (no bench build): the detector's CMRR is not traced.
     let cmrr_db = crate::scene::run::detector_si(&doc.file.electronics.detector)

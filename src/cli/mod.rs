@@ -3,6 +3,7 @@
 //! Exit status: 0 on success, 2 for input a user can fix (a malformed file, an unknown field,
 //! impossible values, a missing file; also clap's usage errors), 1 for anything else.
 
+mod align;
 mod check;
 mod completions;
 mod export;
@@ -15,6 +16,7 @@ mod run_repeats;
 mod run_report;
 mod simulate;
 mod sweep;
+mod tolerance;
 mod trace;
 
 use clap::{CommandFactory, Parser, Subcommand};
@@ -49,6 +51,12 @@ enum Command {
     /// k±, b±, imbalance, leak and power at every point, with standard errors of each point and
     /// of its difference from the nominal bench.
     Sweep(sweep::SweepArgs),
+    /// Tolerance analysis: sensitivity table, Monte Carlo of built benches with compensators,
+    /// yields (metrics and image quality per scheme), RSS against Monte Carlo.
+    Tolerance(tolerance::ToleranceArgs),
+    /// Find the free bench variables that balance the arms, maximise the light, or minimise a
+    /// weighted sum of metrics (Nelder–Mead on common-random-number traces).
+    Align(align::AlignArgs),
     /// Run one of the paper's idealised simulations (scalar k±, b±, additive noise, no optics).
     Simulate(simulate::SimulateArgs),
     /// Reconstruct measurements that came from elsewhere (a real bench or another simulator).
@@ -106,6 +114,8 @@ pub fn main() -> i32 {
         Command::ExportMitsuba(a) => export::run(a),
         Command::Run(a) => run::run(a),
         Command::Sweep(a) => sweep::run(a),
+        Command::Tolerance(a) => tolerance::run(a),
+        Command::Align(a) => align::run(a),
         Command::Layout(a) => layout::run(a),
         Command::Check(a) => check::run(a),
         Command::Completions(a) => completions::completions(a, Cli::command()),

@@ -9,6 +9,7 @@ pub mod bench;
 pub mod doc;
 pub mod experiment;
 pub mod run;
+pub mod tolerance;
 pub mod variables;
 
 use std::path::Path;

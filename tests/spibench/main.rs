@@ -8,6 +8,7 @@ mod cli_reconstruct;
 mod cli_run;
 mod cli_simulate;
 mod cli_sweep;
+mod cli_tolerance;
 mod common;
 mod fuzz;
 mod layering;

@@ -1,0 +1,333 @@
+//! `spibench align BENCH --free PATH=LO:HI [--free …] --objective balance|power|weighted
+//! [--weight METRIC=W …] [--rays N] [--start-rays N] [--seed S] [--out DIR]`: the free bench
+//! variables that optimise an objective (crate::align: Nelder–Mead on common-random-number
+//! traces, the ray count raised as it converges).
+//!
+//! Output (DIR): `aligned.ron` (the aligned bench, which every command reads), `summary.json`
+//! (the free variables at the start and at the optimum, every metric of both benches with its
+//! standard error and the paired standard error of the change), `history.csv` and
+//! `history.svg/png` (the convergence), `layout_before.svg`, `layout_after.svg` and
+//! `report.html`.
+
+use std::path::PathBuf;
+
+use anyhow::Result;
+use clap::{Args, ValueEnum};
+use serde_json::{Map, Value};
+
+use crate::align::{AlignOptions, Free, Objective, align};
+use crate::report::csv::write_csv;
+use crate::report::html::{Block, Page, write_page};
+use crate::report::json::write_json;
+use crate::report::output::OutputDir;
+use crate::report::plot::{LinePlot, Series, write_plot};
+use crate::transport::metrics::{METRICS, MetricRow};
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum ObjectiveArg {
+    /// Minimise |imbalance| and |b₋ − b₊| with k± held at --min-fraction of their best.
+    Balance,
+    /// Maximise k₊ + k₋.
+    Power,
+    /// Minimise Σ W·METRIC over the --weight flags.
+    Weighted,
+}
+
+/// Arguments of `spibench align`.
+#[derive(Debug, Clone, Args)]
+pub struct AlignArgs {
+    /// Bench file (RON); default: the paper's bench built into the binary.
+    pub scene: Option<PathBuf>,
+    /// A free variable and its bounds, PATH=LO:HI (the variable's values; a rigid-body move
+    /// such as `detectors.minus.decenter_mm.x` starts at 0).
+    #[arg(long, value_name = "PATH=LO:HI", required = true)]
+    pub free: Vec<String>,
+    #[arg(long, value_enum, default_value = "balance")]
+    pub objective: ObjectiveArg,
+    /// For `balance`: the fraction of their best that k₊ and k₋ must keep.
+    #[arg(long, default_value_t = 0.9)]
+    pub min_fraction: f64,
+    /// For `weighted`: METRIC=W (repeatable), e.g. `imbalance=1`, `k_prime=-1`.
+    #[arg(long, value_name = "METRIC=W")]
+    pub weight: Vec<String>,
+    /// Lamp rays of the last stage (and of the reported benches).
+    #[arg(long, default_value_t = 200_000)]
+    pub rays: u64,
+    /// Lamp rays of the first stage (default: --rays / 16).
+    #[arg(long)]
+    pub start_rays: Option<u64>,
+    /// The most traced evaluations.
+    #[arg(long, default_value_t = 200)]
+    pub max_evaluations: usize,
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Set a bench variable of the starting bench first (repeatable).
+    #[arg(long = "set", value_name = "PATH=VALUE")]
+    pub set: Vec<String>,
+    #[arg(long, default_value = "out/align")]
+    pub out: PathBuf,
+}
+
+fn num(v: f64) -> Value {
+    serde_json::Number::from_f64(v).map_or(Value::Null, Value::Number)
+}
+
+/// Runs `spibench align`.
+pub fn run(args: &AlignArgs) -> Result<()> {
+    let (name, doc) = super::run::load_doc(args.scene.as_deref(), &args.set)?;
+    let free: Vec<Free> = args
+        .free
+        .iter()
+        .map(|f| Free::parse(f))
+        .collect::<crate::Result<_>>()?;
+    for f in &free {
+        doc.get(&f.path)?;
+    }
+    let objective = match args.objective {
+        ObjectiveArg::Balance => Objective::Balance {
+            min_fraction: args.min_fraction,
+        },
+        ObjectiveArg::Power => Objective::Power,
+        ObjectiveArg::Weighted => Objective::Weighted(
+            args.weight
+                .iter()
+                .map(|w| super::parse_assignment(w, "--weight"))
+                .collect::<crate::Result<_>>()?,
+        ),
+    };
+    crate::align::check_objective(&objective)?;
+    if args.rays < 2 * crate::trace::RAYS_PER_BATCH || args.rays > crate::scene::run::MAX_RAYS {
+        return Err(crate::Error::field(
+            "--rays",
+            format!(
+                "must lie between {} and {}",
+                2 * crate::trace::RAYS_PER_BATCH,
+                crate::scene::run::MAX_RAYS
+            ),
+        )
+        .into());
+    }
+    let out = OutputDir::create(&args.out)?;
+    let o = AlignOptions {
+        start_rays: args.start_rays.unwrap_or(args.rays / 16).min(args.rays),
+        max_rays: args.rays,
+        seed: args.seed,
+        max_evaluations: args.max_evaluations.max(free.len() + 2),
+    };
+    let bar = super::progress::bar(o.max_evaluations as u64, "evaluations");
+    let t0 = std::time::Instant::now();
+    let a = align(&doc, &free, &objective, &o, &|n| bar.set_position(n as u64))?;
+    bar.finish_and_clear();
+    let aligned = doc.with(&a.settings())?;
+    let mut files: Vec<String> = [
+        "aligned.ron",
+        "summary.json",
+        "history.csv",
+        "history.svg",
+        "history.png",
+        "layout_before.svg",
+        "layout_after.svg",
+        "report.html",
+    ]
+    .map(String::from)
+    .to_vec();
+    let path = out.path("aligned.ron");
+    std::fs::write(&path, aligned.to_ron()?).map_err(|e| crate::Error::write(&path, e))?;
+
+    // History.
+    let mut header: Vec<String> = vec!["evaluation".into(), "stage".into(), "rays".into()];
+    header.extend(free.iter().map(|f| f.path.clone()));
+    header.extend(
+        [
+            "objective",
+            "objective_stderr",
+            "imbalance",
+            "imbalance_stderr",
+            "k_plus",
+            "k_minus",
+        ]
+        .map(String::from),
+    );
+    let rows: Vec<Vec<String>> = a
+        .history
+        .iter()
+        .enumerate()
+        .map(|(i, e)| {
+            let mut r = vec![i.to_string(), e.stage.to_string(), e.rays.to_string()];
+            r.extend(e.values.iter().map(|v| format!("{v:e}")));
+            r.extend(
+                [
+                    e.objective,
+                    e.objective_stderr,
+                    e.imbalance,
+                    e.imbalance_stderr,
+                    e.k_plus,
+                    e.k_minus,
+                ]
+                .map(|v| format!("{v:e}")),
+            );
+            r
+        })
+        .collect();
+    let h: Vec<&str> = header.iter().map(String::as_str).collect();
+    write_csv(&out.path("history.csv"), &h, &rows)?;
+    let finite: Vec<(f64, f64, f64)> = a
+        .history
+        .iter()
+        .enumerate()
+        .filter(|(_, e)| e.objective.is_finite())
+        .map(|(i, e)| (i as f64, e.objective, e.objective_stderr))
+        .collect();
+    let mut best = f64::INFINITY;
+    let plot = LinePlot {
+        title: String::new(),
+        x_label: "evaluation".into(),
+        y_label: "objective (lower is better)".into(),
+        series: vec![
+            Series {
+                label: "evaluated (± 1 SE)".into(),
+                x: finite.iter().map(|p| p.0).collect(),
+                y: finite.iter().map(|p| p.1).collect(),
+                y_err: Some(
+                    finite
+                        .iter()
+                        .map(|p| if p.2.is_finite() { p.2 } else { 0.0 })
+                        .collect(),
+                ),
+            },
+            Series {
+                label: "best so far".into(),
+                x: finite.iter().map(|p| p.0).collect(),
+                y: finite
+                    .iter()
+                    .map(|p| {
+                        best = best.min(p.1);
+                        best
+                    })
+                    .collect(),
+                y_err: None,
+            },
+        ],
+        log_x: false,
+    };
+    write_plot(&plot, &out.path("history.svg"), &out.path("history.png"))?;
+
+    // Layouts.
+    let mut blocks = vec![Block::Paragraph(format!(
+        "{name}: {} free variable(s), objective {:?}; {} evaluations in {:.1} s (Nelder–Mead on \
+         common-random-number traces, {} → {} rays). The start and the aligned bench are traced \
+         with {} rays and seed {}; their difference carries a paired standard error.",
+        free.len(),
+        args.objective,
+        a.history.len(),
+        t0.elapsed().as_secs_f64(),
+        o.start_rays,
+        o.max_rays,
+        o.max_rays,
+        o.seed
+    ))];
+    let var_rows: Vec<Vec<String>> = free
+        .iter()
+        .zip(a.start_values.iter().zip(&a.best_values))
+        .map(|(f, (s, b))| {
+            vec![
+                f.path.clone(),
+                format!("{} … {}", f.lo, f.hi),
+                format!("{s:.6}"),
+                format!("{b:.6}"),
+            ]
+        })
+        .collect();
+    blocks.push(Block::Table {
+        caption: Some("Free variables".into()),
+        header: ["variable", "bounds", "start", "aligned"]
+            .map(String::from)
+            .to_vec(),
+        rows: var_rows,
+    });
+    let mut metrics_json = Map::new();
+    let mut mrows = Vec::new();
+    for (i, (m, unit, _)) in METRICS.iter().enumerate() {
+        let (s, b) = (&a.start.metrics.values[i], &a.best.metrics.values[i]);
+        let r = MetricRow::new(b, s);
+        let mut e = Map::new();
+        e.insert("start".into(), num(s.value));
+        e.insert("start_stderr".into(), num(s.stderr()));
+        e.insert("aligned".into(), num(r.value));
+        e.insert("aligned_stderr".into(), num(r.stderr));
+        e.insert("change".into(), num(r.diff));
+        e.insert("change_stderr".into(), num(r.diff_stderr));
+        metrics_json.insert((*m).to_string(), Value::Object(e));
+        mrows.push(vec![
+            format!("{m} ({unit})"),
+            format!("{:.4e} ± {:.1e}", s.value, s.stderr()),
+            format!("{:.4e} ± {:.1e}", r.value, r.stderr),
+            format!("{:+.4e} ± {:.1e}", r.diff, r.diff_stderr),
+        ]);
+    }
+    blocks.push(Block::Table {
+        caption: Some("Metrics of the start and the aligned bench (± standard error; the change ± its paired standard error)".into()),
+        header: ["metric", "start", "aligned", "change"].map(String::from).to_vec(),
+        rows: mrows,
+    });
+    let svg = std::fs::read_to_string(out.path("history.svg"))
+        .map_err(|e| crate::Error::read(&out.path("history.svg"), e))?;
+    blocks.push(Block::Svg {
+        caption: "Convergence: the objective at each evaluation (stages trace more rays)".into(),
+        svg,
+    });
+    for (file, d, title) in [
+        ("layout_before.svg", &doc, "before"),
+        ("layout_after.svg", &aligned, "after"),
+    ] {
+        let (block, svg) =
+            super::layout::layout_block(&d.build()?, &format!("{name}, {title} alignment"))?;
+        let path = out.path(file);
+        std::fs::write(&path, &svg).map_err(|e| crate::Error::write(&path, e))?;
+        blocks.push(Block::Heading {
+            level: 2,
+            text: format!("Layout {title}"),
+        });
+        blocks.push(block);
+    }
+    write_page(
+        &out.path("report.html"),
+        &Page {
+            title: format!("spibench align of {name}"),
+            blocks,
+        },
+    )?;
+    let summary = serde_json::json!({
+        "command": "align",
+        "spibench_version": env!("CARGO_PKG_VERSION"),
+        "scene": name,
+        "objective": format!("{:?}", objective),
+        "rays": o.max_rays,
+        "start_rays": o.start_rays,
+        "seed": o.seed,
+        "evaluations": a.history.len(),
+        "free": free.iter().zip(a.start_values.iter().zip(&a.best_values)).map(|(f, (s, b))| {
+            serde_json::json!({"path": f.path, "lo": f.lo, "hi": f.hi, "start": s, "aligned": b})
+        }).collect::<Vec<_>>(),
+        "metrics": Value::Object(metrics_json),
+        "files": files.clone(),
+    });
+    write_json(&out.path("summary.json"), &summary)?;
+    files.sort();
+    let dir = out.commit()?;
+    let imb = a.best.metrics.get("imbalance").map(|m| m.estimate());
+    println!(
+        "aligned: {}; imbalance {}; wrote {}",
+        free.iter()
+            .zip(&a.best_values)
+            .map(|(f, v)| format!("{} = {v:.5}", f.path))
+            .collect::<Vec<_>>()
+            .join(", "),
+        imb.map_or_else(String::new, |e| format!(
+            "{:.3e} ± {:.1e}",
+            e.value, e.stderr
+        )),
+        dir.display()
+    );
+    Ok(())
+}

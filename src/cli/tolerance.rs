@@ -1,0 +1,669 @@
+//! `spibench tolerance BENCH --tolerances FILE [--trials N] [--rays N] [--seed S] [--quality]
+//! [--out DIR] [--trial K] [--shard I/N] [--merge DIR…]`: the sensitivity table, a Monte Carlo
+//! of built benches with their compensators, yields against the file's limits and per scheme,
+//! and the RSS estimate against the Monte Carlo spread (crate::tolerance).
+//!
+//! Output (DIR): `summary.json` (nominal metrics, sensitivity rows, RSS, percentiles, yields,
+//! one row per trial), `sensitivity.csv`, `trials.csv`, `trials.ron` (the records, from which
+//! `--merge` rebuilds the outputs), histogram and CDF plots, `report.html`. With `--shard I/N`
+//! the run holds the trials i ≡ I (mod N) (shard 0 also the sensitivity table); `--merge`
+//! over the N shard folders writes exactly the outputs of the unsharded run. `--trial K` writes
+//! only `trial_K.ron`, the perturbed (and compensated) bench of trial K, which `run`, `trace`
+//! and `export-mitsuba` read.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::Result;
+use clap::Args;
+use serde_json::{Map, Value};
+
+use crate::report::csv::write_csv;
+use crate::report::html::{Block, Page, write_page};
+use crate::report::json::write_json;
+use crate::report::output::OutputDir;
+use crate::report::plot::{LinePlot, Series, write_plot};
+use crate::scene::doc::BenchDoc;
+use crate::scene::tolerance::{ShardFile, ToleranceSet, read_shard, shard_to_ron};
+use crate::tolerance::{
+    Analysis, SENSITIVITY_METRICS, ToleranceOptions, analyse, is_metric, merge, nominal,
+    sensitivity, shard_indices, trial, trial_doc,
+};
+
+/// Arguments of `spibench tolerance`.
+#[derive(Debug, Clone, Args)]
+pub struct ToleranceArgs {
+    /// Bench file (RON); default: the paper's bench built into the binary.
+    pub scene: Option<PathBuf>,
+    /// Tolerance file (RON; see `scenes/tolerances/paper_bench.ron`).
+    #[arg(long, required_unless_present = "merge")]
+    pub tolerances: Option<PathBuf>,
+    /// Monte Carlo trials (0: the sensitivity table only).
+    #[arg(long, default_value_t = 100)]
+    pub trials: u64,
+    /// Lamp rays per traced bench.
+    #[arg(long, default_value_t = 200_000)]
+    pub rays: u64,
+    /// Seed: of every trace (common random numbers) and, salted, of the tolerance draws.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Run the whole pipeline on every trial and the nominal bench (image scores per scheme).
+    #[arg(long)]
+    pub quality: bool,
+    /// Write only the bench of trial K (as RON) and stop.
+    #[arg(long, value_name = "K")]
+    pub trial: Option<u64>,
+    /// Run the trials i ≡ I (mod N) only (shard 0 also runs the sensitivity table).
+    #[arg(long, value_name = "I/N")]
+    pub shard: Option<String>,
+    /// Merge the output folders of the shards of one run into DIR (no tracing).
+    #[arg(long, value_name = "DIR", num_args = 1..)]
+    pub merge: Vec<PathBuf>,
+    /// Set a bench variable of the nominal bench first (repeatable).
+    #[arg(long = "set", value_name = "PATH=VALUE")]
+    pub set: Vec<String>,
+    /// Output folder.
+    #[arg(long, default_value = "out/tolerance")]
+    pub out: PathBuf,
+}
+
+/// The most trials one run may have.
+const MAX_TRIALS: u64 = 1_000_000;
+
+fn parse_shard(text: &str) -> crate::Result<(u64, u64)> {
+    let bad = || {
+        crate::Error::field(
+            "--shard",
+            format!("`{text}`: expected I/N with 0 ≤ I < N, e.g. 0/4"),
+        )
+    };
+    let (i, n) = text.split_once('/').ok_or_else(bad)?;
+    let (i, n): (u64, u64) = (
+        i.trim().parse().map_err(|_| bad())?,
+        n.trim().parse().map_err(|_| bad())?,
+    );
+    if n == 0 || i >= n {
+        return Err(bad());
+    }
+    Ok((i, n))
+}
+
+/// Runs `spibench tolerance`.
+pub fn run(args: &ToleranceArgs) -> Result<()> {
+    if !args.merge.is_empty() {
+        return run_merge(args);
+    }
+    let (name, doc) = super::run::load_doc(args.scene.as_deref(), &args.set)?;
+    let tol_path = args
+        .tolerances
+        .as_deref()
+        .ok_or_else(|| crate::Error::field("--tolerances", "give the tolerance file"))?;
+    let tol_text = crate::scene::read_text(tol_path)?;
+    let set = ToleranceSet::parse(&tol_text, tol_path, &doc, &is_metric)?;
+    if args.rays < 2 * crate::trace::RAYS_PER_BATCH || args.rays > crate::scene::run::MAX_RAYS {
+        return Err(crate::Error::field(
+            "--rays",
+            format!(
+                "must lie between {} (two batches, for standard errors) and {}",
+                2 * crate::trace::RAYS_PER_BATCH,
+                crate::scene::run::MAX_RAYS
+            ),
+        )
+        .into());
+    }
+    if args.trials > MAX_TRIALS {
+        return Err(crate::Error::field("--trials", format!("at most {MAX_TRIALS}")).into());
+    }
+    let shard = args
+        .shard
+        .as_deref()
+        .map(parse_shard)
+        .transpose()?
+        .unwrap_or((0, 1));
+    let o = ToleranceOptions {
+        rays: args.rays,
+        seed: args.seed,
+        quality: args.quality,
+    };
+    if o.quality {
+        // The run settings must be valid before the first trace.
+        doc.run_scene()?;
+    }
+    if let Some(k) = args.trial {
+        let out = OutputDir::create(&args.out)?;
+        let (d, dev, comp) = trial_doc(&doc, &set, &o, k)?;
+        d.build()?;
+        let file = format!("trial_{k}.ron");
+        let mut text = String::from("// ");
+        text += &format!(
+            "Trial {k} of `spibench tolerance {name} --tolerances {} --seed {} --rays {}`.\n",
+            tol_path.display(),
+            args.seed,
+            args.rays
+        );
+        for (p, v) in dev.iter().chain(&comp) {
+            text += &format!("//   {p}: {v:+.6e}\n");
+        }
+        text += &d.to_ron()?;
+        let path = out.path(&file);
+        std::fs::write(&path, text).map_err(|e| crate::Error::write(&path, e))?;
+        let dir = out.commit()?;
+        println!("wrote {}", dir.join(file).display());
+        return Ok(());
+    }
+    let out = OutputDir::create(&args.out)?;
+    // A trial whose perturbed bench is not valid is not an input error: it is recorded as a
+    // failed trial (a built bench that does not work).
+    let start = std::time::Instant::now();
+    eprintln!(
+        "{name}: {} tolerance(s), {} compensator(s); {} rays per trace (seed {}){}",
+        set.tolerances.len(),
+        set.compensators.len(),
+        args.rays,
+        args.seed,
+        if args.quality { ", full pipeline" } else { "" }
+    );
+    let nom = nominal(&doc, &o)?;
+    let sens = if shard.0 == 0 {
+        let bar = super::progress::bar(2 * set.tolerances.len() as u64, "sensitivity");
+        let rows = sensitivity(&doc, &set, &nom, &o, &|d, _| bar.set_position(d as u64))?;
+        bar.finish_and_clear();
+        Some(rows)
+    } else {
+        None
+    };
+    let indices: Vec<u64> = shard_indices(args.trials, shard).collect();
+    let bar = super::progress::bar(indices.len() as u64, "trials");
+    let mut records = Vec::with_capacity(indices.len());
+    let (mut comp_s, mut trace_s) = (0.0, 0.0);
+    for (k, &i) in indices.iter().enumerate() {
+        let (r, t) = trial(&doc, &set, &nom, &o, i)?;
+        comp_s += t.compensators_s;
+        trace_s += t.trace_s;
+        bar.set_position(k as u64 + 1);
+        bar.set_message(format!(
+            "trial {i}: imbalance {:+.3e}",
+            r.value("imbalance").unwrap_or(f64::NAN)
+        ));
+        records.push(r);
+    }
+    bar.finish_and_clear();
+    let shard_file = ShardFile {
+        spibench_version: env!("CARGO_PKG_VERSION").into(),
+        scene: name.clone(),
+        bench_ron: doc.to_ron()?,
+        tolerances_path: tol_path.display().to_string(),
+        tolerances_text: tol_text,
+        rays: args.rays,
+        seed: args.seed,
+        trials: args.trials,
+        quality: args.quality,
+        shard,
+        nominal: crate::tolerance::values(&nom, &nom),
+        sensitivity: sens,
+        records,
+    };
+    let files = write_outputs(&shard_file, &set, &out)?;
+    let dir = out.commit()?;
+    println!(
+        "wrote {} ({} files, {:.1} s: compensators {:.1} s, trial traces {:.1} s)",
+        dir.display(),
+        files,
+        start.elapsed().as_secs_f64(),
+        comp_s,
+        trace_s
+    );
+    Ok(())
+}
+
+fn run_merge(args: &ToleranceArgs) -> Result<()> {
+    let shards: Vec<ShardFile> = args
+        .merge
+        .iter()
+        .map(|d| read_shard(&d.join("trials.ron")))
+        .collect::<crate::Result<_>>()?;
+    let merged = merge(&shards)?;
+    let doc = BenchDoc::parse(&merged.bench_ron, Path::new(&merged.scene))?;
+    let set = ToleranceSet::parse(
+        &merged.tolerances_text,
+        Path::new(&merged.tolerances_path),
+        &doc,
+        &is_metric,
+    )?;
+    let out = OutputDir::create(&args.out)?;
+    let files = write_outputs(&merged, &set, &out)?;
+    let dir = out.commit()?;
+    println!(
+        "merged {} shard(s), {} trials: wrote {} ({files} files)",
+        shards.len(),
+        merged.records.len(),
+        dir.display()
+    );
+    Ok(())
+}
+
+fn num(v: f64) -> Value {
+    serde_json::Number::from_f64(v).map_or(Value::Null, Value::Number)
+}
+
+fn map_of(v: &[(String, f64)]) -> Map<String, Value> {
+    v.iter().map(|(k, x)| (k.clone(), num(*x))).collect()
+}
+
+fn pm(v: f64, se: f64) -> String {
+    format!("{v:+.3e} ± {se:.1e}")
+}
+
+/// Writes every output of a run from its records; the same records give the same files.
+fn write_outputs(s: &ShardFile, set: &ToleranceSet, out: &OutputDir) -> crate::Result<usize> {
+    let analysis = analyse(set, &s.records, s.sensitivity.as_deref());
+    let mut files: Vec<String> = ["summary.json", "trials.ron", "trials.csv", "report.html"]
+        .map(String::from)
+        .to_vec();
+    let path = out.path("trials.ron");
+    std::fs::write(&path, shard_to_ron(s)?).map_err(|e| crate::Error::write(&path, e))?;
+
+    // Trials CSV: index, deviations, compensators, values, error.
+    let mut header: Vec<String> = vec!["index".into()];
+    header.extend(set.tolerances.iter().map(|t| t.path.clone()));
+    header.extend(
+        set.compensators
+            .iter()
+            .map(|c| format!("compensator:{}", c.path)),
+    );
+    let value_names: Vec<String> = s
+        .records
+        .iter()
+        .find(|r| r.error.is_none())
+        .map_or_else(Vec::new, |r| {
+            r.values.iter().map(|(k, _)| k.clone()).collect()
+        });
+    header.extend(value_names.iter().cloned());
+    header.push("error".into());
+    let rows: Vec<Vec<String>> = s
+        .records
+        .iter()
+        .map(|r| {
+            let mut row = vec![r.index.to_string()];
+            row.extend(r.deviations.iter().map(|(_, v)| format!("{v:e}")));
+            for c in &set.compensators {
+                row.push(
+                    r.compensators
+                        .iter()
+                        .find(|(p, _)| *p == c.path)
+                        .map_or_else(String::new, |(_, v)| format!("{v:e}")),
+                );
+            }
+            for n in &value_names {
+                row.push(r.value(n).map_or_else(String::new, |v| format!("{v:e}")));
+            }
+            row.push(r.error.clone().unwrap_or_default());
+            row
+        })
+        .collect();
+    let h: Vec<&str> = header.iter().map(String::as_str).collect();
+    write_csv(&out.path("trials.csv"), &h, &rows)?;
+
+    let mut blocks = vec![Block::Paragraph(format!(
+        "{}: {} tolerance(s) from {}, {} compensator(s); every bench traced with {} rays and \
+         seed {} (common random numbers: differences from the nominal bench carry paired \
+         standard errors); {} Monte Carlo trial(s){}{}.",
+        s.scene,
+        set.tolerances.len(),
+        s.tolerances_path,
+        set.compensators.len(),
+        s.rays,
+        s.seed,
+        s.records.len(),
+        if s.quality {
+            ", each through the whole pipeline"
+        } else {
+            ""
+        },
+        if analysis.failed_trials > 0 {
+            format!(
+                " ({} gave a bench that is not valid and count as failures)",
+                analysis.failed_trials
+            )
+        } else {
+            String::new()
+        }
+    ))];
+
+    // Sensitivity.
+    let mut sens_json = Vec::new();
+    if let Some(sens) = &s.sensitivity {
+        files.push("sensitivity.csv".into());
+        let mut header = vec!["path".to_string(), "min".into(), "max".into()];
+        for end in ["min", "max"] {
+            for m in SENSITIVITY_METRICS {
+                header.push(format!("{m}_diff_at_{end}"));
+                header.push(format!("{m}_diff_stderr_at_{end}"));
+            }
+        }
+        let rows: Vec<Vec<String>> = sens
+            .iter()
+            .map(|r| {
+                let mut row = vec![r.path.clone(), format!("{}", r.min), format!("{}", r.max)];
+                for high in [false, true] {
+                    for m in SENSITIVITY_METRICS {
+                        row.push(format!("{:e}", r.at(high, &format!("{m}_diff"))));
+                        row.push(format!("{:e}", r.at(high, &format!("{m}_diff_stderr"))));
+                    }
+                }
+                row
+            })
+            .collect();
+        let h: Vec<&str> = header.iter().map(String::as_str).collect();
+        write_csv(&out.path("sensitivity.csv"), &h, &rows)?;
+        blocks.push(Block::Heading {
+            level: 2,
+            text: "Sensitivity".into(),
+        });
+        blocks.push(Block::Table {
+            caption: Some(
+                "Each tolerance alone at its min / max: change from the nominal bench ± its \
+                 paired standard error, sorted by the largest |Δ imbalance|"
+                    .into(),
+            ),
+            header: [
+                "tolerance",
+                "range",
+                "Δ imbalance",
+                "Δ k' (A/W)",
+                "Δ(b₋ − b₊) (A)",
+                "Δ leak +",
+                "Δ leak −",
+                "Δ CMRR (dB)",
+            ]
+            .map(String::from)
+            .to_vec(),
+            rows: sens
+                .iter()
+                .flat_map(|r| {
+                    [false, true].map(|high| {
+                        let mut row = vec![
+                            if high { String::new() } else { r.path.clone() },
+                            format!("{}", if high { r.max } else { r.min }),
+                        ];
+                        for m in SENSITIVITY_METRICS {
+                            row.push(pm(
+                                r.at(high, &format!("{m}_diff")),
+                                r.at(high, &format!("{m}_diff_stderr")),
+                            ));
+                        }
+                        row
+                    })
+                })
+                .collect(),
+        });
+        for r in sens {
+            let mut m = Map::new();
+            m.insert("path".into(), Value::from(r.path.clone()));
+            m.insert("min".into(), num(r.min));
+            m.insert("max".into(), num(r.max));
+            m.insert("at_min".into(), Value::Object(map_of(&r.at_min)));
+            m.insert("at_max".into(), Value::Object(map_of(&r.at_max)));
+            sens_json.push(Value::Object(m));
+        }
+    }
+
+    if !s.records.is_empty() {
+        blocks.push(Block::Heading {
+            level: 2,
+            text: "Monte Carlo".into(),
+        });
+        blocks.push(Block::Table {
+            caption: Some(
+                "Distribution over the trials (percentiles of the value and of its magnitude)"
+                    .into(),
+            ),
+            header: [
+                "metric",
+                "mean",
+                "std dev",
+                "median",
+                "90 %",
+                "97.7 %",
+                "|·| median",
+                "|·| 90 %",
+                "|·| 97.7 %",
+            ]
+            .map(String::from)
+            .to_vec(),
+            rows: analysis
+                .percentiles
+                .iter()
+                .map(|p| {
+                    let mut r = vec![p.metric.clone()];
+                    r.extend(
+                        [
+                            p.mean,
+                            p.std_dev,
+                            p.p50,
+                            p.p90,
+                            p.p97_7,
+                            p.abs_p50,
+                            p.abs_p90,
+                            p.abs_p97_7,
+                        ]
+                        .map(|v| format!("{v:.4e}")),
+                    );
+                    r
+                })
+                .collect(),
+        });
+        let mut yrows: Vec<Vec<String>> = analysis
+            .yields
+            .iter()
+            .map(|y| {
+                vec![
+                    y.limit.clone(),
+                    format!("{}/{}", y.passed, y.trials),
+                    format!("{:.1} % ± {:.1} %", 100.0 * y.fraction, 100.0 * y.stderr),
+                ]
+            })
+            .collect();
+        yrows.extend(analysis.quality_yields.iter().map(|(scheme, y)| {
+            vec![
+                format!("{scheme}: {}", y.limit),
+                format!("{}/{}", y.passed, y.trials),
+                format!("{:.1} % ± {:.1} %", 100.0 * y.fraction, 100.0 * y.stderr),
+            ]
+        }));
+        if !yrows.is_empty() {
+            blocks.push(Block::Table {
+                caption: Some(
+                    "Yield: the fraction of trials meeting each limit (± binomial standard \
+                     error); image quality per scheme side by side"
+                        .into(),
+                ),
+                header: ["limit", "trials passing", "yield"]
+                    .map(String::from)
+                    .to_vec(),
+                rows: yrows,
+            });
+        }
+        if !analysis.rss.is_empty() {
+            blocks.push(Block::Table {
+                caption: Some(
+                    "Root-sum-square spread from the sensitivity table (linear, independent \
+                     tolerances) against the Monte Carlo spread: a large gap means the \
+                     tolerances interact or act nonlinearly"
+                        .into(),
+                ),
+                header: [
+                    "metric",
+                    "RSS σ",
+                    "Monte Carlo σ",
+                    "dominant tolerance",
+                    "its share",
+                ]
+                .map(String::from)
+                .to_vec(),
+                rows: analysis
+                    .rss
+                    .iter()
+                    .map(|r| {
+                        vec![
+                            r.metric.clone(),
+                            format!("{:.3e}", r.rss_std_dev),
+                            format!("{:.3e}", r.monte_carlo_std_dev),
+                            r.dominant.clone(),
+                            format!("{:.0} %", 100.0 * r.dominant_share),
+                        ]
+                    })
+                    .collect(),
+            });
+        }
+        // Histograms (as steps) and empirical CDFs.
+        let mut plotted: Vec<(String, String)> = [
+            ("imbalance", "imbalance (k₊ − k₋)/(k₊ + k₋)"),
+            ("k_prime", "k' = k₊ + k₋ (A/W)"),
+            ("b_minus_minus_b_plus", "b₋ − b₊ (A)"),
+            ("leak_plus", "off-arm leak, all units +"),
+        ]
+        .map(|(a, b)| (a.to_string(), b.to_string()))
+        .to_vec();
+        for (scheme, _) in &analysis.quality_yields {
+            if let Some(q) = set.quality {
+                plotted.push((
+                    format!("{scheme}_{}_mssim", q.ratio_percent),
+                    format!("MSSIM at {} %, {scheme}", q.ratio_percent),
+                ));
+            }
+        }
+        let mut figs = Vec::new();
+        for (metric, label) in &plotted {
+            let mut v: Vec<f64> = s
+                .records
+                .iter()
+                .filter_map(|r| r.value(metric))
+                .filter(|v| v.is_finite())
+                .collect();
+            if v.len() < 2 {
+                continue;
+            }
+            v.sort_by(f64::total_cmp);
+            let n = v.len();
+            let cdf = LinePlot {
+                title: String::new(),
+                x_label: label.clone(),
+                y_label: "fraction of trials ≤ x".into(),
+                series: vec![Series {
+                    label: String::new(),
+                    x: v.clone(),
+                    y: (0..n).map(|i| (i + 1) as f64 / n as f64).collect(),
+                    y_err: None,
+                }],
+                log_x: false,
+            };
+            let (lo, hi) = (v[0], v[n - 1]);
+            let bins = ((n as f64).sqrt().ceil() as usize).clamp(5, 40);
+            let w = if hi > lo {
+                (hi - lo) / bins as f64
+            } else {
+                1.0
+            };
+            let mut counts = vec![0usize; bins];
+            for x in &v {
+                counts[(((x - lo) / w) as usize).min(bins - 1)] += 1;
+            }
+            let (mut hx, mut hy) = (vec![lo], vec![0.0]);
+            for (b, c) in counts.iter().enumerate() {
+                let (a, z) = (lo + b as f64 * w, lo + (b + 1) as f64 * w);
+                hx.extend([a, z]);
+                hy.extend([*c as f64, *c as f64]);
+            }
+            hx.push(lo + bins as f64 * w);
+            hy.push(0.0);
+            let hist = LinePlot {
+                title: String::new(),
+                x_label: label.clone(),
+                y_label: "trials".into(),
+                series: vec![Series {
+                    label: String::new(),
+                    x: hx,
+                    y: hy,
+                    y_err: None,
+                }],
+                log_x: false,
+            };
+            for (kind, plot) in [("hist", hist), ("cdf", cdf)] {
+                let (svg, png) = (
+                    format!("{kind}_{metric}.svg"),
+                    format!("{kind}_{metric}.png"),
+                );
+                write_plot(&plot, &out.path(&svg), &out.path(&png))?;
+                let text = std::fs::read_to_string(out.path(&svg))
+                    .map_err(|e| crate::Error::read(&out.path(&svg), e))?;
+                figs.push(Block::Svg {
+                    caption: format!(
+                        "{} of {label} over {n} trials",
+                        if kind == "hist" {
+                            "Histogram"
+                        } else {
+                            "Empirical CDF"
+                        }
+                    ),
+                    svg: text,
+                });
+                files.extend([svg, png]);
+            }
+        }
+        blocks.extend(figs);
+    }
+    write_page(
+        &out.path("report.html"),
+        &Page {
+            title: format!("spibench tolerance of {}", s.scene),
+            blocks,
+        },
+    )?;
+    let trials: Vec<Value> = s
+        .records
+        .iter()
+        .map(|r| {
+            let mut m = Map::new();
+            m.insert("index".into(), Value::from(r.index));
+            m.insert("deviations".into(), Value::Object(map_of(&r.deviations)));
+            m.insert(
+                "compensators".into(),
+                Value::Object(map_of(&r.compensators)),
+            );
+            m.insert("values".into(), Value::Object(map_of(&r.values)));
+            m.insert(
+                "error".into(),
+                r.error.clone().map_or(Value::Null, Value::from),
+            );
+            Value::Object(m)
+        })
+        .collect();
+    let summary = serde_json::json!({
+        "command": "tolerance",
+        "spibench_version": env!("CARGO_PKG_VERSION"),
+        "scene": s.scene,
+        "tolerances_file": s.tolerances_path,
+        "rays": s.rays,
+        "seed": s.seed,
+        "trials": s.trials,
+        "shard": [s.shard.0, s.shard.1],
+        "quality": s.quality,
+        "tolerances": set.tolerances,
+        "compensators": set.compensators,
+        "limits": set.limits,
+        "quality_limit": set.quality,
+        "nominal": Value::Object(map_of(&s.nominal)),
+        "sensitivity": sens_json,
+        "analysis": analysis_json(&analysis),
+        "trial_rows": trials,
+        "files": files,
+    });
+    write_json(&out.path("summary.json"), &summary)?;
+    Ok(files.len())
+}
+
+/// The analysis with NaN written as null.
+fn analysis_json(a: &Analysis) -> Value {
+    let text = crate::report::json::to_json_string(a).unwrap_or_else(|_| "null".into());
+    serde_json::from_str(&text).unwrap_or(Value::Null)
+}

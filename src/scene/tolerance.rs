@@ -1,0 +1,588 @@
+//! Tolerance files: how well each part of a bench is made and placed, what the builder adjusts
+//! after assembly (compensators), and the limits a built bench must meet.
+//!
+//! ```ron
+//! (
+//!     tolerances: [
+//!         // A rigid-body move (relative) or a field (a deviation from its nominal value).
+//!         (path: "arm_minus_lens.decenter_mm.x", range: PlusMinus(0.1)),
+//!         (path: "dmd.tilt_deg", range: Between(-1.0, 1.0), distribution: Normal(sigmas: 3.0)),
+//!     ],
+//!     compensators: [
+//!         (path: "detectors.minus.decenter_mm.x", range: PlusMinus(1.0), objective: Balance),
+//!     ],
+//!     limits: [(metric: "imbalance", abs_max: 0.01)],
+//!     quality: (ratio_percent: 40, min_mssim: 0.95),
+//! )
+//! ```
+//!
+//! Every value of a tolerance or a compensator is a **deviation** from the bench it is applied
+//! to: a field path is set to its nominal value plus the deviation, a rigid-body move
+//! (`NAME.decenter_mm.x`, `NAME.despace_mm`, `NAME.tilt_deg.x`) moves the part by it (see
+//! [`crate::scene::variables`]). A range is `PlusMinus(h)` (−h … +h) or `Between(min, max)`.
+//! A distribution is `Uniform` (default), `Normal(sigmas: k)` (centred on the middle of the
+//! range, with the range's ends at ±kσ, not truncated), or `TruncatedNormal(sigmas: k)` (the
+//! same normal, redrawn until it falls inside the range).
+//!
+//! This module also reads and writes the trial records of a sharded `spibench tolerance` run
+//! ([`ShardFile`]), since it is the one module that parses files.
+
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::{Error, Result};
+use crate::scene::doc::BenchDoc;
+
+/// A range of deviations as written in a file.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize, Serialize)]
+pub enum RangeSpec {
+    /// −h … +h.
+    PlusMinus(f64),
+    /// min … max.
+    Between(f64, f64),
+}
+
+/// How a tolerance is distributed over its range.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Deserialize, Serialize)]
+pub enum Distribution {
+    /// Uniform over the range.
+    #[default]
+    Uniform,
+    /// Normal, centred on the middle of the range, the range's ends at ±`sigmas`·σ.
+    Normal { sigmas: f64 },
+    /// The same normal, truncated to the range.
+    TruncatedNormal { sigmas: f64 },
+}
+
+impl Distribution {
+    /// The standard deviation of a deviation drawn over a range of width `width`.
+    pub fn std_dev(&self, width: f64) -> f64 {
+        match *self {
+            Distribution::Uniform => width / 12f64.sqrt(),
+            Distribution::Normal { sigmas } => width / (2.0 * sigmas),
+            Distribution::TruncatedNormal { sigmas } => {
+                // Variance of a standard normal truncated to [−k, k]: 1 − 2kφ(k)/(2Φ(k) − 1).
+                let k = sigmas;
+                let phi = (-0.5 * k * k).exp() / (2.0 * std::f64::consts::PI).sqrt();
+                let mass = erf(k / std::f64::consts::SQRT_2);
+                let var = 1.0 - 2.0 * k * phi / mass;
+                width / (2.0 * k) * var.max(0.0).sqrt()
+            }
+        }
+    }
+}
+
+/// The error function (Abramowitz & Stegun 7.1.26, |error| < 1.5e-7): enough for a standard
+/// deviation used in a root-sum-square estimate.
+fn erf(x: f64) -> f64 {
+    let t = 1.0 / (1.0 + 0.327_591_1 * x.abs());
+    let y = 1.0
+        - (((((1.061_405_429 * t - 1.453_152_027) * t) + 1.421_413_741) * t - 0.284_496_736) * t
+            + 0.254_829_592)
+            * t
+            * (-x * x).exp();
+    if x >= 0.0 { y } else { -y }
+}
+
+/// What a compensator is adjusted to optimise.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize, Serialize)]
+pub enum CompensatorObjective {
+    /// Balance the arms: minimise |imbalance| and |b₋ − b₊| with both k± held near their best.
+    #[default]
+    Balance,
+    /// Collect the most light: maximise k₊ + k₋.
+    Power,
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ToleranceSpec {
+    path: String,
+    range: RangeSpec,
+    #[serde(default)]
+    distribution: Distribution,
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct CompensatorSpec {
+    path: String,
+    range: RangeSpec,
+    #[serde(default)]
+    objective: CompensatorObjective,
+}
+
+/// A limit a built bench must meet, on one recorded metric.
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct Limit {
+    /// A metric name of the trial rows (`imbalance`, `k_prime`, `leak_plus`, …, or with
+    /// `--quality` `SCHEME_RATIO_mssim` such as `scb_40_mssim`).
+    pub metric: String,
+    #[serde(default)]
+    pub min: Option<f64>,
+    #[serde(default)]
+    pub max: Option<f64>,
+    /// |value| ≤ abs_max.
+    #[serde(default)]
+    pub abs_max: Option<f64>,
+}
+
+impl Limit {
+    /// Whether a value meets the limit (NaN never does).
+    pub fn holds(&self, v: f64) -> bool {
+        !v.is_nan()
+            && self.min.is_none_or(|m| v >= m)
+            && self.max.is_none_or(|m| v <= m)
+            && self.abs_max.is_none_or(|m| v.abs() <= m)
+    }
+
+    /// The limit as text, e.g. `|imbalance| ≤ 0.01`.
+    pub fn describe(&self) -> String {
+        let mut parts = Vec::new();
+        if let Some(m) = self.abs_max {
+            parts.push(format!("|{}| ≤ {m}", self.metric));
+        }
+        if let Some(m) = self.min {
+            parts.push(format!("{} ≥ {m}", self.metric));
+        }
+        if let Some(m) = self.max {
+            parts.push(format!("{} ≤ {m}", self.metric));
+        }
+        parts.join(" and ")
+    }
+}
+
+/// The image-quality limit applied to every scheme alike (with `--quality`).
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct QualityLimit {
+    /// The sampling ratio (%) it applies at; one of the bench's `run` ratios.
+    pub ratio_percent: u32,
+    pub min_mssim: f64,
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ToleranceFileSpec {
+    tolerances: Vec<ToleranceSpec>,
+    #[serde(default)]
+    compensators: Vec<CompensatorSpec>,
+    #[serde(default)]
+    limits: Vec<Limit>,
+    #[serde(default)]
+    quality: Option<QualityLimit>,
+}
+
+/// One validated tolerance: deviations `min ..= max` from the nominal bench.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Tolerance {
+    pub path: String,
+    pub min: f64,
+    pub max: f64,
+    pub distribution: Distribution,
+    /// The variable's nominal value (0 for a rigid-body move).
+    pub nominal: f64,
+}
+
+/// One validated compensator: adjusted within `min ..= max` of the value it has after the
+/// tolerances are applied.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Compensator {
+    pub path: String,
+    pub min: f64,
+    pub max: f64,
+    pub objective: CompensatorObjective,
+}
+
+/// A validated tolerance file.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ToleranceSet {
+    pub path: PathBuf,
+    pub tolerances: Vec<Tolerance>,
+    pub compensators: Vec<Compensator>,
+    pub limits: Vec<Limit>,
+    pub quality: Option<QualityLimit>,
+}
+
+/// The largest number of tolerances or compensators a file may list.
+pub const MAX_ENTRIES: usize = 1000;
+
+impl ToleranceSet {
+    /// Reads a tolerance file and checks it against the bench: every path must name a bench
+    /// variable, every range must be finite and ordered, and the bench must accept both ends
+    /// (a field set outside its valid range is refused). `is_metric` says which limit metric
+    /// names exist.
+    pub fn read(path: &Path, doc: &BenchDoc, is_metric: &dyn Fn(&str) -> bool) -> Result<Self> {
+        let text = crate::scene::read_text(path)?;
+        Self::parse(&text, path, doc, is_metric)
+    }
+
+    /// Parses tolerance text; `path` names it in errors.
+    pub fn parse(
+        text: &str,
+        path: &Path,
+        doc: &BenchDoc,
+        is_metric: &dyn Fn(&str) -> bool,
+    ) -> Result<Self> {
+        let spec: ToleranceFileSpec = crate::scene::parse_ron(text, path)?;
+        // An error at the line where `needle` (a quoted path) first appears after `from`.
+        let locate = |needle: &str, field: &str, msg: String| -> Error {
+            let quoted = format!("\"{needle}\"");
+            let mut e = Error::field(field, msg).in_file(path);
+            if let Some(k) = text.find(&quoted) {
+                let line = text[..k].matches('\n').count() + 1;
+                let col = k - text[..k].rfind('\n').map_or(0, |j| j + 1) + 1;
+                e = e.at_line(line, col);
+            }
+            e
+        };
+        if spec.tolerances.len() > MAX_ENTRIES || spec.compensators.len() > MAX_ENTRIES {
+            return Err(Error::field(
+                "tolerances",
+                format!("a file may list at most {MAX_ENTRIES} tolerances and compensators"),
+            )
+            .in_file(path));
+        }
+        let range = |p: &str, r: RangeSpec| -> Result<(f64, f64)> {
+            let (lo, hi) = match r {
+                RangeSpec::PlusMinus(h) => (-h, h),
+                RangeSpec::Between(a, b) => (a, b),
+            };
+            if !(lo.is_finite() && hi.is_finite()) {
+                return Err(locate(
+                    p,
+                    "range",
+                    format!("`{p}`: the range must be finite"),
+                ));
+            }
+            if lo > hi {
+                return Err(locate(
+                    p,
+                    "range",
+                    format!(
+                        "`{p}`: the range {lo} … {hi} is empty (PlusMinus takes h ≥ 0, Between \
+                         takes min ≤ max)"
+                    ),
+                ));
+            }
+            // Both ends must give a valid bench variable.
+            let nominal = crate::scene::variables::get(&doc.file, p)
+                .map_err(|e| locate(p, "path", e.to_string()))?;
+            for end in [lo, hi] {
+                let mut f = doc.file.clone();
+                crate::scene::variables::set(&mut f, p, nominal + end).map_err(|e| {
+                    locate(
+                        p,
+                        "range",
+                        format!("`{p}` cannot deviate by {end} from {nominal}: {e}"),
+                    )
+                })?;
+            }
+            Ok((lo, hi))
+        };
+        let mut tolerances: Vec<Tolerance> = Vec::new();
+        for t in &spec.tolerances {
+            if tolerances.iter().any(|u| u.path == t.path) {
+                return Err(locate(
+                    &t.path,
+                    "path",
+                    format!("`{}` is listed twice among the tolerances", t.path),
+                ));
+            }
+            if let Distribution::Normal { sigmas } | Distribution::TruncatedNormal { sigmas } =
+                t.distribution
+                && !(sigmas > 0.0 && sigmas <= 10.0)
+            {
+                return Err(locate(
+                    &t.path,
+                    "sigmas",
+                    format!(
+                        "`{}`: sigmas (the range's ends in standard deviations) must lie in \
+                         (0, 10], got {sigmas}",
+                        t.path
+                    ),
+                ));
+            }
+            let (min, max) = range(&t.path, t.range)?;
+            tolerances.push(Tolerance {
+                path: t.path.clone(),
+                min,
+                max,
+                distribution: t.distribution,
+                nominal: crate::scene::variables::get(&doc.file, &t.path)
+                    .map_err(|e| locate(&t.path, "path", e.to_string()))?,
+            });
+        }
+        let mut compensators: Vec<Compensator> = Vec::new();
+        for c in &spec.compensators {
+            if compensators.iter().any(|u| u.path == c.path) {
+                return Err(locate(
+                    &c.path,
+                    "path",
+                    format!("`{}` is listed twice among the compensators", c.path),
+                ));
+            }
+            let (min, max) = range(&c.path, c.range)?;
+            if min == max {
+                return Err(locate(
+                    &c.path,
+                    "range",
+                    format!("`{}`: a compensator needs a range of nonzero width", c.path),
+                ));
+            }
+            compensators.push(Compensator {
+                path: c.path.clone(),
+                min,
+                max,
+                objective: c.objective,
+            });
+        }
+        for l in &spec.limits {
+            if !is_metric(&l.metric) {
+                return Err(locate(
+                    &l.metric,
+                    "metric",
+                    format!(
+                        "`{}` is not a recorded metric (for example `imbalance`, `k_prime`, \
+                         `b_minus_minus_b_plus`, `leak_plus`, `scb_40_mssim`)",
+                        l.metric
+                    ),
+                ));
+            }
+            if l.min.is_none() && l.max.is_none() && l.abs_max.is_none() {
+                return Err(locate(
+                    &l.metric,
+                    "limits",
+                    format!("the limit on `{}` sets none of min, max, abs_max", l.metric),
+                ));
+            }
+            if [l.min, l.max, l.abs_max]
+                .iter()
+                .flatten()
+                .any(|v| !v.is_finite())
+            {
+                return Err(locate(
+                    &l.metric,
+                    "limits",
+                    format!("the limit on `{}` must be finite", l.metric),
+                ));
+            }
+        }
+        if let Some(q) = spec.quality
+            && !(q.ratio_percent > 0 && q.ratio_percent <= 100 && q.min_mssim.is_finite())
+        {
+            return Err(Error::field(
+                "quality",
+                "ratio_percent must lie in 1..=100 and min_mssim must be finite",
+            )
+            .in_file(path));
+        }
+        Ok(ToleranceSet {
+            path: path.to_path_buf(),
+            tolerances,
+            compensators,
+            limits: spec.limits,
+            quality: spec.quality,
+        })
+    }
+
+    /// A set with every tolerance range scaled by `factor` (0 gives the nominal bench).
+    pub fn scaled(&self, factor: f64) -> ToleranceSet {
+        let mut s = self.clone();
+        for t in &mut s.tolerances {
+            t.min *= factor;
+            t.max *= factor;
+        }
+        s
+    }
+}
+
+/// One Monte Carlo trial as recorded.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TrialRecord {
+    pub index: u64,
+    /// The drawn deviation of each tolerance, in file order.
+    pub deviations: Vec<(String, f64)>,
+    /// The deviation each compensator settled at.
+    pub compensators: Vec<(String, f64)>,
+    /// Every recorded number, by name (metrics, their standard errors and differences from
+    /// the nominal bench, CMRR, image scores).
+    pub values: Vec<(String, f64)>,
+    /// Why the trial could not be traced (a perturbed bench that is not valid), if so.
+    pub error: Option<String>,
+}
+
+impl TrialRecord {
+    pub fn value(&self, name: &str) -> Option<f64> {
+        self.values.iter().find(|(k, _)| k == name).map(|(_, v)| *v)
+    }
+}
+
+/// One row of a sensitivity table: a tolerance alone at its min and at its max.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SensitivityRecord {
+    pub path: String,
+    pub min: f64,
+    pub max: f64,
+    /// Changes from the nominal bench at the min (`NAME_diff`, `NAME_diff_stderr`, …).
+    pub at_min: Vec<(String, f64)>,
+    pub at_max: Vec<(String, f64)>,
+}
+
+impl SensitivityRecord {
+    pub fn at(&self, high: bool, name: &str) -> f64 {
+        let v = if high { &self.at_max } else { &self.at_min };
+        v.iter()
+            .find(|(k, _)| k == name)
+            .map_or(f64::NAN, |(_, x)| *x)
+    }
+}
+
+/// The records a (sharded) tolerance run writes, from which its outputs are made.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ShardFile {
+    pub spibench_version: String,
+    pub scene: String,
+    /// The canonical RON of the nominal bench and the tolerance file's text, which shards
+    /// must share to be merged.
+    pub bench_ron: String,
+    /// The tolerance file as named on the command line, and its text.
+    pub tolerances_path: String,
+    pub tolerances_text: String,
+    pub rays: u64,
+    pub seed: u64,
+    pub trials: u64,
+    pub quality: bool,
+    /// (I, N): this shard holds the trials i ≡ I (mod N).
+    pub shard: (u64, u64),
+    pub nominal: Vec<(String, f64)>,
+    /// The sensitivity table (written by shard 0 only).
+    pub sensitivity: Option<Vec<SensitivityRecord>>,
+    pub records: Vec<TrialRecord>,
+}
+
+/// The shard file as RON text (floats written so that they read back bit for bit).
+pub fn shard_to_ron(s: &ShardFile) -> Result<String> {
+    let config = ron::ser::PrettyConfig::new()
+        .struct_names(false)
+        .indentor(" ".to_string());
+    ron::ser::to_string_pretty(s, config)
+        .map_err(|e| Error::Numerical(format!("the trial records cannot be written: {e}")))
+}
+
+/// Reads a shard file written by `spibench tolerance`.
+pub fn read_shard(path: &Path) -> Result<ShardFile> {
+    crate::scene::read_ron(path)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn doc() -> BenchDoc {
+        BenchDoc::read(&Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/paper_bench.ron"))
+            .unwrap()
+    }
+
+    fn parse(text: &str) -> Result<ToleranceSet> {
+        ToleranceSet::parse(text, Path::new("t.ron"), &doc(), &|m| m == "imbalance")
+    }
+
+    #[test]
+    fn shipped_file_reads() {
+        let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/tolerances/paper_bench.ron");
+        let s = ToleranceSet::read(&p, &doc(), &|_| true).unwrap();
+        assert!(s.tolerances.len() >= 10);
+        assert!(s.tolerances.iter().any(|t| t.path == "dmd.tilt_deg"));
+    }
+
+    #[test]
+    fn ranges_and_distributions() {
+        let s = parse(
+            "(tolerances: [\n (path: \"dmd.tilt_deg\", range: Between(-1.0, 0.5), distribution: \
+             TruncatedNormal(sigmas: 2.0)),\n (path: \"chart.despace_mm\", range: PlusMinus(0.2)),\n],\
+             limits: [(metric: \"imbalance\", abs_max: 0.01)])",
+        )
+        .unwrap();
+        assert_eq!(s.tolerances[0].min, -1.0);
+        assert_eq!(s.tolerances[0].nominal, 12.0);
+        assert_eq!((s.tolerances[1].min, s.tolerances[1].max), (-0.2, 0.2));
+        assert!((Distribution::Uniform.std_dev(1.0) - 0.288_675).abs() < 1e-6);
+        assert_eq!(Distribution::Normal { sigmas: 2.0 }.std_dev(4.0), 1.0);
+        // Truncation at ±1σ: σ_t = 0.5396σ.
+        let t = Distribution::TruncatedNormal { sigmas: 1.0 }.std_dev(2.0);
+        assert!((t - 0.5396).abs() < 1e-3, "{t}");
+        assert!(s.limits[0].holds(0.005) && !s.limits[0].holds(-0.02));
+    }
+
+    #[test]
+    fn bad_files_are_located_input_errors() {
+        for (text, frags) in [
+            (
+                "(tolerances: [\n(path: \"no_such.despace_mm\", range: PlusMinus(1.0))])",
+                &["t.ron, line 2", "no_such"][..],
+            ),
+            (
+                "(tolerances: [\n\n(path: \"chart.despace_mm\", range: Between(1.0, -1.0))])",
+                &["line 3", "empty"][..],
+            ),
+            (
+                "(tolerances: [(path: \"dmd.tilt_deg\", range: PlusMinus(20.0))])",
+                &["line 1", "dmd.tilt_deg", "cannot deviate"][..],
+            ),
+            (
+                "(tolerances: [(path: \"chart.despace_mm\", rnage: PlusMinus(1.0))])",
+                &["line 1", "rnage"][..],
+            ),
+            (
+                "(tolerances: [], limits: [(metric: \"imbalanse\", abs_max: 0.1)])",
+                &["imbalanse"][..],
+            ),
+            (
+                "(tolerances: [(path: \"chart.despace_mm\", range: PlusMinus(1.0), \
+                 distribution: Normal(sigmas: 0.0))])",
+                &["sigmas"][..],
+            ),
+        ] {
+            let e = parse(text).unwrap_err();
+            assert!(e.is_user_error(), "{e}");
+            let s = e.to_string();
+            for f in frags {
+                assert!(s.contains(f), "{text}: {s} lacks {f}");
+            }
+        }
+    }
+
+    #[test]
+    fn shard_files_read_back_bit_for_bit() {
+        let s = ShardFile {
+            spibench_version: "x".into(),
+            scene: "s".into(),
+            bench_ron: "()".into(),
+            tolerances_path: "t.ron".into(),
+            tolerances_text: "t".into(),
+            rays: 10,
+            seed: 1,
+            trials: 2,
+            quality: false,
+            shard: (0, 1),
+            nominal: vec![("a".into(), 0.1 + 0.2)],
+            sensitivity: None,
+            records: vec![TrialRecord {
+                index: 0,
+                deviations: vec![("p".into(), -1.234_567_890_123_456_7e-5)],
+                compensators: vec![],
+                values: vec![
+                    ("k".into(), std::f64::consts::PI / 3.0),
+                    ("n".into(), 1e300),
+                ],
+                error: None,
+            }],
+        };
+        let text = shard_to_ron(&s).unwrap();
+        let back: ShardFile = crate::scene::parse_ron(&text, Path::new("s.ron")).unwrap();
+        assert_eq!(back, s);
+    }
+}

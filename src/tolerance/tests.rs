@@ -1,0 +1,164 @@
+use std::path::Path;
+
+use super::*;
+use crate::scene::tolerance::ToleranceSet;
+
+fn symmetric() -> BenchDoc {
+    BenchDoc::read(&Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/tests/symmetric_arms.ron"))
+        .unwrap()
+}
+
+fn set(doc: &BenchDoc, text: &str) -> ToleranceSet {
+    ToleranceSet::parse(text, Path::new("t.ron"), doc, &is_metric).unwrap()
+}
+
+/// Tolerances that swap into each other under the symmetry of the bench's arms: each part of
+/// arm + has its mirror image in arm −, with the same distribution.
+const SYMMETRIC: &str = "(tolerances: [
+    (path: \"detectors.plus.decenter_mm.x\", range: PlusMinus(0.6)),
+    (path: \"detectors.minus.decenter_mm.x\", range: PlusMinus(0.6)),
+    (path: \"arm_plus_lens.despace_mm\", range: PlusMinus(2.0)),
+    (path: \"arm_minus_lens.despace_mm\", range: PlusMinus(2.0)),
+], limits: [(metric: \"imbalance\", abs_max: 0.01)])";
+
+const RAYS: u64 = 16_384;
+
+fn opts(seed: u64) -> ToleranceOptions {
+    ToleranceOptions {
+        rays: RAYS,
+        seed,
+        quality: false,
+    }
+}
+
+#[test]
+fn zero_tolerances_reproduce_the_nominal_bench_exactly() {
+    let doc = symmetric();
+    let s = set(&doc, SYMMETRIC).scaled(0.0);
+    let o = opts(3);
+    let nominal = nominal(&doc, &o).unwrap();
+    let (d, dev, _) = trial_doc(&doc, &s, &o, 5).unwrap();
+    assert!(dev.iter().all(|(_, v)| *v == 0.0));
+    assert_eq!(d.file, doc.file);
+    let (r, _) = trial(&doc, &s, &nominal, &o, 5).unwrap();
+    assert_eq!(r.values, values(&nominal, &nominal));
+    for name in [
+        "imbalance_diff",
+        "k_prime_diff",
+        "b_minus_minus_b_plus_diff",
+    ] {
+        assert_eq!(r.value(name), Some(0.0), "{name}");
+    }
+}
+
+/// With arm-symmetric tolerances, the imbalance over the trials is centred on the nominal
+/// bench's (0 up to its ray noise): |mean| < 3·√(s²/n + SE_nominal²).
+#[test]
+fn symmetric_tolerances_centre_the_imbalance_on_zero() {
+    let doc = symmetric();
+    let s = set(&doc, SYMMETRIC);
+    let o = opts(4);
+    let nom = nominal(&doc, &o).unwrap();
+    let n = 24;
+    let recs: Vec<TrialRecord> = (0..n)
+        .map(|i| trial(&doc, &s, &nom, &o, i).unwrap().0)
+        .collect();
+    let a = analyse(&s, &recs, None);
+    let imb = a
+        .percentiles
+        .iter()
+        .find(|p| p.metric == "imbalance")
+        .unwrap();
+    let se_nom = nom.metrics.get("imbalance").unwrap().stderr();
+    let bound = 3.0 * ((imb.std_dev.powi(2) / n as f64) + se_nom.powi(2)).sqrt();
+    eprintln!(
+        "mean imbalance {:.3e}, spread {:.3e}, bound {bound:.3e}",
+        imb.mean, imb.std_dev
+    );
+    assert!(imb.std_dev > 0.0, "the tolerances moved nothing");
+    assert!(imb.mean.abs() < bound, "{} vs {bound}", imb.mean);
+}
+
+/// A baffle far outside every beam: its sensitivity is zero within the paired standard error.
+#[test]
+fn a_tolerance_that_cannot_matter_has_no_sensitivity() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/tests/symmetric_arms.ron");
+    let text = std::fs::read_to_string(&path).unwrap().replacen(
+        "elements: [",
+        "elements: [ Baffle(name: \"far_baffle\", position_mm: (300.0, 300.0, -200.0), \
+         axis: Vector((0.0, 0.0, 1.0)), width_mm: 20.0, height_mm: 20.0, hole_diameter_mm: 5.0),",
+        1,
+    );
+    let doc = BenchDoc::parse(&text, &path).unwrap();
+    let s = set(
+        &doc,
+        "(tolerances: [(path: \"far_baffle.decenter_mm.x\", range: PlusMinus(5.0)), \
+         (path: \"far_baffle.tilt_deg.y\", range: PlusMinus(10.0))])",
+    );
+    let o = opts(5);
+    let nom = nominal(&doc, &o).unwrap();
+    let rows = sensitivity(&doc, &s, &nom, &o, &|_, _| {}).unwrap();
+    for r in &rows {
+        for high in [false, true] {
+            for m in ["imbalance", "k_prime", "b_minus_minus_b_plus", "leak_plus"] {
+                let d = r.at(high, &format!("{m}_diff"));
+                let se = r.at(high, &format!("{m}_diff_stderr"));
+                assert!(
+                    d.abs() <= 3.0 * se || d == 0.0,
+                    "{} {m}: {d} ± {se}",
+                    r.path
+                );
+            }
+        }
+    }
+}
+
+/// The bench of trial K, written as RON and read back, traces to the trial's recorded metrics
+/// bit for bit.
+#[test]
+fn a_trial_rebuilt_from_ron_traces_identically() {
+    let doc = symmetric();
+    let s = set(&doc, SYMMETRIC);
+    let o = opts(6);
+    let nom = nominal(&doc, &o).unwrap();
+    let (rec, _) = trial(&doc, &s, &nom, &o, 3).unwrap();
+    let (d, _, _) = trial_doc(&doc, &s, &o, 3).unwrap();
+    let text = d.to_ron().unwrap();
+    let back = BenchDoc::parse(&text, Path::new("trial_3.ron")).unwrap();
+    let p = point(&back, Vec::new(), &o.sweep(false)).unwrap();
+    assert_eq!(values(&p, &nom), rec.values);
+}
+
+#[test]
+fn draws_are_keyed_by_seed_and_index_and_respect_ranges() {
+    let doc = symmetric();
+    let s = set(
+        &doc,
+        "(tolerances: [(path: \"arm_plus_lens.despace_mm\", range: Between(-0.5, 1.0), \
+         distribution: TruncatedNormal(sigmas: 1.0)), (path: \"arm_minus_lens.despace_mm\", \
+         range: PlusMinus(1.0), distribution: Normal(sigmas: 2.0))])",
+    );
+    assert_eq!(draw(&s, 1, 7), draw(&s, 1, 7));
+    assert_ne!(draw(&s, 1, 7), draw(&s, 1, 8));
+    assert_ne!(draw(&s, 2, 7), draw(&s, 1, 7));
+    let mut normals = Vec::new();
+    for i in 0..2000 {
+        let d = draw(&s, 9, i);
+        assert!((-0.5..=1.0).contains(&d[0].1));
+        normals.push(d[1].1);
+    }
+    let sd = (normals.iter().map(|x| x * x).sum::<f64>() / normals.len() as f64).sqrt();
+    // σ = 0.5; the standard error of a sample standard deviation of 2000 is 1.6 %.
+    assert!((sd - 0.5).abs() < 0.05 * 0.5, "{sd}");
+}
+
+#[test]
+fn percentiles_and_yields() {
+    let v: Vec<f64> = (0..=100).map(|i| i as f64).collect();
+    assert_eq!(percentile(&v, 50.0), 50.0);
+    assert_eq!(percentile(&v, 97.7), 97.7);
+    assert!(percentile(&[], 50.0).is_nan());
+    let y = yield_row("x".into(), 3, 4);
+    assert_eq!(y.fraction, 0.75);
+    assert!((y.stderr - (0.75f64 * 0.25 / 4.0).sqrt()).abs() < 1e-15);
+}

@@ -1,0 +1,200 @@
+//! `spibench tolerance` and `spibench align` end to end on the small symmetric test bench.
+
+use std::path::{Path, PathBuf};
+
+use crate::common::{TempDir, assert_input_error, read_json, spibench, stderr};
+
+fn scene(name: &str) -> String {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("scenes")
+        .join(name)
+        .display()
+        .to_string()
+}
+
+fn tolerance(args: &[&str], out: &Path) -> std::process::Output {
+    let mut a = vec!["tolerance", "--rays", "8192", "--seed", "3"];
+    a.extend_from_slice(args);
+    a.extend(["--out", out.to_str().unwrap()]);
+    spibench(&a, &[])
+}
+
+/// Shards run apart and merged write exactly the files of the unsharded run; the bench of a
+/// trial, written with `--trial K`, traces to the trial's recorded metrics bit for bit.
+#[test]
+fn shards_merge_to_the_unsharded_run_and_trials_rebuild() {
+    let dir = TempDir::new("tolerance-shards");
+    let bench = scene("tests/symmetric_arms.ron");
+    let tol = scene("tolerances/symmetric_arms.ron");
+    let base = [
+        bench.as_str(),
+        "--tolerances",
+        tol.as_str(),
+        "--trials",
+        "5",
+    ];
+    let whole = dir.join("whole");
+    let o = tolerance(&base, &whole);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let mut shards: Vec<PathBuf> = Vec::new();
+    for i in 0..2 {
+        let s = dir.join(&format!("shard{i}"));
+        let shard = format!("{i}/2");
+        let mut a = base.to_vec();
+        a.extend(["--shard", shard.as_str()]);
+        let o = tolerance(&a, &s);
+        assert!(o.status.success(), "{}", stderr(&o));
+        shards.push(s);
+    }
+    let merged = dir.join("merged");
+    let o = spibench(
+        &[
+            "tolerance",
+            "--merge",
+            shards[1].to_str().unwrap(),
+            shards[0].to_str().unwrap(),
+            "--out",
+            merged.to_str().unwrap(),
+        ],
+        &[],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    for f in [
+        "summary.json",
+        "trials.csv",
+        "sensitivity.csv",
+        "trials.ron",
+    ] {
+        assert_eq!(
+            std::fs::read(whole.join(f)).unwrap(),
+            std::fs::read(merged.join(f)).unwrap(),
+            "{f} differs"
+        );
+    }
+    let s = read_json(&whole.join("summary.json"));
+    assert_eq!(s["trial_rows"].as_array().unwrap().len(), 5);
+    assert!(s["sensitivity"].as_array().unwrap().len() == 4);
+    assert!(whole.join("report.html").is_file() && whole.join("hist_imbalance.svg").is_file());
+    // An incomplete set of shards is refused.
+    let o = spibench(
+        &[
+            "tolerance",
+            "--merge",
+            shards[0].to_str().unwrap(),
+            "--out",
+            dir.join("half").to_str().unwrap(),
+        ],
+        &[],
+    );
+    assert_input_error(&o, &["--merge", "exactly once"], &dir.join("half"));
+
+    // Trial 2, rebuilt and traced by `spibench trace`.
+    let t = dir.join("t2");
+    let mut a = base.to_vec();
+    a.extend(["--trial", "2"]);
+    let o = tolerance(&a, &t);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let traced = dir.join("traced");
+    let o = spibench(
+        &[
+            "trace",
+            t.join("trial_2.ron").to_str().unwrap(),
+            "--rays",
+            "8192",
+            "--seed",
+            "3",
+            "--out",
+            traced.to_str().unwrap(),
+        ],
+        &[],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let tr = read_json(&traced.join("summary.json"));
+    let row = &s["trial_rows"][2]["values"];
+    for k in ["k_plus", "k_minus", "imbalance"] {
+        assert_eq!(tr[k], row[k], "{k}");
+        assert!(tr[k].is_number());
+    }
+}
+
+/// Bad tolerance files and flags are input errors (exit 2) that locate the problem and leave
+/// no output behind.
+#[test]
+fn bad_tolerance_input_is_located() {
+    let dir = TempDir::new("tolerance-bad");
+    let bench = scene("tests/symmetric_arms.ron");
+    let bad = dir.join("bad.ron");
+    std::fs::write(
+        &bad,
+        "(tolerances: [\n  (path: \"arm_plus_lens.despace_mm\", range: PlusMinus(0.1)),\n  \
+         (path: \"arm_minus_lense.despace_mm\", range: PlusMinus(0.1)),\n])\n",
+    )
+    .unwrap();
+    let out = dir.join("out");
+    let o = tolerance(&[&bench, "--tolerances", bad.to_str().unwrap()], &out);
+    assert_input_error(&o, &["bad.ron, line 3", "arm_minus_lense"], &out);
+    std::fs::write(
+        &bad,
+        "(tolerances: [(path: \"dmd.tilt_deg\", range: Between(1, 0))])",
+    )
+    .unwrap();
+    let o = tolerance(&[&bench, "--tolerances", bad.to_str().unwrap()], &out);
+    assert_input_error(&o, &["bad.ron, line 1"], &out);
+    let tol = scene("tolerances/symmetric_arms.ron");
+    let o = tolerance(&[&bench, "--tolerances", &tol, "--shard", "2/2"], &out);
+    assert_input_error(&o, &["--shard"], &out);
+    let o = spibench(
+        &[
+            "align",
+            &bench,
+            "--free",
+            "detectors.minus.decenter_mm.q=-1:1",
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        &[],
+    );
+    assert_input_error(&o, &["decenter_mm.q"], &out);
+}
+
+/// `align` writes the aligned bench (readable by `check`), the history and the report.
+#[test]
+fn align_writes_its_outputs() {
+    let dir = TempDir::new("align-cli");
+    let bench = scene("tests/symmetric_arms.ron");
+    let out = dir.join("a");
+    let o = spibench(
+        &[
+            "align",
+            &bench,
+            "--set",
+            "detectors.minus.decenter_mm.x=1.0",
+            "--free",
+            "detectors.minus.decenter_mm.x=-2:2",
+            "--objective",
+            "power",
+            "--rays",
+            "8192",
+            "--max-evaluations",
+            "30",
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        &[],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    for f in [
+        "aligned.ron",
+        "history.csv",
+        "history.svg",
+        "layout_before.svg",
+        "layout_after.svg",
+        "report.html",
+    ] {
+        assert!(out.join(f).is_file(), "{f}");
+    }
+    let s = read_json(&out.join("summary.json"));
+    assert!(s["metrics"]["k_prime"]["change_stderr"].is_number());
+    let o = spibench(&["check", out.join("aligned.ron").to_str().unwrap()], &[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+}
