@@ -15,6 +15,7 @@
 //! each interaction is documented in path.rs.
 
 pub mod fan;
+pub mod kernel;
 pub mod path;
 pub mod tally;
 
@@ -173,5 +174,7 @@ pub(crate) mod testing {
     }
 }
 
+#[cfg(test)]
+mod kernel_tests;
 #[cfg(test)]
 mod tests;
