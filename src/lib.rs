@@ -7,6 +7,7 @@
 
 pub mod acquisition;
 pub mod cli;
+pub mod dataset;
 pub mod detector;
 pub mod error;
 pub mod export;

@@ -1,6 +1,7 @@
 //! The integration tests: the command line end to end, bad input, determinism across thread
 //! counts, and the paper's claims on small problems. One binary, so CI links once.
 
+mod cli_dataset;
 mod cli_layout;
 mod cli_reconstruct;
 mod cli_run;
