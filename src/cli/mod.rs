@@ -4,11 +4,14 @@
 //! impossible values, a missing file; also clap's usage errors), 1 for anything else.
 
 mod check;
+mod dataset;
 mod export;
 mod layout;
+mod patterns;
 mod progress;
 mod reconstruct;
 mod run;
+mod run_arrays;
 mod run_report;
 mod simulate;
 mod sweep;
@@ -49,6 +52,11 @@ enum Command {
     Layout(layout::LayoutArgs),
     /// Read and validate a bench without tracing it; print its paraxial design numbers.
     Check(check::CheckArgs),
+    /// Make a synthetic dataset: many objects measured through one traced bench (an object
+    /// kernel), sharded, resumable, as .npy arrays with a manifest.
+    Dataset(dataset::DatasetArgs),
+    /// Export a pattern set as packed .npy and 1-bit PNG frames at the DMD's mirror resolution.
+    Patterns(patterns::PatternsArgs),
 }
 
 /// Runs the command line and returns the process exit status.
@@ -69,6 +77,8 @@ pub fn main() -> i32 {
         Command::Sweep(a) => sweep::run(a),
         Command::Layout(a) => layout::run(a),
         Command::Check(a) => check::run(a),
+        Command::Dataset(a) => dataset::run(a),
+        Command::Patterns(a) => patterns::run(a),
     };
     match result {
         Ok(()) => 0,

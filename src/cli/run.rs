@@ -169,6 +169,7 @@ pub fn run(args: &RunArgs) -> Result<()> {
         b.finish_and_clear();
     }
     let summary_files = write_outputs(&name, &scene.bench, &outcome, &out)?;
+    super::run_arrays::write_arrays(&outcome, &out)?;
     let dir = out.commit()?;
     print_report(&name, &outcome);
     println!(
