@@ -240,3 +240,54 @@ fn bad_specs_are_located_input_errors() {
         assert!(stderr(&r).contains("spec.ron"), "{}", stderr(&r));
     }
 }
+
+/// `spibench patterns`: packed rows as numpy.packbits gives them, and 1-bit PNG frames at the
+/// DMD's mirror resolution with each unit expanded to its mirrors (pattern centred).
+#[test]
+fn patterns_exports_packed_rows_and_mirror_frames() {
+    let t = TempDir::new("patterns");
+    let out = t.join("p");
+    ok(&spibench(
+        &[
+            "patterns",
+            "--family",
+            "hadamard",
+            "--ordering",
+            "natural",
+            "--units",
+            "4x4",
+            "--ratio",
+            "0.5",
+            "--complement",
+            "--mirrors-per-unit",
+            "2",
+            "--dmd",
+            "12x10",
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        &[],
+    ));
+    let p = spibench::report::npy::read(&out.join("patterns.npy")).unwrap();
+    assert_eq!(p.shape, vec![16, 2]);
+    let bytes = match p.data {
+        spibench::report::npy::NpyData::U8(b) => b,
+        other => panic!("{other:?}"),
+    };
+    // Natural Hadamard row 0 is all ones; its complement all zeros.
+    assert_eq!(&bytes[..4], &[0xFF, 0xFF, 0x00, 0x00]);
+    let frame = |k: usize| {
+        image::open(out.join(format!("frame_{k:05}.png")))
+            .unwrap()
+            .to_luma8()
+    };
+    let (f0, f1) = (frame(0), frame(1));
+    assert_eq!(f0.dimensions(), (12, 10));
+    // The 8 x 8 mirrors of the pattern sit at (2..10, 1..9): on in frame 0, off in frame 1.
+    assert_eq!(f0.get_pixel(2, 1).0[0], 255);
+    assert_eq!(f0.get_pixel(9, 8).0[0], 255);
+    assert_eq!(f0.get_pixel(1, 1).0[0], 0);
+    assert_eq!(f0.get_pixel(2, 9).0[0], 0);
+    assert_eq!(f1.get_pixel(5, 5).0[0], 0);
+    assert_eq!(std::fs::read_dir(&out).unwrap().count(), 17);
+}
