@@ -497,3 +497,6 @@ impl Kernel {
         p
     }
 }
+
+#[cfg(test)]
+mod tests;

@@ -175,6 +175,4 @@ pub(crate) mod testing {
 }
 
 #[cfg(test)]
-mod kernel_tests;
-#[cfg(test)]
 mod tests;

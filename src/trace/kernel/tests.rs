@@ -1,10 +1,10 @@
 //! The object kernel against direct traces of the same objects.
 
-use super::kernel::{Kernel, ObjectGrid, trace_kernel};
-use super::testing::bench_with;
-use super::{TraceOptions, trace};
+use super::{Kernel, ObjectGrid, trace_kernel};
 use crate::objects::usaf::{Polarity, UsafChart};
 use crate::raster::Raster;
+use crate::trace::testing::bench_with;
+use crate::trace::{TraceOptions, trace};
 use crate::transport::Transport;
 
 /// The chart field the paper bench images onto its 48 × 48 units (mm).
@@ -90,14 +90,14 @@ fn objects() -> Vec<(&'static str, Raster)> {
 }
 
 /// Per-unit gains g±_j with their standard errors from a direct trace (batch means).
-fn direct_gains(t: &super::Tallies) -> ([Vec<f64>; 2], [Vec<f64>; 2]) {
+fn direct_gains(t: &crate::trace::Tallies) -> ([Vec<f64>; 2], [Vec<f64>; 2]) {
     let units = t.units();
     let nb = t.batches.len() as f64;
     let g: [Vec<f64>; 2] = [0, 1].map(|d| {
         (0..units)
             .map(|j| {
-                t.t[super::BatchTally::t_index(units, d, d, j)]
-                    - t.t[super::BatchTally::t_index(units, d, 1 - d, j)]
+                t.t[crate::trace::BatchTally::t_index(units, d, d, j)]
+                    - t.t[crate::trace::BatchTally::t_index(units, d, 1 - d, j)]
             })
             .collect()
     });
@@ -115,7 +115,7 @@ fn direct_gains(t: &super::Tallies) -> ([Vec<f64>; 2], [Vec<f64>; 2]) {
 /// measures what the kernel neglects (paths meeting the chart twice).
 #[test]
 fn kernel_matches_direct_traces() {
-    let rays = 300 * super::RAYS_PER_BATCH;
+    let rays = 300 * crate::trace::RAYS_PER_BATCH;
     let bench = kernel_bench();
     let grid = ObjectGrid {
         chart: 0,
