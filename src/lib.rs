@@ -8,6 +8,7 @@
 pub mod acquisition;
 pub mod align;
 pub mod cli;
+pub mod dataset;
 pub mod detector;
 pub mod error;
 pub mod export;

@@ -6,12 +6,15 @@
 mod align;
 mod check;
 mod completions;
+mod dataset;
 mod export;
 mod layout;
+mod patterns;
 pub(crate) mod progress;
 mod provenance;
 mod reconstruct;
 mod run;
+mod run_arrays;
 mod run_repeats;
 mod run_report;
 mod simulate;
@@ -74,6 +77,11 @@ enum Command {
     Completions(completions::CompletionsArgs),
     /// Write the man pages (spibench.1 and one per command) into a folder.
     Man(completions::ManArgs),
+    /// Make a synthetic dataset: many objects measured through one traced bench (an object
+    /// kernel), sharded, resumable, as .npy arrays with a manifest.
+    Dataset(dataset::DatasetArgs),
+    /// Export a pattern set as packed .npy and 1-bit PNG frames at the DMD's mirror resolution.
+    Patterns(patterns::PatternsArgs),
 }
 
 /// Runs the command line and returns the process exit status.
@@ -120,6 +128,8 @@ pub fn main() -> i32 {
         Command::Check(a) => check::run(a),
         Command::Completions(a) => completions::completions(a, Cli::command()),
         Command::Man(a) => completions::man(a, Cli::command()),
+        Command::Dataset(a) => dataset::run(a),
+        Command::Patterns(a) => patterns::run(a),
     };
     match result {
         Ok(()) => 0,

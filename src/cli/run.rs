@@ -193,6 +193,7 @@ pub fn run(args: &RunArgs) -> Result<()> {
         &provenance,
         &out,
     )? + super::run_repeats::write(&repeats, &scene.settings, &out)?.len();
+    super::run_arrays::write_arrays(outcome, &out)?;
     let dir = out.commit()?;
     print_report(&name, outcome);
     super::run_repeats::print(&repeats);

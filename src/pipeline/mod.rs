@@ -44,7 +44,7 @@ use crate::trace::{Tallies, TraceOptions, trace};
 use crate::transport::Transport;
 use crate::transport::metrics::BenchMetrics;
 
-pub use record::{Recorded, Saturation, SequenceSummary, record_stage};
+pub use record::{Recorded, Saturation, SequenceSummary, record_stage, record_transport};
 pub use solve::{
     MIN_REGISTRATION_CORRELATION, ResolutionContext, Resolved, SchemeResult, resolution_context,
     solve_stage,

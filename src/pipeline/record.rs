@@ -95,8 +95,28 @@ pub fn record_stage(
     seed: u64,
     progress: Progress,
 ) -> Result<Recorded> {
+    record_transport(
+        &traced.transport,
+        detector,
+        scope,
+        settings,
+        patterns,
+        seed,
+        progress,
+    )
+}
+
+/// [`record_stage`] for a transport made any way (a trace, or an object kernel's product).
+pub fn record_transport(
+    transport: &crate::transport::Transport,
+    detector: &Bap,
+    scope: &Scope,
+    settings: &RunSettings,
+    patterns: &PatternSet,
+    seed: u64,
+    progress: Progress,
+) -> Result<Recorded> {
     let s = settings;
-    let transport = &traced.transport;
     let bits = patterns.base_patterns();
     let max_m = patterns.measurements();
     let timing = FrameTiming {

@@ -148,6 +148,12 @@ pub struct SchemeResult {
     /// The reconstruction after normalisation, on the truth's 0–255 scale.
     #[serde(skip)]
     pub reconstruction: Raster,
+    /// The measurements y_i the solver was given (V).
+    #[serde(skip)]
+    pub y: Vec<f64>,
+    /// The solver's image before the scoring normalisation.
+    #[serde(skip)]
+    pub solution: Raster,
 }
 
 /// The solve stage: for every scheme × sampling ratio of `schemes` and `ratios` (scheme-major),
@@ -226,6 +232,8 @@ pub fn solve_stage(
                 solver_time_s: sol.cpu_time_s,
                 finest_resolved,
                 reconstruction: scores.image,
+                y,
+                solution: sol.image,
             };
             let d = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
             progress(Stage::Solve, d, total as u64);

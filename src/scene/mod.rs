@@ -6,6 +6,7 @@
 //! the field.
 
 pub mod bench;
+pub mod dataset;
 pub mod doc;
 pub mod experiment;
 pub mod run;

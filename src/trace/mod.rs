@@ -15,6 +15,7 @@
 //! each interaction is documented in path.rs.
 
 pub mod fan;
+pub mod kernel;
 pub mod path;
 pub mod tally;
 

@@ -73,6 +73,25 @@ struct Path {
     arrived: bool,
     /// Set on arrival: the next mirror hit books the incident power to x of `unit`.
     x_pending: bool,
+    /// The object pixel of the path's first meeting with the chart face, for a recorder that
+    /// tracks an object grid ([`NO_PIXEL`] otherwise or before the chart).
+    pixel: u32,
+    /// How many times the path has met a chart face (reflections included).
+    chart_hits: u16,
+}
+
+/// `Path::pixel` of a path that has not met the tracked chart (or of an untracked trace).
+pub const NO_PIXEL: u32 = u32::MAX;
+
+/// What a recorder says about a path meeting a chart face.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum ChartCrossing {
+    /// Not tracked: the chart's own mask decides, as in an ordinary trace.
+    Untracked,
+    /// Inside the object grid, at this pixel (row-major).
+    Pixel(u32),
+    /// Outside the object grid, which is opaque and black: the path is absorbed.
+    Outside,
 }
 
 /// Traces `rays` lamp rays of batch `batch`: the batch's Latin hypercube draws from
@@ -146,9 +165,34 @@ pub(super) fn run_batch_recorded<R: Recorder>(
 /// Sees what a trace does, for drawings: `segment(o, d, t)` for every straight piece of a path
 /// (start, unit direction, length; t = ∞ when the ray leaves the bench), `ray_done` after every
 /// lamp ray with the batch's tally so far.
+///
+/// The object-kernel trace (`trace::kernel`) also uses `chart_crossing` (where a path meets a
+/// chart face, in the face's local coordinates), `detected` (every photocurrent tallied, with
+/// the path's mirror-state world, unit, object pixel and number of chart meetings) and
+/// `incident` (every booking of x_j); the defaults do nothing.
 pub(super) trait Recorder {
     fn segment(&mut self, o: DVec3, d: DVec3, t: f64);
     fn ray_done(&mut self, tally: &BatchTally);
+    #[inline(always)]
+    fn chart_crossing(&mut self, _chart: usize, _x_m: f64, _y_m: f64) -> ChartCrossing {
+        ChartCrossing::Untracked
+    }
+    #[inline(always)]
+    fn detected(&mut self, _hit: Detection) {}
+    #[inline(always)]
+    fn incident(&mut self, _unit: usize, _pixel: u32, _w: f64) {}
+}
+
+/// One photocurrent tallied by a path, for [`Recorder::detected`].
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Detection {
+    /// [`COMMON`] (never met the pattern area), [`BRANCH_PLUS`] or [`BRANCH_MINUS`].
+    pub world: usize,
+    pub unit: usize,
+    pub pixel: u32,
+    pub chart_hits: u16,
+    pub detector: usize,
+    pub current_a: f64,
 }
 
 /// The recorder of an ordinary trace: records nothing.
@@ -240,6 +284,8 @@ fn trace_ray<R: Recorder>(
         interactions: 0,
         arrived: false,
         x_pending: false,
+        pixel: NO_PIXEL,
+        chart_hits: 0,
     });
     while let Some(p) = stack.pop() {
         if p.world == BRANCH_MINUS {
@@ -319,6 +365,14 @@ fn walk<R: Recorder>(
                         }
                         let det = &bench.detectors()[*index];
                         let current = p.w * det.responsivity.at(wl);
+                        rec.detected(Detection {
+                            world: p.world,
+                            unit: p.unit,
+                            pixel: p.pixel,
+                            chart_hits: p.chart_hits,
+                            detector: *index,
+                            current_a: current,
+                        });
                         if p.world == COMMON {
                             tally.b[*index] += current;
                         } else {
@@ -357,6 +411,21 @@ fn walk<R: Recorder>(
                         attenuate(bench, m_in, t, wl, &mut p, tally);
                         let plate = &bench.charts()[*chart];
                         let local = plate.frame.to_local(hit);
+                        p.chart_hits = p.chart_hits.saturating_add(1);
+                        match rec.chart_crossing(*chart, local.x, local.y) {
+                            ChartCrossing::Untracked => {}
+                            ChartCrossing::Pixel(i) => {
+                                // The first meeting names the pixel; later ones (ghosts that
+                                // come back to the chart) are what the kernel neglects.
+                                if p.pixel == NO_PIXEL {
+                                    p.pixel = i;
+                                }
+                            }
+                            ChartCrossing::Outside => {
+                                book(tally, p.world, s.element, p.w);
+                                return;
+                            }
+                        }
                         let clear = plate.mask.clear_fraction(local.x, local.y);
                         let (n1, n2) = (index[m_in], index[m_out]);
                         if clear >= 1.0 || (clear > 0.0 && uniform(rng) < clear) {
@@ -440,6 +509,7 @@ fn walk<R: Recorder>(
                     {
                         let share = if p.world == COMMON { 1.0 } else { 0.5 };
                         tally.x[p.unit] += share * p.w;
+                        rec.incident(p.unit, p.pixel, share * p.w);
                     }
                 }
                 match hit {

@@ -25,6 +25,7 @@ use crate::trace::tally::{
     BRANCH_MINUS, BRANCH_PLUS, COMMON, SLOT_DETECTED_MINUS, SLOT_DETECTED_PLUS, SLOT_EMITTED,
     SLOT_ESCAPED, SLOT_PATH_CAP,
 };
+pub mod kernel;
 pub mod metrics;
 
 use crate::trace::{BatchTally, Tallies};

@@ -90,6 +90,15 @@ fn run_writes_every_output_identically_on_one_and_two_threads() {
             files.push(format!("images/{scheme}__r{r}.png"));
         }
     }
+    // The raw arrays (src/cli/run_arrays.rs).
+    for f in [
+        "transport_x_w",
+        "patterns_packed",
+        "measurements_double_arm_r0.2500_v",
+        "reconstruction_double_arm_r0.2500",
+    ] {
+        files.push(format!("arrays/{f}.npy"));
+    }
     for f in &files {
         assert!(a.join(f).is_file(), "missing {f}");
     }

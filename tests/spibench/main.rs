@@ -2,6 +2,7 @@
 //! counts, and the paper's claims on small problems. One binary, so CI links once.
 
 mod bad_input;
+mod cli_dataset;
 mod cli_layout;
 mod cli_misc;
 mod cli_reconstruct;

@@ -1,0 +1,51 @@
+#!/usr/bin/env python3
+"""A PyTorch Dataset over a spibench dataset folder (manifest.json + .npy shards).
+
+    ds = SpibenchDataset("out/dataset", measurement="meas_secondary_complementary_balancing_r0.2500")
+    y, x = ds[0]           # measurements (float32), object (float32, 1 x H x W)
+    loader = torch.utils.data.DataLoader(ds, batch_size=32, shuffle=True)
+
+Shards are memory-mapped (np.load(..., mmap_mode="r")), so the dataset can be larger than RAM.
+"""
+import bisect
+import json
+import os
+
+import numpy as np
+import torch
+
+
+class SpibenchDataset(torch.utils.data.Dataset):
+    def __init__(self, root, measurement=None):
+        with open(os.path.join(root, "manifest.json")) as f:
+            self.manifest = json.load(f)
+        names = [a["name"] for a in self.manifest["schema"]]
+        self.measurement = measurement or next(n for n in names if n.startswith("meas_"))
+        shards = sorted(self.manifest["shards"], key=lambda s: s["index"])
+        self.y, self.x, self.starts = [], [], []
+        n = 0
+        for s in shards:
+            d = os.path.join(root, s["dir"])
+            self.y.append(np.load(os.path.join(d, self.measurement + ".npy"), mmap_mode="r"))
+            self.x.append(np.load(os.path.join(d, "object.npy"), mmap_mode="r"))
+            self.starts.append(n)
+            n += s["samples"]
+        self.n = n
+
+    def __len__(self):
+        return self.n
+
+    def __getitem__(self, i):
+        k = bisect.bisect_right(self.starts, i) - 1
+        j = i - self.starts[k]
+        y = torch.from_numpy(np.array(self.y[k][j], dtype=np.float32))
+        x = torch.from_numpy(np.array(self.x[k][j], dtype=np.float32))[None]
+        return y, x
+
+
+if __name__ == "__main__":
+    import sys
+
+    ds = SpibenchDataset(sys.argv[1])
+    y, x = ds[0]
+    print(len(ds), "samples;", ds.measurement, tuple(y.shape), "object", tuple(x.shape))

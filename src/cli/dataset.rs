@@ -1,0 +1,97 @@
+//! `spibench dataset`: synthetic datasets through a traced bench (crate::dataset).
+
+use std::path::PathBuf;
+
+use crate::dataset::{Prepared, generate, merge, read_manifest, shard_range};
+use crate::error::Error;
+use crate::scene::dataset::read_dataset;
+
+#[derive(Debug, Clone, clap::Args)]
+pub struct DatasetArgs {
+    /// The dataset spec (RON; see scenes/dataset_example.ron). Not needed with --merge.
+    pub spec: Option<PathBuf>,
+    /// Output folder.
+    #[arg(long, default_value = "out/dataset")]
+    pub out: PathBuf,
+    /// Make only job I of N (0-based) of the dataset's shards, e.g. `--shard 2/8`.
+    #[arg(long)]
+    pub shard: Option<String>,
+    /// Continue an interrupted run in --out from its last committed shard.
+    #[arg(long)]
+    pub resume: bool,
+    /// Merge these dataset folders (the jobs of a sharded run) into --out.
+    #[arg(long, num_args = 1..)]
+    pub merge: Vec<PathBuf>,
+}
+
+fn parse_shard(s: &str) -> Result<(u64, u64), Error> {
+    let bad = || Error::field("--shard", format!("expected I/N with 0 ≤ I < N, got {s:?}"));
+    let (i, n) = s.split_once('/').ok_or_else(bad)?;
+    let (i, n): (u64, u64) = (
+        i.trim().parse().map_err(|_| bad())?,
+        n.trim().parse().map_err(|_| bad())?,
+    );
+    if n == 0 || i >= n {
+        return Err(bad());
+    }
+    Ok((i, n))
+}
+
+pub fn run(args: &DatasetArgs) -> anyhow::Result<()> {
+    let command: Vec<String> = std::env::args().collect();
+    if !args.merge.is_empty() {
+        let m = merge(&args.merge, &args.out, &command)?;
+        println!(
+            "merged {} folders: {} shards, {} samples → {}",
+            args.merge.len(),
+            m.shards.len(),
+            m.samples,
+            args.out.display()
+        );
+        return Ok(());
+    }
+    let Some(spec_path) = &args.spec else {
+        return Err(Error::field("SPEC", "name a dataset spec (or --merge folders)").into());
+    };
+    let job = args.shard.as_deref().map(parse_shard).transpose()?;
+    let spec = read_dataset(spec_path)?;
+    let prep = Prepared::new(spec)?;
+    let range = shard_range(prep.shards_total(), job);
+    eprintln!(
+        "kernel: {} rays, {} entries, traced in {:.1} s; multi-crossing share {:.2e}",
+        prep.kernel.rays,
+        prep.kernel.entries.len(),
+        prep.kernel_seconds,
+        prep.kernel.multi_crossing_current_fraction()
+    );
+    let g = generate(
+        &prep,
+        &args.out,
+        range,
+        args.resume,
+        &command,
+        &|done, total| eprintln!("shard {done}/{total} committed"),
+    )?;
+    let m = read_manifest(&args.out)?;
+    let samples: u64 = m.shards.iter().map(|s| s.samples).sum();
+    println!(
+        "{} shards written ({} already there), {} samples in {} ({:.1} samples/s)",
+        g.shards_written,
+        g.shards_resumed,
+        samples,
+        args.out.display(),
+        (g.shards_written * prep.spec.file.shard_samples) as f64 / g.seconds.max(1e-9)
+    );
+    // Reference values for readers (the CI's numpy check reads this line).
+    if range.0 < range.1 {
+        let first = range.0 * prep.spec.file.shard_samples;
+        let s = prep.sample(first)?;
+        let object_sum: f64 = s.object.iter().sum();
+        let (name, _, _) = &prep.measurement_names()[0];
+        println!(
+            "check: sample {first} object_sum {object_sum:.17e} {name}[0] {:.17e} k+ {:.17e}",
+            s.measurements[0][0], s.k_a_per_w[0]
+        );
+    }
+    Ok(())
+}

@@ -1,0 +1,767 @@
+//! Synthetic datasets (`spibench dataset`): many objects measured through one traced bench.
+//!
+//! The bench is traced once as an object kernel (`trace::kernel`, chart clear); every sample is
+//! then an object on the kernel's grid, its transport by the kernel's sparse product
+//! (`Transport::from_kernel`), and the detector electronics in time with their noise
+//! (`pipeline::record_transport`), read by each scheme as in `spibench run`.
+//!
+//! Determinism: sample s draws its object from `rng::stream(mix64(seed ⊕ OBJECTS), s)` and its
+//! noise from the seed mix64(mix64(seed ⊕ NOISE) ⊕ s), so it is the same whatever the shard,
+//! the thread count or a resume. Samples are grouped in shards of `shard_samples` consecutive
+//! samples; shard b holds samples b·S … (b+1)·S − 1.
+//!
+//! On disk (a dataset folder):
+//! - `manifest.json`: schema (array names, dtypes, per-sample shapes, units), provenance
+//!   (spibench version, spec and bench SHA-256 and copies `spec.ron`, `bench.ron`, seeds, the
+//!   command), the shard range this folder is responsible for, and every committed shard with
+//!   the SHA-256 of each of its files;
+//! - `shard_NNNNNN/NAME.npy`: one `.npy` per array, first axis the shard's samples (float64,
+//!   little endian, 64-byte aligned headers: `np.load(..., mmap_mode="r")` maps them);
+//! - `patterns.npy` (optional): the packed base patterns.
+//!
+//! A shard is written in a staging folder `.shard_NNNNNN.partial` and committed by rename; the
+//! manifest is rewritten (through a temporary name and a rename) after each commit. Killed at
+//! any point, a `--resume` finds the committed shards in the manifest, checks their checksums,
+//! removes staging leftovers and shards the manifest does not list, and continues.
+
+use std::path::{Path, PathBuf};
+
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+use sha2::{Digest, Sha256};
+
+use crate::acquisition::{PatternSet, Scheme, patterns_for_ratio};
+use crate::error::{Error, Result};
+use crate::optics::Bench;
+use crate::raster::Raster;
+use crate::rng::{self, uniform};
+use crate::scene::dataset::{DatasetSpec, FitRule, ObjectSource};
+use crate::scene::doc::BenchDoc;
+use crate::scene::run::RunScene;
+use crate::trace::kernel::{Kernel, ObjectGrid, trace_kernel};
+use crate::transport::Transport;
+
+/// Stream tags of the objects and of the noise.
+const OBJECTS: u64 = 0x0B1E_C750_0000_0001;
+const NOISE: u64 = 0x0015_E000_0000_0002;
+
+/// The manifest's format name.
+pub const FORMAT: &str = "spibench-dataset-1";
+
+/// One array of a shard.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ArraySchema {
+    pub name: String,
+    pub dtype: String,
+    /// Shape of one sample (the file's shape is [samples in shard] + this).
+    pub sample_shape: Vec<usize>,
+    pub units: String,
+    pub description: String,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct FileHash {
+    pub name: String,
+    pub file: String,
+    pub sha256: String,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ShardEntry {
+    pub index: u64,
+    pub first_sample: u64,
+    pub samples: u64,
+    pub dir: String,
+    pub files: Vec<FileHash>,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Provenance {
+    pub spibench_version: String,
+    pub command: Vec<String>,
+    pub spec_file: String,
+    pub spec_sha256: String,
+    pub bench_file: String,
+    pub bench_sha256: String,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct KernelInfo {
+    pub rays: u64,
+    pub seed: u64,
+    pub grid_px: (usize, usize),
+    pub field_mm: (f64, f64),
+    pub entries: usize,
+    /// Share of the chart light's detected current carried by paths that met the chart face
+    /// more than once (what the kernel neglects).
+    pub multi_crossing_current_fraction: f64,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Manifest {
+    pub format: String,
+    pub provenance: Provenance,
+    pub seed: u64,
+    pub samples: u64,
+    pub shard_samples: u64,
+    pub shards_total: u64,
+    /// Shards [first, end) this folder is responsible for.
+    pub shard_range: (u64, u64),
+    pub kernel: KernelInfo,
+    pub pattern_family: String,
+    pub measurements_max: usize,
+    pub schemes: Vec<String>,
+    pub ratios: Vec<f64>,
+    pub schema: Vec<ArraySchema>,
+    pub patterns_file: Option<String>,
+    pub shards: Vec<ShardEntry>,
+}
+
+/// Everything a sample needs, made once per process.
+pub struct Prepared {
+    pub spec: DatasetSpec,
+    pub scene: RunScene,
+    pub kernel_bench: Bench,
+    pub kernel: Kernel,
+    pub patterns: PatternSet,
+    pub schemes: Vec<Scheme>,
+    pub ratios: Vec<f64>,
+    pub bench_text: String,
+    pub kernel_seconds: f64,
+}
+
+/// One sample.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Sample {
+    pub object: Vec<f64>,
+    /// Per (scheme, ratio) in [`Prepared::measurement_names`] order.
+    pub measurements: Vec<Vec<f64>>,
+    pub k_a_per_w: [f64; 2],
+    pub b_a: [f64; 2],
+}
+
+/// The index of the chart `name` (or the only chart) among the bench file's charts, and the
+/// bench with that chart made clear glass.
+fn clear_chart(
+    doc: &BenchDoc,
+    name: Option<&str>,
+    spec: &DatasetSpec,
+) -> Result<(BenchDoc, usize)> {
+    use crate::scene::bench::{ChartPatternSpec, ElementSpec};
+    let mut doc = doc.clone();
+    let mut found = None;
+    let mut k = 0;
+    let mut n_charts = 0;
+    for el in doc.file.elements.iter_mut() {
+        if let ElementSpec::Chart {
+            name: n,
+            pattern,
+            center_on,
+            ..
+        } = el
+        {
+            n_charts += 1;
+            if name.is_none_or(|want| want == n) && found.is_none() {
+                // Clear glass, its centre at `position_mm` (where the bench puts the chart
+                // point it images): the object grid is centred there.
+                *pattern = ChartPatternSpec::Clear;
+                *center_on = None;
+                found = Some(k);
+            }
+            k += 1;
+        }
+    }
+    match (found, name) {
+        (Some(i), Some(_)) => Ok((doc, i)),
+        (Some(i), None) if n_charts == 1 => Ok((doc, i)),
+        (_, Some(n)) => Err(spec.error("chart", format!("the bench has no chart named {n:?}"))),
+        _ => Err(spec.error(
+            "bench",
+            format!(
+                "the bench needs exactly one chart (it has {n_charts}); name it in kernel.chart"
+            ),
+        )),
+    }
+}
+
+impl Prepared {
+    /// Reads the bench, traces the kernel and builds the patterns.
+    pub fn new(spec: DatasetSpec) -> Result<Prepared> {
+        let bench_text = crate::scene::read_text(&spec.bench_path)?;
+        let doc = BenchDoc::parse(&bench_text, &spec.bench_path)?;
+        let scene = doc.run_scene()?;
+        if scene.bench.dmd().is_none() {
+            return Err(spec.error("bench", "a dataset needs a bench with a DMD"));
+        }
+        let k = &spec.file.kernel;
+        let (clear, chart) = clear_chart(&doc, k.chart.as_deref(), &spec)?;
+        let kernel_bench = clear.build()?;
+        let grid = ObjectGrid {
+            chart,
+            width_px: k.grid_px.0,
+            height_px: k.grid_px.1,
+            width_m: k.field_mm.0 * 1e-3,
+            height_m: k.field_mm.1 * 1e-3,
+        };
+        let (schemes, ratios) = match &spec.file.acquisition {
+            Some(a) => (a.schemes.clone(), a.ratios.clone()),
+            None => (
+                scene.settings.schemes.clone(),
+                scene.settings.sampling_ratios.clone(),
+            ),
+        };
+        let (w, h) = scene.bench.units_shape();
+        let units = w * h;
+        let r_max = ratios.iter().copied().fold(0.0, f64::max);
+        let patterns = scene
+            .settings
+            .patterns
+            .build(w, h, patterns_for_ratio(r_max, units))?;
+        let disk_gb = spec.file.max_disk_gb.unwrap_or(100.0);
+        let per_sample = 8.0
+            * (k.grid_px.0 * k.grid_px.1
+                + 4
+                + ratios
+                    .iter()
+                    .map(|r| patterns_for_ratio(*r, units))
+                    .sum::<usize>()
+                    * schemes.len()) as f64;
+        let need_gb = per_sample * spec.file.samples as f64 / 1e9;
+        if need_gb > disk_gb {
+            return Err(spec.error(
+                "samples",
+                format!(
+                    "{} samples need {need_gb:.3} GB, more than the {disk_gb} GB allowed \
+                     (max_disk_gb)",
+                    spec.file.samples
+                ),
+            ));
+        }
+        let start = std::time::Instant::now();
+        let kernel = trace_kernel(
+            &kernel_bench,
+            grid,
+            &crate::trace::TraceOptions::new(k.rays, k.seed),
+        )?;
+        let kernel_seconds = start.elapsed().as_secs_f64();
+        let mut settings = scene.settings.clone();
+        settings.schemes = schemes.clone();
+        settings.signal_trace_frames = 0;
+        let scene = RunScene { settings, ..scene };
+        Ok(Prepared {
+            spec,
+            scene,
+            kernel_bench,
+            kernel,
+            patterns,
+            schemes,
+            ratios,
+            bench_text,
+            kernel_seconds,
+        })
+    }
+
+    pub fn units(&self) -> usize {
+        self.kernel.units()
+    }
+
+    /// `meas_SCHEME_rRATIO` per scheme and ratio, in sample order.
+    pub fn measurement_names(&self) -> Vec<(String, Scheme, usize)> {
+        let mut v = Vec::new();
+        for s in &self.schemes {
+            for r in &self.ratios {
+                let m = patterns_for_ratio(*r, self.units());
+                v.push((format!("meas_{}_r{:.4}", s.key(), r), *s, m));
+            }
+        }
+        v
+    }
+
+    /// The arrays of a sample, with their schema.
+    pub fn schema(&self) -> Vec<ArraySchema> {
+        let g = self.spec.file.kernel.grid_px;
+        let mut v = vec![
+            ArraySchema {
+                name: "sample".into(),
+                dtype: "<f8".into(),
+                sample_shape: vec![],
+                units: "1".into(),
+                description: "the sample index s".into(),
+            },
+            ArraySchema {
+                name: "object".into(),
+                dtype: "<f8".into(),
+                sample_shape: vec![g.1, g.0],
+                units: "transmittance".into(),
+                description: "the ideal object on the kernel grid (rows top to bottom)".into(),
+            },
+        ];
+        for (name, s, m) in self.measurement_names() {
+            v.push(ArraySchema {
+                name,
+                dtype: "<f8".into(),
+                sample_shape: vec![m],
+                units: "V".into(),
+                description: format!(
+                    "{} measurements y_i for the first {m} base patterns",
+                    s.label()
+                ),
+            });
+        }
+        v.push(ArraySchema {
+            name: "k".into(),
+            dtype: "<f8".into(),
+            sample_shape: vec![2],
+            units: "A/W".into(),
+            description: "k+ and k- of the sample's transport".into(),
+        });
+        v.push(ArraySchema {
+            name: "b".into(),
+            dtype: "<f8".into(),
+            sample_shape: vec![2],
+            units: "A".into(),
+            description: "b+ and b- of the sample's transport (traced offsets, ambient, dark)"
+                .into(),
+        });
+        v
+    }
+
+    /// The object of sample s.
+    pub fn object(&self, s: u64) -> Result<Raster> {
+        let (gw, gh) = self.spec.file.kernel.grid_px;
+        let mut r = rng::stream(rng::mix64(self.spec.file.seed ^ OBJECTS), s);
+        let obj = match &self.spec.objects {
+            ObjectSource::Images { images, rule, .. } => {
+                let img = &images[(s % images.len() as u64) as usize];
+                match rule {
+                    FitRule::Resize => crate::objects::image_file::resize_area(img, gw, gh)?,
+                    FitRule::RandomCrop => {
+                        let c0 = ((uniform(&mut r) * (img.width - gw + 1) as f64) as usize)
+                            .min(img.width - gw);
+                        let r0 = ((uniform(&mut r) * (img.height - gh + 1) as f64) as usize)
+                            .min(img.height - gh);
+                        let mut d = Vec::with_capacity(gw * gh);
+                        for row in 0..gh {
+                            for col in 0..gw {
+                                d.push(img.get(r0 + row, c0 + col));
+                            }
+                        }
+                        Raster::new(gw, gh, d)?
+                    }
+                }
+            }
+            ObjectSource::Usaf {
+                min_field_mm,
+                max_field_mm,
+            } => {
+                let chart = crate::objects::usaf::UsafChart::new(
+                    -2,
+                    7,
+                    crate::objects::usaf::Polarity::Negative,
+                )?;
+                let f = min_field_mm + uniform(&mut r) * (max_field_mm - min_field_mm);
+                let fy = f * gh as f64 / gw as f64;
+                let cx = (uniform(&mut r) - 0.5) * f;
+                let cy = (uniform(&mut r) - 0.5) * fy;
+                let region = crate::objects::usaf::Region::from_corners(
+                    cx - 0.5 * f,
+                    cy - 0.5 * fy,
+                    cx + 0.5 * f,
+                    cy + 0.5 * fy,
+                );
+                chart.render(&region, gw, gh)
+            }
+            ObjectSource::Phantom => crate::objects::phantom::phantom_sized(gw, gh, false)?,
+            ObjectSource::Rectangles { max_count } => {
+                let mut d = vec![0.0; gw * gh];
+                let n = 1 + ((uniform(&mut r) * *max_count as f64) as usize).min(max_count - 1);
+                for _ in 0..n {
+                    let (a, b) = (uniform(&mut r) * gw as f64, uniform(&mut r) * gw as f64);
+                    let (c, e) = (uniform(&mut r) * gh as f64, uniform(&mut r) * gh as f64);
+                    let t = uniform(&mut r);
+                    let (x0, x1) = (a.min(b) as usize, (a.max(b) as usize).min(gw - 1));
+                    let (y0, y1) = (c.min(e) as usize, (c.max(e) as usize).min(gh - 1));
+                    for y in y0..=y1 {
+                        for x in x0..=x1 {
+                            d[y * gw + x] = t;
+                        }
+                    }
+                }
+                Raster::new(gw, gh, d)?
+            }
+        };
+        Ok(obj.map(|v| v.clamp(0.0, 1.0)))
+    }
+
+    /// Sample s: its object, transport, recorded frames and measurements.
+    pub fn sample(&self, s: u64) -> Result<Sample> {
+        let object = self.object(s)?.data;
+        let transport = Transport::from_kernel(&self.scene.bench, &self.kernel, &object)?;
+        let seed = rng::mix64(rng::mix64(self.spec.file.seed ^ NOISE) ^ s);
+        let rec = crate::pipeline::record_transport(
+            &transport,
+            &self.scene.detector,
+            &self.scene.scope,
+            &self.scene.settings,
+            &self.patterns,
+            seed,
+            &|_, _, _| {},
+        )?;
+        let mut measurements = Vec::new();
+        for (_, scheme, m) in self.measurement_names() {
+            let r = rec.record(scheme.sequence()).ok_or_else(|| {
+                Error::input(format!("no record for the {} sequence", scheme.label()))
+            })?;
+            measurements.push(scheme.measurements(&r.frames, m));
+        }
+        Ok(Sample {
+            object,
+            measurements,
+            k_a_per_w: [transport.k[0].value, transport.k[1].value],
+            b_a: [transport.b[0].value, transport.b[1].value],
+        })
+    }
+
+    pub fn shards_total(&self) -> u64 {
+        self.spec
+            .file
+            .samples
+            .div_ceil(self.spec.file.shard_samples)
+    }
+
+    /// The arrays of shard b, as (name, file bytes).
+    pub fn shard_arrays(&self, b: u64) -> Result<Vec<(String, Vec<u8>)>> {
+        let f = &self.spec.file;
+        let first = b * f.shard_samples;
+        let end = (first + f.shard_samples).min(f.samples);
+        let samples: Vec<Sample> = (first..end)
+            .into_par_iter()
+            .map(|s| self.sample(s))
+            .collect::<Result<_>>()?;
+        let n = samples.len();
+        let mut out = Vec::new();
+        for a in self.schema() {
+            let mut data = Vec::new();
+            match a.name.as_str() {
+                "sample" => data.extend((first..end).map(|s| s as f64)),
+                "object" => samples.iter().for_each(|s| data.extend(&s.object)),
+                "k" => samples.iter().for_each(|s| data.extend(s.k_a_per_w)),
+                "b" => samples.iter().for_each(|s| data.extend(s.b_a)),
+                name => {
+                    let i = self
+                        .measurement_names()
+                        .iter()
+                        .position(|m| m.0 == name)
+                        .expect("schema names");
+                    samples.iter().for_each(|s| data.extend(&s.measurements[i]));
+                }
+            }
+            let mut shape = vec![n];
+            shape.extend(&a.sample_shape);
+            out.push((a.name, crate::report::npy::encode_f64(&shape, &data)));
+        }
+        Ok(out)
+    }
+
+    fn manifest(&self, command: &[String], range: (u64, u64)) -> Manifest {
+        let k = &self.spec.file.kernel;
+        Manifest {
+            format: FORMAT.into(),
+            provenance: Provenance {
+                spibench_version: env!("CARGO_PKG_VERSION").into(),
+                command: command.to_vec(),
+                spec_file: "spec.ron".into(),
+                spec_sha256: sha256_hex(self.spec.text.as_bytes()),
+                bench_file: "bench.ron".into(),
+                bench_sha256: sha256_hex(self.bench_text.as_bytes()),
+            },
+            seed: self.spec.file.seed,
+            samples: self.spec.file.samples,
+            shard_samples: self.spec.file.shard_samples,
+            shards_total: self.shards_total(),
+            shard_range: range,
+            kernel: KernelInfo {
+                rays: k.rays,
+                seed: k.seed,
+                grid_px: k.grid_px,
+                field_mm: k.field_mm,
+                entries: self.kernel.entries.len(),
+                multi_crossing_current_fraction: self.kernel.multi_crossing_current_fraction(),
+            },
+            pattern_family: self.scene.settings.patterns.label(),
+            measurements_max: self.patterns.measurements(),
+            schemes: self.schemes.iter().map(|s| s.key().to_string()).collect(),
+            ratios: self.ratios.clone(),
+            schema: self.schema(),
+            patterns_file: self.spec.file.write.patterns.then(|| "patterns.npy".into()),
+            shards: Vec::new(),
+        }
+    }
+}
+
+pub fn sha256_hex(bytes: &[u8]) -> String {
+    let d = Sha256::digest(bytes);
+    d.iter().map(|b| format!("{b:02x}")).collect()
+}
+
+/// `I/N` → the shard range of job I of N (contiguous blocks).
+pub fn shard_range(total: u64, job: Option<(u64, u64)>) -> (u64, u64) {
+    match job {
+        None => (0, total),
+        Some((i, n)) => (i * total / n, (i + 1) * total / n),
+    }
+}
+
+fn shard_dir_name(b: u64) -> String {
+    format!("shard_{b:06}")
+}
+
+fn write_manifest(dir: &Path, m: &Manifest) -> Result<()> {
+    let text = serde_json::to_string_pretty(m)
+        .map_err(|e| Error::input(format!("cannot write the manifest: {e}")))?;
+    crate::report::npy::write_atomic(&dir.join("manifest.json"), text.as_bytes())
+}
+
+/// Reads a dataset folder's manifest.
+pub fn read_manifest(dir: &Path) -> Result<Manifest> {
+    let p = dir.join("manifest.json");
+    let text = std::fs::read_to_string(&p).map_err(|e| Error::read(&p, e))?;
+    serde_json::from_str(&text)
+        .map_err(|e| Error::input(format!("not a spibench dataset manifest: {e}")).in_file(&p))
+}
+
+/// Checks every file of a committed shard against its checksum.
+pub fn verify_shard(dir: &Path, shard: &ShardEntry) -> Result<()> {
+    for f in &shard.files {
+        let p = dir.join(&shard.dir).join(&f.file);
+        let bytes = std::fs::read(&p).map_err(|e| Error::read(&p, e))?;
+        if sha256_hex(&bytes) != f.sha256 {
+            return Err(Error::input(format!(
+                "shard {} is corrupted: the SHA-256 of {} differs from the manifest's; delete \
+                 the folder and make the dataset (or this shard's job) again",
+                shard.index, f.file
+            ))
+            .in_file(&p));
+        }
+    }
+    Ok(())
+}
+
+/// What `generate` did.
+#[derive(Debug, Clone)]
+pub struct Generated {
+    pub shards_written: u64,
+    pub shards_resumed: u64,
+    pub seconds: f64,
+}
+
+/// Makes (or, with `resume`, continues) the shards `range` of a dataset in `dir`.
+pub fn generate(
+    prep: &Prepared,
+    dir: &Path,
+    range: (u64, u64),
+    resume: bool,
+    command: &[String],
+    progress: &(dyn Fn(u64, u64) + Sync),
+) -> Result<Generated> {
+    let start = std::time::Instant::now();
+    let mut manifest;
+    let exists = dir.join("manifest.json").exists();
+    if resume && exists {
+        manifest = read_manifest(dir)?;
+        let fresh = prep.manifest(command, range);
+        if manifest.provenance.spec_sha256 != fresh.provenance.spec_sha256
+            || manifest.provenance.bench_sha256 != fresh.provenance.bench_sha256
+            || manifest.shard_range != range
+        {
+            return Err(Error::input(
+                "the folder holds another dataset (its spec, bench or shard range differ): \
+                 resume it with the same spec and --shard",
+            )
+            .in_file(dir));
+        }
+        for s in &manifest.shards {
+            verify_shard(dir, s)?;
+        }
+        // Leftovers: staging folders, and shards committed after the last manifest update.
+        let listed: Vec<String> = manifest.shards.iter().map(|s| s.dir.clone()).collect();
+        for e in std::fs::read_dir(dir)
+            .map_err(|e| Error::read(dir, e))?
+            .flatten()
+        {
+            let name = e.file_name().to_string_lossy().to_string();
+            let stale = name.ends_with(".partial")
+                || (name.starts_with("shard_") && !listed.contains(&name));
+            if stale && e.path().is_dir() {
+                std::fs::remove_dir_all(e.path()).map_err(|err| Error::write(&e.path(), err))?;
+            }
+        }
+        manifest.provenance.command = command.to_vec();
+    } else {
+        if exists || dir.read_dir().is_ok_and(|mut d| d.next().is_some()) {
+            return Err(Error::input(
+                "the output folder exists and is not empty: choose another, or continue it \
+                 with --resume",
+            )
+            .in_file(dir));
+        }
+        std::fs::create_dir_all(dir).map_err(|e| Error::write(dir, e))?;
+        manifest = prep.manifest(command, range);
+        crate::report::npy::write_atomic(&dir.join("spec.ron"), prep.spec.text.as_bytes())?;
+        crate::report::npy::write_atomic(&dir.join("bench.ron"), prep.bench_text.as_bytes())?;
+        if prep.spec.file.write.patterns {
+            let bits = prep.patterns.base_patterns();
+            let (rows, cols) = (bits.rows(), bits.cols());
+            let mut packed = Vec::with_capacity(rows * cols.div_ceil(8));
+            for i in 0..rows {
+                let mut byte = 0u8;
+                for j in 0..cols {
+                    if bits.get(i, j) {
+                        byte |= 0x80 >> (j % 8);
+                    }
+                    if j % 8 == 7 || j + 1 == cols {
+                        packed.push(byte);
+                        byte = 0;
+                    }
+                }
+            }
+            crate::report::npy::write_u8(
+                &dir.join("patterns.npy"),
+                &[rows, cols.div_ceil(8)],
+                &packed,
+            )?;
+        }
+        write_manifest(dir, &manifest)?;
+    }
+    let done: Vec<u64> = manifest.shards.iter().map(|s| s.index).collect();
+    let resumed = done.len() as u64;
+    let mut written = 0;
+    for b in range.0..range.1 {
+        if done.contains(&b) {
+            continue;
+        }
+        let arrays = prep.shard_arrays(b)?;
+        let name = shard_dir_name(b);
+        let staging = dir.join(format!(".{name}.partial"));
+        let _ = std::fs::remove_dir_all(&staging);
+        std::fs::create_dir_all(&staging).map_err(|e| Error::write(&staging, e))?;
+        let mut files = Vec::new();
+        for (a, bytes) in &arrays {
+            let file = format!("{a}.npy");
+            let p = staging.join(&file);
+            std::fs::write(&p, bytes).map_err(|e| Error::write(&p, e))?;
+            files.push(FileHash {
+                name: a.clone(),
+                file,
+                sha256: sha256_hex(bytes),
+            });
+        }
+        let final_dir = dir.join(&name);
+        std::fs::rename(&staging, &final_dir).map_err(|e| Error::write(&final_dir, e))?;
+        let first = b * prep.spec.file.shard_samples;
+        manifest.shards.push(ShardEntry {
+            index: b,
+            first_sample: first,
+            samples: (first + prep.spec.file.shard_samples).min(prep.spec.file.samples) - first,
+            dir: name,
+            files,
+        });
+        write_manifest(dir, &manifest)?;
+        written += 1;
+        progress(b + 1 - range.0, range.1 - range.0);
+    }
+    Ok(Generated {
+        shards_written: written,
+        shards_resumed: resumed,
+        seconds: start.elapsed().as_secs_f64(),
+    })
+}
+
+/// Merges dataset folders (each one job's shards) into `out`: the same spec, bench and seed in
+/// every folder, every shard's checksum right, no shard twice and none missing.
+pub fn merge(inputs: &[PathBuf], out: &Path, command: &[String]) -> Result<Manifest> {
+    if inputs.is_empty() {
+        return Err(Error::field("--merge", "name the folders to merge"));
+    }
+    let manifests: Vec<Manifest> = inputs
+        .iter()
+        .map(|d| read_manifest(d))
+        .collect::<Result<_>>()?;
+    let m0 = &manifests[0];
+    for (d, m) in inputs.iter().zip(&manifests) {
+        let same = m.provenance.spec_sha256 == m0.provenance.spec_sha256
+            && m.provenance.bench_sha256 == m0.provenance.bench_sha256
+            && m.seed == m0.seed
+            && m.samples == m0.samples
+            && m.shard_samples == m0.shard_samples
+            && m.format == m0.format;
+        if !same {
+            return Err(Error::input(format!(
+                "cannot merge: {} was made from another spec, bench or seed than {}",
+                d.display(),
+                inputs[0].display()
+            ))
+            .in_file(d));
+        }
+    }
+    let mut owner: Vec<Option<usize>> = vec![None; m0.shards_total as usize];
+    for (k, (d, m)) in inputs.iter().zip(&manifests).enumerate() {
+        for s in &m.shards {
+            let i = s.index as usize;
+            if i >= owner.len() {
+                return Err(Error::input(format!("shard {i} lies beyond the dataset")).in_file(d));
+            }
+            if let Some(o) = owner[i] {
+                return Err(Error::input(format!(
+                    "cannot merge: shard {i} (samples {}–{}) is in both {} and {}",
+                    s.first_sample,
+                    s.first_sample + s.samples - 1,
+                    inputs[o].display(),
+                    d.display()
+                )));
+            }
+            verify_shard(d, s)?;
+            owner[i] = Some(k);
+        }
+    }
+    let missing: Vec<usize> = (0..owner.len()).filter(|&i| owner[i].is_none()).collect();
+    if !missing.is_empty() {
+        let first = missing[0] as u64 * m0.shard_samples;
+        return Err(Error::input(format!(
+            "cannot merge: {} shard(s) missing, first shard {} (samples from {first}); the \
+             folders give no sample there (an unfinished job? resume it with --resume)",
+            missing.len(),
+            missing[0]
+        )));
+    }
+    let staging = crate::report::output::OutputDir::create(out)?;
+    let sdir = staging.staging_dir().to_path_buf();
+    let mut merged = m0.clone();
+    merged.shards.clear();
+    merged.shard_range = (0, m0.shards_total);
+    merged.provenance.command = command.to_vec();
+    for f in ["spec.ron", "bench.ron", "patterns.npy"] {
+        let src = inputs[0].join(f);
+        if src.exists() {
+            std::fs::copy(&src, sdir.join(f)).map_err(|e| Error::write(&sdir.join(f), e))?;
+        }
+    }
+    for (i, o) in owner.iter().enumerate() {
+        let k = o.expect("checked");
+        let s = manifests[k]
+            .shards
+            .iter()
+            .find(|s| s.index == i as u64)
+            .expect("owner");
+        let dst = sdir.join(&s.dir);
+        std::fs::create_dir_all(&dst).map_err(|e| Error::write(&dst, e))?;
+        for f in &s.files {
+            let src = inputs[k].join(&s.dir).join(&f.file);
+            std::fs::copy(&src, dst.join(&f.file)).map_err(|e| Error::write(&dst, e))?;
+        }
+        merged.shards.push(s.clone());
+    }
+    write_manifest(&sdir, &merged)?;
+    staging.commit()?;
+    Ok(merged)
+}

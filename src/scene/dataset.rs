@@ -1,0 +1,372 @@
+//! Dataset specs (`spibench dataset SPEC`): RON, parsed and validated here, with located errors.
+//!
+//! ```ron
+//! Dataset(
+//!     bench: "paper_bench.ron",          // relative to the spec; its electronics: and run:
+//!                                        // sections give the detector, noise and patterns
+//!     kernel: (rays: 300000, seed: 1, grid_px: (96, 96), field_mm: (7.88, 7.88)),
+//!     objects: TestImages(names: ["astronaut", "coffee"], rule: RandomCrop),
+//!     acquisition: (schemes: [SecondaryComplementaryBalancing, DoubleArm], ratios: [0.25]),
+//!     seed: 7,
+//!     samples: 64,
+//!     shard_samples: 16,
+//! )
+//! ```
+
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+
+use crate::acquisition::Scheme;
+use crate::error::{Error, Result};
+use crate::raster::Raster;
+
+/// The largest object grid side (pixels).
+pub const MAX_GRID_SIDE: usize = 1024;
+/// The largest kernel trace (rays).
+pub const MAX_KERNEL_RAYS: u64 = 10_000_000_000;
+
+/// A dataset spec as written.
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields, rename = "Dataset")]
+pub struct DatasetFile {
+    /// The bench file, relative to the spec. Its `electronics:` section is the detector and
+    /// oscilloscope, its `run:` section the pattern family, DMD rate, drift and noise.
+    pub bench: String,
+    /// Which benches the samples see.
+    #[serde(default)]
+    pub benches: BenchesSpec,
+    pub kernel: KernelSpec,
+    pub objects: ObjectsSpec,
+    /// Schemes and sampling ratios (default: the bench's `run:` section).
+    #[serde(default)]
+    pub acquisition: Option<AcquisitionSpec>,
+    /// Seed of the objects and the noise: sample s depends on (seed, s) alone.
+    pub seed: u64,
+    pub samples: u64,
+    /// Samples per shard (a shard's arrays are `.npy` files of this many rows).
+    pub shard_samples: u64,
+    /// What is written besides the measurements, objects, k± and b±.
+    #[serde(default)]
+    pub write: WriteSpec,
+    /// The most the dataset may occupy on disk (GB, default 100): a larger request is an input
+    /// error before anything is written.
+    #[serde(default)]
+    pub max_disk_gb: Option<f64>,
+}
+
+/// Which benches the samples are measured through.
+#[derive(Debug, Clone, Default, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub enum BenchesSpec {
+    /// The bench file as it is.
+    #[default]
+    Nominal,
+    /// Benches drawn from a tolerance file, a new one every `samples_per_bench` samples. Not
+    /// supported yet (tolerance draws are another part of spibench): rejected with a message.
+    Tolerance {
+        file: String,
+        samples_per_bench: u64,
+    },
+}
+
+/// The object-kernel trace.
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct KernelSpec {
+    pub rays: u64,
+    pub seed: u64,
+    /// Object grid (pixels across, down): may be finer than the DMD units.
+    pub grid_px: (usize, usize),
+    /// The chart field the grid covers (mm), centred on the chart's `position_mm`.
+    pub field_mm: (f64, f64),
+    /// The chart element (default: the bench's only chart).
+    #[serde(default)]
+    pub chart: Option<String>,
+}
+
+/// How an image larger than the grid becomes an object.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
+pub enum FitRule {
+    /// A grid-sized window at a random position (the image must be at least the grid's size).
+    RandomCrop,
+    /// The whole image resampled to the grid by area averaging.
+    Resize,
+}
+
+/// Where the objects come from.
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub enum ObjectsSpec {
+    /// Every PNG or EXR image of a folder (relative to the spec), in name order; sample s uses
+    /// image s mod count.
+    Folder { path: String, rule: FitRule },
+    /// Shipped test images by name.
+    TestImages { names: Vec<String>, rule: FitRule },
+    /// The 1951 USAF chart at a random scale (field widths from `min_field_mm` to
+    /// `max_field_mm`) and a random offset (up to half the field).
+    Usaf {
+        min_field_mm: f64,
+        max_field_mm: f64,
+    },
+    /// The modified Shepp–Logan phantom.
+    Phantom,
+    /// 1 to `max_count` random rectangles of random transmittance on black.
+    Rectangles { max_count: usize },
+}
+
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct AcquisitionSpec {
+    pub schemes: Vec<Scheme>,
+    pub ratios: Vec<f64>,
+}
+
+#[derive(Debug, Clone, Default, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct WriteSpec {
+    /// Also write the packed base patterns (once per dataset).
+    #[serde(default)]
+    pub patterns: bool,
+}
+
+/// Objects, validated and loaded.
+#[derive(Debug, Clone)]
+pub enum ObjectSource {
+    /// Images in [0, 1] with the rule that fits them to the grid.
+    Images {
+        names: Vec<String>,
+        images: Vec<Raster>,
+        rule: FitRule,
+    },
+    Usaf {
+        min_field_mm: f64,
+        max_field_mm: f64,
+    },
+    Phantom,
+    Rectangles {
+        max_count: usize,
+    },
+}
+
+/// A validated dataset spec.
+#[derive(Debug, Clone)]
+pub struct DatasetSpec {
+    pub file: DatasetFile,
+    pub path: PathBuf,
+    /// The spec's text (hashed and copied into the manifest).
+    pub text: String,
+    pub bench_path: PathBuf,
+    pub objects: ObjectSource,
+}
+
+/// The 1-based line and column of the first `field:` in `text`, for errors found after parsing.
+fn locate(text: &str, field: &str) -> Option<(usize, usize)> {
+    let key = format!("{field}:");
+    text.lines().enumerate().find_map(|(i, l)| {
+        l.find(&key).and_then(|c| {
+            let before = &l[..c];
+            let ok = before
+                .chars()
+                .last()
+                .is_none_or(|ch| !ch.is_alphanumeric() && ch != '_');
+            ok.then_some((i + 1, c + 1))
+        })
+    })
+}
+
+/// Reads and validates a dataset spec; images are loaded (and checked against the grid) here.
+/// `bytes_per_sample` gives the disk a sample needs, to check `max_disk_gb` (the caller knows
+/// the acquisition; pass 0 to skip).
+pub fn read_dataset(path: &Path) -> Result<DatasetSpec> {
+    let text = crate::scene::read_text(path)?;
+    parse_dataset(&text, path)
+}
+
+pub fn parse_dataset(text: &str, path: &Path) -> Result<DatasetSpec> {
+    let file: DatasetFile = crate::scene::parse_ron(text, path)?;
+    let err = |field: &str, msg: String| {
+        let mut e = Error::field(field, msg).in_file(path);
+        if let Some((l, c)) = locate(text, field) {
+            e = e.at_line(l, c);
+        }
+        e
+    };
+    let base = path.parent().unwrap_or(Path::new("."));
+    if file.samples == 0 {
+        return Err(err("samples", "a dataset needs at least one sample".into()));
+    }
+    if file.shard_samples == 0 {
+        return Err(err(
+            "shard_samples",
+            "a shard needs at least one sample".into(),
+        ));
+    }
+    if file.samples > 1_000_000_000 {
+        return Err(err("samples", "more than 10⁹ samples is absurd".into()));
+    }
+    if let BenchesSpec::Tolerance { .. } = file.benches {
+        return Err(err(
+            "benches",
+            "benches drawn from a tolerance file are not supported yet: use Nominal".into(),
+        ));
+    }
+    let k = &file.kernel;
+    if k.rays == 0 || k.rays > MAX_KERNEL_RAYS {
+        return Err(err(
+            "rays",
+            format!("the kernel trace needs 1 to {MAX_KERNEL_RAYS} rays"),
+        ));
+    }
+    let (gw, gh) = k.grid_px;
+    if gw == 0 || gh == 0 || gw > MAX_GRID_SIDE || gh > MAX_GRID_SIDE {
+        return Err(err(
+            "grid_px",
+            format!("the object grid needs 1 to {MAX_GRID_SIDE} pixels a side, got {gw}×{gh}"),
+        ));
+    }
+    let (fw, fh) = k.field_mm;
+    if !(fw.is_finite() && fh.is_finite() && fw > 0.0 && fh > 0.0 && fw <= 1000.0 && fh <= 1000.0) {
+        return Err(err(
+            "field_mm",
+            "the field needs a positive size of at most 1000 mm".into(),
+        ));
+    }
+    if let Some(a) = &file.acquisition {
+        if a.schemes.is_empty() {
+            return Err(err("schemes", "name at least one scheme".into()));
+        }
+        if a.ratios.is_empty() || a.ratios.iter().any(|r| !(*r > 0.0 && *r <= 1.0)) {
+            return Err(err(
+                "ratios",
+                "sampling ratios must be in (0, 1], at least one".into(),
+            ));
+        }
+    }
+    if let Some(gb) = file.max_disk_gb
+        && !(gb.is_finite() && gb > 0.0)
+    {
+        return Err(err("max_disk_gb", "must be a positive number of GB".into()));
+    }
+    let fit = |img: &Raster, name: &str, rule: FitRule| -> Result<()> {
+        if rule == FitRule::RandomCrop && (img.width < gw || img.height < gh) {
+            return Err(err(
+                "objects",
+                format!(
+                    "image {name} ({}×{}) is smaller than the {gw}×{gh} object grid: a random \
+                     crop needs a larger image (or use rule: Resize)",
+                    img.width, img.height
+                ),
+            ));
+        }
+        Ok(())
+    };
+    let objects = match &file.objects {
+        ObjectsSpec::Folder { path: folder, rule } => {
+            let dir = base.join(folder);
+            let entries = std::fs::read_dir(&dir).map_err(|e| {
+                err(
+                    "objects",
+                    format!("cannot read the image folder {}: {e}", dir.display()),
+                )
+            })?;
+            let mut files: Vec<PathBuf> = entries
+                .flatten()
+                .map(|e| e.path())
+                .filter(|p| {
+                    p.extension()
+                        .and_then(|x| x.to_str())
+                        .is_some_and(|x| matches!(x.to_ascii_lowercase().as_str(), "png" | "exr"))
+                })
+                .collect();
+            files.sort();
+            if files.is_empty() {
+                return Err(err(
+                    "objects",
+                    format!(
+                        "the image folder {} holds no PNG or EXR image",
+                        dir.display()
+                    ),
+                ));
+            }
+            let mut names = Vec::new();
+            let mut images = Vec::new();
+            for f in &files {
+                let name = f.file_name().map(|n| n.to_string_lossy().to_string());
+                let name = name.unwrap_or_default();
+                let img = crate::objects::image_file::load_gray(f).map_err(|e| {
+                    err("objects", format!("unreadable image {}: {e}", f.display()))
+                })?;
+                fit(&img, &name, *rule)?;
+                names.push(name);
+                images.push(img.map(|v| v / 255.0));
+            }
+            ObjectSource::Images {
+                names,
+                images,
+                rule: *rule,
+            }
+        }
+        ObjectsSpec::TestImages { names, rule } => {
+            if names.is_empty() {
+                return Err(err("names", "name at least one test image".into()));
+            }
+            let mut images = Vec::new();
+            for n in names {
+                let bytes =
+                    crate::objects::test_image(n).map_err(|e| err("names", e.to_string()))?;
+                let img = crate::objects::image_file::decode_gray(bytes)
+                    .map_err(|e| err("names", e.to_string()))?;
+                fit(&img, n, *rule)?;
+                images.push(img.map(|v| v / 255.0));
+            }
+            ObjectSource::Images {
+                names: names.clone(),
+                images,
+                rule: *rule,
+            }
+        }
+        ObjectsSpec::Usaf {
+            min_field_mm,
+            max_field_mm,
+        } => {
+            if !(*min_field_mm > 0.0 && max_field_mm >= min_field_mm && *max_field_mm <= 100.0) {
+                return Err(err(
+                    "min_field_mm",
+                    "USAF fields need 0 < min_field_mm ≤ max_field_mm ≤ 100".into(),
+                ));
+            }
+            ObjectSource::Usaf {
+                min_field_mm: *min_field_mm,
+                max_field_mm: *max_field_mm,
+            }
+        }
+        ObjectsSpec::Phantom => ObjectSource::Phantom,
+        ObjectsSpec::Rectangles { max_count } => {
+            if *max_count == 0 || *max_count > 1000 {
+                return Err(err("max_count", "between 1 and 1000 rectangles".into()));
+            }
+            ObjectSource::Rectangles {
+                max_count: *max_count,
+            }
+        }
+    };
+    Ok(DatasetSpec {
+        bench_path: base.join(&file.bench),
+        file,
+        path: path.to_path_buf(),
+        text: text.to_string(),
+        objects,
+    })
+}
+
+impl DatasetSpec {
+    /// An input error located at `field` of the spec.
+    pub fn error(&self, field: &str, message: impl Into<String>) -> Error {
+        let mut e = Error::field(field, message).in_file(&self.path);
+        if let Some((l, c)) = locate(&self.text, field) {
+            e = e.at_line(l, c);
+        }
+        e
+    }
+}

@@ -1,0 +1,293 @@
+//! `spibench dataset`: shards made in separate processes merge into the single-process dataset
+//! bit for bit, a killed run resumes to the same samples, merges refuse overlaps and gaps,
+//! corrupted shards are found, and bad specs are located input errors.
+
+use std::path::{Path, PathBuf};
+
+use crate::common::{TempDir, assert_input_error, read_json, spibench, stderr};
+
+/// A tiny spec (a kernel of 8192 rays, 24×24 objects, 10 samples in shards of 3) in `dir`.
+fn write_spec(dir: &Path, edits: &[(&str, &str)]) -> PathBuf {
+    let bench = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/paper_bench.ron");
+    let mut text = format!(
+        "Dataset(\n    bench: {:?},\n    kernel: (rays: 8192, seed: 1, grid_px: (24, 24), field_mm: (7.88, 7.88)),\n    objects: TestImages(names: [\"astronaut\", \"coffee\"], rule: RandomCrop),\n    acquisition: (schemes: [SecondaryComplementaryBalancing, DoubleArm], ratios: [0.05]),\n    seed: 7,\n    samples: 10,\n    shard_samples: 3,\n)\n",
+        bench.display().to_string()
+    );
+    for (a, b) in edits {
+        assert_eq!(text.matches(a).count(), 1, "edit {a}");
+        text = text.replace(a, b);
+    }
+    let p = dir.join("spec.ron");
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+fn ok(o: &std::process::Output) {
+    assert!(o.status.success(), "spibench failed: {}", stderr(o));
+}
+
+/// Every shard file of a dataset folder, by relative path.
+fn shard_files(dir: &Path) -> Vec<(String, Vec<u8>)> {
+    let mut v = Vec::new();
+    for e in std::fs::read_dir(dir).unwrap().flatten() {
+        let name = e.file_name().to_string_lossy().to_string();
+        if name.starts_with("shard_") {
+            for f in std::fs::read_dir(e.path()).unwrap().flatten() {
+                v.push((
+                    format!("{name}/{}", f.file_name().to_string_lossy()),
+                    std::fs::read(f.path()).unwrap(),
+                ));
+            }
+        }
+    }
+    v.sort();
+    v
+}
+
+#[test]
+fn shards_in_separate_processes_merge_bit_identically() {
+    let t = TempDir::new("dataset-shards");
+    let spec = write_spec(&t.0, &[]);
+    let s = spec.to_str().unwrap();
+    let one = t.join("one");
+    ok(&spibench(
+        &["dataset", s, "--out", one.to_str().unwrap()],
+        &[],
+    ));
+    let jobs: Vec<PathBuf> = (0..3).map(|i| t.join(&format!("job{i}"))).collect();
+    let children: Vec<_> = jobs
+        .iter()
+        .enumerate()
+        .map(|(i, d)| {
+            std::process::Command::new(env!("CARGO_BIN_EXE_spibench"))
+                .args(["dataset", s, "--out", d.to_str().unwrap(), "--shard"])
+                .arg(format!("{i}/3"))
+                .output()
+        })
+        .collect();
+    for c in children {
+        ok(&c.unwrap());
+    }
+    let merged = t.join("merged");
+    let mut args = vec!["dataset", "--out", merged.to_str().unwrap(), "--merge"];
+    args.extend(jobs.iter().map(|j| j.to_str().unwrap()));
+    ok(&spibench(&args, &[]));
+    let a = shard_files(&one);
+    assert_eq!(a.len(), 4 * 6, "4 shards of 6 arrays");
+    assert_eq!(a, shard_files(&merged));
+    // The manifest's schema matches the arrays: names, dtype, shapes (read with spibench's reader).
+    let m = read_json(&merged.join("manifest.json"));
+    for shard in m["shards"].as_array().unwrap() {
+        let n = shard["samples"].as_u64().unwrap() as usize;
+        for a in m["schema"].as_array().unwrap() {
+            let p = merged
+                .join(shard["dir"].as_str().unwrap())
+                .join(format!("{}.npy", a["name"].as_str().unwrap()));
+            let arr = spibench::report::npy::read(&p).unwrap();
+            let mut shape = vec![n];
+            shape.extend(
+                a["sample_shape"]
+                    .as_array()
+                    .unwrap()
+                    .iter()
+                    .map(|v| v.as_u64().unwrap() as usize),
+            );
+            assert_eq!(arr.shape, shape, "{}", p.display());
+            assert_eq!(arr.dtype(), a["dtype"].as_str().unwrap());
+        }
+    }
+    // Overlap: job 0 twice.
+    let bad = t.join("bad");
+    let o = spibench(
+        &[
+            "dataset",
+            "--out",
+            bad.to_str().unwrap(),
+            "--merge",
+            jobs[0].to_str().unwrap(),
+            jobs[0].to_str().unwrap(),
+            jobs[1].to_str().unwrap(),
+            jobs[2].to_str().unwrap(),
+        ],
+        &[],
+    );
+    assert_input_error(&o, &["shard 0", "in both"], &bad);
+    // Gap: job 1 missing.
+    let o = spibench(
+        &[
+            "dataset",
+            "--out",
+            bad.to_str().unwrap(),
+            "--merge",
+            jobs[0].to_str().unwrap(),
+            jobs[2].to_str().unwrap(),
+        ],
+        &[],
+    );
+    assert_input_error(&o, &["missing"], &bad);
+    // A flipped byte in a shard: merge and resume both find it.
+    let victim = jobs[2].join("shard_000003/object.npy");
+    let mut bytes = std::fs::read(&victim).unwrap();
+    let k = bytes.len() - 5;
+    bytes[k] ^= 0x10;
+    std::fs::write(&victim, bytes).unwrap();
+    let mut args = vec!["dataset", "--out", bad.to_str().unwrap(), "--merge"];
+    args.extend(jobs.iter().map(|j| j.to_str().unwrap()));
+    assert_input_error(&spibench(&args, &[]), &["corrupted", "object.npy"], &bad);
+    let o = spibench(
+        &[
+            "dataset",
+            s,
+            "--out",
+            jobs[2].to_str().unwrap(),
+            "--shard",
+            "2/3",
+            "--resume",
+        ],
+        &[],
+    );
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("corrupted"), "{}", stderr(&o));
+}
+
+#[cfg(unix)]
+#[test]
+fn killed_run_resumes_to_the_same_samples() {
+    let t = TempDir::new("dataset-resume");
+    let spec = write_spec(&t.0, &[("samples: 10", "samples: 30")]);
+    let s = spec.to_str().unwrap();
+    let one = t.join("one");
+    ok(&spibench(
+        &["dataset", s, "--out", one.to_str().unwrap()],
+        &[],
+    ));
+    let killed = t.join("killed");
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_spibench"))
+        .args(["dataset", s, "--out", killed.to_str().unwrap()])
+        .stderr(std::process::Stdio::null())
+        .stdout(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    // Wait until at least one shard is committed (or the run ends), then SIGKILL.
+    let manifest = killed.join("manifest.json");
+    for _ in 0..6000 {
+        if let Ok(text) = std::fs::read_to_string(&manifest)
+            && text.contains("\"shard_000000\"")
+        {
+            break;
+        }
+        if child.try_wait().unwrap().is_some() {
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    }
+    let _ = child.kill();
+    let _ = child.wait();
+    ok(&spibench(
+        &["dataset", s, "--out", killed.to_str().unwrap(), "--resume"],
+        &[],
+    ));
+    assert_eq!(shard_files(&one), shard_files(&killed));
+    let names: Vec<String> = std::fs::read_dir(&killed)
+        .unwrap()
+        .flatten()
+        .map(|e| e.file_name().to_string_lossy().to_string())
+        .collect();
+    assert!(names.iter().all(|n| !n.contains("partial")), "{names:?}");
+}
+
+#[test]
+fn bad_specs_are_located_input_errors() {
+    let t = TempDir::new("dataset-bad");
+    let out = t.join("out");
+    let o = out.to_str().unwrap();
+    let empty = t.join("empty");
+    std::fs::create_dir_all(&empty).unwrap();
+    let junk = t.join("junk");
+    std::fs::create_dir_all(&junk).unwrap();
+    std::fs::write(junk.join("broken.png"), b"\x89PNG\r\n\x1a\nnot really").unwrap();
+    let small = t.join("small");
+    std::fs::create_dir_all(&small).unwrap();
+    let tiny = spibench::raster::Raster::new(8, 8, vec![0.5; 64]).unwrap();
+    spibench::report::png::write_gray8(&small.join("tiny.png"), &tiny, 0.0, 1.0).unwrap();
+    let folder = |p: &Path| {
+        format!(
+            "objects: Folder(path: {:?}, rule: RandomCrop),",
+            p.display().to_string()
+        )
+    };
+    let cases: Vec<(String, Vec<&str>)> = vec![
+        (folder(&empty), vec!["no PNG", "objects"]),
+        (folder(&junk), vec!["unreadable image", "broken.png"]),
+        (folder(&small), vec!["smaller than", "tiny.png"]),
+        (
+            "samples: 0,".into(),
+            vec!["samples", "at least one", "line 7"],
+        ),
+        ("samples: 900000000,".into(), vec!["GB", "max_disk_gb"]),
+    ];
+    for (k, (replacement, fragments)) in cases.iter().enumerate() {
+        let from = if replacement.starts_with("objects") {
+            "objects: TestImages(names: [\"astronaut\", \"coffee\"], rule: RandomCrop),"
+        } else {
+            "samples: 10,"
+        };
+        let dir = t.join(&format!("case{k}"));
+        std::fs::create_dir_all(&dir).unwrap();
+        let spec = write_spec(&dir, &[(from, replacement.as_str())]);
+        let r = spibench(&["dataset", spec.to_str().unwrap(), "--out", o], &[]);
+        assert_input_error(&r, fragments, &out);
+        assert!(stderr(&r).contains("spec.ron"), "{}", stderr(&r));
+    }
+}
+
+/// `spibench patterns`: packed rows as numpy.packbits gives them, and 1-bit PNG frames at the
+/// DMD's mirror resolution with each unit expanded to its mirrors (pattern centred).
+#[test]
+fn patterns_exports_packed_rows_and_mirror_frames() {
+    let t = TempDir::new("patterns");
+    let out = t.join("p");
+    ok(&spibench(
+        &[
+            "patterns",
+            "--family",
+            "hadamard",
+            "--ordering",
+            "natural",
+            "--units",
+            "4x4",
+            "--ratio",
+            "0.5",
+            "--complement",
+            "--mirrors-per-unit",
+            "2",
+            "--dmd",
+            "12x10",
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        &[],
+    ));
+    let p = spibench::report::npy::read(&out.join("patterns.npy")).unwrap();
+    assert_eq!(p.shape, vec![16, 2]);
+    let bytes = match p.data {
+        spibench::report::npy::NpyData::U8(b) => b,
+        other => panic!("{other:?}"),
+    };
+    // Natural Hadamard row 0 is all ones; its complement all zeros.
+    assert_eq!(&bytes[..4], &[0xFF, 0xFF, 0x00, 0x00]);
+    let frame = |k: usize| {
+        image::open(out.join(format!("frame_{k:05}.png")))
+            .unwrap()
+            .to_luma8()
+    };
+    let (f0, f1) = (frame(0), frame(1));
+    assert_eq!(f0.dimensions(), (12, 10));
+    // The 8 x 8 mirrors of the pattern sit at (2..10, 1..9): on in frame 0, off in frame 1.
+    assert_eq!(f0.get_pixel(2, 1).0[0], 255);
+    assert_eq!(f0.get_pixel(9, 8).0[0], 255);
+    assert_eq!(f0.get_pixel(1, 1).0[0], 0);
+    assert_eq!(f0.get_pixel(2, 9).0[0], 0);
+    assert_eq!(f1.get_pixel(5, 5).0[0], 0);
+    assert_eq!(std::fs::read_dir(&out).unwrap().count(), 17);
+}
