@@ -12,7 +12,7 @@ use std::path::Path;
 use std::time::Instant;
 
 use spibench::dataset::{Prepared, generate, shard_range};
-use spibench::scene::bench::{ChartPatternSpec, ElementSpec, Positive, SpectrumSpec};
+use spibench::scene::bench::{ChartPatternSpec, ElementSpec, LengthMm, SpectrumSpec};
 use spibench::scene::dataset::parse_dataset;
 use spibench::scene::doc::BenchDoc;
 use spibench::trace::{TraceOptions, trace};
@@ -82,8 +82,8 @@ fn main() {
             {
                 *pattern = ChartPatternSpec::Image {
                     path: png.display().to_string(),
-                    width_mm: Positive(7.88),
-                    height_mm: Positive(7.88),
+                    width_mm: LengthMm(7.88),
+                    height_mm: LengthMm(7.88),
                 };
                 *center_on = None;
                 *chrome_od = SpectrumSpec::Constant(10.0);
