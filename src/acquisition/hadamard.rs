@@ -5,18 +5,18 @@
 //! An s×s pattern set (s = 2^m) uses the rows of the Sylvester matrix H_N of order N = s²,
 //! `H[h][c] = (−1)^popcount(h & c)`. Natural row h = i·s + j, reshaped row-major to s×s, is the
 //! outer product of the 1-D rows H_s[i] (down the image) and H_s[j] (across it)
-//! (bench-facts §10.1). A DMD shows the 0/1 pattern P⁺ = (1 + H)/2 (mirror ON where H = +1) and
+//! (docs/bench-facts.md §10.1). A DMD shows the 0/1 pattern P⁺ = (1 + H)/2 (mirror ON where H = +1) and
 //! the other arm sees its complement P⁻ = (1 − H)/2 = 1 − P⁺ at the same instant.
 //!
 //! Only powers of two have a Sylvester basis. In particular the paper's experimental sizes 48×48
 //! and 96×96 have none (48 and 96 are not powers of two; MATLAB `hadamard` refuses them too,
-//! bench-facts §0.2), so those sizes need random patterns.
+//! docs/bench-facts.md §0.2), so those sizes need random patterns.
 //!
 //! # Orderings
 //!
 //! Every ordering is a permutation of the natural indices 0..s², returned in measurement order by
 //! [`hadamard_order`]. With sequency seq(r) = number of sign changes of 1-D row r, the natural
-//! row of sequency k is bitrev(gray(k)) with gray(k) = k ⊕ (k >> 1) (bench-facts §10.2; the
+//! row of sequency k is bitrev(gray(k)) with gray(k) = k ⊕ (k >> 1) (docs/bench-facts.md §10.2; the
 //! gray-*decode* mapping used by some public code is wrong for n ≥ 8).
 //!
 //! - [`HadamardOrdering::Natural`]: Sylvester order.
@@ -32,12 +32,12 @@
 //! - [`HadamardOrdering::RussianDolls`] (Sun et al., Sci. Rep. 7:3464, 2017): doll k is the set
 //!   of 2-D sequency pairs with max(u, v) < 2^k, the 4^k patterns that are constant on dyadic
 //!   blocks of s/2^k × s/2^k units, so the first 4^k measurements are a complete basis of a
-//!   2^k × 2^k image (bench-facts §10.3). **Within a doll the order is this project's choice**,
+//!   2^k × 2^k image (docs/bench-facts.md §10.3). **Within a doll the order is this project's choice**,
 //!   because the paper's is not confirmed: patterns are sorted by (max(u, v), u + v, u), i.e.
 //!   coarsest first, then by total sequency, then by vertical sequency.
 //! - [`HadamardOrdering::CakeCutting`] (W.-K. Yu, Sensors 19:4122, 2019): ascending number of
 //!   4-connected same-sign regions ("pieces") of the reshaped pattern, with a **stable** sort so
-//!   that ties keep natural order (as MATLAB's stable `sort` does; bench-facts §10.4). Because
+//!   that ties keep natural order (as MATLAB's stable `sort` does; docs/bench-facts.md §10.4). Because
 //!   neighbouring blocks of an outer-product ±1 pattern always differ in sign, the piece count
 //!   has the closed form (seq(i) + 1)·(seq(j) + 1), which the tests check against a flood fill.
 //!
@@ -314,7 +314,7 @@ mod tests {
 
     #[test]
     fn one_d_sequency_mapping_counts_sign_changes() {
-        // The published sequencies of natural H16 rows (bench-facts §10.2).
+        // The published sequencies of natural H16 rows (docs/bench-facts.md §10.2).
         let h16: Vec<usize> = (0..16).map(|h| natural_to_sequency(h, 4)).collect();
         assert_eq!(h16, [0, 15, 7, 8, 3, 12, 4, 11, 1, 14, 6, 9, 2, 13, 5, 10]);
         for bits in 1..=7 {

@@ -78,7 +78,7 @@ use crate::error::{Error, Result};
 use crate::reconstruction::{LinearOperator, PatternForm, ZeroOneHandling};
 
 /// The DMD pattern rate used for acquisition times unless told otherwise: one global reset per
-/// 44 µs (DLP7000 through a ViALUX controller; the paper's "up to 22 kHz"; bench-facts §0.6).
+/// 44 µs (DLP7000 through a ViALUX controller; the paper's "up to 22 kHz"; docs/bench-facts.md §0.6).
 pub const DEFAULT_DMD_RATE_HZ: f64 = 22_727.0;
 
 /// Pairs of all-on / all-off calibration frames the calibrated double-arm scheme shows before

@@ -1,6 +1,6 @@
-//! The balanced amplified photodetector (Thorlabs PDB210A/M class, bench-facts §1.1).
+//! The balanced amplified photodetector (Thorlabs PDB210A/M class, docs/bench-facts.md §1.1).
 //!
-//! Two silicon diodes feed three outputs (Thorlabs PDB2xx manual, bench-facts §1.1, H):
+//! Two silicon diodes feed three outputs (Thorlabs PDB2xx manual, docs/bench-facts.md §1.1, H):
 //!
 //! ```text
 //! RF OUTPUT:  V_rf = G_rf·(I₊ − I₋) + V₀,rf     clipped at ±swing_rf
@@ -127,7 +127,7 @@ impl Bap {
 
     /// Common-mode rejection of the RF output from the diodes' flat mismatch alone,
     /// 20·log₁₀(s̄ / |s₊ − s₋|) dB (∞ for identical diodes): the response to one input divided
-    /// by the response to equal inputs on both (Thorlabs' definition, bench-facts §1.2).
+    /// by the response to equal inputs on both (Thorlabs' definition, docs/bench-facts.md §1.2).
     pub fn cmrr_db(&self) -> f64 {
         let [a, b] = self.responsivity_scale;
         20.0 * (0.5 * (a + b) / (a - b).abs()).log10()
@@ -211,7 +211,7 @@ pub(crate) mod tests {
         let b = bap();
         // 0.985 / 0.03 = 32.83 → 30.33 dB.
         assert!((b.cmrr_db() - 20.0 * (0.985f64 / 0.03).log10()).abs() < 1e-12);
-        // 10 V / (350 kV/A · 0.62 A/W) = 46.1 µW (bench-facts §1.1's estimate).
+        // 10 V / (350 kV/A · 0.62 A/W) = 46.1 µW (docs/bench-facts.md §1.1's estimate).
         assert!((b.rf_saturation_power_w(0.62) - 46.08e-6).abs() < 0.01e-6);
         let mut same = b.clone();
         same.responsivity_scale = [1.0, 1.0];
@@ -221,7 +221,7 @@ pub(crate) mod tests {
     #[test]
     fn noise_matches_the_bench_facts_estimate() {
         // Dark inputs: the RF output noise is G·i_n·√(πB/2) = 350e3 · 2.3e-12 · √(1.571e6)
-        // = 1.009 mV rms, the "~1 mV rms" of bench-facts §1.1.
+        // = 1.009 mV rms, the "~1 mV rms" of docs/bench-facts.md §1.1.
         let mut b = bap();
         b.shot_noise = false;
         let n = b.output_noise_v_rms([0.0, 0.0]);

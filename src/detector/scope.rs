@@ -1,8 +1,8 @@
-//! The oscilloscope (Tektronix MSO64 class, bench-facts §8): per channel a vertical range of
+//! The oscilloscope (Tektronix MSO64 class, docs/bench-facts.md §8): per channel a vertical range of
 //! 10 divisions centred on an offset, input noise, and an ADC of `bits` over the range.
 //!
 //! Input noise at full bandwidth is max(floor, fraction·V/div) (rms); in High Res mode the
-//! record is a boxcar-decimated stream whose noise bandwidth is 0.44 × the sample rate (bench-facts
+//! record is a boxcar-decimated stream whose noise bandwidth is 0.44 × the sample rate (docs/bench-facts.md
 //! §8, Tektronix FAQ), so the noise shrinks by √(0.44·fs / analog bandwidth). A sample outside
 //! the 10 divisions is over range: the ADC returns its end code and the sample is flagged.
 
@@ -55,7 +55,7 @@ pub const DIVISIONS: f64 = 10.0;
 /// Divisions the automatic range fills with the noise-free signal, leaving room for noise.
 pub const AUTO_FILL_DIVISIONS: f64 = 8.0;
 /// The smallest and largest volts/division of the instrument (1 mV/div at 50 Ω to 10 V/div at
-/// 1 MΩ, bench-facts §8, M/L).
+/// 1 MΩ, docs/bench-facts.md §8, M/L).
 pub const VOLTS_PER_DIV_RANGE: (f64, f64) = (1e-3, 10.0);
 
 /// The smallest 1-2-5 volts/division (within [`VOLTS_PER_DIV_RANGE`]) that holds [lo, hi] in

@@ -26,7 +26,7 @@
 //! [`crate::optics::monochromatic::monochromatic`] first; [`export_mitsuba`] refuses anything
 //! else with a message that names the element.
 //!
-//! Geometry (mitsuba-notes.md): scene units are millimetres (Mitsuba offsets every spawned ray by
+//! Geometry (docs/mitsuba.md): scene units are millimetres (Mitsuba offsets every spawned ray by
 //! about (1 + max|p|)·8.9e-5 scene units, 0.09 µm near the DMD at the origin); spherical caps are
 //! meshes of [`CAP_RINGS`] rings × [`SEGMENTS`] segments with exact vertex normals (chord sag
 //! error below 0.5 µm for the benches here), circles are polygons of [`SEGMENTS`] sides whose

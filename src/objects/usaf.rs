@@ -9,13 +9,13 @@
 //! Element `e` (1..=6) of group `g` has the spatial frequency R(g, e) = 2^(g + (e − 1)/6)
 //! line pairs per millimetre. Its bars are w = 1/(2R) mm wide, separated by spaces of the same
 //! width, and 5w long; an element is a triplet of horizontal bars (long in x) next to a triplet
-//! of vertical bars (long in y). Source: MIL-STD-150A §5.1.1.7 as quoted in bench-facts §5.1.
+//! of vertical bars (long in y). Source: MIL-STD-150A §5.1.1.7 as quoted in docs/bench-facts.md §5.1.
 //!
 //! # Layout
 //!
 //! MIL-STD-150A fixes the bars but not the exact coordinates of the elements on the plate, so
 //! the layout follows R. Caspary's parametric chart generator (`chart()`, MIT licence, 2024),
-//! re-implemented here from its description in bench-facts §5.1 (no code copied). In the
+//! re-implemented here from its description in docs/bench-facts.md §5.1 (no code copied). In the
 //! "period units" of a layer (one unit = the period 2^(−g) mm of element 1 of the layer's even
 //! group g, u to the right, v downwards from the layer's top-left corner):
 //!

@@ -1024,7 +1024,7 @@ mod tests {
             assert!((z0 - bfl).abs() < 1e-9, "traced {z0} vs paraxial BFL {bfl}");
             // Spherical aberration pulls marginal rays toward the lens (slope < 0).
             assert!(slope < 0.0);
-            // bench-facts §7.2 lists different "back focal lengths" (89.05 and 44.20 mm) that
+            // docs/bench-facts.md §7.2 lists different "back focal lengths" (89.05 and 44.20 mm) that
             // match neither f − t/n (93.26 and 46.31 mm) nor f − t; reported, not asserted.
             let _ = bench_facts_bfl;
         }

@@ -6,10 +6,10 @@
 //!
 //! Each mirror is a square of side `side` = pitch·√fill centred on its cell, with edges along x
 //! and y when flat, rotated by ±tilt about the hinge axis (the mirror diagonal by default,
-//! bench-facts §2.1). A ray reaching the array is tested against the facets of the 3×3 cells
+//! docs/bench-facts.md §2.1). A ray reaching the array is tested against the facets of the 3×3 cells
 //! around where it enters and leaves the slab |z| ≤ h (h = highest corner of a tilted mirror);
 //! the tilted corners move by at most h·tan θ ≪ pitch sideways for incidence angles θ below ~70°,
-//! which covers every ray of the bench (rust-notes §4: this analytic grid agrees with a triangle
+//! which covers every ray of the bench (docs/rust-notes.md §4: this analytic grid agrees with a triangle
 //! BVH of the mirrors on 99.985 % of rays, the rest within f32 rounding of an edge).
 
 use glam::{DMat3, DVec3};
@@ -17,7 +17,7 @@ use glam::{DMat3, DVec3};
 use super::spectrum::Spectrum;
 
 /// A mirror's state. Powered mirrors are only ever at ±tilt; `Flat` is the unpowered (parked)
-/// position (bench-facts §2.1).
+/// position (docs/bench-facts.md §2.1).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum MirrorState {
     Plus,
@@ -331,7 +331,7 @@ mod tests {
 
     #[test]
     fn normal_incidence_leaves_at_24_degrees_in_the_45_degree_plane() {
-        // bench-facts §2.3: r = (±sin 2θ/√2, ∓sin 2θ/√2, cos 2θ) = (±0.2876, ∓0.2876, 0.9135).
+        // docs/bench-facts.md §2.3: r = (±sin 2θ/√2, ∓sin 2θ/√2, cos 2θ) = (±0.2876, ∓0.2876, 0.9135).
         let dmd = dlp7000();
         let mut rng = crate::rng::stream(3, 0);
         for (state, sign) in [(MirrorState::Plus, 1.0), (MirrorState::Minus, -1.0)] {

@@ -13,7 +13,7 @@ pub enum Glass {
 /// bench by the same tiny amount and no result here depends on it at that level.
 pub const AIR: Glass = Glass::Constant(1.0);
 
-/// Schott N-BK7 (Schott optical glass catalogue; bench-facts §7.1).
+/// Schott N-BK7 (Schott optical glass catalogue; docs/bench-facts.md §7.1).
 pub const N_BK7: Glass = Glass::Sellmeier {
     b: [1.039_612_12, 0.231_792_344, 1.010_469_45],
     c_um2: [0.006_000_698_67, 0.020_017_914_4, 103.560_653],
@@ -92,7 +92,7 @@ mod tests {
 
     #[test]
     fn catalogue_check_values() {
-        // bench-facts §7.1 N-BK7 check values, quoted to 3 decimals (1.5308 appears as 1.530, so
+        // docs/bench-facts.md §7.1 N-BK7 check values, quoted to 3 decimals (1.5308 appears as 1.530, so
         // some are truncated rather than rounded): allow one unit of the last decimal.
         for (nm, n) in [
             (400.0, 1.530),

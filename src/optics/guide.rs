@@ -32,7 +32,7 @@ use super::fresnel::{reflect, refract};
 use super::lamp::{EmitterShape, pick};
 
 /// Wavelength bands of the proxy map. Dispersion moves the collimated beam's scale by ~3 % over
-/// 350–1150 nm in N-BK7 (bench-facts §3.4); 16 bands leave ≤ 0.2 % per band, a few µm at the
+/// 350–1150 nm in N-BK7 (docs/bench-facts.md §3.4); 16 bands leave ≤ 0.2 % per band, a few µm at the
 /// field's edge.
 pub const WAVELENGTH_NODES: usize = 16;
 

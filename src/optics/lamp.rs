@@ -62,7 +62,7 @@ impl EmitterShape {
 /// The relative spectral shape of the emitted power (arbitrary units; only the shape matters).
 #[derive(Debug, Clone, PartialEq)]
 pub enum LampSpectrum {
-    /// Planck × tungsten emissivity (Larrabee fit, bench-facts §3.2).
+    /// Planck × tungsten emissivity (Larrabee fit, docs/bench-facts.md §3.2).
     Tungsten { temperature_k: f64 },
     /// Planck × a constant emissivity.
     Graybody { temperature_k: f64, emissivity: f64 },
@@ -556,7 +556,7 @@ mod tests {
             integrate(|l| spec.at(l) * resp.at(l), band.0, band.1, 32_000) / spec.integral(band);
         assert!((m1 / nf - 1.0).abs() < 4.0 * se(m1, q1));
         assert!((m2 / nf - exact_r).abs() < 4.0 * se(m2, q2));
-        // bench-facts §3.4: at 2796 K (pure Planck) 86 % of the photocurrent comes from > 700 nm.
+        // docs/bench-facts.md §3.4: at 2796 K (pure Planck) 86 % of the photocurrent comes from > 700 nm.
         let planck = LampSpectrum::Graybody {
             temperature_k: 2796.0,
             emissivity: 1.0,

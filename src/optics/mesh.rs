@@ -4,7 +4,7 @@
 //! only the hit distance matters: f32 in metres resolves ~0.1 µm at the bench's scale, far
 //! below any mount tolerance. The optical surfaces themselves are analytic f64 (geometry.rs).
 //!
-//! obvhs 0.4 `CwBvh` misses every hit when a direction component is −0.0 (rust-notes §4): every
+//! obvhs 0.4 `CwBvh` misses every hit when a direction component is −0.0 (docs/rust-notes.md §4): every
 //! ray is built by [`bvh_ray`], which adds +0.0 to turn −0.0 into +0.0.
 
 use std::time::Duration;
@@ -40,7 +40,7 @@ impl Clone for Mesh {
 }
 
 /// The one way to make an obvhs ray: `+ Vec3A::ZERO` turns a −0.0 component into +0.0
-/// (the CwBvh −0.0 traversal bug, rust-notes §4).
+/// (the CwBvh −0.0 traversal bug, docs/rust-notes.md §4).
 #[inline]
 pub fn bvh_ray(o: DVec3, d: DVec3, t_max: f64) -> Ray {
     let o = Vec3A::new(o.x as f32, o.y as f32, o.z as f32);
@@ -199,7 +199,7 @@ mod tests {
 
     #[test]
     fn minus_z_direction_hits_plate() {
-        // Regression for the obvhs CwBvh −0.0 bug (rust-notes §4): a ray straight down −Z, whose
+        // Regression for the obvhs CwBvh −0.0 bug (docs/rust-notes.md §4): a ray straight down −Z, whose
         // x and y components are −0.0 after negation, must still hit the plate.
         let frame = Frame::new(DVec3::new(0.0, 0.0, 0.1), DVec3::Z, None);
         let plate = Mesh::plate_with_hole(&frame, 0.05, 0.04, 0.01, 32);

@@ -1,6 +1,6 @@
 //! The monochromatic, constant-index substitute of a bench: the problem that Mitsuba 3 can
 //! represent, traced by spibench as well so that both renderers solve the same problem
-//! (DESIGN.md, Validation; /work/shared/reference/mitsuba-notes.md).
+//! (docs/design.md, Validation; docs/mitsuba.md).
 //!
 //! Mitsuba's `dielectric` takes one number per side (no dispersion, no thin films), its
 //! `conductor` one reflectance, its `mask` one opacity, and a monochromatic render one wavelength.
@@ -290,7 +290,7 @@ mod tests {
                 .iter()
                 .all(|x| matches!(x.glass, Glass::Constant(_)) && x.absorption.is_none())
         );
-        // N-BK7 at 850 nm (bench-facts §3.4: 1.50984).
+        // N-BK7 at 850 nm (docs/bench-facts.md §3.4: 1.50984).
         assert!(m.bench.media().iter().any(|x| match x.glass {
             Glass::Constant(n) => (n - 1.50984).abs() < 1e-5,
             _ => false,

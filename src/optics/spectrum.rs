@@ -152,12 +152,12 @@ pub fn planck_radiance(wavelength_m: f64, temperature_k: f64) -> f64 {
     c1 / wavelength_m.powi(5) / ((c2 / (wavelength_m * temperature_k)).exp_m1())
 }
 
-/// Spectral emissivity of tungsten, Larrabee's empirical fit (JOSA 49:619, 1959; bench-facts
+/// Spectral emissivity of tungsten, Larrabee's empirical fit (JOSA 49:619, 1959; docs/bench-facts.md
 /// §3.2): ε = 0.4655 + 0.01558 λ + 0.2675e-4 T − 0.7305e-4 λ T with λ in µm and T in K.
 ///
 /// The fit covers 0.4–0.8 µm and 1600–2800 K. Outside it is extrapolated linearly, which follows
 /// the measured fall of ε into the near infrared (≈ 0.34 at 0.8–1 µm near the melting point,
-/// bench-facts §3.2) across the traced silicon band; the result is clamped to [0.05, 1] so that a
+/// docs/bench-facts.md §3.2) across the traced silicon band; the result is clamped to [0.05, 1] so that a
 /// far extrapolation can never give a non-physical value.
 pub fn tungsten_emissivity(wavelength_m: f64, temperature_k: f64) -> f64 {
     let l = wavelength_m * 1e6;
@@ -165,7 +165,7 @@ pub fn tungsten_emissivity(wavelength_m: f64, temperature_k: f64) -> f64 {
     (0.4655 + 0.01558 * l + 0.2675e-4 * t - 0.7305e-4 * l * t).clamp(0.05, 1.0)
 }
 
-/// Typical Si-PIN responsivity (A/W) against wavelength (nm): bench-facts §6 (confidence L,
+/// Typical Si-PIN responsivity (A/W) against wavelength (nm): docs/bench-facts.md §6 (confidence L,
 /// a smooth QE model fitted to the FDS100, PDB210A and S1223 anchors).
 pub const SILICON_PIN_RESPONSIVITY: [(f64, f64); 18] = [
     (350.0, 0.085),
@@ -189,7 +189,7 @@ pub const SILICON_PIN_RESPONSIVITY: [(f64, f64); 18] = [
 ];
 
 /// Bare aluminium reflectance at normal incidence against wavelength (nm). Typical values with
-/// the interband dip near 830 nm (bench-facts §2.2 gives ~88–89 % in the visible and ~86–87 %
+/// the interband dip near 830 nm (docs/bench-facts.md §2.2 gives ~88–89 % in the visible and ~86–87 %
 /// at 800–900 nm for DMD mirrors; confidence L). Used for DMD mirrors and aluminium folds.
 pub const ALUMINIUM_REFLECTANCE: [(f64, f64); 12] = [
     (350.0, 0.920),
@@ -222,7 +222,7 @@ pub const PROTECTED_SILVER_REFLECTANCE: [(f64, f64); 8] = [
 
 /// Shape of the optical density of Schott NG absorptive glass relative to its value at 546 nm
 /// (nm → OD/OD₅₄₆). Flat from 450 to 650 nm and falling in the near infrared (~0.85 at 750,
-/// ~0.7 at 850, ~0.6 at 1000 nm), bench-facts §4 (confidence L, read from the general shape of
+/// ~0.7 at 850, ~0.6 at 1000 nm), docs/bench-facts.md §4 (confidence L, read from the general shape of
 /// NG4/NG9 curves); the UV end rises as NG glasses absorb more there, the far end continues the
 /// infrared fall gently.
 pub const NG_GLASS_RELATIVE_OD: [(f64, f64); 11] = [
@@ -241,7 +241,7 @@ pub const NG_GLASS_RELATIVE_OD: [(f64, f64); 11] = [
 
 /// Estimated per-surface reflectance of a DMD window with a visible broadband AR coating
 /// (nm → R at normal incidence): ≤ 0.5 % across 420–680 nm as specified, rising outside the
-/// design band as single- and few-layer visible AR designs do (bench-facts §2.2: "not specified in
+/// design band as single- and few-layer visible AR designs do (docs/bench-facts.md §2.2: "not specified in
 /// the NIR, where reflectance rises"; the NIR values are estimates, confidence L).
 pub const DMD_WINDOW_VIS_AR_REFLECTANCE: [(f64, f64); 10] = [
     (350.0, 0.030),
@@ -273,7 +273,7 @@ mod tests {
 
     #[test]
     fn planck_matches_bench_facts_ratios() {
-        // bench-facts §3.3: B(500 nm)/B(1000 nm) = 0.185 at 2796 K and 0.262 at 3000 K,
+        // docs/bench-facts.md §3.3: B(500 nm)/B(1000 nm) = 0.185 at 2796 K and 0.262 at 3000 K,
         // B(1100)/B(1000) = 0.995 at 2796 K. Three significant figures are quoted.
         let r = |l: f64, t: f64| planck_radiance(l * 1e-9, t) / planck_radiance(1000e-9, t);
         assert!((r(500.0, 2796.0) - 0.185).abs() < 0.0006);
@@ -293,7 +293,7 @@ mod tests {
 
     #[test]
     fn larrabee_fit_matches_tabulated_values() {
-        // bench-facts §3.2 computed values at 2800 K: 0.465 (0.4 µm), 0.427 (0.6), 0.389 (0.8).
+        // docs/bench-facts.md §3.2 computed values at 2800 K: 0.465 (0.4 µm), 0.427 (0.6), 0.389 (0.8).
         assert!((tungsten_emissivity(400e-9, 2800.0) - 0.465).abs() < 6e-4);
         assert!((tungsten_emissivity(600e-9, 2800.0) - 0.427).abs() < 6e-4);
         assert!((tungsten_emissivity(800e-9, 2800.0) - 0.389).abs() < 6e-4);

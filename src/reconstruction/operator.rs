@@ -8,7 +8,7 @@
 //! A product with a 0/1 matrix is a sum of subsets of the input. The "Four Russians" lookup-table
 //! method groups the input in runs of 8 elements and tabulates, per run, all 256 subset sums; one
 //! byte of a pattern row then selects its partial sum with a single load, replacing 8 masked
-//! additions (rust-notes §9 measured 8.3 ms against 33.6 ms for iterating set bits on a
+//! additions (docs/rust-notes.md §9 measured 8.3 ms against 33.6 ms for iterating set bits on a
 //! 4096 × 16384 matrix). The adjoint uses the same kernel on a transposed copy of the bits that is
 //! built once, at construction.
 //!
@@ -345,7 +345,7 @@ impl LinearOperator for PackedOperator {
 /// natural indices, used as `(1 + H)/2` (ZeroOne) or `H` (PlusMinusOne).
 ///
 /// For 2-D patterns on an s×s grid with s a power of two, n = s² and natural row h = i·s + j,
-/// reshaped row-major, is the outer product of 1-D rows i and j (bench-facts §10.1).
+/// reshaped row-major, is the outer product of 1-D rows i and j (docs/bench-facts.md §10.1).
 #[derive(Debug, Clone)]
 pub struct HadamardOperator {
     order: usize,

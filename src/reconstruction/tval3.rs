@@ -2,7 +2,7 @@
 //! beta2.4 (`ftvcs_alp.m`; C. Li, W. Yin, Y. Zhang, "An efficient augmented Lagrangian method with
 //! applications to total variation minimization", Comput. Optim. Appl. 56:507 (2013)).
 //!
-//! The solver reproduces the reference implementation step by step (reference/tval3-algorithm.md):
+//! The solver reproduces the reference implementation step by step (docs/tval3.md):
 //! its pre-processing (A scaled to unit spectral norm, b to a range of 0.5–1.5), which fixes what
 //! `mu` means; the initial guess Aᵀb; one projected gradient step per iteration with
 //! Barzilai–Borwein step lengths and the exact steepest-descent step at the start of every inner
@@ -933,7 +933,7 @@ impl Work {
 /// step, stopped by ARPACK's own convergence test at the same tolerance: the Ritz residual
 /// β_k |s_k| at most 0.05 θ. The Ritz value then lies within a few per cent below λ_max (the
 /// spectrum of a random ±1 matrix has a soft edge, so the last digits converge slowly), which
-/// reference/tval3-algorithm.md accepts ("the result only sets the scale"); ARPACK always builds
+/// docs/tval3.md accepts ("the result only sets the scale"); ARPACK always builds
 /// a 20-vector basis first and so returns a value closer to λ_max at about three times the cost.
 fn largest_eigenvalue(a: &mut Counted<'_>) -> Option<f64> {
     let m = a.op.rows();

@@ -2,7 +2,7 @@
 //! transport maps `k_plus` and `k_minus`), losslessly compressed (ZIP, `SMALL_LOSSLESS`), and
 //! the matching reader. Samples are row-major (`index = y · width + x`); EXR requires channels
 //! sorted by name, so files hold them in that order whatever order the caller gives
-//! (rust-notes §5).
+//! (docs/rust-notes.md §5).
 
 use std::io::Cursor;
 use std::path::Path;

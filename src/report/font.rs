@@ -1,6 +1,6 @@
 //! The one font every figure uses, embedded so that plots and montages render text without any
 //! system font (plotters' `ab_glyph` backend resolves only registered family names; see
-//! rust-notes §7). DejaVu Sans ships under the Bitstream Vera licence, which allows embedding;
+//! docs/rust-notes.md §7). DejaVu Sans ships under the Bitstream Vera licence, which allows embedding;
 //! the licence text sits beside the font file.
 
 use std::sync::OnceLock;

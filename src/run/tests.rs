@@ -1,4 +1,4 @@
-//! Tests of the traced experiment: the balanced-output identities of DESIGN.md on the paper's
+//! Tests of the traced experiment: the balanced-output identities of docs/design.md on the paper's
 //! bench (noise off, exact to rounding), the paper's main claim on the default bench, saturation
 //! reporting and determinism across thread counts.
 
@@ -77,7 +77,7 @@ fn record_ideal(s: &RunScene, t: &Transport, light: &[[f64; 2]]) -> Record {
     )
 }
 
-/// DESIGN.md: B₁ − B₂ = V(P) − V(1 − P) = G·Σ_j (2P_j − 1)(g₊_j + g₋_j), here through the whole
+/// docs/design.md: B₁ − B₂ = V(P) − V(1 − P) = G·Σ_j (2P_j − 1)(g₊_j + g₋_j), here through the whole
 /// time-domain recording with every noise source off. With a responsivity mismatch s₋ on the
 /// minus diode the same holds with s₋·g₋_j.
 #[test]
@@ -116,7 +116,7 @@ fn scb_difference_is_the_balanced_sum_when_noise_is_off() {
     }
 }
 
-/// DESIGN.md: double-arm dual-pixel measures (k'/2)·Âx plus the offset
+/// docs/design.md: double-arm dual-pixel measures (k'/2)·Âx plus the offset
 /// (k₊ − k₋)/2·Σx + b₊ − b₋ (in monitor volts: times the monitor gain). With the transport's
 /// per-unit gains the exact form is G_m·[½Σ_j(2P_j − 1)(g₊_j + g₋_j) + ½Σ_j(g₊_j − g₋_j) + c₊ − c₋],
 /// and ½Σ(g₊ − g₋) = (k₊ − k₋)/2·Σx by the definition k± = Σg± / Σx.

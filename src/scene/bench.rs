@@ -316,18 +316,18 @@ pub enum SpectrumSpec {
     /// (wavelength_nm, value) pairs, strictly increasing in wavelength, interpolated linearly and
     /// held constant beyond the ends.
     Table(TableNm),
-    /// Bare aluminium reflectance (DMD mirrors; bench-facts §2.2, confidence L).
+    /// Bare aluminium reflectance (DMD mirrors; docs/bench-facts.md §2.2, confidence L).
     Aluminium,
     /// Protected-silver mirror reflectance (catalogue fold mirrors; confidence L).
     ProtectedSilver,
-    /// Typical Si-PIN responsivity in A/W (bench-facts §6; confidence L).
+    /// Typical Si-PIN responsivity in A/W (docs/bench-facts.md §6; confidence L).
     SiliconPin,
     /// Optical density of Schott NG absorptive glass with the given OD at 546 nm: the nominal
     /// value times the NG spectral shape (flat 450–650 nm, falling to ~0.6× at 1000 nm;
-    /// bench-facts §4, confidence L).
+    /// docs/bench-facts.md §4, confidence L).
     NgGlass(f64),
     /// Per-surface reflectance of a visible-AR DMD window (≤ 0.5 % in 420–680 nm, rising in the
-    /// NIR; bench-facts §2.2, estimate).
+    /// NIR; docs/bench-facts.md §2.2, estimate).
     DmdWindowVisibleAr,
 }
 
@@ -729,7 +729,7 @@ pub enum ElementSpec {
         /// Which chart point sits at `position_mm`. Default: the plate centre.
         #[serde(default)]
         center_on: Option<CenterOnSpec>,
-        /// Optical density of the chrome (default 3, bench-facts §5.3).
+        /// Optical density of the chrome (default 3, docs/bench-facts.md §5.3).
         #[serde(default = "default_chrome_od")]
         chrome_od: SpectrumSpec,
         /// Reflectance of the chrome (default 0.1: low-reflectivity chrome, estimate).

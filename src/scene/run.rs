@@ -2,7 +2,7 @@
 //! balanced amplified photodetector and the oscilloscope) and `run` (what to acquire and how to
 //! reconstruct it). Both may be omitted, wholly or field by field: every field has a default,
 //! documented below with its source and confidence (H: manufacturer or computed, M: secondary
-//! source, L: estimate; see /work/shared/reference/bench-facts.md, "bench-facts" below).
+//! source, L: estimate; see docs/bench-facts.md).
 //!
 //! ```ron
 //! (
@@ -85,7 +85,7 @@ pub struct ElectronicsSpec {
 
 /// What the detector's outputs drive (the oscilloscope's input termination). Thorlabs
 /// amplified detectors drive their BNC outputs through a 50 Ω series resistor, so the gain and
-/// swing into a 50 Ω load are half those into a high impedance (bench-facts §1.1, L).
+/// swing into a 50 Ω load are half those into a high impedance (docs/bench-facts.md §1.1, L).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
 pub enum LoadSpec {
     /// 1 MΩ oscilloscope input (the usual choice for a 1 MHz detector).
@@ -116,7 +116,7 @@ pub struct DetectorSpec {
     /// Photocurrent scale of diode + relative to its table. Default 1.
     pub responsivity_scale_plus: Positive,
     /// Photocurrent scale of diode − relative to its table. Default 0.97: a 3 % mismatch, i.e.
-    /// a CMRR of 30.5 dB, within the "≥ 25–30 dB" estimate for the PDB210A (bench-facts §1.1,
+    /// a CMRR of 30.5 dB, within the "≥ 25–30 dB" estimate for the PDB210A (docs/bench-facts.md §1.1,
     /// L; the PDB4xx family is specified > 20 dB, H).
     pub responsivity_scale_minus: Positive,
     /// Shot noise 2qI of each diode's total current (signal, ambient and dark). Default true.
@@ -176,22 +176,22 @@ impl AmplifierNoiseSpec {
 #[serde(deny_unknown_fields, default)]
 pub struct RfSpec {
     /// Transimpedance into a high impedance (V/A). Default 350 × 10³: twice the 50 Ω value
-    /// (bench-facts §1.1, L).
+    /// (docs/bench-facts.md §1.1, L).
     pub gain_high_z_v_per_a: Positive,
-    /// Transimpedance into 50 Ω (V/A). Default 175 × 10³ (bench-facts §1.1, M). A real unit
+    /// Transimpedance into 50 Ω (V/A). Default 175 × 10³ (docs/bench-facts.md §1.1, M). A real unit
     /// can differ by tens of per cent (a measured unit gave 258 kV/W at 795 nm, M).
     pub gain_50_ohm_v_per_a: Positive,
-    /// Output swing ±V into a high impedance. Default 10 V (bench-facts §1.1, L: the manual's
+    /// Output swing ±V into a high impedance. Default 10 V (docs/bench-facts.md §1.1, L: the manual's
     /// value was not found).
     pub swing_high_z_v: Positive,
-    /// Output swing ±V into 50 Ω. Default 3.6 V (bench-facts §1.1, L).
+    /// Output swing ±V into 50 Ω. Default 3.6 V (docs/bench-facts.md §1.1, L).
     pub swing_50_ohm_v: Positive,
-    /// Output offset with no light (V). Default 2 mV ("< ± a few mV", bench-facts §1.1, L).
+    /// Output offset with no light (V). Default 2 mV ("< ± a few mV", docs/bench-facts.md §1.1, L).
     pub offset_v: f64,
-    /// Default `OnePole(bandwidth_hz: 1e6)`: DC–1 MHz (bench-facts §1.1, M).
+    /// Default `OnePole(bandwidth_hz: 1e6)`: DC–1 MHz (docs/bench-facts.md §1.1, M).
     pub bandwidth: BandwidthSpec,
     /// Default `InputCurrent(a_per_rthz: 2.3e-12)`: ≈ 1 mV rms at 350 kV/A over a 1 MHz
-    /// one-pole bandwidth, i.e. an NEP of ≈ 3.5 pW/√Hz at 0.65 A/W (bench-facts §1.1, L).
+    /// one-pole bandwidth, i.e. an NEP of ≈ 3.5 pW/√Hz at 0.65 A/W (docs/bench-facts.md §1.1, L).
     pub noise: AmplifierNoiseSpec,
 }
 
@@ -218,19 +218,19 @@ impl Default for RfSpec {
 #[serde(deny_unknown_fields, default)]
 pub struct MonitorSpec {
     /// Transimpedance into a high impedance (V/A). Default 17.5 × 10³: the manual's monitor
-    /// calibration of 10 V/mW at 795 nm divided by 0.57 A/W (bench-facts §1.1, L).
+    /// calibration of 10 V/mW at 795 nm divided by 0.57 A/W (docs/bench-facts.md §1.1, L).
     pub gain_high_z_v_per_a: Positive,
     /// Transimpedance into 50 Ω (V/A). Default 8.75 × 10³ (half, as for the RF output, L).
     pub gain_50_ohm_v_per_a: Positive,
-    /// Output swing ±V into a high impedance. Default 10 V (PDB44x monitor, bench-facts §1.2,
+    /// Output swing ±V into a high impedance. Default 10 V (PDB44x monitor, docs/bench-facts.md §1.2,
     /// H for that family, L here).
     pub swing_high_z_v: Positive,
-    /// Output swing ±V into 50 Ω. Default 1.5 V (PDB44x monitor, bench-facts §1.2, L here).
+    /// Output swing ±V into 50 Ω. Default 1.5 V (PDB44x monitor, docs/bench-facts.md §1.2, L here).
     pub swing_50_ohm_v: Positive,
     /// Output offset with no light (V). Default 1 mV (L).
     pub offset_v: f64,
     /// Default `OnePole(bandwidth_hz: 1e6)`: the PDB4xx fast monitors are DC–1 MHz
-    /// (bench-facts §1.2, L for the PDB210A).
+    /// (docs/bench-facts.md §1.2, L for the PDB210A).
     pub bandwidth: BandwidthSpec,
     /// Default `InputCurrent(a_per_rthz: 2.3e-12)`, as the RF amplifier (L).
     pub noise: AmplifierNoiseSpec,
@@ -274,20 +274,20 @@ pub enum ChannelSpec {
 #[serde(deny_unknown_fields, default)]
 pub struct ScopeSpec {
     /// Recorded sample rate (Hz). Default 10 MS/s: High Res mode decimates the 25 GS/s ADC
-    /// stream to the record rate (bench-facts §8, M); 10 MS/s oversamples the 1 MHz detector
+    /// stream to the record rate (docs/bench-facts.md §8, M); 10 MS/s oversamples the 1 MHz detector
     /// tenfold and keeps a 0.2 s acquisition within the standard 62.5 Mpts record (L: a setting,
     /// not a fact).
     pub sample_rate_hz: Positive,
-    /// ADC bits of the recorded samples. Default 16: High Res at ≤ 625 MS/s (bench-facts §8,
+    /// ADC bits of the recorded samples. Default 16: High Res at ≤ 625 MS/s (docs/bench-facts.md §8,
     /// M/L).
     pub bits: u32,
-    /// Analog bandwidth (Hz). Default 4 GHz (option 6-BW-4000, bench-facts §8, M).
+    /// Analog bandwidth (Hz). Default 4 GHz (option 6-BW-4000, docs/bench-facts.md §8, M).
     pub analog_bandwidth_hz: Positive,
     /// High Res acquisition: the noise bandwidth shrinks to 0.44 × the sample rate (boxcar rule,
-    /// bench-facts §8, H). Without it the full analog bandwidth's noise aliases into every
+    /// docs/bench-facts.md §8, H). Without it the full analog bandwidth's noise aliases into every
     /// sample. Default true.
     pub high_res: bool,
-    /// Input noise floor at full bandwidth (V rms). Default 50 µV (bench-facts §8: "order
+    /// Input noise floor at full bandwidth (V rms). Default 50 µV (docs/bench-facts.md §8: "order
     /// 50–100 µV rms at 1 mV/div", L).
     pub noise_floor_v_rms: NonNegative,
     /// Input noise that grows with the vertical scale, as a fraction of one division (rms, at
@@ -339,10 +339,10 @@ pub struct RunSpec {
     /// (2^m × 2^m units only).
     pub patterns: PatternsSpec,
     /// DMD binary pattern rate (Hz). Default 22 727 Hz: one global reset per 44 µs, the
-    /// paper's "up to 22 kHz" (bench-facts §2.4, M/H).
+    /// paper's "up to 22 kHz" (docs/bench-facts.md §2.4, M/H).
     pub dmd_rate_hz: Positive,
     /// Mirror settling time at the start of each frame (µs), excluded from the frame's mean.
-    /// Default 13 µs (DLP7000 settling after a global reset, bench-facts §2.4, H).
+    /// Default 13 µs (DLP7000 settling after a global reset, docs/bench-facts.md §2.4, H).
     pub settling_time_us: NonNegative,
     /// Lamp and ambient drift.
     pub drift: DriftSpec,
@@ -391,7 +391,7 @@ impl Default for RunSpec {
 #[serde(deny_unknown_fields, default)]
 pub struct DriftSpec {
     /// Relative rms of the lamp's intensity drift. Default 10⁻³ (L: a stabilised QTH source
-    /// such as the SLS201L; no datasheet value in bench-facts).
+    /// such as the SLS201L; no datasheet value in docs/bench-facts.md).
     pub lamp_drift_rms: NonNegative,
     /// Correlation time of the lamp drift (s). Default 10 s (L: thermal time scales of a bulb
     /// and its housing).

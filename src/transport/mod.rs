@@ -1,4 +1,4 @@
-//! From traced tallies to the linear transport model of DESIGN.md ("Transport is linear"):
+//! From traced tallies to the linear transport model of docs/design.md ("Transport is linear"):
 //! per-unit maps x_j, T[d][s][j], g±_j, k±_j, the scalars k±, b±, k', the imbalance, their
 //! Monte Carlo standard errors, and the flux ledger.
 //!

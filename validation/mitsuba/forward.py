@@ -11,7 +11,7 @@ shape (black, for Mitsuba's own integrators) is transparent here, as spibench's 
 
 Why not Mitsuba's integrators: `path` with an `irradiancemeter` works but only ~1e-4 of the
 detector's directions find a small filament through the bench (hours for 0.1 %), and `ptracer`
-with an `irradiancemeter` is wrong (mitsuba-notes.md). The `path` integrator is still used for
+with an `irradiancemeter` is wrong (docs/mitsuba.md). The `path` integrator is still used for
 the closed-form and spectral cases (run_references.py), where it is efficient.
 
 Position independence: Mitsuba pushes the start of every new segment off the surface by about
