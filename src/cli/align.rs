@@ -114,7 +114,7 @@ pub fn run(args: &AlignArgs) -> Result<()> {
         seed: args.seed,
         max_evaluations: args.max_evaluations.max(free.len() + 2),
     };
-    let bar = super::progress::bar(o.max_evaluations as u64, "evaluations");
+    let bar = super::progress::bar(o.max_evaluations as u64, "evals");
     let t0 = std::time::Instant::now();
     let a = align(&doc, &free, &objective, &o, &|n| bar.set_position(n as u64))?;
     bar.finish_and_clear();

@@ -145,8 +145,8 @@ pub fn run(args: &RunArgs) -> Result<()> {
                     b.finish_and_clear();
                 }
                 let what = match stage {
-                    Stage::Record => "recording",
-                    Stage::Solve => "solving",
+                    Stage::Record => "frames",
+                    Stage::Solve => "solves",
                 };
                 *g = Some((stage, super::progress::bar(total, what)));
             }
@@ -155,8 +155,15 @@ pub fn run(args: &RunArgs) -> Result<()> {
             }
         }
     };
+    let trace_bar = super::progress::bar(scene.settings.rays, "rays");
+    let trace_report = |done: u64, _: u64| {
+        trace_bar.set_position(done);
+        if done >= scene.settings.rays {
+            trace_bar.finish_and_clear();
+        }
+    };
     let request = TraceRequest {
-        progress: true,
+        progress: Some(&trace_report),
         cache: cache.as_ref().zip(key.as_ref()),
         ..TraceRequest::new(scene.settings.rays, args.seed)
     };

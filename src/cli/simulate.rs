@@ -104,7 +104,7 @@ pub fn run(args: &SimulateArgs) -> Result<()> {
 
     let start = Instant::now();
     let total = exp.objects.len() * exp.sampling_ratios.len() * exp.cases.len();
-    let pb = super::progress::bar(total as u64, "simulate");
+    let pb = super::progress::bar(total as u64, "cells");
     let result = simulation::run(&exp, &|done, _| pb.set_position(done as u64))
         .map_err(|e| exp.locate(e))?;
     pb.finish_and_clear();

@@ -178,7 +178,7 @@ pub fn run(args: &SweepArgs) -> Result<()> {
         args.seed,
         if args.quality { ", full pipeline" } else { "" }
     );
-    let bar = super::progress::bar(points as u64 + 1, "tracing");
+    let bar = super::progress::bar(points as u64 + 1, "points");
     let start = std::time::Instant::now();
     let s = sweep(&doc, &vary, &options, &|done, _| {
         bar.set_position(done as u64)

@@ -164,7 +164,7 @@ pub fn run(args: &ToleranceArgs) -> Result<()> {
     );
     let nom = nominal(&doc, &o)?;
     let sens = if shard.0 == 0 {
-        let bar = super::progress::bar(2 * set.tolerances.len() as u64, "sensitivity");
+        let bar = super::progress::bar(2 * set.tolerances.len() as u64, "settings");
         let rows = sensitivity(&doc, &set, &nom, &o, &|d, _| bar.set_position(d as u64))?;
         bar.finish_and_clear();
         Some(rows)

@@ -70,13 +70,16 @@ pub fn run(args: &TraceArgs) -> anyhow::Result<()> {
         .into());
     }
     let start = std::time::Instant::now();
+    let bar = super::progress::bar(args.rays, "rays");
+    let report = |done: u64, _: u64| bar.set_position(done);
     let traced = trace_stage(
         &bench,
         &TraceRequest {
-            progress: true,
+            progress: Some(&report),
             ..TraceRequest::new(args.rays, args.seed)
         },
     )?;
+    bar.finish_and_clear();
     let seconds = start.elapsed().as_secs_f64();
     // No light on the pattern area is the bench's fault, not a result: exit 2, naming the cause.
     traced.truth().map_err(|e| e.in_file(&args.scene))?;

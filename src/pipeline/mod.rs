@@ -144,12 +144,12 @@ impl Traced {
 }
 
 /// What to trace, and where to cache it.
-#[derive(Debug, Clone, Copy)]
+#[derive(Clone, Copy)]
 pub struct TraceRequest<'a> {
     pub rays: u64,
     pub seed: u64,
-    /// Show the tracer's progress bar on a terminal.
-    pub progress: bool,
+    /// Told how far the trace has come (rays traced, rays to trace).
+    pub progress: Option<crate::trace::RayProgress<'a>>,
     /// The trace cache and this bench's key in it.
     pub cache: Option<(&'a cache::TraceCache, &'a cache::CacheKey)>,
 }
@@ -159,9 +159,20 @@ impl TraceRequest<'_> {
         TraceRequest {
             rays,
             seed,
-            progress: false,
+            progress: None,
             cache: None,
         }
+    }
+}
+
+impl std::fmt::Debug for TraceRequest<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("TraceRequest")
+            .field("rays", &self.rays)
+            .field("seed", &self.seed)
+            .field("progress", &self.progress.is_some())
+            .field("cache", &self.cache.map(|(_, k)| k.as_str()))
+            .finish()
     }
 }
 

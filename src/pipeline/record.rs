@@ -51,7 +51,8 @@ pub struct Recorded {
     /// The base patterns for the highest sampling ratio (lower ratios use their first rows).
     pub patterns: PatternSet,
     pub timing: FrameTiming,
-    /// The oscilloscope channels as set for the records [RF, MONITOR+, MONITOR−].
+    /// The oscilloscope channels as set for the pattern sequences [RF, MONITOR+, MONITOR−] (the
+    /// calibrated acquisition, when there are others, is auto-ranged on its own).
     pub channels: [Channel; 3],
     /// One record per sequence that some scheme needs, in [`Sequence`] order.
     pub records: Vec<(Sequence, Record)>,
@@ -158,24 +159,47 @@ pub fn record_transport(
         .iter()
         .map(|il| detector::ideal_frames(detector, il))
         .collect();
-    // Channel ranges from the clipped noise-free outputs of every recorded frame.
-    let channels: [Channel; 3] = [0, 1, 2].map(|o| {
-        let st = detector.stage(o);
-        let (lo, hi) = ideal
+    // Channel ranges from the clipped noise-free outputs of the recorded frames. The pattern
+    // sequences share one setting of the oscilloscope; the calibrated acquisition is set up on
+    // its own (its all-on frames need a wider range than any pattern), so adding it changes
+    // nothing for the others.
+    let range = |frames: &mut dyn Iterator<Item = &[f64; 3]>| -> [Channel; 3] {
+        let frames: Vec<&[f64; 3]> = frames.collect();
+        [0, 1, 2].map(|o| {
+            let st = detector.stage(o);
+            let (lo, hi) = frames
+                .iter()
+                .map(|v| st.clip(v[o]))
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+                    (a.min(v), b.max(v))
+                });
+            scope.channel(o, lo, hi, !s.noise)
+        })
+    };
+    let patterns_only = needed.iter().any(|&q| q != Sequence::CalibratedBase);
+    let shared = range(
+        &mut needed
             .iter()
-            .flatten()
-            .map(|v| st.clip(v[o]))
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
-                (a.min(v), b.max(v))
-            });
-        scope.channel(o, lo, hi, !s.noise)
-    });
+            .zip(&ideal)
+            .filter(|(q, _)| !patterns_only || **q != Sequence::CalibratedBase)
+            .flat_map(|(_, f)| f.iter()),
+    );
+    let seq_channels: Vec<[Channel; 3]> = needed
+        .iter()
+        .zip(&ideal)
+        .map(|(&q, f)| match q {
+            Sequence::CalibratedBase if patterns_only => range(&mut f.iter()),
+            _ => shared,
+        })
+        .collect();
+    let channels = shared;
     let total_frames: u64 = lights.iter().map(|l| l.len() as u64).sum();
     progress(Stage::Record, 0, total_frames);
     let records: Vec<Record> = needed
         .par_iter()
         .zip(illum.par_iter())
-        .map(|(&q, il)| {
+        .zip(seq_channels.par_iter())
+        .map(|((&q, il), channels)| {
             let q_seed = sequence_seed(seed, q);
             let drift = if s.noise {
                 DriftPath::draw(&s.drift, il.light_a.len(), timing.frame_s, q_seed)
@@ -184,7 +208,7 @@ pub fn record_transport(
             };
             let mut r = detector::record(
                 detector,
-                &channels,
+                channels,
                 timing,
                 il,
                 &drift,
@@ -202,7 +226,7 @@ pub fn record_transport(
 
     let mut sequences = Vec::new();
     let mut saturation = Vec::new();
-    for ((&q, r), id) in needed.iter().zip(&records).zip(&ideal) {
+    for (((&q, r), id), channels) in needed.iter().zip(&records).zip(&ideal).zip(&seq_channels) {
         let frames = r.frames.len();
         let peak = [0, 1, 2].map(|o| id.iter().map(|v| v[o].abs()).fold(0.0, f64::max));
         let clipped = [0, 1, 2].map(|o| r.clipped_frames(o, frames));

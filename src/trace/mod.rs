@@ -37,14 +37,30 @@ pub const RAYS_PER_BATCH: u64 = 1024;
 /// chunk around 1 %; any value gives the same result).
 pub const BATCHES_PER_CHUNK: u64 = 256;
 
+/// A progress callback of the tracer: (rays traced, rays to trace), called after every chunk
+/// of batches from the calling thread. The library draws nothing; the command line turns this
+/// into a bar or a log line.
+pub type RayProgress<'a> = &'a (dyn Fn(u64, u64) + Sync);
+
 /// What to trace.
-#[derive(Debug, Clone, Copy)]
+#[derive(Clone, Copy)]
 pub struct TraceOptions<'a> {
     pub rays: u64,
     pub seed: u64,
     pub mode: PatternMode<'a>,
-    /// Show a progress bar (only honoured when stderr is a terminal).
-    pub progress: bool,
+    /// Told how far the trace has come.
+    pub progress: Option<RayProgress<'a>>,
+}
+
+impl std::fmt::Debug for TraceOptions<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("TraceOptions")
+            .field("rays", &self.rays)
+            .field("seed", &self.seed)
+            .field("mode", &self.mode)
+            .field("progress", &self.progress.is_some())
+            .finish()
+    }
 }
 
 impl TraceOptions<'_> {
@@ -53,7 +69,7 @@ impl TraceOptions<'_> {
             rays,
             seed,
             mode: PatternMode::Branch,
-            progress: false,
+            progress: None,
         }
     }
 }
@@ -89,7 +105,6 @@ pub fn trace(bench: &Bench, options: &TraceOptions) -> Result<Tallies> {
     let n = options.rays;
     let n_batches = n.div_ceil(RAYS_PER_BATCH);
     let inv = 1.0 / n as f64;
-    let bar = progress_bar(options.progress, n);
     let mut start = 0;
     while start < n_batches {
         let end = (start + BATCHES_PER_CHUNK).min(n_batches);
@@ -103,29 +118,12 @@ pub fn trace(bench: &Bench, options: &TraceOptions) -> Result<Tallies> {
         for t in &chunk {
             tallies.absorb(t);
         }
-        if let Some(bar) = &bar {
-            bar.set_position(tallies.rays);
+        if let Some(report) = options.progress {
+            report(tallies.rays, n);
         }
         start = end;
     }
-    if let Some(bar) = bar {
-        bar.finish_and_clear();
-    }
     Ok(tallies)
-}
-
-fn progress_bar(wanted: bool, total: u64) -> Option<indicatif::ProgressBar> {
-    use std::io::IsTerminal;
-    if !wanted || !std::io::stderr().is_terminal() {
-        return None;
-    }
-    let bar = indicatif::ProgressBar::new(total);
-    if let Ok(style) = indicatif::ProgressStyle::with_template(
-        "tracing {bar:40} {human_pos}/{human_len} rays, {per_sec}, eta {eta}",
-    ) {
-        bar.set_style(style);
-    }
-    Some(bar)
 }
 
 #[cfg(test)]

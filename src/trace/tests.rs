@@ -94,7 +94,7 @@ fn is_experiment_file(path: &std::path::Path) -> bool {
         .lines()
         .map(str::trim)
         .find(|l| !l.is_empty() && !l.starts_with("//"))
-        .is_some_and(|l| l.starts_with("Experiment"))
+        .is_some_and(|l| l.starts_with("Experiment") || l.starts_with("Dataset"))
 }
 
 #[test]
@@ -106,8 +106,8 @@ fn ledger_balances_for_every_scene() {
             .unwrap()
             .filter_map(|e| e.ok().map(|e| e.path()))
             .filter(|p| p.extension().is_some_and(|x| x == "ron"))
-            // `scenes/` also holds the experiment files of `spibench simulate`, which have no
-            // bench: keep only the files whose top-level value is not an `Experiment`.
+            // `scenes/` also holds the experiment files of `spibench simulate` and dataset
+            // specs, which have no bench: keep only the files whose top-level value is neither.
             .filter(|p| !is_experiment_file(p))
             .collect();
         files.sort();
@@ -359,7 +359,7 @@ fn fixed_patterns_reproduce_the_transport_maps() {
             rays: 200_000,
             seed: 900,
             mode: PatternMode::Fixed(&pattern),
-            progress: false,
+            progress: None,
         };
         let direct = fixed_pattern_currents(&bench, &trace(&bench, &opts).unwrap());
         for (d, direct) in direct.iter().enumerate() {

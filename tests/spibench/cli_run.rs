@@ -44,9 +44,14 @@ fn run_to(scene: &Path, out: &Path, threads: &str) -> std::process::Output {
     )
 }
 
-/// summary.json without its timings (the only keys that may differ between identical runs).
+/// summary.json without its timings and the command line of its provenance (the two runs
+/// compared here write to different folders; a rerun of one command is byte-identical, see
+/// output_dirs).
 fn without_timings(mut v: serde_json::Value) -> serde_json::Value {
     v.as_object_mut().unwrap().remove("timings");
+    if let Some(p) = v.get_mut("provenance").and_then(|p| p.as_object_mut()) {
+        p.remove("command");
+    }
     for r in v["results"].as_array_mut().unwrap() {
         r.as_object_mut().unwrap().remove("solver_time_s");
     }
@@ -121,12 +126,27 @@ fn run_writes_every_output_identically_on_one_and_two_threads() {
     let sa = read_json(&a.join("summary.json"));
     let sb = read_json(&b.join("summary.json"));
     assert_eq!(without_timings(sa.clone()), without_timings(sb));
-    // Same seed: summary.json and results.csv byte-identical; the timings are in timings.json.
-    for f in ["summary.json", "results.csv"] {
+    // Same seed: results.csv byte-identical (summary.json too but for the command line, above);
+    // the timings are in timings.json.
+    for f in ["results.csv"] {
         let same = std::fs::read(a.join(f)).unwrap() == std::fs::read(b.join(f)).unwrap();
         assert!(same, "{f} differs between two runs with one seed");
     }
     assert!(read_json(&a.join("timings.json"))["total_s"].is_number());
+    // The same command again (on two threads) replaces the folder with a byte-identical
+    // summary.json and results.csv: provenance included, timings apart.
+    let kept: Vec<Vec<u8>> = ["summary.json", "results.csv"]
+        .iter()
+        .map(|f| std::fs::read(a.join(f)).unwrap())
+        .collect();
+    let again = run_to(&scene, &a, "2");
+    assert!(again.status.success(), "{}", stderr(&again));
+    for (f, before) in ["summary.json", "results.csv"].iter().zip(&kept) {
+        assert!(
+            &std::fs::read(a.join(f)).unwrap() == before,
+            "{f} differs between two runs of one command"
+        );
+    }
     // The documented keys.
     assert_eq!(sa["command"], "run");
     for key in [
@@ -144,7 +164,7 @@ fn run_writes_every_output_identically_on_one_and_two_threads() {
     assert_eq!(sa["electronics"]["detector"]["rf"]["gain_v_per_a"], 350e3);
     assert_eq!(sa["saturated"], false);
     let results = sa["results"].as_array().unwrap();
-    assert_eq!(results.len(), 8);
+    assert_eq!(results.len(), 12, "six schemes × two ratios");
     for r in results {
         for key in [
             "scheme",
@@ -210,7 +230,7 @@ fn run_writes_every_output_identically_on_one_and_two_threads() {
     // results.csv: LF only, one row per result, the run-identifying columns filled in.
     let csv = std::fs::read_to_string(a.join("results.csv")).unwrap();
     assert!(!csv.contains('\r'));
-    assert_eq!(csv.lines().count(), 9);
+    assert_eq!(csv.lines().count(), 13, "a header and 12 rows");
     assert!(csv.starts_with("command,scene,seed,"), "{csv}");
 }
 

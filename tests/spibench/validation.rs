@@ -125,7 +125,7 @@ fn trace_case(case: &Case, seed: u64) -> [Estimate; 2] {
         rays: rays(&case.name),
         seed,
         mode: PatternMode::Fixed(&bits),
-        progress: false,
+        progress: None,
     };
     fixed_pattern_currents(&bench, &trace(&bench, &opts).unwrap())
 }
