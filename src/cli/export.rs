@@ -134,7 +134,11 @@ fn export(args: &ExportArgs) -> Result<ExportSummary> {
         substitutions,
         files: files.clone(),
     };
-    crate::report::json::write_json(&dir.path("summary.json"), &summary)?;
+    let mut provenance = super::provenance::Provenance::new(&[]).file(&args.scene)?;
+    for f in crate::scene::doc::BenchDoc::read(&args.scene)?.input_files() {
+        provenance = provenance.file(&f)?;
+    }
+    super::provenance::write_summary(&dir, &summary, &provenance)?;
     dir.commit()?;
     Ok(summary)
 }

@@ -314,7 +314,13 @@ pub fn run(args: &ReconstructArgs) -> Result<()> {
         normalization: truth.as_ref().map(|_| metrics::NORMALIZATION_RULE),
         solver: solver.tval3,
     };
-    crate::report::json::write_json(&out.path("summary.json"), &summary)?;
+    let mut provenance = super::provenance::Provenance::new(&[])
+        .file(&args.patterns)?
+        .file(&args.measurements)?;
+    if let Some(t) = &args.truth {
+        provenance = provenance.file(t)?;
+    }
+    super::provenance::write_summary(&out, &summary, &provenance)?;
     let dir = out.commit()?;
     println!(
         "reconstructed {w}x{h} from {} measurements: {} iterations, {} + {} operator applications, {:.2} s{}",

@@ -110,7 +110,13 @@ pub fn run(args: &SimulateArgs) -> Result<()> {
     pb.finish_and_clear();
     let wall = start.elapsed().as_secs_f64();
 
-    write_outputs(&exp, &args.experiment, &result, &out, wall)?;
+    let provenance = super::provenance::Provenance::new(&[exp.seed]);
+    let provenance = if std::path::Path::new(&args.experiment).is_file() {
+        provenance.file(std::path::Path::new(&args.experiment))?
+    } else {
+        provenance // a built-in experiment: named on the command line, built into the binary
+    };
+    write_outputs(&exp, &args.experiment, &result, &out, wall, &provenance)?;
     let dir = out.commit()?;
     print_table(&exp, &result.cells);
     println!(
@@ -150,6 +156,7 @@ fn write_outputs(
     res: &SimulationOutput,
     out: &OutputDir,
     wall: f64,
+    provenance: &super::provenance::Provenance,
 ) -> Result<()> {
     for (o, truth) in exp.objects.iter().zip(&res.truths) {
         write_gray8(
@@ -275,7 +282,7 @@ fn write_outputs(
         cells: &res.cells,
         curves,
     };
-    write_json(&out.path("summary.json"), &summary)?;
+    super::provenance::write_summary(out, &summary, provenance)?;
     let timings = SimulateTimings {
         wall_time_s: wall,
         cells: res

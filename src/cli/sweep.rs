@@ -18,7 +18,6 @@ use serde_json::{Map, Value};
 use crate::report::csv::write_csv;
 use crate::report::heatmap::{Heatmap, write_heatmap};
 use crate::report::html::{Block, Page, write_page};
-use crate::report::json::write_json;
 use crate::report::output::OutputDir;
 use crate::report::plot::{LinePlot, Series, write_plot};
 use crate::sweep::{Sweep, SweepOptions, SweepPoint, Vary, sweep};
@@ -186,7 +185,8 @@ pub fn run(args: &SweepArgs) -> Result<()> {
     bar.finish_and_clear();
     let seconds = start.elapsed().as_secs_f64();
     let bench = doc.build()?;
-    let files = write_outputs(&name, &bench, &s, &nominal_values, &out)?;
+    let provenance = super::run::bench_provenance(&name, &doc, &[args.seed])?;
+    let files = write_outputs(&name, &bench, &s, &nominal_values, &provenance, &out)?;
     let dir = out.commit()?;
     print_table(&s);
     println!(
@@ -247,6 +247,7 @@ fn write_outputs(
     bench: &crate::optics::Bench,
     s: &Sweep,
     nominal_values: &[f64],
+    provenance: &super::provenance::Provenance,
     out: &OutputDir,
 ) -> Result<usize> {
     let mut files = vec![
@@ -465,6 +466,6 @@ fn write_outputs(
         rows,
         files: files.clone(),
     };
-    write_json(&out.path("summary.json"), &summary)?;
+    super::provenance::write_summary(out, &summary, provenance)?;
     Ok(files.len())
 }

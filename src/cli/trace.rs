@@ -91,7 +91,11 @@ pub fn run(args: &TraceArgs) -> anyhow::Result<()> {
         &traced.metrics,
         traced.arrivals(),
     );
-    write_outputs(&args.out, t, &mut summary)?;
+    let mut provenance = super::provenance::Provenance::new(&[args.seed]).file(&args.scene)?;
+    for f in crate::scene::doc::BenchDoc::read(&args.scene)?.input_files() {
+        provenance = provenance.file(&f)?;
+    }
+    write_outputs(&args.out, t, &mut summary, &provenance)?;
     print_table(&summary, seconds);
     println!("wrote {}: {}", args.out.display(), summary.files.join(", "));
     Ok(())
@@ -135,7 +139,12 @@ fn print_table(s: &TraceSummary, seconds: f64) {
 
 /// Writes every output into a staging directory beside `out` ([`OutputDir`]) and moves it into
 /// place only when everything has been written, so a failure leaves no partial output.
-fn write_outputs(out: &Path, t: &Transport, summary: &mut TraceSummary) -> Result<()> {
+fn write_outputs(
+    out: &Path,
+    t: &Transport,
+    summary: &mut TraceSummary,
+    provenance: &super::provenance::Provenance,
+) -> Result<()> {
     let dir = OutputDir::create(out)?;
     let mut files = Vec::new();
     let (w, h) = (t.units_across, t.units_down);
@@ -173,10 +182,7 @@ fn write_outputs(out: &Path, t: &Transport, summary: &mut TraceSummary) -> Resul
         files.push(png);
     }
     summary.files = files;
-    let json = serde_json::to_string_pretty(summary)
-        .map_err(|e| Error::Numerical(format!("cannot encode summary.json: {e}")))?;
-    let summary_path = dir.path("summary.json");
-    std::fs::write(&summary_path, json + "\n").map_err(|e| Error::write(&summary_path, e))?;
+    super::provenance::write_summary(&dir, &*summary, provenance)?;
     dir.commit()?;
     Ok(())
 }

@@ -93,6 +93,17 @@ fn reconstruct_bytes_and_packbits() {
             assert!(out.join(f).is_file(), "missing {f}");
         }
         let s = read_json(&out.join("summary.json"));
+        // Provenance: the version, the command line and every input file hashed.
+        let p = &s["provenance"];
+        assert_eq!(p["spibench_version"], env!("CARGO_PKG_VERSION"));
+        assert!(p["command"][1] == "reconstruct", "{p}");
+        let inputs = p["inputs"].as_array().unwrap();
+        assert!(inputs.len() >= 2, "{p}");
+        assert!(
+            inputs
+                .iter()
+                .all(|i| i["sha256"].as_str().unwrap().len() == 64)
+        );
         assert_eq!(
             s["patterns_encoding"],
             if packbits { "packbits" } else { "uint8_01" }

@@ -57,6 +57,8 @@ fn simulate_writes_every_output() {
         assert!(out.join(f).is_file(), "missing {f}");
     }
     let s = read_json(&out.join("summary.json"));
+    assert_eq!(s["provenance"]["command"][1], "simulate");
+    assert!(s["provenance"]["seeds"].is_array());
     let cells = s["cells"].as_array().unwrap();
     assert_eq!(cells.len(), 4);
     for c in cells {
