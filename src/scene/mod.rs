@@ -26,9 +26,42 @@ use crate::error::{Error, Result};
 pub fn parse_ron<T: DeserializeOwned>(text: &str, path: &Path) -> Result<T> {
     let options =
         ron::Options::default().with_default_extension(ron::extensions::Extensions::IMPLICIT_SOME);
-    options
-        .from_str::<T>(text)
-        .map_err(|e| ron_error(text, path, e))
+    options.from_str::<T>(text).map_err(|e| {
+        let err = ron_error(text, path, e);
+        match other_kind_of_file::<T>(text) {
+            Some(hint) => Error::input(hint).in_file(path),
+            None => err,
+        }
+    })
+}
+
+/// When a file of another kind is given where `T` is expected (an experiment where a bench
+/// belongs), the sentence that says so; the parser alone would only report a type mismatch.
+fn other_kind_of_file<T>(text: &str) -> Option<String> {
+    let first = text
+        .lines()
+        .map(str::trim)
+        .find(|l| !l.is_empty() && !l.starts_with("//") && !l.starts_with("#!"))?;
+    let name: String = first
+        .chars()
+        .take_while(|c| c.is_ascii_alphanumeric() || *c == '_')
+        .collect();
+    let wanted = std::any::type_name::<T>();
+    let (kind, command) = match name.as_str() {
+        "Experiment" => ("an experiment file", "spibench simulate"),
+        "Dataset" => ("a dataset spec", "spibench dataset"),
+        _ => return None,
+    };
+    // The file is what `T` is: the error is elsewhere.
+    let own = wanted.ends_with(&format!("::{name}File")) || wanted.ends_with(&format!("::{name}"));
+    (!own).then(|| {
+        let expected = if wanted.contains("BenchFile") {
+            "a bench file (the top level is `(lamp: …, elements: […], …)`)"
+        } else {
+            "another kind of file"
+        };
+        format!("this is {kind}, which `{command}` reads, but this command expects {expected}")
+    })
 }
 
 /// Reads and parses a RON file.
@@ -311,6 +344,30 @@ mod tests {
     struct Lens {
         focal_length_mm: f64,
         diameter_mm: f64,
+    }
+
+    /// An experiment or dataset file where a bench is expected says what it is.
+    #[test]
+    fn a_file_of_another_kind_is_named() {
+        let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");
+        for (f, words) in [
+            (
+                "fig1.ron",
+                "experiment file, which `spibench simulate` reads",
+            ),
+            (
+                "dataset_example.ron",
+                "dataset spec, which `spibench dataset` reads",
+            ),
+        ] {
+            let p = root.join(f);
+            let e = crate::scene::bench::read_bench(&p).unwrap_err();
+            let m = e.to_string();
+            assert!(e.is_user_error() && m.contains(words), "{m}");
+            assert!(m.contains(f), "{m}");
+        }
+        // A bench still parses, and a broken bench keeps its own message.
+        assert!(crate::scene::bench::read_bench(&root.join("paper_bench.ron")).is_ok());
     }
 
     #[test]
