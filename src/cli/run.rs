@@ -457,62 +457,96 @@ pub fn element_text(e: Option<crate::run::Resolved>) -> String {
     }
 }
 
+/// The widest line the printed report may take (terminals of 100 columns).
+const REPORT_WIDTH: usize = 100;
+
+/// A table of `rows` (label, one cell per column) under `columns`, split into blocks of columns
+/// so that no line is wider than [`REPORT_WIDTH`]; each block repeats the labels.
+fn table_blocks(title: &str, columns: &[String], rows: &[(String, Vec<String>)]) -> Vec<String> {
+    const LABEL: usize = 34;
+    const CELL: usize = 14;
+    let per_block = ((REPORT_WIDTH - 2 - LABEL) / (CELL + 1)).max(1);
+    let mut lines = Vec::new();
+    for first in (0..columns.len()).step_by(per_block) {
+        let last = (first + per_block).min(columns.len());
+        let mut head = format!("  {title:<LABEL$}");
+        for c in &columns[first..last] {
+            head.push_str(&format!(" {c:>CELL$}"));
+        }
+        lines.push(head);
+        for (label, cells) in rows {
+            let label: String = label.chars().take(LABEL).collect();
+            let mut line = format!("  {label:<LABEL$}");
+            for c in &cells[first..last] {
+                line.push_str(&format!(" {c:>CELL$}"));
+            }
+            lines.push(line);
+        }
+    }
+    lines
+}
+
 fn print_report(name: &str, o: &RunOutcome) {
     let t = &o.transport;
     let pm = |e: crate::transport::Estimate| format!("{:.4e} ± {:.1e}", e.value, e.stderr);
     println!(
-        "{name}: {}×{} units, {} rays (seed {}), trace {:.1} s, record {:.1} s, solve {:.1} s",
-        t.units_across,
-        t.units_down,
-        t.rays,
-        o.seed,
-        o.timings.trace_s,
-        o.timings.record_s,
-        o.timings.solve_s
+        "{name}: {}×{} units, {} rays (seed {})",
+        t.units_across, t.units_down, t.rays, o.seed
     );
     println!(
-        "  k+ = {} A/W, k- = {} A/W, k' = {} A/W, imbalance = {}",
+        "  trace {:.1} s, record {:.1} s, solve {:.1} s",
+        o.timings.trace_s, o.timings.record_s, o.timings.solve_s
+    );
+    println!(
+        "  k+ = {} A/W, k- = {} A/W, k' = {} A/W",
         pm(t.k[0]),
         pm(t.k[1]),
-        pm(t.k_prime),
-        pm(t.imbalance)
+        pm(t.k_prime)
     );
-    println!("  b+ = {} A, b- = {} A", pm(t.b[0]), pm(t.b[1]));
+    println!(
+        "  imbalance = {}, b+ = {} A, b- = {} A",
+        pm(t.imbalance),
+        pm(t.b[0]),
+        pm(t.b[1])
+    );
     let ch = &o.channels;
     println!(
-        "  detector: RF {:.0} V/A (±{} V), monitors {:.0}/{:.0} V/A, CMRR {:.1} dB; scope {:.3e} S/s, \
-         RF {:.0e} V/div, MON+ {:.0e} V/div, MON- {:.0e} V/div",
+        "  detector: RF {:.0} V/A (±{} V), monitors {:.0}/{:.0} V/A, CMRR {:.1} dB",
         o.detector.rf.gain_v_per_a,
         o.detector.rf.swing_v,
         o.detector.monitors[0].gain_v_per_a,
         o.detector.monitors[1].gain_v_per_a,
         o.detector.cmrr_db(),
-        o.scope.sample_rate_hz,
-        ch[0].volts_per_div,
-        ch[1].volts_per_div,
-        ch[2].volts_per_div
+    );
+    println!(
+        "  scope: {:.3e} S/s, RF {:.0e} V/div, MON+ {:.0e} V/div, MON- {:.0e} V/div",
+        o.scope.sample_rate_hz, ch[0].volts_per_div, ch[1].volts_per_div, ch[2].volts_per_div
     );
     let s = &o.settings;
-    print!("  {:<34}", "MSSIM (PSNR dB)");
-    for &r in &s.sampling_ratios {
-        print!(" {:>14}", pct(r));
-    }
-    println!();
-    for (k, scheme) in s.schemes.iter().enumerate() {
-        print!("  {:<34}", scheme.label());
-        for r in 0..s.sampling_ratios.len() {
-            let res = &o.results[k * s.sampling_ratios.len() + r];
-            print!(
-                " {:>14}",
-                format!(
-                    "{:.3} ({:.1}){}",
-                    res.mssim,
-                    res.psnr_db,
-                    if res.saturated { "!" } else { "" }
-                )
-            );
-        }
-        println!();
+    let n_ratio = s.sampling_ratios.len();
+    let columns: Vec<String> = s.sampling_ratios.iter().map(|&r| pct(r)).collect();
+    let cells = |f: &dyn Fn(&SchemeResult) -> String| -> Vec<(String, Vec<String>)> {
+        s.schemes
+            .iter()
+            .enumerate()
+            .map(|(k, scheme)| {
+                let row = (0..n_ratio)
+                    .map(|r| f(&o.results[k * n_ratio + r]))
+                    .collect();
+                (scheme.label().to_string(), row)
+            })
+            .collect()
+    };
+    let scores = cells(&|res| {
+        format!(
+            "{:.3} ({:.1}){}",
+            res.mssim,
+            res.psnr_db,
+            if res.saturated { "!" } else { "" }
+        )
+    });
+    for line in table_blocks("MSSIM (PSNR dB)", &columns, &scores) {
+        println!("{line}");
     }
     if let Some(c) = &o.resolution {
         println!(
@@ -520,13 +554,9 @@ fn print_report(name: &str, o: &RunOutcome) {
             element_text(c.ideal_finest_resolved),
             c.registration_correlation
         );
-        for (k, scheme) in s.schemes.iter().enumerate() {
-            print!("  {:<34}", scheme.label());
-            for r in 0..s.sampling_ratios.len() {
-                let res = &o.results[k * s.sampling_ratios.len() + r];
-                print!(" {:>14}", element_text(res.finest_resolved));
-            }
-            println!();
+        let finest = cells(&|res| element_text(res.finest_resolved));
+        for line in table_blocks("", &columns, &finest) {
+            println!("{line}");
         }
     }
     for sat in &o.saturation {
@@ -537,6 +567,29 @@ fn print_report(name: &str, o: &RunOutcome) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Eight ratios and six schemes fit in 100 columns: two blocks of four ratios.
+    #[test]
+    fn tables_fit_100_columns() {
+        let columns: Vec<String> = [0.05, 0.1, 0.15, 0.2, 0.4, 0.6, 0.8, 1.0]
+            .iter()
+            .map(|&r| pct(r))
+            .collect();
+        let rows: Vec<(String, Vec<String>)> = crate::acquisition::Scheme::all()
+            .iter()
+            .map(|s| (s.label().to_string(), vec!["0.997 (34.1)!".to_string(); 8]))
+            .collect();
+        let lines = table_blocks("MSSIM (PSNR dB)", &columns, &rows);
+        assert_eq!(lines.len(), 2 * (1 + 6));
+        for l in &lines {
+            assert!(
+                l.chars().count() <= REPORT_WIDTH,
+                "{} columns: {l}",
+                l.chars().count()
+            );
+        }
+        assert!(lines[0].contains("20 %") && lines[7].contains("100 %"));
+    }
 
     #[test]
     fn built_in_bench_parses_with_defaults() {

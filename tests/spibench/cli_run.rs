@@ -190,6 +190,14 @@ fn run_writes_every_output_identically_on_one_and_two_threads() {
     assert_eq!(frames("double_arm"), 256);
     let out = stdout(&oa);
     assert!(out.contains("Secondary complementary balancing"), "{out}");
+    // The report's table and notes fit a terminal of 100 columns (paths aside).
+    for l in out.lines().filter(|l| l.starts_with("  ")) {
+        assert!(
+            l.chars().count() <= 100,
+            "{} columns: {l}",
+            l.chars().count()
+        );
+    }
     // A different seed gives different noise.
     let c = dir.join("three");
     let oc = spibench(
