@@ -314,12 +314,17 @@ impl Scheme {
             Output::MonitorPlus.index(),
             Output::MonitorMinus.index(),
         );
-        let calibration = Calibration::from_frames(frames);
-        let base = &frames[self.sequence().lead_frames()..];
+        // The calibration frames open the calibrated record (read only for that scheme); the
+        // patterns follow them.
+        let calibration =
+            (self == Scheme::DoubleArmCalibrated).then(|| Calibration::from_frames(frames));
+        let lead = self.sequence().lead_frames();
         (0..m)
             .map(|i| match self {
                 Scheme::Traditional | Scheme::TraditionalZeroMean => frames[i][mp],
-                Scheme::DoubleArmCalibrated => calibration.normalise(base[i][mp], base[i][mm]),
+                Scheme::DoubleArmCalibrated => calibration.map_or(f64::NAN, |c| {
+                    c.normalise(frames[lead + i][mp], frames[lead + i][mm])
+                }),
                 Scheme::DoubleArm => frames[i][mp] - frames[i][mm],
                 Scheme::SingleArmComplementary => frames[2 * i][mp] - frames[2 * i + 1][mp],
                 Scheme::SecondaryComplementaryBalancing => {

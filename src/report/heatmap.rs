@@ -437,7 +437,7 @@ pub fn unit_map_svg(m: &UnitMap) -> Result<String> {
     let unit = if exp == 0 {
         m.unit.clone()
     } else {
-        format!("10{} {}", superscript(exp), m.unit)
+        format!("10{} {}", super::superscript(exp), m.unit)
     };
     let _ = writeln!(
         out,
@@ -467,25 +467,6 @@ pub fn unit_map_svg(m: &UnitMap) -> Result<String> {
     }
     let _ = writeln!(out, "</svg>");
     Ok(out)
-}
-
-fn superscript(e: i32) -> String {
-    e.to_string()
-        .chars()
-        .map(|c| match c {
-            '-' => '⁻',
-            '0' => '⁰',
-            '1' => '¹',
-            '2' => '²',
-            '3' => '³',
-            '4' => '⁴',
-            '5' => '⁵',
-            '6' => '⁶',
-            '7' => '⁷',
-            '8' => '⁸',
-            _ => '⁹',
-        })
-        .collect()
 }
 
 /// Writes a per-unit map as SVG and as its PNG rendering.

@@ -195,23 +195,7 @@ fn times_ten(e: i32) -> String {
     if e == 0 {
         return String::new();
     }
-    let sup: String = e
-        .to_string()
-        .chars()
-        .map(|c| match c {
-            '-' => '⁻',
-            '0' => '⁰',
-            '1' => '¹',
-            '2' => '²',
-            '3' => '³',
-            '4' => '⁴',
-            '5' => '⁵',
-            '6' => '⁶',
-            '7' => '⁷',
-            '8' => '⁸',
-            _ => '⁹',
-        })
-        .collect();
+    let sup = super::superscript(e);
     format!("×10{sup}")
 }
 

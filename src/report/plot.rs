@@ -258,23 +258,7 @@ fn format_styled(v: f64, style: TickStyle) -> String {
         TickStyle::Plain => format_tick(v),
         TickStyle::Scientific if v != 0.0 && v.is_finite() => scientific(v),
         TickStyle::PowerOfTen if v > 0.0 && v.is_finite() => {
-            let sup: String = (v.log10().round() as i32)
-                .to_string()
-                .chars()
-                .map(|c| match c {
-                    '-' => '⁻',
-                    '0' => '⁰',
-                    '1' => '¹',
-                    '2' => '²',
-                    '3' => '³',
-                    '4' => '⁴',
-                    '5' => '⁵',
-                    '6' => '⁶',
-                    '7' => '⁷',
-                    '8' => '⁸',
-                    _ => '⁹',
-                })
-                .collect();
+            let sup = super::superscript(v.log10().round() as i32);
             format!("10{sup}")
         }
         _ => format_tick(v),

@@ -53,3 +53,17 @@ fn quiet_and_threads() {
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     assert!(stderr(&o).contains("--threads"));
 }
+
+/// `run --repeats 0` is a usage error naming the flag, before any trace, and leaves nothing.
+#[test]
+fn repeats_must_be_positive() {
+    let dir = TempDir::new("repeats0");
+    let out = dir.join("run");
+    let o = spibench(
+        &["run", "--repeats", "0", "--out", out.to_str().unwrap()],
+        &[],
+    );
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("--repeats"), "{}", stderr(&o));
+    assert!(!out.exists());
+}
