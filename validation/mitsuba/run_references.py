@@ -39,7 +39,7 @@ CASES = [
          closed_form=[1.0 * coaxial_view_factor(5.0, 10.0, 10.0), 0.0]),
     dict(name="lens_focus", bench=C + "lens_focus.ron", pattern="all-plus", rays=3e7,
          what="a lens focusing a disk lamp onto a 3 mm diode (aberrated, partly filled)"),
-    dict(name="chart_lens", bench=C + "chart_lens.ron", pattern="all-plus", rays=2e7,
+    dict(name="chart_lens", bench=C + "chart_lens.ron", pattern="all-plus", rays=1.6e8,
          what="collimator, iris, image chart (T = 1 % chrome), imaging lens, diode"),
     dict(name="dmd_all_plus", bench="scenes/tests/symmetric_arms.ron", pattern="all-plus",
          rays=2e7, what="small DMD bench, every unit in state +"),
