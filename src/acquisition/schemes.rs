@@ -43,7 +43,7 @@
 //! # Two baselines a competent experimenter would use instead
 //!
 //! The paper compares SCB against traditional CS solved as measured and against uncalibrated
-//! double-arm detection. Two fairer baselines are schemes of their own:
+//! double-arm detection. Three fairer baselines are schemes of their own:
 //!
 //! - **traditional CS, zero-mean solve** ([`Scheme::TraditionalZeroMean`]): the same frames and
 //!   samples as traditional CS, reconstructed through the zero-mean ±1 system
@@ -66,6 +66,15 @@
 //!   a ±1 system with neither imbalance nor offset. What remains is the calibration's own noise
 //!   and any departure from an affine, uniform response (per-unit differences between the two
 //!   arms' transport maps on a traced bench).
+//! - **double-arm, offset-aware solve** ([`Scheme::DoubleArmOffset`]): double-arm's own frames
+//!   and samples, no calibration. Written with the 0/1 operator, double-arm's measurement is
+//!   y = k₊Px + b₊ − k₋(Σx − Px) − b₋ = k'·Px + c, with c = b₊ − b₋ − k₋Σx the same for every
+//!   frame: imbalance and offset together are one unknown constant. Solving for x and c jointly
+//!   is the zero-mean 0/1 system without its DC row
+//!   ([`crate::reconstruction::ZeroOneHandling::ZeroMeanOffset`], the least-squares
+//!   elimination of c), as for `TraditionalZeroMean`. What it cannot remove is a c that changes
+//!   from frame to frame: lamp drift multiplies k₋Σx, about half the signal, and nothing
+//!   cancels it, whereas SCB's back-to-back complementary pair does.
 
 use std::fmt;
 use std::sync::Arc;
@@ -187,6 +196,10 @@ pub enum Scheme {
     /// Double-arm with a two-point calibration of each arm from all-on / all-off frames.
     #[serde(alias = "double_arm_calibrated")]
     DoubleArmCalibrated,
+    /// Double-arm's frames and samples, solved with one unknown constant offset (the zero-mean
+    /// 0/1 system without its DC row): no calibration frames.
+    #[serde(alias = "double_arm_offset")]
+    DoubleArmOffset,
 }
 
 /// The noise-free measurement as an affine function of the object:
@@ -199,8 +212,8 @@ pub struct AffineModel {
 }
 
 impl Scheme {
-    /// The paper's four schemes followed by the two baselines.
-    pub fn all() -> [Scheme; 6] {
+    /// The paper's four schemes followed by the three baselines.
+    pub fn all() -> [Scheme; 7] {
         [
             Scheme::Traditional,
             Scheme::SingleArmComplementary,
@@ -208,6 +221,7 @@ impl Scheme {
             Scheme::SecondaryComplementaryBalancing,
             Scheme::TraditionalZeroMean,
             Scheme::DoubleArmCalibrated,
+            Scheme::DoubleArmOffset,
         ]
     }
 
@@ -222,10 +236,12 @@ impl Scheme {
     }
 
     /// How this scheme's 0/1 measurements must be solved, when the scheme fixes it
-    /// (`TraditionalZeroMean`); otherwise the solver's own setting applies.
+    /// (`TraditionalZeroMean`, `DoubleArmOffset`); otherwise the solver's own setting applies.
     pub fn zero_one(self) -> Option<ZeroOneHandling> {
         match self {
-            Scheme::TraditionalZeroMean => Some(ZeroOneHandling::ZeroMeanOffset),
+            Scheme::TraditionalZeroMean | Scheme::DoubleArmOffset => {
+                Some(ZeroOneHandling::ZeroMeanOffset)
+            }
             _ => None,
         }
     }
@@ -239,6 +255,7 @@ impl Scheme {
             Scheme::SecondaryComplementaryBalancing => "Secondary complementary balancing",
             Scheme::TraditionalZeroMean => "Traditional CS, zero-mean solve",
             Scheme::DoubleArmCalibrated => "Double-arm, calibrated",
+            Scheme::DoubleArmOffset => "Double-arm, offset-aware solve",
         }
     }
 
@@ -251,13 +268,16 @@ impl Scheme {
             Scheme::SecondaryComplementaryBalancing => "secondary_complementary_balancing",
             Scheme::TraditionalZeroMean => "traditional_zero_mean",
             Scheme::DoubleArmCalibrated => "double_arm_calibrated",
+            Scheme::DoubleArmOffset => "double_arm_offset",
         }
     }
 
     /// How the base patterns enter the reconstruction operator.
     pub fn form(self) -> PatternForm {
         match self {
-            Scheme::Traditional | Scheme::TraditionalZeroMean => PatternForm::ZeroOne,
+            Scheme::Traditional | Scheme::TraditionalZeroMean | Scheme::DoubleArmOffset => {
+                PatternForm::ZeroOne
+            }
             _ => PatternForm::PlusMinusOne,
         }
     }
@@ -275,7 +295,10 @@ impl Scheme {
     /// The frame sequence the scheme's DMD shows.
     pub fn sequence(self) -> Sequence {
         match self {
-            Scheme::Traditional | Scheme::TraditionalZeroMean | Scheme::DoubleArm => Sequence::Base,
+            Scheme::Traditional
+            | Scheme::TraditionalZeroMean
+            | Scheme::DoubleArm
+            | Scheme::DoubleArmOffset => Sequence::Base,
             Scheme::SingleArmComplementary | Scheme::SecondaryComplementaryBalancing => {
                 Sequence::Complementary
             }
@@ -290,7 +313,7 @@ impl Scheme {
             Scheme::Traditional | Scheme::TraditionalZeroMean | Scheme::SingleArmComplementary => {
                 &[Output::MonitorPlus]
             }
-            Scheme::DoubleArm | Scheme::DoubleArmCalibrated => {
+            Scheme::DoubleArm | Scheme::DoubleArmCalibrated | Scheme::DoubleArmOffset => {
                 &[Output::MonitorPlus, Output::MonitorMinus]
             }
             Scheme::SecondaryComplementaryBalancing => &[Output::Rf],
@@ -308,6 +331,7 @@ impl Scheme {
     /// | secondary complementary balancing | V_rf(P_i) − V_rf(1 − P_i) |
     /// | traditional CS, zero-mean solve | V₊(P_i) |
     /// | double-arm, calibrated | two-point normalised V₊(P_i) − V₋(P_i) (module documentation) |
+    /// | double-arm, offset-aware solve | V₊(P_i) − V₋(P_i) |
     pub fn measurements(self, frames: &[[f64; 3]], m: usize) -> Vec<f64> {
         let (rf, mp, mm) = (
             Output::Rf.index(),
@@ -325,7 +349,7 @@ impl Scheme {
                 Scheme::DoubleArmCalibrated => calibration.map_or(f64::NAN, |c| {
                     c.normalise(frames[lead + i][mp], frames[lead + i][mm])
                 }),
-                Scheme::DoubleArm => frames[i][mp] - frames[i][mm],
+                Scheme::DoubleArm | Scheme::DoubleArmOffset => frames[i][mp] - frames[i][mm],
                 Scheme::SingleArmComplementary => frames[2 * i][mp] - frames[2 * i + 1][mp],
                 Scheme::SecondaryComplementaryBalancing => {
                     frames[2 * i][rf] - frames[2 * i + 1][rf]
@@ -353,6 +377,12 @@ impl Scheme {
                 gain: kp,
                 sum_coefficient: 0.0,
                 constant: 0.0,
+            },
+            // With the 0/1 operator P: y = k₊Px + b₊ − k₋(Σx − Px) − b₋.
+            Scheme::DoubleArmOffset => AffineModel {
+                gain: kp + km,
+                sum_coefficient: -km,
+                constant: arms.b_plus - arms.b_minus,
             },
             Scheme::DoubleArm => AffineModel {
                 gain: 0.5 * (kp + km),
@@ -612,7 +642,7 @@ pub fn acquire(
                 samples.extend([s1, s2]);
                 y.push(s1 - s2);
             }
-            Scheme::DoubleArm => {
+            Scheme::DoubleArm | Scheme::DoubleArmOffset => {
                 let sp = monitor_plus(px[i], e[2 * i]);
                 let sm = monitor_minus(cx[i], e[2 * i + 1]);
                 samples.extend([sp, sm]);
@@ -734,7 +764,7 @@ mod tests {
                     s.extend([v1, v2]);
                     y.push(v1 - v2);
                 }
-                Scheme::DoubleArm => {
+                Scheme::DoubleArm | Scheme::DoubleArmOffset => {
                     // Eqs. (6) and (7): y'⁺ − y'⁻ on one frame.
                     let yp = kp * (dot(&a_plus, x) + e[2 * i]) + bp;
                     let ym = km * (dot(&a_minus, x) + e[2 * i + 1]) + bm;
@@ -882,6 +912,7 @@ mod tests {
             (Scheme::SecondaryComplementaryBalancing, 40, 40),
             (Scheme::TraditionalZeroMean, 20, 20),
             (Scheme::DoubleArmCalibrated, 36, 72),
+            (Scheme::DoubleArmOffset, 20, 40),
         ];
         for (scheme, frames, samples) in expect {
             let a = acquire(

@@ -111,6 +111,7 @@ fn short(s: crate::acquisition::Scheme) -> &'static str {
         SecondaryComplementaryBalancing => "SCB",
         TraditionalZeroMean => "trad. zero-mean",
         DoubleArmCalibrated => "calibrated double-arm",
+        DoubleArmOffset => "offset-aware double-arm",
     }
 }
 

@@ -191,7 +191,11 @@ pub fn statistics(outcomes: &[RunOutcome], seed: u64) -> Repeats {
     let index = |k: Scheme| s.schemes.iter().position(|&x| x == k);
     let mut paired = Vec::new();
     let scb = Scheme::SecondaryComplementaryBalancing;
-    for other in [Scheme::SingleArmComplementary, Scheme::DoubleArmCalibrated] {
+    for other in [
+        Scheme::SingleArmComplementary,
+        Scheme::DoubleArmCalibrated,
+        Scheme::DoubleArmOffset,
+    ] {
         let (Some(a), Some(b)) = (index(scb), index(other)) else {
             continue;
         };

@@ -247,15 +247,33 @@ fn fair_baselines_on_the_paper_bench() {
     let mut s = scene("", &[]);
     s.settings.rays = 300_000;
     s.settings.sampling_ratios = vec![0.4];
-    s.settings.schemes = vec![Scheme::DoubleArm, Scheme::DoubleArmCalibrated];
+    s.settings.schemes = vec![
+        Scheme::DoubleArm,
+        Scheme::DoubleArmCalibrated,
+        Scheme::DoubleArmOffset,
+        Scheme::SecondaryComplementaryBalancing,
+    ];
     let o = run(&s, 2, &TraceRequest::new(s.settings.rays, 2), &|_, _, _| {}).unwrap();
-    let (plain, calibrated) = (
+    let (plain, calibrated, offset, scb) = (
         o.result(Scheme::DoubleArm, 0).unwrap(),
         o.result(Scheme::DoubleArmCalibrated, 0).unwrap(),
+        o.result(Scheme::DoubleArmOffset, 0).unwrap(),
+        o.result(Scheme::SecondaryComplementaryBalancing, 0)
+            .unwrap(),
     );
     eprintln!(
-        "40 %, default noise: double-arm {:.2} dB / {:.4}, calibrated {:.2} dB / {:.4}",
-        plain.psnr_db, plain.mssim, calibrated.psnr_db, calibrated.mssim
+        "40 %, default noise: double-arm {:.2} dB / {:.4}, calibrated {:.2} dB / {:.4}, \
+         offset-aware {:.2} dB / {:.4} ({} iterations, {:?}), SCB {:.2} dB / {:.4}",
+        plain.psnr_db,
+        plain.mssim,
+        calibrated.psnr_db,
+        calibrated.mssim,
+        offset.psnr_db,
+        offset.mssim,
+        offset.iterations,
+        offset.stop,
+        scb.psnr_db,
+        scb.mssim
     );
     assert!(
         calibrated.psnr_db > plain.psnr_db + 10.0,

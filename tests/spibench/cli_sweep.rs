@@ -143,7 +143,8 @@ fn two_dimensional_sweeps_and_bad_paths() {
 /// later change to a traced or reconstructed number deliberate. Re-pinned when `converged`
 /// came to mean "met the tolerance" (every cell here stops at the outer-iteration cap), and
 /// again when the two baselines joined the default schemes (the paper's four results were
-/// checked identical to the previous pin; only `settings.schemes` and `sequences` grew).
+/// checked identical to the previous pin; only `settings.schemes` and `sequences` grew), and
+/// when the offset-aware double-arm joined them (the first 48 results identical; 8 appended).
 #[test]
 fn run_summary_of_the_default_bench_is_pinned() {
     let dir = TempDir::new("run-pin");
