@@ -30,7 +30,7 @@ use crate::optics::bench::{
 use crate::optics::chart::ChartMask;
 use crate::optics::dmd::{Dmd, MirrorState, PatternArea};
 use crate::optics::geometry::{Frame, Geometry, Shape2D, sag};
-use crate::optics::glass::{GLASS_NAMES, Glass};
+use crate::optics::glass::{Glass, glass_names, name_key};
 use crate::optics::lamp::{
     EmitterShape, FieldOutline, FieldTarget, Lamp, LampSpectrum, band_power_from_filament,
 };
@@ -412,6 +412,10 @@ pub struct BenchFile {
     /// 200; a real path here has fewer than 30).
     #[serde(default = "default_max_interactions")]
     pub max_interactions: u32,
+    /// Glasses given by their Sellmeier coefficients, usable by name in any element's `glass`
+    /// field beside the built-in catalogue (docs/glasses.md).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub glasses: Vec<GlassSpec>,
     /// The light source.
     pub lamp: LampSpec,
     /// Lenses, filters, apertures, mounts, mirrors and charts, in any order.
@@ -431,6 +435,26 @@ pub struct BenchFile {
     #[serde(default)]
     pub run: crate::scene::run::RunSpec,
 }
+
+/// A glass of the bench file: n²(λ) − 1 = Σᵢ Bᵢλ²/(λ² − Cᵢ), λ in µm (the Sellmeier form of
+/// the Schott data sheets; docs/glasses.md).
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct GlassSpec {
+    /// The name `glass` fields use. It may not be a catalogue name or a number.
+    pub name: String,
+    /// B₁, B₂, B₃ (dimensionless).
+    pub sellmeier_b: (NonNegative, NonNegative, NonNegative),
+    /// C₁, C₂, C₃ in µm² (the squares of the resonance wavelengths).
+    pub sellmeier_c_um2: (NonNegative, NonNegative, NonNegative),
+}
+
+/// Wavelengths at which a user glass's index is checked across the traced band.
+const GLASS_CHECK_POINTS: usize = 64;
+
+/// The largest index a user glass may have in the band: above germanium's (about 4.0 in the
+/// infrared), so only a mistyped coefficient meets it.
+const GLASS_MAX_INDEX: f64 = 4.5;
 
 fn default_band() -> (f64, f64) {
     (350.0, 1150.0)
@@ -1029,8 +1053,13 @@ impl<'a> Locator<'a> {
 
     /// The contents of the element whose `name` is `element`.
     fn element(&self, element: &str) -> Option<(usize, usize)> {
+        self.named("elements", element)
+    }
+
+    /// The contents of the entry of the top-level list `list` whose `name` is `name`.
+    fn named(&self, list: &str, name: &str) -> Option<(usize, usize)> {
         let top = self.top()?;
-        let (_, list) = self.field(top, "elements")?;
+        let (_, list) = self.field(top, list)?;
         let b = self.text.as_bytes();
         let mut i = list.0;
         while i < list.1 {
@@ -1042,7 +1071,7 @@ impl<'a> Locator<'a> {
                 let end = matching(b, i)?;
                 let inner = (i + 1, end);
                 if let Some((_, v)) = self.field(inner, "name")
-                    && self.text[v.0..v.1].trim().trim_matches('"') == element
+                    && self.text[v.0..v.1].trim().trim_matches('"') == name
                 {
                     return Some(inner);
                 }
@@ -1189,6 +1218,7 @@ pub fn build_bench(file: &BenchFile, text: Option<&str>, path: &Path) -> Result<
         ctx: Ctx {
             loc: text.map(|text| Locator { text }),
             path,
+            glasses: Vec::new(),
         },
         parts: BenchParts::new(),
         solids: Vec::new(),
@@ -1197,10 +1227,12 @@ pub fn build_bench(file: &BenchFile, text: Option<&str>, path: &Path) -> Result<
     .build(file)
 }
 
-/// The text (when the bench has one) and path, for locating errors.
+/// The text (when the bench has one) and path, for locating errors, and the bench's own
+/// glasses (checked first: see `Builder::user_glasses`).
 struct Ctx<'a> {
     loc: Option<Locator<'a>>,
     path: &'a Path,
+    glasses: Vec<(String, Glass)>,
 }
 
 struct Builder<'a> {
@@ -1256,12 +1288,39 @@ impl Ctx<'_> {
         if let Some(g) = Glass::by_name(name) {
             return Ok(g);
         }
+        let key = name_key(name);
+        if let Some((_, g)) = self.glasses.iter().find(|(n, _)| name_key(n) == key) {
+            return Ok(g.clone());
+        }
         match name.trim().parse::<f64>() {
             Ok(n) if n.is_finite() && n >= 1.0 => Ok(Glass::Constant(n)),
-            _ => Err(err(format!(
-                "unknown glass `{name}`: use one of {GLASS_NAMES} or a constant index such as \"1.5\""
-            ))),
+            _ => {
+                let own = if self.glasses.is_empty() {
+                    String::new()
+                } else {
+                    let names: Vec<&str> = self.glasses.iter().map(|(n, _)| n.as_str()).collect();
+                    format!(", this bench's glasses ({})", names.join(", "))
+                };
+                Err(err(format!(
+                    "unknown glass `{name}`: use one of {}{own} or a constant index such as \"1.5\"",
+                    glass_names()
+                )))
+            }
         }
+    }
+
+    /// An error at a field of the bench's glass number `index` (named `name`).
+    fn err_glass(&self, index: usize, name: &str, field: &str, msg: impl Into<String>) -> Error {
+        let mut e = Error::field(format!("glasses[{index}].{field}"), msg).in_file(self.path);
+        if let Some(loc) = &self.loc
+            && let Some(p) = loc
+                .named("glasses", name)
+                .and_then(|r| loc.field(r, field).map(|(p, _)| p).or(Some(r.0)))
+        {
+            let (l, c) = loc.line_col(p);
+            e = e.at_line(l, c);
+        }
+        e
     }
 
     fn coating(&self, c: &CoatingSpec, err: impl Fn(String) -> Error) -> Result<Coating> {
@@ -1322,6 +1381,80 @@ impl Ctx<'_> {
 }
 
 impl Builder<'_> {
+    /// The bench's own glasses, checked: a name that is neither a catalogue glass, nor a number,
+    /// nor used twice; coefficients whose index is finite, at least 1 and below
+    /// `GLASS_MAX_INDEX` across the traced band, with no resonance (λ² = Cᵢ) inside it.
+    fn user_glasses(&self, file: &BenchFile, band_m: (f64, f64)) -> Result<Vec<(String, Glass)>> {
+        let mut out: Vec<(String, Glass)> = Vec::new();
+        for (i, g) in file.glasses.iter().enumerate() {
+            let name = g.name.trim();
+            let err = |field: &str, msg: String| self.ctx.err_glass(i, &g.name, field, msg);
+            if name.is_empty() {
+                return Err(err("name", "a glass needs a name".into()));
+            }
+            if let Some(c) = Glass::catalogue_entry(name) {
+                return Err(err(
+                    "name",
+                    format!(
+                        "`{name}` is the catalogue glass {}: give your glass another name (a \
+                         bench's glass may not replace a catalogue one)",
+                        c.name
+                    ),
+                ));
+            }
+            if name.parse::<f64>().is_ok() {
+                return Err(err(
+                    "name",
+                    format!("`{name}` reads as a constant index: give the glass a name"),
+                ));
+            }
+            if out.iter().any(|(n, _)| name_key(n) == name_key(name)) {
+                return Err(err(
+                    "name",
+                    format!("the bench defines the glass `{name}` twice"),
+                ));
+            }
+            let b = [g.sellmeier_b.0.0, g.sellmeier_b.1.0, g.sellmeier_b.2.0];
+            let c = [
+                g.sellmeier_c_um2.0.0,
+                g.sellmeier_c_um2.1.0,
+                g.sellmeier_c_um2.2.0,
+            ];
+            let (lo_um2, hi_um2) = ((band_m.0 * 1e6).powi(2), (band_m.1 * 1e6).powi(2));
+            if let Some(k) = c.iter().position(|&ck| ck >= lo_um2 && ck <= hi_um2) {
+                return Err(err(
+                    "sellmeier_c_um2",
+                    format!(
+                        "C{} = {} µm² puts a resonance at {:.1} nm, inside the traced band \
+                         ({:.0}–{:.0} nm): the index is infinite there",
+                        k + 1,
+                        c[k],
+                        c[k].sqrt() * 1e3,
+                        band_m.0 * 1e9,
+                        band_m.1 * 1e9
+                    ),
+                ));
+            }
+            let glass = Glass::Sellmeier { b, c_um2: c };
+            for k in 0..=GLASS_CHECK_POINTS {
+                let l = band_m.0 + (band_m.1 - band_m.0) * k as f64 / GLASS_CHECK_POINTS as f64;
+                let n = glass.index(l);
+                if !(n.is_finite() && (1.0..=GLASS_MAX_INDEX).contains(&n)) {
+                    return Err(err(
+                        "sellmeier_b",
+                        format!(
+                            "these coefficients give n = {n} at {:.1} nm, inside the traced band: \
+                             a glass needs 1 ≤ n ≤ {GLASS_MAX_INDEX} there (are the C in µm²?)",
+                            l * 1e9
+                        ),
+                    ));
+                }
+            }
+            out.push((name.to_string(), glass));
+        }
+        Ok(out)
+    }
+
     fn build(mut self, file: &BenchFile) -> Result<Bench> {
         // Band.
         let (lo, hi) = file.band_nm;
@@ -1332,6 +1465,7 @@ impl Builder<'_> {
             ));
         }
         let band = (lo * 1e-9, hi * 1e-9);
+        self.ctx.glasses = self.user_glasses(file, band)?;
         if file.max_interactions == 0 {
             return Err(self
                 .ctx
@@ -2275,6 +2409,117 @@ fn load_mask(path: &Path) -> std::result::Result<Raster, String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The symmetric test bench with `glasses` added before its lamp and its + arm's lens made
+    /// of the glass `lens_glass`.
+    fn with_glasses(glasses: &str, lens_glass: &str) -> (String, PathBuf) {
+        let (text, path) = base();
+        let text = text
+            .replacen(
+                "(\n    lamp: (",
+                &format!("(\n    glasses: [{glasses}],\n    lamp: ("),
+                1,
+            )
+            .replacen("glass: \"N-BK7\"", &format!("glass: \"{lens_glass}\""), 1);
+        (text, path)
+    }
+
+    const MY_BK7: &str = "(name: \"MY-BK7\", sellmeier_b: (1.03961212, 0.231792344, 1.01046945), \
+         sellmeier_c_um2: (0.00600069867, 0.0200179144, 103.560653))";
+
+    /// A bench's own glass with N-BK7's coefficients builds the same media as the catalogue's
+    /// N-BK7, traces bit-identically, and survives the canonical RON writer.
+    #[test]
+    fn user_glass_equals_the_catalogue_glass_it_copies() {
+        let (text, path) = with_glasses(MY_BK7, "my_bk7");
+        let own = parse_bench(&text, &path).unwrap();
+        let (plain, _) = base();
+        let cat = parse_bench(&plain, &path).unwrap();
+        let glasses =
+            |b: &Bench| -> Vec<Glass> { b.media().iter().map(|m| m.glass.clone()).collect() };
+        assert_eq!(glasses(&own), glasses(&cat));
+        let opts = crate::trace::TraceOptions::new(20_480, 3);
+        let (a, b) = (
+            crate::trace::trace(&own, &opts).unwrap(),
+            crate::trace::trace(&cat, &opts).unwrap(),
+        );
+        let (ta, tb) = (
+            crate::transport::Transport::from_tallies(&own, &a),
+            crate::transport::Transport::from_tallies(&cat, &b),
+        );
+        assert_eq!(ta.k[0].value.to_bits(), tb.k[0].value.to_bits());
+        assert_eq!(ta.k[1].value.to_bits(), tb.k[1].value.to_bits());
+        // Round trip: written as canonical RON and read back, the glass is still there.
+        let doc = crate::scene::doc::BenchDoc::parse(&text, &path).unwrap();
+        let ron = doc.to_ron().unwrap();
+        assert!(ron.contains("MY-BK7"), "{ron}");
+        let back = parse_bench(&ron, &path).unwrap();
+        assert_eq!(glasses(&back), glasses(&own));
+        // A bench without glasses writes no `glasses` field.
+        let plain_doc = crate::scene::doc::BenchDoc::parse(&plain, &path).unwrap();
+        assert!(!plain_doc.to_ron().unwrap().contains("glasses"));
+    }
+
+    /// Bad glasses are located input errors naming the field and line.
+    #[test]
+    fn bad_user_glasses_are_located() {
+        let check = |glasses: &str, lens: &str, marker: &str, field: &str, words: &str| {
+            let (text, path) = with_glasses(glasses, lens);
+            let line = text[..text.find(marker).expect("marker")]
+                .matches('\n')
+                .count()
+                + 1;
+            let err = parse_bench(&text, &path).expect_err("must fail");
+            assert!(err.is_user_error());
+            let msg = err.to_string();
+            assert!(msg.contains(&format!("line {line}")), "{msg} (line {line})");
+            assert!(msg.contains(field), "{msg}");
+            assert!(msg.contains(words), "{msg}");
+        };
+        // A catalogue name may not be redefined.
+        check(
+            &MY_BK7.replace("MY-BK7", "n_sf5"),
+            "N-BK7",
+            "name: \"n_sf5\"",
+            "glasses[0].name",
+            "catalogue glass N-SF5",
+        );
+        // A resonance inside the traced band (C = 0.36 µm²: 600 nm).
+        check(
+            &MY_BK7.replace("0.0200179144", "0.36"),
+            "MY-BK7",
+            "name: \"MY-BK7\"",
+            "glasses[0].sellmeier_c_um2",
+            "600.0 nm",
+        );
+        // Coefficients that give n < 1 somewhere in the band (C in nm² by mistake).
+        check(
+            "(name: \"WRONG\", sellmeier_b: (1.0, 0.2, 1.0), sellmeier_c_um2: (6000.0, 20000.0, 1.0e8))",
+            "WRONG",
+            "name: \"WRONG\"",
+            "glasses[0].sellmeier_b",
+            "µm²",
+        );
+        // Twice the same name.
+        check(
+            &format!("{MY_BK7}, {}", MY_BK7.replace("MY-BK7", "my bk7")),
+            "MY-BK7",
+            "name: \"my bk7\"",
+            "glasses[1].name",
+            "twice",
+        );
+        // A negative coefficient is refused by its type.
+        let (text, path) = with_glasses(&MY_BK7.replace("1.03961212", "-1.0"), "MY-BK7");
+        let msg = parse_bench(&text, &path).unwrap_err().to_string();
+        assert!(msg.contains("non-negative"), "{msg}");
+        // An unknown glass names the catalogue and the bench's own glasses.
+        let (text, path) = with_glasses(MY_BK7, "MY-BK8");
+        let msg = parse_bench(&text, &path).unwrap_err().to_string();
+        assert!(
+            msg.contains("N-LAK22") && msg.contains("this bench's glasses (MY-BK7)"),
+            "{msg}"
+        );
+    }
 
     fn base() -> (String, PathBuf) {
         let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/tests/symmetric_arms.ron");
