@@ -35,16 +35,25 @@ pub struct Cell {
     pub ratio: f64,
     /// Base patterns M.
     pub measurements: usize,
-    /// Arm gains (dimensionless) and offsets (object units).
+    /// Arm gains (dimensionless) and offsets (object units). In summary.json they are
+    /// `gain_plus`, `gain_minus`, `offset_plus_object`, `offset_minus_object`: the traced
+    /// commands' `k_plus` is in A/W and `b_plus` in A, and one key never carries two units
+    /// (docs/outputs.md).
+    #[serde(rename = "gain_plus")]
     pub k_plus: f64,
+    #[serde(rename = "gain_minus")]
     pub k_minus: f64,
+    #[serde(rename = "offset_plus_object")]
     pub b_plus: f64,
+    #[serde(rename = "offset_minus_object")]
     pub b_minus: f64,
-    /// k' = k₊ + k₋.
+    /// k' = k₊ + k₋ (`gain_prime`).
+    #[serde(rename = "gain_prime")]
     pub k_prime: f64,
     /// Additive noise distribution, if any.
     pub noise: Option<NoiseDistribution>,
     /// Standard deviation of one noise draw (object units), 0 without noise.
+    #[serde(rename = "noise_std_object")]
     pub noise_std: f64,
     /// PSNR after normalisation, dB (peak 255).
     pub psnr_db: f64,

@@ -18,7 +18,6 @@ use serde_json::{Map, Value};
 use crate::align::{AlignOptions, Free, Objective, align};
 use crate::report::csv::write_csv;
 use crate::report::html::{Block, Page, write_page};
-use crate::report::json::write_json;
 use crate::report::output::OutputDir;
 use crate::report::plot::{LinePlot, Series, write_plot};
 use crate::transport::metrics::{METRICS, MetricRow};
@@ -312,7 +311,8 @@ pub fn run(args: &AlignArgs) -> Result<()> {
         "metrics": Value::Object(metrics_json),
         "files": files.clone(),
     });
-    write_json(&out.path("summary.json"), &summary)?;
+    let provenance = super::run::bench_provenance(&name, &doc, &[o.seed])?;
+    super::provenance::write_summary(&out, &summary, &provenance)?;
     files.sort();
     let dir = out.commit()?;
     let imb = a.best.metrics.get("imbalance").map(|m| m.estimate());

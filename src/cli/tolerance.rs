@@ -19,7 +19,6 @@ use serde_json::{Map, Value};
 
 use crate::report::csv::write_csv;
 use crate::report::html::{Block, Page, write_page};
-use crate::report::json::write_json;
 use crate::report::output::OutputDir;
 use crate::report::plot::{LinePlot, Series, write_plot};
 use crate::scene::doc::BenchDoc;
@@ -202,7 +201,9 @@ pub fn run(args: &ToleranceArgs) -> Result<()> {
         sensitivity: sens,
         records,
     };
-    let files = write_outputs(&shard_file, &set, &out)?;
+    let provenance =
+        super::run::bench_provenance(&name, &doc, &[args.seed])?.file(Path::new(tol_path))?;
+    let files = write_outputs(&shard_file, &set, &provenance, &out)?;
     let dir = out.commit()?;
     println!(
         "wrote {} ({} files, {:.1} s: compensators {:.1} s, trial traces {:.1} s)",
@@ -230,7 +231,14 @@ fn run_merge(args: &ToleranceArgs) -> Result<()> {
         &is_metric,
     )?;
     let out = OutputDir::create(&args.out)?;
-    let files = write_outputs(&merged, &set, &out)?;
+    // The merge's provenance is its own command and the shard records it read; the bench and
+    // tolerance files are inside those records (docs/outputs.md). Everything but this block
+    // equals the unsharded run's summary.
+    let mut provenance = super::provenance::Provenance::new(&[merged.seed]);
+    for d in &args.merge {
+        provenance = provenance.file(&d.join("trials.ron"))?;
+    }
+    let files = write_outputs(&merged, &set, &provenance, &out)?;
     let dir = out.commit()?;
     println!(
         "merged {} shard(s), {} trials: wrote {} ({files} files)",
@@ -254,7 +262,12 @@ fn pm(v: f64, se: f64) -> String {
 }
 
 /// Writes every output of a run from its records; the same records give the same files.
-fn write_outputs(s: &ShardFile, set: &ToleranceSet, out: &OutputDir) -> crate::Result<usize> {
+fn write_outputs(
+    s: &ShardFile,
+    set: &ToleranceSet,
+    provenance: &super::provenance::Provenance,
+    out: &OutputDir,
+) -> crate::Result<usize> {
     let analysis = analyse(set, &s.records, s.sensitivity.as_deref());
     let mut files: Vec<String> = ["summary.json", "trials.ron", "trials.csv", "report.html"]
         .map(String::from)
@@ -658,7 +671,7 @@ fn write_outputs(s: &ShardFile, set: &ToleranceSet, out: &OutputDir) -> crate::R
         "trial_rows": trials,
         "files": files,
     });
-    write_json(&out.path("summary.json"), &summary)?;
+    super::provenance::write_summary(out, &summary, provenance)?;
     Ok(files.len())
 }
 

@@ -59,18 +59,30 @@ fn shards_merge_to_the_unsharded_run_and_trials_rebuild() {
         &[],
     );
     assert!(o.status.success(), "{}", stderr(&o));
-    for f in [
-        "summary.json",
-        "trials.csv",
-        "sensitivity.csv",
-        "trials.ron",
-    ] {
+    for f in ["trials.csv", "sensitivity.csv", "trials.ron"] {
         assert_eq!(
             std::fs::read(whole.join(f)).unwrap(),
             std::fs::read(merged.join(f)).unwrap(),
             "{f} differs"
         );
     }
+    // summary.json: identical apart from the provenance block, which names what each command
+    // read (the bench and tolerance files; the merge, the shard records).
+    let strip = |d: &Path| {
+        let mut v = read_json(&d.join("summary.json"));
+        let p = v.as_object_mut().unwrap().remove("provenance").unwrap();
+        (v, p)
+    };
+    let ((sw, pw), (sm, pm)) = (strip(&whole), strip(&merged));
+    assert_eq!(sw, sm, "summary.json differs beyond its provenance");
+    assert_eq!(pw["inputs"].as_array().unwrap().len(), 2, "{pw}");
+    assert_eq!(pm["inputs"].as_array().unwrap().len(), 2, "{pm}");
+    assert!(
+        pm["inputs"][0]["path"]
+            .as_str()
+            .unwrap()
+            .ends_with("trials.ron")
+    );
     let s = read_json(&whole.join("summary.json"));
     assert_eq!(s["trial_rows"].as_array().unwrap().len(), 5);
     assert!(s["sensitivity"].as_array().unwrap().len() == 4);
