@@ -30,8 +30,12 @@ pub struct ResolutionContext {
     pub chart: UsafChart,
     #[serde(skip)]
     pub map: ChartToImage,
-    /// Chart mm → unit pixel coordinates: (col, row) = m·(x, y) + t.
+    /// Chart mm → unit pixel coordinates: (col, row) = m·(x, y) + t, with m in pixels per mm
+    /// (summary key `chart_to_pixel_matrix_px_per_mm`, rows of m) and t in pixels
+    /// (`chart_to_pixel_offset_px`). The keys say the units: `map_m` read as metres.
+    #[serde(rename = "chart_to_pixel_matrix_px_per_mm")]
     pub map_m: [[f64; 2]; 2],
+    #[serde(rename = "chart_to_pixel_offset_px")]
     pub map_t: [f64; 2],
     /// Pearson correlation of x with the chart through `map` (the read-out is skipped below
     /// [`MIN_REGISTRATION_CORRELATION`]).

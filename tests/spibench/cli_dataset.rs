@@ -76,6 +76,8 @@ fn shards_in_separate_processes_merge_bit_identically() {
     assert_eq!(a.len(), 4 * 6, "4 shards of 6 arrays");
     assert_eq!(a, shard_files(&merged));
     // The manifest's schema matches the arrays: names, dtype, shapes (read with spibench's reader).
+    crate::outputs_schema::check_file(&merged.join("manifest.json"), "DatasetManifest");
+    crate::outputs_schema::check_file(&one.join("manifest.json"), "DatasetManifest");
     let m = read_json(&merged.join("manifest.json"));
     for shard in m["shards"].as_array().unwrap() {
         let n = shard["samples"].as_u64().unwrap() as usize;

@@ -127,6 +127,7 @@ fn check_of_the_paper_bench() {
         &[],
     );
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    crate::outputs_schema::check_file(&out.join("check.json"), "CheckJson");
     let v = read_json(&out.join("check.json"));
     assert_eq!(v["design_wavelength_m"].as_f64().unwrap(), 850e-9);
     let n = N_BK7.index(850e-9);

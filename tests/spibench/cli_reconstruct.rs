@@ -92,6 +92,7 @@ fn reconstruct_bytes_and_packbits() {
         ] {
             assert!(out.join(f).is_file(), "missing {f}");
         }
+        crate::outputs_schema::check_file(&out.join("summary.json"), "ReconstructSummary");
         let s = read_json(&out.join("summary.json"));
         // Provenance: the version, the command line and every input file hashed.
         let p = &s["provenance"];

@@ -56,6 +56,8 @@ fn simulate_writes_every_output() {
     ] {
         assert!(out.join(f).is_file(), "missing {f}");
     }
+    crate::outputs_schema::check_file(&out.join("summary.json"), "SimulateSummary");
+    crate::outputs_schema::check_file(&out.join("timings.json"), "SimulateTimings");
     let s = read_json(&out.join("summary.json"));
     assert_eq!(s["provenance"]["command"][1], "simulate");
     assert!(s["provenance"]["seeds"].is_array());

@@ -89,6 +89,7 @@ fn two_dimensional_sweeps_and_bad_paths() {
     assert!(o.status.success(), "{}", stderr(&o));
     let svg = std::fs::read_to_string(out.join("imbalance.svg")).unwrap();
     assert!(svg.starts_with("<svg") && svg.contains("arm_minus_lens.despace_mm"));
+    crate::outputs_schema::check_file(&out.join("summary.json"), "SweepSummary");
     let s: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
     assert_eq!(s["rows"].as_array().unwrap().len(), 4);
@@ -154,6 +155,8 @@ fn run_summary_of_the_default_bench_is_pinned() {
         &[],
     );
     assert!(o.status.success(), "{}", stderr(&o));
+    crate::outputs_schema::check_file(&out.join("summary.json"), "RunSummary");
+    crate::outputs_schema::check_file(&out.join("timings.json"), "RunTimings");
     let now: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
     let pinned: serde_json::Value =

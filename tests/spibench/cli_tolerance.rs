@@ -83,6 +83,8 @@ fn shards_merge_to_the_unsharded_run_and_trials_rebuild() {
             .unwrap()
             .ends_with("trials.ron")
     );
+    crate::outputs_schema::check_file(&whole.join("summary.json"), "ToleranceSummary");
+    crate::outputs_schema::check_file(&merged.join("summary.json"), "ToleranceSummary");
     let s = read_json(&whole.join("summary.json"));
     assert_eq!(s["trial_rows"].as_array().unwrap().len(), 5);
     assert!(s["sensitivity"].as_array().unwrap().len() == 4);
@@ -121,6 +123,7 @@ fn shards_merge_to_the_unsharded_run_and_trials_rebuild() {
         &[],
     );
     assert!(o.status.success(), "{}", stderr(&o));
+    crate::outputs_schema::check_file(&traced.join("summary.json"), "TraceSummary");
     let tr = read_json(&traced.join("summary.json"));
     let row = &s["trial_rows"][2]["values"];
     for k in ["k_plus", "k_minus", "imbalance"] {
@@ -205,6 +208,7 @@ fn align_writes_its_outputs() {
     ] {
         assert!(out.join(f).is_file(), "{f}");
     }
+    crate::outputs_schema::check_file(&out.join("summary.json"), "AlignSummary");
     let s = read_json(&out.join("summary.json"));
     assert!(s["metrics"]["k_prime"]["change_stderr"].is_number());
     let o = spibench(&["check", out.join("aligned.ron").to_str().unwrap()], &[]);

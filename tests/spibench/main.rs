@@ -14,5 +14,6 @@ mod common;
 mod fuzz;
 mod layering;
 mod output_dirs;
+mod outputs_schema;
 mod paper;
 mod validation;
