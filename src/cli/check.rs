@@ -330,15 +330,17 @@ fn print_report(r: &CheckReport) {
         match &l.object {
             // An image more than 1000 f away is a collimated beam for any bench.
             Some(o) if l.magnification.is_some_and(|m| m.abs() > 1e3) => println!(
-                "  {:<22} object: {o}, s = {} mm; image at infinity (collimated, s' = {:.3} m)",
+                "  {:<22} object: {o}, s = {} mm\n  {:<22} image at infinity (collimated, s' = {:.3} m)",
                 "",
                 opt_mm(l.object_distance_m),
+                "",
                 l.image_distance_m.unwrap_or(f64::INFINITY)
             ),
             Some(o) => println!(
-                "  {:<22} object: {o}, s = {} mm; image s' = {} mm; m = {}",
+                "  {:<22} object: {o}, s = {} mm\n  {:<22} image s' = {} mm; m = {}",
                 "",
                 opt_mm(l.object_distance_m),
+                "",
                 opt_mm(l.image_distance_m),
                 l.magnification.map_or("—".into(), |m| format!("{m:.4}"))
             ),
@@ -360,7 +362,7 @@ fn print_report(r: &CheckReport) {
     );
     for d in &r.diodes {
         println!(
-            "  {:<9} Ø {} mm, chief ray ends on {}; last optic {}, {} mm away, NA = {}",
+            "  {:<9} Ø {} mm, chief ray ends on {}\n            last optic {}, {} mm away, NA = {}",
             d.name,
             mm(d.diameter_m),
             d.chief_ray_end,

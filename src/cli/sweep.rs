@@ -198,36 +198,37 @@ pub fn run(args: &SweepArgs) -> Result<()> {
     Ok(())
 }
 
+/// The sweep as a table under 100 columns for up to two varied variables: the variables, the
+/// imbalance, its paired change from the nominal bench and k'; every other metric, with its
+/// standard errors, is in `sweep.csv` and `summary.json`.
 fn print_table(s: &Sweep) {
-    let heads: Vec<&str> = s.vary.iter().map(|v| v.path.as_str()).collect();
-    let mut line = heads
-        .iter()
-        .map(|h| format!("{:>14}", short(h)))
-        .collect::<String>();
-    for h in ["imbalance", "Δ vs nominal", "k₊ (A/W)", "k₋ (A/W)"] {
-        line += &format!(" {h:>22}");
+    let mut line = String::from(" ");
+    for v in &s.vary {
+        line += &format!(" {:>13}", short(&v.path));
+    }
+    for h in ["imbalance", "Δ imbalance", "k' (A/W)"] {
+        line += &format!(" {h:>20}");
     }
     println!("{line}");
     for p in &s.points {
-        let mut line = p
-            .settings
-            .iter()
-            .map(|(_, v)| format!("{v:>14.6}"))
-            .collect::<String>();
+        let mut line = String::from(" ");
+        for (_, v) in &p.settings {
+            line += &format!(" {v:>13.6}");
+        }
         for (n, diff) in [
             ("imbalance", false),
             ("imbalance", true),
-            ("k_plus", false),
-            ("k_minus", false),
+            ("k_prime", false),
         ] {
             let (Some(a), Some(b)) = (p.metrics.get(n), s.nominal.metrics.get(n)) else {
                 continue;
             };
             let e = if diff { a.diff(b) } else { a.estimate() };
-            line += &format!(" {:>22}", format!("{:.4e} ± {:.1e}", e.value, e.stderr));
+            line += &format!(" {:>20}", format!("{:.4e} ± {:.1e}", e.value, e.stderr));
         }
         println!("{line}");
     }
+    println!("  (k±, b±, b₋ − b₊, powers and leaks with their standard errors: sweep.csv)");
 }
 
 /// The last two segments of a path, for table headings.
@@ -235,8 +236,8 @@ fn short(path: &str) -> String {
     let segs: Vec<&str> = path.split('.').collect();
     let k = segs.len().saturating_sub(2);
     let s = segs[k..].join(".");
-    if s.chars().count() > 14 {
-        s.chars().take(13).collect::<String>() + "…"
+    if s.chars().count() > 13 {
+        s.chars().take(12).collect::<String>() + "…"
     } else {
         s
     }

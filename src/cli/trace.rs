@@ -97,7 +97,13 @@ pub fn run(args: &TraceArgs) -> anyhow::Result<()> {
     }
     write_outputs(&args.out, t, &mut summary, &provenance)?;
     print_table(&summary, seconds);
-    println!("wrote {}: {}", args.out.display(), summary.files.join(", "));
+    // The folder and a count: the file list is in summary.json (`files`), and a line per file
+    // would not fit a terminal.
+    println!(
+        "wrote {} ({} files: summary.json, maps.exr and the per-unit maps x, g±, k± as SVG and PNG)",
+        args.out.display(),
+        summary.files.len() + 1
+    );
     Ok(())
 }
 

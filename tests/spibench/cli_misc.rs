@@ -67,3 +67,73 @@ fn repeats_must_be_positive() {
     assert!(stderr(&o).contains("--repeats"), "{}", stderr(&o));
     assert!(!out.exists());
 }
+
+/// The tables and notes that `check`, `trace`, `sweep` (two variables), `tolerance` and `align`
+/// print fit a terminal of 100 columns (`simulate`'s are checked in cli_simulate); a line that
+/// names the output folder may be longer by the folder's own length.
+#[test]
+fn printed_tables_fit_100_columns() {
+    let dir = TempDir::new("width");
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let bench = root.join("scenes/tests/symmetric_arms.ron");
+    let bench = bench.to_str().unwrap();
+    let paper = root.join("scenes/paper_bench.ron");
+    let tol = root.join("scenes/tolerances/symmetric_arms.ron");
+    let out = |n: &str| dir.join(n).to_str().unwrap().to_string();
+    let (o1, o2, o3, o4) = (out("t"), out("s"), out("tol"), out("a"));
+    let runs: Vec<Vec<&str>> = vec![
+        vec!["check", paper.to_str().unwrap()],
+        vec!["trace", bench, "--rays", "8192", "--out", &o1],
+        vec![
+            "sweep",
+            bench,
+            "--vary",
+            "detectors.minus.decenter_mm.x=-0.5:0.5:2",
+            "--vary",
+            "arm_minus_lens.despace_mm=-0.2:0.2:2",
+            "--rays",
+            "4096",
+            "--out",
+            &o2,
+        ],
+        vec![
+            "tolerance",
+            bench,
+            "--tolerances",
+            tol.to_str().unwrap(),
+            "--trials",
+            "2",
+            "--rays",
+            "4096",
+            "--out",
+            &o3,
+        ],
+        vec![
+            "align",
+            bench,
+            "--free",
+            "detectors.minus.decenter_mm.x=-2:2",
+            "--rays",
+            "4096",
+            "--max-evaluations",
+            "8",
+            "--out",
+            &o4,
+        ],
+    ];
+    for args in runs {
+        let o = spibench(&args, &[]);
+        assert!(o.status.success(), "{args:?}: {}", stderr(&o));
+        let text = stdout(&o);
+        let dir_len = dir.0.to_str().unwrap().chars().count() + 4;
+        for l in text.lines() {
+            let n = l.chars().count();
+            let allowed = if l.contains(dir.0.to_str().unwrap()) {
+                100 + dir_len
+            } else {
+                100
+            };
+            assert!(n <= allowed, "{} ({n} columns): {l}", args[0]);
+        }
+    }
+}

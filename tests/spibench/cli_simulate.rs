@@ -45,6 +45,17 @@ fn simulate_writes_every_output() {
     let out = dir.join("out");
     let o = simulate(&file, &out, &[]);
     assert!(o.status.success(), "{}", stderr(&o));
+    // The printed table fits 100 columns (the line naming the output folder aside).
+    for l in crate::common::stdout(&o)
+        .lines()
+        .filter(|l| !l.starts_with("wrote "))
+    {
+        assert!(
+            l.chars().count() <= 100,
+            "{} columns: {l}",
+            l.chars().count()
+        );
+    }
     for f in [
         "summary.json",
         "cells.csv",
