@@ -56,7 +56,7 @@ CASES = [
          rays=2e7, what="arm - misaligned (imbalance), every unit in state -"),
     dict(name="ghost_plate", bench=C + "ghost_plate.ron", pattern="all-plus", rays=1e7,
          what="tilted glass plate: the - diode sees only its surface reflections"),
-    dict(name="paper_bench", bench="scenes/paper_bench.ron", pattern="random:5", rays=5e8,
+    dict(name="paper_bench", bench="scenes/paper_bench.ron", pattern="random:5", rays=2e9,
          what="the full paper bench (850 nm substitute), random pattern"),
     dict(name="paper_all_plus", bench="scenes/paper_bench.ron", pattern="all-plus", rays=4e7,
          what="the full paper bench (850 nm substitute), every unit in state + (off-arm leak)"),
