@@ -163,7 +163,7 @@ fn run_writes_every_output_identically_on_one_and_two_threads() {
     assert_eq!(sa["electronics"]["detector"]["rf"]["gain_v_per_a"], 350e3);
     assert_eq!(sa["saturated"], false);
     let results = sa["results"].as_array().unwrap();
-    assert_eq!(results.len(), 12, "six schemes × two ratios");
+    assert_eq!(results.len(), 14, "seven schemes × two ratios");
     for r in results {
         for key in [
             "scheme",
@@ -237,7 +237,7 @@ fn run_writes_every_output_identically_on_one_and_two_threads() {
     // results.csv: LF only, one row per result, the run-identifying columns filled in.
     let csv = std::fs::read_to_string(a.join("results.csv")).unwrap();
     assert!(!csv.contains('\r'));
-    assert_eq!(csv.lines().count(), 13, "a header and 12 rows");
+    assert_eq!(csv.lines().count(), 15, "a header and 14 rows");
     assert!(csv.starts_with("command,scene,seed,"), "{csv}");
 }
 
