@@ -580,7 +580,10 @@ mod tests {
             .map(|s| (s.label().to_string(), vec!["0.997 (34.1)!".to_string(); 8]))
             .collect();
         let lines = table_blocks("MSSIM (PSNR dB)", &columns, &rows);
-        assert_eq!(lines.len(), 2 * (1 + crate::acquisition::Scheme::all().len()));
+        assert_eq!(
+            lines.len(),
+            2 * (1 + crate::acquisition::Scheme::all().len())
+        );
         for l in &lines {
             assert!(
                 l.chars().count() <= REPORT_WIDTH,

@@ -804,7 +804,10 @@ mod tests {
         assert_eq!(s.detector.responsivity_scale, [1.0, 0.97]);
         assert_eq!(s.scope.sample_rate_hz, 10e6);
         assert_eq!(s.settings.sampling_ratios.len(), 8);
-        assert_eq!(s.settings.schemes, crate::acquisition::Scheme::all().to_vec());
+        assert_eq!(
+            s.settings.schemes,
+            crate::acquisition::Scheme::all().to_vec()
+        );
         assert!((s.settings.settling_time_s - 13e-6).abs() < 1e-18);
         assert_eq!(s.settings.solver.maxit, 300);
         assert!(s.settings.solver.nonneg);
