@@ -2465,13 +2465,7 @@ mod tests {
     fn bad_user_glasses_are_located() {
         let check = |glasses: &str, lens: &str, marker: &str, field: &str, words: &str| {
             let (text, path) = with_glasses(glasses, lens);
-            let line = text[..text.find(marker).expect("marker")]
-                .matches('\n')
-                .count()
-                + 1;
-            let err = parse_bench(&text, &path).expect_err("must fail");
-            assert!(err.is_user_error());
-            let msg = err.to_string();
+            let (msg, line) = fails_at(&text, &path, marker);
             assert!(msg.contains(&format!("line {line}")), "{msg} (line {line})");
             assert!(msg.contains(field), "{msg}");
             assert!(msg.contains(words), "{msg}");
@@ -2531,12 +2525,17 @@ mod tests {
     fn fails(from: &str, to: &str, marker: &str) -> (String, usize) {
         let (text, path) = base();
         assert_eq!(text.matches(from).count(), 1, "edit {from}");
-        let text = text.replacen(from, to, 1);
+        fails_at(&text.replacen(from, to, 1), &path, marker)
+    }
+
+    /// Parses `text`, which must fail as a user error; returns the error text and the 1-based
+    /// line where `marker` sits.
+    fn fails_at(text: &str, path: &Path, marker: &str) -> (String, usize) {
         let line = text[..text.find(marker).expect("marker")]
             .matches('\n')
             .count()
             + 1;
-        let err = parse_bench(&text, &path).expect_err("must fail");
+        let err = parse_bench(text, path).expect_err("must fail");
         assert!(err.is_user_error());
         (err.to_string(), line)
     }
