@@ -13,6 +13,7 @@ pub mod detector;
 pub mod error;
 pub mod export;
 pub mod metrics;
+pub mod npy;
 pub mod objects;
 pub mod optics;
 pub mod pipeline;

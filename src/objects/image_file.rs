@@ -1,4 +1,5 @@
-//! Grayscale objects from image files (PNG or OpenEXR), resampled by exact area averaging.
+//! Grayscale objects from image files (PNG, OpenEXR or NumPy `.npy`), resampled by exact area
+//! averaging.
 //!
 //! # Values
 //!
@@ -12,7 +13,10 @@
 //!   colour), because an object's transmittance is not a compositing question;
 //! - EXR: the channel named `Y` if there is one, else the mean of `R`, `G` and `B`, else the
 //!   only channel; values are taken as stored (no exposure or transfer curve) and must already
-//!   lie in [0, 255]; anything else is an input error rather than a silent clip.
+//!   lie in [0, 255]; anything else is an input error rather than a silent clip;
+//! - `.npy`: a 2-D array (rows, columns) of any numeric dtype spibench reads (float64, float32,
+//!   uint8, int64, bool), values as stored, which must lie in [0, 255] like EXR's: an object
+//!   array computed in numpy goes in without an image codec on the way.
 //!
 //! The format is recognised by the file's signature bytes, not its name.
 //!
@@ -35,6 +39,7 @@ pub const REC709_LUMA: [f64; 3] = [0.2125, 0.7154, 0.0721];
 
 const PNG_SIGNATURE: &[u8] = b"\x89PNG\r\n\x1a\n";
 const EXR_SIGNATURE: &[u8] = &[0x76, 0x2f, 0x31, 0x01];
+const NPY_SIGNATURE: &[u8] = b"\x93NUMPY";
 
 /// Reads an image file as a grayscale raster at its own size, values in [0, 255].
 ///
@@ -45,17 +50,46 @@ pub fn load_gray(path: &Path) -> Result<Raster> {
     decode_gray(&bytes).map_err(|e| e.in_file(path))
 }
 
-/// Decodes PNG or OpenEXR bytes (detected from the first bytes) to grey levels in [0, 255].
+/// Decodes PNG, OpenEXR or `.npy` bytes (detected from the first bytes) to grey levels in
+/// [0, 255].
 pub fn decode_gray(bytes: &[u8]) -> Result<Raster> {
     if bytes.starts_with(PNG_SIGNATURE) {
         decode_png(bytes)
     } else if bytes.starts_with(EXR_SIGNATURE) {
         decode_exr(bytes)
+    } else if bytes.starts_with(NPY_SIGNATURE) {
+        decode_npy(bytes)
     } else {
         Err(Error::input(
-            "not a PNG or OpenEXR image (unrecognised file signature)",
+            "not a PNG, OpenEXR or .npy image (unrecognised file signature)",
         ))
     }
+}
+
+/// A 2-D `.npy` array as an image (module documentation).
+fn decode_npy(bytes: &[u8]) -> Result<Raster> {
+    let a = crate::npy::parse(bytes)
+        .map_err(|m| Error::input(format!("not a readable .npy array: {m}")))?;
+    let [rows, cols] = a.shape[..] else {
+        return Err(Error::input(format!(
+            "a .npy object must be a 2-D array (rows, columns), got shape {:?}",
+            a.shape
+        )));
+    };
+    if rows == 0 || cols == 0 {
+        return Err(Error::input("the .npy object is empty"));
+    }
+    let data = a.to_f64();
+    if let Some(i) = data.iter().position(|v| !(0.0..=255.0).contains(v)) {
+        return Err(Error::input(format!(
+            "the .npy object has the value {} at row {}, column {}: objects are grey levels in \
+             [0, 255] (scale a [0, 1] transmittance by 255)",
+            data[i],
+            i / cols,
+            i % cols
+        )));
+    }
+    Raster::new(cols, rows, data)
 }
 
 /// Reads an image file and resamples it to `width`×`height` by exact area averaging.

@@ -98,7 +98,7 @@ pub enum FitRule {
 #[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub enum ObjectsSpec {
-    /// Every PNG or EXR image of a folder (relative to the spec), in name order; sample s uses
+    /// Every PNG, EXR or 2-D `.npy` image of a folder (relative to the spec), in name order; sample s uses
     /// image s mod count.
     Folder { path: String, rule: FitRule },
     /// Shipped test images by name.
@@ -274,9 +274,9 @@ pub fn parse_dataset(text: &str, path: &Path) -> Result<DatasetSpec> {
                 .flatten()
                 .map(|e| e.path())
                 .filter(|p| {
-                    p.extension()
-                        .and_then(|x| x.to_str())
-                        .is_some_and(|x| matches!(x.to_ascii_lowercase().as_str(), "png" | "exr"))
+                    p.extension().and_then(|x| x.to_str()).is_some_and(|x| {
+                        matches!(x.to_ascii_lowercase().as_str(), "png" | "exr" | "npy")
+                    })
                 })
                 .collect();
             files.sort();
@@ -284,7 +284,7 @@ pub fn parse_dataset(text: &str, path: &Path) -> Result<DatasetSpec> {
                 return Err(err(
                     "objects",
                     format!(
-                        "the image folder {} holds no PNG or EXR image",
+                        "the image folder {} holds no PNG, EXR or .npy image",
                         dir.display()
                     ),
                 ));
