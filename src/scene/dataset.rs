@@ -98,8 +98,8 @@ pub enum FitRule {
 #[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub enum ObjectsSpec {
-    /// Every PNG, EXR or 2-D `.npy` image of a folder (relative to the spec), in name order; sample s uses
-    /// image s mod count.
+    /// Every PNG, EXR or 2-D `.npy` image of a folder (relative to the spec), in name order;
+    /// sample s uses image s mod count.
     Folder { path: String, rule: FitRule },
     /// Shipped test images by name.
     TestImages { names: Vec<String>, rule: FitRule },
