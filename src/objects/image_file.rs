@@ -1,5 +1,5 @@
-//! Grayscale objects from image files (PNG, OpenEXR or NumPy `.npy`), resampled by exact area
-//! averaging.
+//! Grayscale objects from image files (PNG, JPEG, OpenEXR or NumPy `.npy`), resampled by exact
+//! area averaging.
 //!
 //! # Values
 //!
@@ -11,6 +11,7 @@
 //!   weights of scikit-image's `rgb2gray`), applied to the stored, gamma-encoded code values
 //!   as `rgb2gray` does, then scaled as above; alpha is ignored (a transparent pixel keeps its
 //!   colour), because an object's transmittance is not a compositing question;
+//! - JPEG (baseline or progressive, 8-bit): as 8-bit PNG, grey or colour;
 //! - EXR: the channel named `Y` if there is one, else the mean of `R`, `G` and `B`, else the
 //!   only channel; values are taken as stored (no exposure or transfer curve) and must already
 //!   lie in [0, 255]; anything else is an input error rather than a silent clip;
@@ -40,6 +41,8 @@ pub const REC709_LUMA: [f64; 3] = [0.2125, 0.7154, 0.0721];
 const PNG_SIGNATURE: &[u8] = b"\x89PNG\r\n\x1a\n";
 const EXR_SIGNATURE: &[u8] = &[0x76, 0x2f, 0x31, 0x01];
 const NPY_SIGNATURE: &[u8] = b"\x93NUMPY";
+/// JPEG's start-of-image marker followed by the first marker's 0xFF.
+const JPEG_SIGNATURE: &[u8] = &[0xFF, 0xD8, 0xFF];
 
 /// Reads an image file as a grayscale raster at its own size, values in [0, 255].
 ///
@@ -59,9 +62,11 @@ pub fn decode_gray(bytes: &[u8]) -> Result<Raster> {
         decode_exr(bytes)
     } else if bytes.starts_with(NPY_SIGNATURE) {
         decode_npy(bytes)
+    } else if bytes.starts_with(JPEG_SIGNATURE) {
+        decode_jpeg(bytes)
     } else {
         Err(Error::input(
-            "not a PNG, OpenEXR or .npy image (unrecognised file signature)",
+            "not a PNG, JPEG, OpenEXR or .npy image (unrecognised file signature)",
         ))
     }
 }
@@ -110,9 +115,19 @@ fn check_target(width: usize, height: usize) -> Result<()> {
 }
 
 fn decode_png(bytes: &[u8]) -> Result<Raster> {
+    decode_with(bytes, image::ImageFormat::Png, "PNG")
+}
+
+/// JPEG: 8-bit code values as PNG's (luminance of colour images with the same weights, on the
+/// stored gamma-encoded values). JPEG is lossy: its 8×8 block artefacts are part of the object.
+fn decode_jpeg(bytes: &[u8]) -> Result<Raster> {
+    decode_with(bytes, image::ImageFormat::Jpeg, "JPEG")
+}
+
+fn decode_with(bytes: &[u8], format: image::ImageFormat, name: &str) -> Result<Raster> {
     use image::DynamicImage as D;
-    let img = image::load_from_memory_with_format(bytes, image::ImageFormat::Png)
-        .map_err(|e| Error::input(format!("cannot decode the PNG image: {e}")))?;
+    let img = image::load_from_memory_with_format(bytes, format)
+        .map_err(|e| Error::input(format!("cannot decode the {name} image: {e}")))?;
     let (w, h) = (img.width() as usize, img.height() as usize);
     let luma =
         |r: f64, g: f64, b: f64| REC709_LUMA[0] * r + REC709_LUMA[1] * g + REC709_LUMA[2] * b;
@@ -137,7 +152,8 @@ fn decode_png(bytes: &[u8]) -> Result<Raster> {
             .pixels()
             .map(|p| luma(p.0[0].into(), p.0[1].into(), p.0[2].into()) / 257.0)
             .collect(),
-        // PNG decodes only to the variants above; anything else goes through f32 RGB in [0, 1].
+        // PNG and JPEG decode only to the variants above; anything else goes through f32 RGB
+        // in [0, 1].
         other => other
             .to_rgb32f()
             .pixels()
@@ -486,5 +502,38 @@ mod tests {
                 "{e}"
             );
         }
+    }
+
+    /// JPEG objects decode like 8-bit PNG: a uniform grey field comes back at its level (JPEG
+    /// codes a flat block exactly up to rounding), a colour one as its BT.709 luminance, and
+    /// the size is kept; the signature, not the name, selects the decoder.
+    #[test]
+    fn loads_gray_and_colour_jpeg() {
+        use image::ImageEncoder;
+        let encode = |color: image::ExtendedColorType, data: &[u8]| {
+            let mut out = Vec::new();
+            image::codecs::jpeg::JpegEncoder::new_with_quality(&mut out, 95)
+                .write_image(data, 16, 8, color)
+                .unwrap();
+            out
+        };
+        let gray = decode_gray(&encode(image::ExtendedColorType::L8, &[120u8; 128])).unwrap();
+        assert_eq!((gray.width, gray.height), (16, 8));
+        assert!(
+            gray.data.iter().all(|&v| (v - 120.0).abs() <= 1.0),
+            "{:?}",
+            gray.data
+        );
+        let rgb: Vec<u8> = (0..128).flat_map(|_| [200u8, 100, 50]).collect();
+        let colour = decode_gray(&encode(image::ExtendedColorType::Rgb8, &rgb)).unwrap();
+        let y = REC709_LUMA[0] * 200.0 + REC709_LUMA[1] * 100.0 + REC709_LUMA[2] * 50.0;
+        // Chroma subsampling and the YCbCr round trip move a flat colour by a few levels.
+        assert!(
+            colour.data.iter().all(|&v| (v - y).abs() <= 3.0),
+            "{y}: {:?}",
+            colour.data
+        );
+        let e = decode_gray(&[0xFF, 0xD8, 0xFF, 0x00]).unwrap_err();
+        assert!(e.is_user_error() && e.to_string().contains("JPEG"), "{e}");
     }
 }

@@ -98,7 +98,7 @@ pub enum FitRule {
 #[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub enum ObjectsSpec {
-    /// Every PNG, EXR or 2-D `.npy` image of a folder (relative to the spec), in name order;
+    /// Every PNG, JPEG, EXR or 2-D `.npy` image of a folder (relative to the spec), in name order;
     /// sample s uses image s mod count.
     Folder { path: String, rule: FitRule },
     /// Shipped test images by name.
@@ -275,7 +275,10 @@ pub fn parse_dataset(text: &str, path: &Path) -> Result<DatasetSpec> {
                 .map(|e| e.path())
                 .filter(|p| {
                     p.extension().and_then(|x| x.to_str()).is_some_and(|x| {
-                        matches!(x.to_ascii_lowercase().as_str(), "png" | "exr" | "npy")
+                        matches!(
+                            x.to_ascii_lowercase().as_str(),
+                            "png" | "jpg" | "jpeg" | "exr" | "npy"
+                        )
                     })
                 })
                 .collect();
@@ -284,7 +287,7 @@ pub fn parse_dataset(text: &str, path: &Path) -> Result<DatasetSpec> {
                 return Err(err(
                     "objects",
                     format!(
-                        "the image folder {} holds no PNG, EXR or .npy image",
+                        "the image folder {} holds no PNG, JPEG, EXR or .npy image",
                         dir.display()
                     ),
                 ));
