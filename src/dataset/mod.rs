@@ -32,10 +32,9 @@ use sha2::{Digest, Sha256};
 
 use crate::acquisition::{PatternSet, Scheme, patterns_for_ratio};
 use crate::error::{Error, Result};
-use crate::optics::Bench;
 use crate::raster::Raster;
 use crate::rng::{self, uniform};
-use crate::scene::dataset::{DatasetSpec, FitRule, ObjectSource};
+use crate::scene::dataset::{BenchesSpec, DatasetSpec, FitRule, ObjectSource};
 use crate::scene::doc::BenchDoc;
 use crate::scene::run::RunScene;
 use crate::trace::kernel::{Kernel, ObjectGrid, trace_kernel};
@@ -83,6 +82,9 @@ pub struct Provenance {
     pub spec_sha256: String,
     pub bench_file: String,
     pub bench_sha256: String,
+    /// The tolerance file of a dataset over drawn benches (copied as `tolerances.ron`).
+    pub tolerance_file: Option<String>,
+    pub tolerance_sha256: Option<String>,
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -109,6 +111,8 @@ pub struct Manifest {
     pub shard_range: (u64, u64),
     pub kernel: KernelInfo,
     pub pattern_family: String,
+    /// How the detector outputs were recorded: `frames` or `samples`.
+    pub record: String,
     pub measurements_max: usize,
     pub schemes: Vec<String>,
     pub ratios: Vec<f64>,
@@ -121,14 +125,38 @@ pub struct Manifest {
 pub struct Prepared {
     pub spec: DatasetSpec,
     pub scene: RunScene,
-    pub kernel_bench: Bench,
     pub kernel: Kernel,
     pub patterns: PatternSet,
     pub schemes: Vec<Scheme>,
     pub ratios: Vec<f64>,
     pub bench_text: String,
     pub kernel_seconds: f64,
+    /// The benches drawn from a tolerance file, when the spec asks for them.
+    pub drawn: Option<DrawnBenches>,
 }
+
+/// The benches of `benches: Tolerance(..)`.
+pub struct DrawnBenches {
+    pub doc: BenchDoc,
+    pub set: crate::scene::tolerance::ToleranceSet,
+    pub text: String,
+    pub samples_per_bench: u64,
+}
+
+/// One bench of a dataset: its detector, electronics and settings, and its object kernel.
+pub struct BenchKernel {
+    pub scene: RunScene,
+    pub kernel: Kernel,
+    /// Deviations of the tolerances (file order) then of the compensators, from the nominal
+    /// bench (empty for the nominal bench).
+    pub deviations: Vec<f64>,
+    /// Trial index of the tolerance draw that gave this bench (draws that made an invalid
+    /// bench, such as two parts overlapping, are replaced by the next in a fixed sequence).
+    pub draw: u64,
+}
+
+/// Invalid drawn benches tolerated in a row before a dataset gives up.
+const MAX_REDRAWS: u64 = 64;
 
 /// One sample.
 #[derive(Debug, Clone, PartialEq)]
@@ -138,6 +166,8 @@ pub struct Sample {
     pub measurements: Vec<Vec<f64>>,
     pub k_a_per_w: [f64; 2],
     pub b_a: [f64; 2],
+    /// The optional arrays of [`Prepared::optional_arrays`], in that order.
+    pub optional: Vec<Vec<f64>>,
 }
 
 /// The index of the chart `name` (or the only chart) among the bench file's charts, and the
@@ -184,6 +214,34 @@ fn clear_chart(
     }
 }
 
+/// The run scene and object kernel of one bench of a dataset.
+fn bench_kernel(doc: &BenchDoc, spec: &DatasetSpec, schemes: &[Scheme]) -> Result<(RunScene, Kernel)> {
+    let scene = doc.run_scene()?;
+    if scene.bench.dmd().is_none() {
+        return Err(spec.error("bench", "a dataset needs a bench with a DMD"));
+    }
+    let k = &spec.file.kernel;
+    let (clear, chart) = clear_chart(doc, k.chart.as_deref(), spec)?;
+    let kernel_bench = clear.build()?;
+    let grid = ObjectGrid {
+        chart,
+        width_px: k.grid_px.0,
+        height_px: k.grid_px.1,
+        width_m: k.field_mm.0 * 1e-3,
+        height_m: k.field_mm.1 * 1e-3,
+    };
+    let kernel = trace_kernel(
+        &kernel_bench,
+        grid,
+        &crate::trace::TraceOptions::new(k.rays, k.seed),
+    )?;
+    let mut settings = scene.settings.clone();
+    settings.schemes = schemes.to_vec();
+    settings.signal_trace_frames = spec.file.write.scope_frames;
+    settings.record = spec.file.record.model();
+    Ok((RunScene { settings, ..scene }, kernel))
+}
+
 impl Prepared {
     /// Reads the bench, traces the kernel and builds the patterns.
     pub fn new(spec: DatasetSpec) -> Result<Prepared> {
@@ -194,15 +252,6 @@ impl Prepared {
             return Err(spec.error("bench", "a dataset needs a bench with a DMD"));
         }
         let k = &spec.file.kernel;
-        let (clear, chart) = clear_chart(&doc, k.chart.as_deref(), &spec)?;
-        let kernel_bench = clear.build()?;
-        let grid = ObjectGrid {
-            chart,
-            width_px: k.grid_px.0,
-            height_px: k.grid_px.1,
-            width_m: k.field_mm.0 * 1e-3,
-            height_m: k.field_mm.1 * 1e-3,
-        };
         let (schemes, ratios) = match &spec.file.acquisition {
             Some(a) => (a.schemes.clone(), a.ratios.clone()),
             None => (
@@ -226,7 +275,20 @@ impl Prepared {
                     .map(|r| patterns_for_ratio(*r, units))
                     .sum::<usize>()
                     * schemes.len()) as f64;
-        let need_gb = per_sample * spec.file.samples as f64 / 1e9;
+        // The optional arrays: reconstructions with their DMD image and scores, and about
+        // P + 1 oscilloscope samples per recorded frame of each of at most three sequences.
+        let w = &spec.file.write;
+        let cells = (schemes.len() * ratios.len()) as f64;
+        let optional = if w.reconstructions {
+            8.0 * (units as f64 * (1.0 + cells) + 2.0 * cells)
+        } else {
+            0.0
+        } + 8.0
+            * 3.0
+            * 3.0
+            * w.scope_frames as f64
+            * (scene.scope.sample_rate_hz / scene.settings.dmd_rate_hz + 1.0);
+        let need_gb = (per_sample + optional) * spec.file.samples as f64 / 1e9;
         if need_gb > disk_gb {
             return Err(spec.error(
                 "samples",
@@ -237,27 +299,105 @@ impl Prepared {
                 ),
             ));
         }
+        let drawn = match (&spec.tolerance_path, &spec.file.benches) {
+            (Some(path), BenchesSpec::Tolerance {
+                samples_per_bench, ..
+            }) => {
+                let text = crate::scene::read_text(path)?;
+                let set = crate::scene::tolerance::ToleranceSet::parse(
+                    &text,
+                    path,
+                    &doc,
+                    &crate::tolerance::is_metric,
+                )?;
+                Some(DrawnBenches {
+                    doc: doc.clone(),
+                    set,
+                    text,
+                    samples_per_bench: *samples_per_bench,
+                })
+            }
+            _ => None,
+        };
         let start = std::time::Instant::now();
-        let kernel = trace_kernel(
-            &kernel_bench,
-            grid,
-            &crate::trace::TraceOptions::new(k.rays, k.seed),
-        )?;
+        let (scene, kernel) = bench_kernel(&doc, &spec, &schemes)?;
         let kernel_seconds = start.elapsed().as_secs_f64();
-        let mut settings = scene.settings.clone();
-        settings.schemes = schemes.clone();
-        settings.signal_trace_frames = 0;
-        let scene = RunScene { settings, ..scene };
         Ok(Prepared {
             spec,
             scene,
-            kernel_bench,
             kernel,
             patterns,
             schemes,
             ratios,
             bench_text,
             kernel_seconds,
+            drawn,
+        })
+    }
+
+    /// The bench index of sample s (0 for every sample of a nominal dataset).
+    pub fn bench_index(&self, s: u64) -> u64 {
+        self.drawn
+            .as_ref()
+            .map_or(0, |d| s / d.samples_per_bench)
+    }
+
+    /// Bench t of a dataset over drawn benches: tolerance trial t with the dataset's seed, or
+    /// the next valid draw when that one is not a valid bench. Its kernel is traced with the
+    /// kernel spec's rays and seed.
+    pub fn drawn_bench(&self, t: u64) -> Result<BenchKernel> {
+        let Some(d) = &self.drawn else {
+            return Ok(BenchKernel {
+                scene: self.scene.clone(),
+                kernel: self.kernel.clone(),
+                deviations: Vec::new(),
+                draw: 0,
+            });
+        };
+        let options = crate::tolerance::ToleranceOptions {
+            rays: self.spec.file.kernel.rays,
+            seed: self.spec.file.seed,
+            quality: false,
+        };
+        let mut last = None;
+        for j in 0..MAX_REDRAWS {
+            // Redraws use trial indices far beyond any bench index.
+            let draw = t + (j << 40);
+            let made = crate::tolerance::trial_doc(&d.doc, &d.set, &options, draw).and_then(
+                |(doc, dev, comp)| {
+                    let (scene, kernel) = bench_kernel(&doc, &self.spec, &self.schemes)?;
+                    Ok(BenchKernel {
+                        scene,
+                        kernel,
+                        deviations: dev.iter().chain(&comp).map(|(_, v)| *v).collect(),
+                        draw,
+                    })
+                },
+            );
+            match made {
+                Ok(b) => return Ok(b),
+                Err(e) if e.is_user_error() => last = Some(e),
+                Err(e) => return Err(e),
+            }
+        }
+        Err(self.spec.error(
+            "benches",
+            format!(
+                "{MAX_REDRAWS} draws in a row for bench {t} made no valid bench; the last: {}",
+                last.map(|e| e.to_string()).unwrap_or_default()
+            ),
+        ))
+    }
+
+    /// Names of the deviations of a drawn bench (tolerances, then compensators).
+    pub fn deviation_names(&self) -> Vec<String> {
+        self.drawn.as_ref().map_or_else(Vec::new, |d| {
+            d.set
+                .tolerances
+                .iter()
+                .map(|t| t.path.clone())
+                .chain(d.set.compensators.iter().map(|c| format!("{} (compensator)", c.path)))
+                .collect()
         })
     }
 
@@ -323,6 +463,28 @@ impl Prepared {
             description: "b+ and b- of the sample's transport (traced offsets, ambient, dark)"
                 .into(),
         });
+        v.extend(self.optional_arrays());
+        if self.drawn.is_some() {
+            v.push(ArraySchema {
+                name: "bench".into(),
+                dtype: "<f8".into(),
+                sample_shape: vec![],
+                units: "1".into(),
+                description: "the index t of the drawn bench the sample was measured through"
+                    .into(),
+            });
+            let names = self.deviation_names();
+            v.push(ArraySchema {
+                name: "deviations".into(),
+                dtype: "<f8".into(),
+                sample_shape: vec![names.len()],
+                units: "the unit of each variable (mm, degrees or 1)".into(),
+                description: format!(
+                    "the drawn bench's deviations from the nominal bench: {}",
+                    names.join(", ")
+                ),
+            });
+        }
         v
     }
 
@@ -393,16 +555,30 @@ impl Prepared {
         Ok(obj.map(|v| v.clamp(0.0, 1.0)))
     }
 
-    /// Sample s: its object, transport, recorded frames and measurements.
+    /// Sample s: its object, transport, recorded frames and measurements (for a dataset over
+    /// drawn benches its bench is traced first: [`Prepared::sample_on`] reuses one).
     pub fn sample(&self, s: u64) -> Result<Sample> {
+        if self.drawn.is_some() {
+            let b = self.drawn_bench(self.bench_index(s))?;
+            return self.sample_on(s, &b);
+        }
+        self.sample_with(s, &self.scene, &self.kernel)
+    }
+
+    /// Sample s measured through `bench` (which must be bench [`Prepared::bench_index`]`(s)`).
+    pub fn sample_on(&self, s: u64, bench: &BenchKernel) -> Result<Sample> {
+        self.sample_with(s, &bench.scene, &bench.kernel)
+    }
+
+    fn sample_with(&self, s: u64, scene: &RunScene, kernel: &Kernel) -> Result<Sample> {
         let object = self.object(s)?.data;
-        let transport = Transport::from_kernel(&self.scene.bench, &self.kernel, &object)?;
+        let transport = Transport::from_kernel(&scene.bench, kernel, &object)?;
         let seed = rng::mix64(rng::mix64(self.spec.file.seed ^ NOISE) ^ s);
         let rec = crate::pipeline::record_transport(
             &transport,
-            &self.scene.detector,
-            &self.scene.scope,
-            &self.scene.settings,
+            &scene.detector,
+            &scene.scope,
+            &scene.settings,
             &self.patterns,
             seed,
             &|_, _, _| {},
@@ -414,12 +590,157 @@ impl Prepared {
             })?;
             measurements.push(scheme.measurements(&r.frames, m));
         }
+        let mut optional = Vec::new();
+        let w = &self.spec.file.write;
+        if w.reconstructions {
+            let x = Raster::new(
+                transport.units_across,
+                transport.units_down,
+                transport.x_w.clone(),
+            )?;
+            let x_max = x.max();
+            if !(x_max > 0.0) {
+                return Err(Error::input(format!(
+                    "sample {s}: no light of the object reached the DMD's pattern area"
+                )));
+            }
+            let truth = x.map(|v| 255.0 * v / x_max);
+            let solver = crate::reconstruction::Solver::new(
+                scene.settings.solver.clone(),
+                crate::reconstruction::ZeroOneHandling::Plain,
+            );
+            let cells = crate::pipeline::solve_stage(
+                &rec,
+                &self.schemes,
+                &self.ratios,
+                &truth,
+                &solver,
+                None,
+                &|_, _, _| {},
+            )?;
+            optional.push(x.data);
+            for c in &cells {
+                optional.push(c.solution.data.clone());
+            }
+            for c in &cells {
+                optional.push(vec![c.psnr_db, c.mssim]);
+            }
+        }
+        if w.scope_frames > 0 {
+            for (q, len) in self.scope_sequences() {
+                let r = rec.record(q).ok_or_else(|| {
+                    Error::Numerical(format!("no record for the {} sequence", q.key()))
+                })?;
+                let v = &r.trace.v;
+                if v.iter().any(|c| c.len() != len) {
+                    return Err(Error::Numerical(format!(
+                        "the {} sequence's oscilloscope record holds {} samples, not {len}",
+                        q.key(),
+                        v[0].len()
+                    )));
+                }
+                optional.push(v.concat());
+            }
+        }
         Ok(Sample {
             object,
             measurements,
             k_a_per_w: [transport.k[0].value, transport.k[1].value],
             b_a: [transport.b[0].value, transport.b[1].value],
+            optional,
         })
+    }
+
+    /// The sequences the schemes read, each with the length of its oscilloscope record of the
+    /// first `scope_frames` frames (samples n whose frame ⌊(n + 10⁻⁶)/P⌋ is below that, P the
+    /// samples per frame, as [`crate::detector::record`] assigns them).
+    pub fn scope_sequences(&self) -> Vec<(crate::acquisition::Sequence, usize)> {
+        let f = self.spec.file.write.scope_frames;
+        let st = &self.scene.settings;
+        let fs = self.scene.scope.sample_rate_hz;
+        let per_frame = fs / st.dmd_rate_hz;
+        let m = self.patterns.measurements();
+        crate::acquisition::Sequence::all()
+            .into_iter()
+            .filter(|q| self.schemes.iter().any(|k| k.sequence() == *q))
+            .map(|q| {
+                let frames = q.frames(m);
+                let len = if f >= frames {
+                    (frames as f64 / st.dmd_rate_hz * fs).ceil() as usize
+                } else {
+                    (f as f64 * per_frame - 1e-6).ceil() as usize
+                };
+                (q, len)
+            })
+            .collect()
+    }
+
+    /// The schema of the optional arrays (`write:` of the spec), in [`Sample::optional`] order.
+    pub fn optional_arrays(&self) -> Vec<ArraySchema> {
+        let mut v = Vec::new();
+        let w = &self.spec.file.write;
+        let (across, down) = self.scene.bench.units_shape();
+        let cells: Vec<(Scheme, f64)> = self
+            .schemes
+            .iter()
+            .flat_map(|s| self.ratios.iter().map(move |r| (*s, *r)))
+            .collect();
+        if w.reconstructions {
+            v.push(ArraySchema {
+                name: "dmd_image".into(),
+                dtype: "<f8".into(),
+                sample_shape: vec![down, across],
+                units: "W".into(),
+                description: "the object's light on each DMD unit (x_j, rows top to bottom): \
+                              what the reconstructions are scored against, scaled to 0–255"
+                    .into(),
+            });
+            for (sch, r) in &cells {
+                v.push(ArraySchema {
+                    name: format!("recon_{}_r{r:.4}", sch.key()),
+                    dtype: "<f8".into(),
+                    sample_shape: vec![down, across],
+                    units: "arbitrary (as TVAL3 returns it)".into(),
+                    description: format!(
+                        "{} reconstruction at {:.1} % sampling",
+                        sch.label(),
+                        100.0 * r
+                    ),
+                });
+            }
+            for (sch, r) in &cells {
+                v.push(ArraySchema {
+                    name: format!("score_{}_r{r:.4}", sch.key()),
+                    dtype: "<f8".into(),
+                    sample_shape: vec![2],
+                    units: "dB, 1".into(),
+                    description: format!(
+                        "PSNR and MSSIM of the {} reconstruction at {:.1} % against dmd_image \
+                         (after the least-squares gain and offset, as in spibench run)",
+                        sch.label(),
+                        100.0 * r
+                    ),
+                });
+            }
+        }
+        if w.scope_frames > 0 {
+            for (q, len) in self.scope_sequences() {
+                v.push(ArraySchema {
+                    name: format!("scope_{}", q.key()),
+                    dtype: "<f8".into(),
+                    sample_shape: vec![3, len],
+                    units: "V".into(),
+                    description: format!(
+                        "the oscilloscope's record [RF, MONITOR+, MONITOR−] of the first {} \
+                         frames of the {} sequence, sample n at n/{} s",
+                        w.scope_frames,
+                        q.key(),
+                        self.scene.scope.sample_rate_hz
+                    ),
+                });
+            }
+        }
+        v
     }
 
     pub fn shards_total(&self) -> u64 {
@@ -434,9 +755,22 @@ impl Prepared {
         let f = &self.spec.file;
         let first = b * f.shard_samples;
         let end = (first + f.shard_samples).min(f.samples);
+        // The benches this shard's samples see, each traced once (in index order; a kernel
+        // trace is itself parallel).
+        let benches: Vec<(u64, BenchKernel)> = if self.drawn.is_some() {
+            (self.bench_index(first)..=self.bench_index(end - 1))
+                .map(|t| Ok((t, self.drawn_bench(t)?)))
+                .collect::<Result<_>>()?
+        } else {
+            Vec::new()
+        };
+        let bench_of = |s: u64| benches.iter().find(|(t, _)| *t == self.bench_index(s));
         let samples: Vec<Sample> = (first..end)
             .into_par_iter()
-            .map(|s| self.sample(s))
+            .map(|s| match bench_of(s) {
+                Some((_, b)) => self.sample_on(s, b),
+                None => self.sample_with(s, &self.scene, &self.kernel),
+            })
             .collect::<Result<_>>()?;
         let n = samples.len();
         let mut out = Vec::new();
@@ -447,13 +781,24 @@ impl Prepared {
                 "object" => samples.iter().for_each(|s| data.extend(&s.object)),
                 "k" => samples.iter().for_each(|s| data.extend(s.k_a_per_w)),
                 "b" => samples.iter().for_each(|s| data.extend(s.b_a)),
+                "bench" => data.extend((first..end).map(|s| self.bench_index(s) as f64)),
+                "deviations" => {
+                    for s in first..end {
+                        let (_, b) = bench_of(s).expect("drawn benches");
+                        data.extend(&b.deviations);
+                    }
+                }
                 name => {
-                    let i = self
-                        .measurement_names()
-                        .iter()
-                        .position(|m| m.0 == name)
-                        .expect("schema names");
-                    samples.iter().for_each(|s| data.extend(&s.measurements[i]));
+                    if let Some(i) = self.measurement_names().iter().position(|m| m.0 == name) {
+                        samples.iter().for_each(|s| data.extend(&s.measurements[i]));
+                    } else {
+                        let i = self
+                            .optional_arrays()
+                            .iter()
+                            .position(|a| a.name == name)
+                            .expect("schema names");
+                        samples.iter().for_each(|s| data.extend(&s.optional[i]));
+                    }
                 }
             }
             let mut shape = vec![n];
@@ -474,6 +819,8 @@ impl Prepared {
                 spec_sha256: sha256_hex(self.spec.text.as_bytes()),
                 bench_file: "bench.ron".into(),
                 bench_sha256: sha256_hex(self.bench_text.as_bytes()),
+                tolerance_file: self.drawn.as_ref().map(|_| "tolerances.ron".into()),
+                tolerance_sha256: self.drawn.as_ref().map(|d| sha256_hex(d.text.as_bytes())),
             },
             seed: self.spec.file.seed,
             samples: self.spec.file.samples,
@@ -489,6 +836,10 @@ impl Prepared {
                 multi_crossing_current_fraction: self.kernel.multi_crossing_current_fraction(),
             },
             pattern_family: self.scene.settings.patterns.label(),
+            record: match self.scene.settings.record {
+                crate::detector::RecordModel::Frames => "frames".into(),
+                crate::detector::RecordModel::Samples => "samples".into(),
+            },
             measurements_max: self.patterns.measurements(),
             schemes: self.schemes.iter().map(|s| s.key().to_string()).collect(),
             ratios: self.ratios.clone(),
@@ -572,6 +923,7 @@ pub fn generate(
         let fresh = prep.manifest(command, range);
         if manifest.provenance.spec_sha256 != fresh.provenance.spec_sha256
             || manifest.provenance.bench_sha256 != fresh.provenance.bench_sha256
+            || manifest.provenance.tolerance_sha256 != fresh.provenance.tolerance_sha256
             || manifest.shard_range != range
         {
             return Err(Error::input(
@@ -609,6 +961,9 @@ pub fn generate(
         manifest = prep.manifest(command, range);
         crate::report::npy::write_atomic(&dir.join("spec.ron"), prep.spec.text.as_bytes())?;
         crate::report::npy::write_atomic(&dir.join("bench.ron"), prep.bench_text.as_bytes())?;
+        if let Some(d) = &prep.drawn {
+            crate::report::npy::write_atomic(&dir.join("tolerances.ron"), d.text.as_bytes())?;
+        }
         if prep.spec.file.write.patterns {
             let bits = prep.patterns.base_patterns();
             let (rows, cols) = (bits.rows(), bits.cols());
@@ -691,6 +1046,7 @@ pub fn merge(inputs: &[PathBuf], out: &Path, command: &[String]) -> Result<Manif
     for (d, m) in inputs.iter().zip(&manifests) {
         let same = m.provenance.spec_sha256 == m0.provenance.spec_sha256
             && m.provenance.bench_sha256 == m0.provenance.bench_sha256
+            && m.provenance.tolerance_sha256 == m0.provenance.tolerance_sha256
             && m.seed == m0.seed
             && m.samples == m0.samples
             && m.shard_samples == m0.shard_samples
@@ -740,7 +1096,7 @@ pub fn merge(inputs: &[PathBuf], out: &Path, command: &[String]) -> Result<Manif
     merged.shards.clear();
     merged.shard_range = (0, m0.shards_total);
     merged.provenance.command = command.to_vec();
-    for f in ["spec.ron", "bench.ron", "patterns.npy"] {
+    for f in ["spec.ron", "bench.ron", "tolerances.ron", "patterns.npy"] {
         let src = inputs[0].join(f);
         if src.exists() {
             std::fs::copy(&src, sdir.join(f)).map_err(|e| Error::write(&sdir.join(f), e))?;

@@ -102,7 +102,7 @@ pub struct CatalogueGlass {
 }
 
 /// The built-in catalogue (docs/glasses.md gives each source and its check values).
-pub const CATALOGUE: [CatalogueGlass; 10] = [
+pub static CATALOGUE: [CatalogueGlass; 10] = [
     CatalogueGlass {
         name: "N-BK7",
         aliases: &["bk7"],

@@ -206,7 +206,8 @@ pub fn record_transport(
             } else {
                 DriftPath::flat(il.light_a.len(), timing.frame_s)
             };
-            let mut r = detector::record(
+            let mut r = detector::record_with(
+                s.record,
                 detector,
                 channels,
                 timing,

@@ -1051,11 +1051,6 @@ impl<'a> Locator<'a> {
         None
     }
 
-    /// The contents of the element whose `name` is `element`.
-    fn element(&self, element: &str) -> Option<(usize, usize)> {
-        self.named("elements", element)
-    }
-
     /// The contents of the entry of the top-level list `list` whose `name` is `name`.
     fn named(&self, list: &str, name: &str) -> Option<(usize, usize)> {
         let top = self.top()?;
@@ -1097,8 +1092,10 @@ impl<'a> Locator<'a> {
         pos
     }
 
-    fn element_field(&self, element: &str, field: &str) -> Option<usize> {
-        let range = self.element(element)?;
+    /// Position of `field` in the entry of the top-level list `list` named `name` (the entry
+    /// itself when it lacks the field).
+    fn entry_field(&self, list: &str, name: &str, field: &str) -> Option<usize> {
+        let range = self.named(list, name)?;
         self.field(range, field).map(|(p, _)| p).or(Some(range.0))
     }
 
@@ -1274,9 +1271,22 @@ impl Ctx<'_> {
 
     /// An error at a field of a named element.
     fn err_el(&self, element: &str, field: &str, msg: impl Into<String>) -> Error {
-        let mut e = Error::field(format!("elements[{element}].{field}"), msg).in_file(self.path);
+        self.err_entry(format!("elements[{element}]"), "elements", element, field, msg)
+    }
+
+    /// An error at `field` of the entry named `name` of the top-level list `list`, reported
+    /// under the path `label.field`.
+    fn err_entry(
+        &self,
+        label: String,
+        list: &str,
+        name: &str,
+        field: &str,
+        msg: impl Into<String>,
+    ) -> Error {
+        let mut e = Error::field(format!("{label}.{field}"), msg).in_file(self.path);
         if let Some(loc) = &self.loc
-            && let Some(p) = loc.element_field(element, field)
+            && let Some(p) = loc.entry_field(list, name, field)
         {
             let (l, c) = loc.line_col(p);
             e = e.at_line(l, c);
@@ -1311,16 +1321,7 @@ impl Ctx<'_> {
 
     /// An error at a field of the bench's glass number `index` (named `name`).
     fn err_glass(&self, index: usize, name: &str, field: &str, msg: impl Into<String>) -> Error {
-        let mut e = Error::field(format!("glasses[{index}].{field}"), msg).in_file(self.path);
-        if let Some(loc) = &self.loc
-            && let Some(p) = loc
-                .named("glasses", name)
-                .and_then(|r| loc.field(r, field).map(|(p, _)| p).or(Some(r.0)))
-        {
-            let (l, c) = loc.line_col(p);
-            e = e.at_line(l, c);
-        }
-        e
+        self.err_entry(format!("glasses[{index}]"), "glasses", name, field, msg)
     }
 
     fn coating(&self, c: &CoatingSpec, err: impl Fn(String) -> Error) -> Result<Coating> {
@@ -2467,6 +2468,7 @@ mod tests {
             let (text, path) = with_glasses(glasses, lens);
             let (msg, line) = fails_at(&text, &path, marker);
             assert!(msg.contains(&format!("line {line}")), "{msg} (line {line})");
+            assert!(msg.contains("symmetric_arms.ron"), "{msg}");
             assert!(msg.contains(field), "{msg}");
             assert!(msg.contains(words), "{msg}");
         };
@@ -2505,7 +2507,10 @@ mod tests {
         // A negative coefficient is refused by its type.
         let (text, path) = with_glasses(&MY_BK7.replace("1.03961212", "-1.0"), "MY-BK7");
         let msg = parse_bench(&text, &path).unwrap_err().to_string();
-        assert!(msg.contains("non-negative"), "{msg}");
+        assert!(
+            msg.contains("non-negative") && msg.contains("glasses") && msg.contains("line "),
+            "{msg}"
+        );
         // An unknown glass names the catalogue and the bench's own glasses.
         let (text, path) = with_glasses(MY_BK7, "MY-BK8");
         let msg = parse_bench(&text, &path).unwrap_err().to_string();

@@ -53,6 +53,31 @@ pub struct DatasetFile {
     /// error before anything is written.
     #[serde(default)]
     pub max_disk_gb: Option<f64>,
+    /// How the detector outputs are recorded (default `Frames`).
+    #[serde(default)]
+    pub record: RecordSpec,
+}
+
+/// How the detector outputs of each sample are recorded.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize, Serialize)]
+pub enum RecordSpec {
+    /// Each frame's settled-window mean drawn from its exact distribution
+    /// (`detector::record_frames`): the same electronics, noise, drift and clipping as `run`,
+    /// without simulating every oscilloscope sample. The default.
+    #[default]
+    Frames,
+    /// Sample by sample in time, as `spibench run` records (`detector::record`): the
+    /// reference, about a hundred times slower.
+    Samples,
+}
+
+impl RecordSpec {
+    pub fn model(self) -> crate::detector::RecordModel {
+        match self {
+            RecordSpec::Frames => crate::detector::RecordModel::Frames,
+            RecordSpec::Samples => crate::detector::RecordModel::Samples,
+        }
+    }
 }
 
 /// Which benches the samples are measured through.
@@ -62,8 +87,11 @@ pub enum BenchesSpec {
     /// The bench file as it is.
     #[default]
     Nominal,
-    /// Benches drawn from a tolerance file, a new one every `samples_per_bench` samples. Not
-    /// supported yet (tolerance draws are another part of spibench): rejected with a message.
+    /// Benches drawn from a tolerance file (relative to the spec), a new one every
+    /// `samples_per_bench` samples: samples s with the same ⌊s / samples_per_bench⌋ = t see
+    /// the bench of tolerance trial t (its draws keyed by the dataset's seed and t, its
+    /// compensators adjusted as `spibench tolerance` adjusts them), each traced as a kernel of
+    /// its own.
     Tolerance {
         file: String,
         samples_per_bench: u64,
@@ -128,7 +156,19 @@ pub struct WriteSpec {
     /// Also write the packed base patterns (once per dataset).
     #[serde(default)]
     pub patterns: bool,
+    /// Also write, per sample, the oscilloscope's record of the first `scope_frames` frames of
+    /// each sequence, sample by sample (at most 100 frames).
+    #[serde(default)]
+    pub scope_frames: usize,
+    /// Also reconstruct every (scheme, ratio) with the bench's TVAL3 settings, and write the
+    /// reconstructions, the object's image on the DMD units they are scored against, and their
+    /// PSNR and MSSIM.
+    #[serde(default)]
+    pub reconstructions: bool,
 }
+
+/// The most frames of oscilloscope record a dataset sample may carry.
+pub const MAX_SCOPE_FRAMES: usize = 100;
 
 /// Objects, validated and loaded.
 #[derive(Debug, Clone)]
@@ -157,6 +197,8 @@ pub struct DatasetSpec {
     /// The spec's text (hashed and copied into the manifest).
     pub text: String,
     pub bench_path: PathBuf,
+    /// The tolerance file of `benches: Tolerance(..)`, resolved against the spec's folder.
+    pub tolerance_path: Option<PathBuf>,
     pub objects: ObjectSource,
 }
 
@@ -205,12 +247,28 @@ pub fn parse_dataset(text: &str, path: &Path) -> Result<DatasetSpec> {
     if file.samples > 1_000_000_000 {
         return Err(err("samples", "more than 10⁹ samples is absurd".into()));
     }
-    if let BenchesSpec::Tolerance { .. } = file.benches {
-        return Err(err(
-            "benches",
-            "benches drawn from a tolerance file are not supported yet: use Nominal".into(),
-        ));
-    }
+    let tolerance_path = match &file.benches {
+        BenchesSpec::Nominal => None,
+        BenchesSpec::Tolerance {
+            file: tol,
+            samples_per_bench,
+        } => {
+            if *samples_per_bench == 0 {
+                return Err(err(
+                    "samples_per_bench",
+                    "a bench serves at least one sample".into(),
+                ));
+            }
+            let p = base.join(tol);
+            if !p.is_file() {
+                return Err(err(
+                    "file",
+                    format!("the tolerance file {} does not exist", p.display()),
+                ));
+            }
+            Some(p)
+        }
+    };
     let k = &file.kernel;
     if k.rays == 0 || k.rays > MAX_KERNEL_RAYS {
         return Err(err(
@@ -242,6 +300,15 @@ pub fn parse_dataset(text: &str, path: &Path) -> Result<DatasetSpec> {
                 "sampling ratios must be in (0, 1], at least one".into(),
             ));
         }
+    }
+    if file.write.scope_frames > MAX_SCOPE_FRAMES {
+        return Err(err(
+            "scope_frames",
+            format!(
+                "at most {MAX_SCOPE_FRAMES} frames of oscilloscope record per sample, got {}",
+                file.write.scope_frames
+            ),
+        ));
     }
     if let Some(gb) = file.max_disk_gb
         && !(gb.is_finite() && gb > 0.0)
@@ -356,6 +423,7 @@ pub fn parse_dataset(text: &str, path: &Path) -> Result<DatasetSpec> {
     };
     Ok(DatasetSpec {
         bench_path: base.join(&file.bench),
+        tolerance_path,
         file,
         path: path.to_path_buf(),
         text: text.to_string(),

@@ -27,7 +27,9 @@ use std::path::Path;
 use serde::{Deserialize, Serialize};
 
 use crate::acquisition::{AdditiveNoise, DEFAULT_DMD_RATE_HZ, PatternFamily, Scheme};
-use crate::detector::{Bap, ChannelRange, Drift, Load, OutputStage, Scope, ScopeNoise};
+use crate::detector::{
+    Bap, ChannelRange, Drift, Load, OutputStage, RecordModel, Scope, ScopeNoise,
+};
 use crate::error::{Error, Result};
 use crate::optics::Bench;
 use crate::reconstruction::tval3::Tval3Options;
@@ -68,6 +70,10 @@ pub struct RunSettings {
     pub additive_noise: Option<AdditiveNoise>,
     pub solver: Tval3Options,
     pub signal_trace_frames: usize,
+    /// How the detector outputs are recorded: sample by sample (`spibench run`, the reference)
+    /// or frame by frame (datasets choose it in their spec). Not a field of the bench file.
+    #[serde(skip)]
+    pub record: RecordModel,
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -714,6 +720,7 @@ pub fn settings_si(r: &RunSpec) -> FieldResult<RunSettings> {
             .map(|n: NoiseSpec| -> AdditiveNoise { n.0 }),
         solver,
         signal_trace_frames: r.signal_trace_frames,
+        record: RecordModel::Samples,
     })
 }
 

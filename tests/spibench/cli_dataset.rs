@@ -212,6 +212,17 @@ fn bad_specs_are_located_input_errors() {
     std::fs::create_dir_all(&small).unwrap();
     let tiny = spibench::raster::Raster::new(8, 8, vec![0.5; 64]).unwrap();
     spibench::report::png::write_gray8(&small.join("tiny.png"), &tiny, 0.0, 1.0).unwrap();
+    let tol = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("scenes/tolerances/paper_bench.ron")
+        .display()
+        .to_string();
+    let bad_tol = t.join("bad_tolerances.ron");
+    std::fs::write(
+        &bad_tol,
+        "(tolerances: [(path: \"no_such_lens.despace_mm\", range: PlusMinus(0.1))])",
+    )
+    .unwrap();
+    let bad_tol = bad_tol.display().to_string();
     let folder = |p: &Path| {
         format!(
             "objects: Folder(path: {:?}, rule: RandomCrop),",
@@ -227,10 +238,24 @@ fn bad_specs_are_located_input_errors() {
             vec!["samples", "at least one", "line 7"],
         ),
         ("samples: 900000000,".into(), vec!["GB", "max_disk_gb"]),
+        (
+            "seed: 7, benches: Tolerance(file: \"nowhere.ron\", samples_per_bench: 2),".into(),
+            vec!["tolerance file", "nowhere.ron", "does not exist"],
+        ),
+        (
+            format!("seed: 7, benches: Tolerance(file: {tol:?}, samples_per_bench: 0),"),
+            vec!["samples_per_bench", "at least one sample"],
+        ),
+        (
+            format!("seed: 7, benches: Tolerance(file: {bad_tol:?}, samples_per_bench: 2),"),
+            vec!["bad_tolerances.ron", "no_such_lens", "line 1"],
+        ),
     ];
     for (k, (replacement, fragments)) in cases.iter().enumerate() {
         let from = if replacement.starts_with("objects") {
             "objects: TestImages(names: [\"astronaut\", \"coffee\"], rule: RandomCrop),"
+        } else if replacement.starts_with("seed") {
+            "seed: 7,"
         } else {
             "samples: 10,"
         };
@@ -239,7 +264,13 @@ fn bad_specs_are_located_input_errors() {
         let spec = write_spec(&dir, &[(from, replacement.as_str())]);
         let r = spibench(&["dataset", spec.to_str().unwrap(), "--out", o], &[]);
         assert_input_error(&r, fragments, &out);
-        assert!(stderr(&r).contains("spec.ron"), "{}", stderr(&r));
+        // The file at fault is named: the spec, or the tolerance file it points to.
+        let file = if fragments.contains(&"bad_tolerances.ron") {
+            "bad_tolerances.ron"
+        } else {
+            "spec.ron"
+        };
+        assert!(stderr(&r).contains(file), "{}", stderr(&r));
     }
 }
 
@@ -292,4 +323,189 @@ fn patterns_exports_packed_rows_and_mirror_frames() {
     assert_eq!(f0.get_pixel(2, 9).0[0], 0);
     assert_eq!(f1.get_pixel(5, 5).0[0], 0);
     assert_eq!(std::fs::read_dir(&out).unwrap().count(), 17);
+}
+
+/// One array of a dataset folder, every shard's rows in sample order.
+fn dataset_array(dir: &Path, name: &str) -> (Vec<usize>, Vec<f64>) {
+    let m = read_json(&dir.join("manifest.json"));
+    let mut shards: Vec<&serde_json::Value> = m["shards"].as_array().unwrap().iter().collect();
+    shards.sort_by_key(|s| s["index"].as_u64().unwrap());
+    let mut shape = Vec::new();
+    let mut data = Vec::new();
+    for s in shards {
+        let a = spibench::report::npy::read(
+            &dir.join(s["dir"].as_str().unwrap())
+                .join(format!("{name}.npy")),
+        )
+        .unwrap();
+        shape = a.shape[1..].to_vec();
+        data.extend(a.to_f64());
+    }
+    (shape, data)
+}
+
+/// Benches drawn from a tolerance file: samples s with the same ⌊s/4⌋ see the same drawn bench
+/// (its index and deviations are arrays of the dataset, its k± its own), shards made apart merge
+/// bit for bit, and zero tolerances give the nominal dataset's samples exactly.
+#[test]
+fn drawn_benches_serve_samples_per_bench_samples() {
+    let t = TempDir::new("dataset-drawn");
+    let tol = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/tolerances/paper_bench.ron");
+    let drawn = format!(
+        "seed: 7,\n    benches: Tolerance(file: {:?}, samples_per_bench: 4),",
+        tol.display().to_string()
+    );
+    let dir = t.join("spec");
+    std::fs::create_dir_all(&dir).unwrap();
+    let spec = write_spec(&dir, &[("seed: 7,", drawn.as_str())]);
+    let s = spec.to_str().unwrap();
+    let one = t.join("one");
+    ok(&spibench(&["dataset", s, "--out", one.to_str().unwrap()], &[]));
+    crate::outputs_schema::check_file(&one.join("manifest.json"), "DatasetManifest");
+    let m = read_json(&one.join("manifest.json"));
+    assert_eq!(m["provenance"]["tolerance_file"], "tolerances.ron");
+    assert!(one.join("tolerances.ron").is_file());
+    let (_, bench) = dataset_array(&one, "bench");
+    assert_eq!(bench, [0., 0., 0., 0., 1., 1., 1., 1., 2., 2.]);
+    let (shape, dev) = dataset_array(&one, "deviations");
+    let n_tol = shape[0];
+    assert_eq!(n_tol, 27, "the shipped file's 27 tolerances");
+    for s in 0..10 {
+        let same = s / 4 * 4;
+        assert_eq!(dev[s * n_tol..(s + 1) * n_tol], dev[same * n_tol..(same + 1) * n_tol]);
+    }
+    assert!(dev[..n_tol] != dev[4 * n_tol..5 * n_tol]);
+    assert!(dev[..n_tol].iter().all(|v| v.is_finite()) && dev[..n_tol].iter().any(|v| *v != 0.0));
+    // The same objects (keyed by the seed and s) through the nominal bench: every sample's k±
+    // differ, since every drawn bench differs from the nominal one.
+    let nspec = write_spec(&t.0, &[]);
+    let nout = t.join("nout");
+    ok(&spibench(
+        &["dataset", nspec.to_str().unwrap(), "--out", nout.to_str().unwrap()],
+        &[],
+    ));
+    assert_eq!(dataset_array(&one, "object"), dataset_array(&nout, "object"));
+    let (_, k) = dataset_array(&one, "k");
+    let (_, k_nominal) = dataset_array(&nout, "k");
+    for s in 0..10 {
+        for d in 0..2 {
+            assert!(k[2 * s + d] != k_nominal[2 * s + d], "sample {s}: {k:?}");
+        }
+    }
+    // Two jobs and a merge: the same files, byte for byte (bench 1 spans the shard boundary at
+    // sample 6, so both jobs trace it).
+    let jobs: Vec<PathBuf> = (0..2).map(|i| t.join(&format!("job{i}"))).collect();
+    for (i, j) in jobs.iter().enumerate() {
+        let shard = format!("{i}/2");
+        ok(&spibench(
+            &["dataset", s, "--out", j.to_str().unwrap(), "--shard", &shard],
+            &[],
+        ));
+    }
+    let merged = t.join("merged");
+    let mut args = vec!["dataset", "--out", merged.to_str().unwrap(), "--merge"];
+    args.extend(jobs.iter().map(|j| j.to_str().unwrap()));
+    ok(&spibench(&args, &[]));
+    assert_eq!(shard_files(&one), shard_files(&merged));
+    assert!(merged.join("tolerances.ron").is_file());
+
+    // Zero tolerances: every drawn bench is the nominal one.
+    let zero = t.join("zero.ron");
+    std::fs::write(
+        &zero,
+        "(tolerances: [(path: \"dmd.tilt_deg\", range: PlusMinus(0.0)), \
+         (path: \"detectors.minus.decenter_mm.x\", range: Between(0.0, 0.0), \
+         distribution: Normal(sigmas: 2.0))])",
+    )
+    .unwrap();
+    let zdir = t.join("zspec");
+    std::fs::create_dir_all(&zdir).unwrap();
+    let zdrawn = format!(
+        "seed: 7,\n    benches: Tolerance(file: {:?}, samples_per_bench: 4),",
+        zero.display().to_string()
+    );
+    let zspec = write_spec(&zdir, &[("seed: 7,", zdrawn.as_str())]);
+    let zout = t.join("zout");
+    ok(&spibench(
+        &["dataset", zspec.to_str().unwrap(), "--out", zout.to_str().unwrap()],
+        &[],
+    ));
+    let m = read_json(&nout.join("manifest.json"));
+    for a in m["schema"].as_array().unwrap() {
+        let name = a["name"].as_str().unwrap();
+        assert_eq!(
+            dataset_array(&zout, name),
+            dataset_array(&nout, name),
+            "array {name}"
+        );
+    }
+    assert!(dataset_array(&zout, "deviations").1.iter().all(|v| *v == 0.0));
+}
+
+/// The optional arrays: the oscilloscope's record of the first frames, the reconstructions with
+/// the DMD image they are scored against, and scores that `metrics::score` gives again.
+#[test]
+fn optional_arrays_hold_scope_records_and_scored_reconstructions() {
+    let t = TempDir::new("dataset-optional");
+    let spec = write_spec(
+        &t.0,
+        &[
+            ("samples: 10,", "samples: 3,"),
+            (
+                "shard_samples: 3,",
+                "shard_samples: 3,\n    write: (scope_frames: 2, reconstructions: true),",
+            ),
+        ],
+    );
+    let out = t.join("out");
+    ok(&spibench(
+        &["dataset", spec.to_str().unwrap(), "--out", out.to_str().unwrap()],
+        &[],
+    ));
+    crate::outputs_schema::check_file(&out.join("manifest.json"), "DatasetManifest");
+    // SCB reads the complementary sequence, double-arm the base one: 2 frames of 440.009
+    // samples (1/22 727 Hz at 10 MS/s) each, so 881 samples begin in them.
+    for q in ["base", "complementary"] {
+        let (shape, v) = dataset_array(&out, &format!("scope_{q}"));
+        assert_eq!(shape, [3, 881], "scope_{q}");
+        assert_eq!(v.len(), 3 * 3 * 881);
+        assert!(v.iter().all(|x| x.is_finite()));
+        // A noisy record: not constant within a channel.
+        assert!(v[..881].iter().any(|x| *x != v[0]), "scope_{q}");
+    }
+    let (shape, image) = dataset_array(&out, "dmd_image");
+    assert_eq!(shape, [48, 48]);
+    for scheme in ["secondary_complementary_balancing", "double_arm"] {
+        let (shape, recon) = dataset_array(&out, &format!("recon_{scheme}_r0.0500"));
+        assert_eq!(shape, [48, 48]);
+        let (_, scores) = dataset_array(&out, &format!("score_{scheme}_r0.0500"));
+        for s in 0..3 {
+            let x = spibench::raster::Raster::new(48, 48, image[s * 2304..(s + 1) * 2304].to_vec())
+                .unwrap();
+            let max = x.max();
+            let truth = x.map(|v| 255.0 * v / max);
+            let r = spibench::raster::Raster::new(48, 48, recon[s * 2304..(s + 1) * 2304].to_vec())
+                .unwrap();
+            let sc = spibench::metrics::score(&truth, &r).unwrap();
+            assert_eq!([sc.psnr_db, sc.mssim], scores[2 * s..2 * s + 2], "{scheme} sample {s}");
+            assert!(sc.mssim > 0.0 && sc.mssim <= 1.0);
+        }
+    }
+    // Too many scope frames: a located input error.
+    let bad = write_spec(
+        &t.0,
+        &[(
+            "shard_samples: 3,",
+            "shard_samples: 3,\n    write: (scope_frames: 1000),",
+        )],
+    );
+    let o = t.join("bad");
+    assert_input_error(
+        &spibench(
+            &["dataset", bad.to_str().unwrap(), "--out", o.to_str().unwrap()],
+            &[],
+        ),
+        &["scope_frames", "at most 100", "line 9"],
+        &o,
+    );
 }
