@@ -7,11 +7,15 @@
 //!     cargo bench --bench dataset            (SPIBENCH_DATASET_SAMPLES, _RAYS override)
 //!
 //! Targets on a 2-core machine: ≥ 200 samples/s after the kernel trace, kernel trace < 2 min.
+//! The samples are recorded frame by frame (the dataset default); a subset is also recorded
+//! sample by sample in time, as `spibench run` does, to show what that costs.
 
 use std::path::Path;
 use std::time::Instant;
 
+use rayon::prelude::*;
 use spibench::dataset::{Prepared, generate, shard_range};
+use spibench::detector::RecordModel;
 use spibench::scene::bench::{ChartPatternSpec, ElementSpec, LengthMm, SpectrumSpec};
 use spibench::scene::dataset::parse_dataset;
 use spibench::scene::doc::BenchDoc;
@@ -58,6 +62,27 @@ fn main() {
         g.seconds
     );
     let _ = std::fs::remove_dir_all(&out);
+
+    // The same samples recorded sample by sample in time (the model of `spibench run`), on a
+    // subset, without writing: what the frame-level record saves.
+    let subset = env("SPIBENCH_DATASET_SAMPLE_MODEL", 200).min(samples);
+    let mut prep = prep;
+    let timed = |prep: &Prepared| {
+        let t = Instant::now();
+        (0..subset).into_par_iter().for_each(|s| {
+            prep.sample(s).expect("sample");
+        });
+        subset as f64 / t.elapsed().as_secs_f64()
+    };
+    let frames_rate = timed(&prep);
+    prep.scene.settings.record = RecordModel::Samples;
+    let samples_rate = timed(&prep);
+    prep.scene.settings.record = RecordModel::Frames;
+    println!(
+        "record model on {subset} samples (no writing): frames {frames_rate:.0} samples/s, \
+         samples (time domain) {samples_rate:.1} samples/s: {:.0}× faster",
+        frames_rate / samples_rate
+    );
 
     // Baseline: each object traced directly at the kernel's ray count, then recorded the same
     // way (so the comparison is per sample, end to end).

@@ -1,25 +1,44 @@
-//! Tolerance analysis of the shipped file on the paper bench: the sensitivity table at a ray
-//! count that resolves each imbalance change to 1e-4 (paired standard error), and a 100-trial
-//! Monte Carlo without `--quality`, with the time split between compensators and traces.
+//! Tolerance analysis of the shipped file on the paper bench: the sensitivity table resolved
+//! row by row (`tolerance --resolve 1e-4`: each row's paired standard error of Δimbalance at
+//! most max(10⁻⁴, 1 % of |Δ|), from 102 400 rays, 4ᵏ times that, up to 6.6·10⁶, per end), against the
+//! baseline of one ray count for every row (10⁶, the previous method), and a 100-trial Monte
+//! Carlo without `--quality`, with the time split between compensators and traces.
 //!
 //!     cargo bench --bench tolerance [-- TRIALS]
 //!
-//! A pilot sensitivity table at 50 000 rays measures the worst paired standard error of an
-//! imbalance change; it falls as 1/√rays, so the pilot predicts the rays for 1e-4. The Monte
-//! Carlo is run twice: with the file as shipped (no compensators) and with the − diode's
-//! decentre as a Balance compensator, to measure what compensators cost. The baseline for the
-//! compensated trials is the uncompensated trial (the same trace after the compensators).
+//! The Monte Carlo is run twice: with the file as shipped (no compensators) and with the −
+//! diode's decentre as a Balance compensator, to measure what compensators cost.
 //!
-//! It also measures how the time of one trace splits before and after the DMD: a trial that
-//! perturbs only parts after the DMD could re-trace only the light leaving the DMD (a stored
-//! ray bundle), which pays only if most of the time is spent after the DMD.
+//! It also counts where a trace's work goes, before and after the DMD (`trace::split`): a trial
+//! that perturbs only parts after the DMD could re-trace only the light leaving the DMD (a
+//! stored ray bundle), which pays only in proportion to the work done after the DMD.
 
 use std::path::Path;
 use std::time::Instant;
 
 use spibench::scene::doc::BenchDoc;
-use spibench::scene::tolerance::ToleranceSet;
-use spibench::tolerance::{ToleranceOptions, is_metric, nominal, sensitivity, trial};
+use spibench::scene::tolerance::{SensitivityRecord, ToleranceSet};
+use spibench::tolerance::{Resolve, ToleranceOptions, is_metric, nominal, sensitivity, trial};
+
+fn worst(rows: &[SensitivityRecord], rule: &Resolve) -> (f64, usize) {
+    let mut worst = 0.0f64;
+    let mut unresolved = 0;
+    for r in rows {
+        let mut ok = true;
+        for high in [false, true] {
+            let (d, se) = (
+                r.at(high, "imbalance_diff"),
+                r.at(high, "imbalance_diff_stderr"),
+            );
+            if se.is_finite() {
+                worst = worst.max(se);
+            }
+            ok &= rule.holds(d, se);
+        }
+        unresolved += usize::from(!ok);
+    }
+    (worst, unresolved)
+}
 
 fn main() {
     let trials: u64 = std::env::args()
@@ -39,65 +58,61 @@ fn main() {
         "paper bench, {} tolerances, {threads} thread(s)",
         set.tolerances.len()
     );
-
-    // Pilot: the worst paired SE of an imbalance change.
-    let pilot = 50_000;
     let o = |rays| ToleranceOptions {
         rays,
         seed: 1,
         quality: false,
     };
-    let t = Instant::now();
-    let nom = nominal(&doc, &o(pilot)).unwrap();
-    let rows = sensitivity(&doc, &set, &nom, &o(pilot), &|_, _| {}).unwrap();
-    let pilot_s = t.elapsed().as_secs_f64();
-    let worst = rows
-        .iter()
-        .flat_map(|r| {
-            [
-                r.at(false, "imbalance_diff_stderr"),
-                r.at(true, "imbalance_diff_stderr"),
-            ]
-        })
-        .filter(|v| v.is_finite())
-        .fold(0.0f64, f64::max);
-    let rays = ((pilot as f64) * (worst / 1e-4).powi(2)).ceil() as u64;
-    // Capped at 1e6 rays per trace so that the benchmark stays within minutes on 2 cores; the
-    // worst standard error reached is printed.
-    let rays = rays.clamp(pilot, 1_000_000);
-    println!(
-        "pilot: {} traces at {pilot} rays in {pilot_s:.1} s; worst paired SE of Δimbalance \
-         {worst:.2e} → {rays} rays for 1e-4",
-        2 * rows.len() + 1
-    );
 
+    // Resolved row by row.
+    let start = 100 * spibench::trace::RAYS_PER_BATCH;
+    let rule = Resolve {
+        stderr: 1e-4,
+        relative: 0.01,
+        max_rays: 64 * start,
+    };
     let t = Instant::now();
-    let nom = nominal(&doc, &o(rays)).unwrap();
-    let rows = sensitivity(&doc, &set, &nom, &o(rays), &|_, _| {}).unwrap();
+    let nom = nominal(&doc, &o(start)).unwrap();
+    let rows = sensitivity(&doc, &set, &nom, &o(start), Some(rule), &|_, _| {}).unwrap();
     let sens_s = t.elapsed().as_secs_f64();
-    let worst = rows
-        .iter()
-        .flat_map(|r| {
-            [
-                r.at(false, "imbalance_diff_stderr"),
-                r.at(true, "imbalance_diff_stderr"),
-            ]
-        })
-        .filter(|v| v.is_finite())
-        .fold(0.0f64, f64::max);
+    let ends: Vec<u64> = rows.iter().flat_map(|r| r.rays).collect();
+    let mut ray_counts = ends.clone();
+    ray_counts.sort();
+    ray_counts.dedup();
+    let (w, unresolved) = worst(&rows, &rule);
     println!(
-        "sensitivity: {} traces at {rays} rays in {sens_s:.1} s (target < 300 s); worst paired \
-         SE {worst:.2e}",
-        2 * rows.len() + 1
+        "sensitivity resolved to max(1e-4, 1 % of |Δ|): {} rows in {sens_s:.1} s (target < \
+         300 s); worst paired SE {w:.2e}; {unresolved} row(s) unresolved at the cap",
+        rows.len()
     );
+    for rc in &ray_counts {
+        let n = ends.iter().filter(|r| *r == rc).count();
+        println!("  {n:>2} end(s) at {rc} rays");
+    }
     for r in rows.iter().take(5) {
         println!(
-            "  {:<40} Δimbalance {:+.2e} / {:+.2e}",
+            "  {:<34} Δimbalance {:+.3e} ± {:.1e} / {:+.3e} ± {:.1e} (rays {:?})",
             r.path,
             r.at(false, "imbalance_diff"),
-            r.at(true, "imbalance_diff")
+            r.at(false, "imbalance_diff_stderr"),
+            r.at(true, "imbalance_diff"),
+            r.at(true, "imbalance_diff_stderr"),
+            r.rays
         );
     }
+
+    // Baseline: every row at one ray count.
+    let fixed = 1_000_000;
+    let t = Instant::now();
+    let nom = nominal(&doc, &o(fixed)).unwrap();
+    let base = sensitivity(&doc, &set, &nom, &o(fixed), None, &|_, _| {}).unwrap();
+    let base_s = t.elapsed().as_secs_f64();
+    let (w, unresolved) = worst(&base, &rule);
+    println!(
+        "baseline, every row at {fixed} rays: {} traces in {base_s:.1} s; worst paired SE \
+         {w:.2e}; {unresolved} row(s) unresolved by the same rule",
+        2 * base.len() + 1
+    );
 
     // Monte Carlo at the ray count of the shipped default (200 000).
     let mc_rays = 200_000;
@@ -137,5 +152,22 @@ fn main() {
          traces {tr:.1} s",
         t.elapsed().as_secs_f64(),
         100.0 * comp / (comp + tr)
+    );
+
+    // Where a trace's work goes: segments before and after the DMD, and one trace's time.
+    let bench = doc.build().unwrap();
+    let split = spibench::trace::split::segment_split(&bench, 200_000, 1);
+    let t = Instant::now();
+    spibench::trace::trace(&bench, &spibench::trace::TraceOptions::new(1_000_000, 1)).unwrap();
+    let trace_s = t.elapsed().as_secs_f64();
+    println!(
+        "one trace of 10⁶ rays: {trace_s:.2} s; of 2·10⁵ rays, {} reach the pattern area; \
+         segments before the DMD {}, after it (both branches) {}, of rays that never reach it \
+         {}: {:.0} % of the work is after the DMD",
+        split.arrived,
+        split.before_dmd,
+        split.after_dmd,
+        split.never_arrived,
+        100.0 * split.after_share()
     );
 }

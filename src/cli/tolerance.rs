@@ -42,6 +42,14 @@ pub struct ToleranceArgs {
     /// Lamp rays per traced bench.
     #[arg(long, default_value_t = 200_000)]
     pub rays: u64,
+    /// Resolve every sensitivity row to this paired standard error of its imbalance change
+    /// (or 1 % of the change, whichever is larger), tracing the row again with 4× the rays
+    /// until it is, up to --max-rays.
+    #[arg(long, value_name = "SE")]
+    pub resolve: Option<f64>,
+    /// The most rays per trace of a row being resolved (default 64 × --rays).
+    #[arg(long, value_name = "N", requires = "resolve")]
+    pub max_rays: Option<u64>,
     /// Seed: of every trace (common random numbers) and, salted, of the tolerance draws.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
@@ -109,6 +117,34 @@ pub fn run(args: &ToleranceArgs) -> Result<()> {
         )
         .into());
     }
+    let resolve = match args.resolve {
+        None => None,
+        Some(se) => {
+            if !(se.is_finite() && se > 0.0 && se < 1.0) {
+                return Err(crate::Error::field(
+                    "--resolve",
+                    format!("a paired standard error of the imbalance in (0, 1), got {se}"),
+                )
+                .into());
+            }
+            let max_rays = args
+                .max_rays
+                .unwrap_or(args.rays.saturating_mul(64))
+                .min(crate::scene::run::MAX_RAYS);
+            if max_rays < args.rays {
+                return Err(crate::Error::field(
+                    "--max-rays",
+                    format!("must be at least --rays ({})", args.rays),
+                )
+                .into());
+            }
+            Some(crate::tolerance::Resolve {
+                stderr: se,
+                relative: 0.01,
+                max_rays,
+            })
+        }
+    };
     if args.trials > MAX_TRIALS {
         return Err(crate::Error::field("--trials", format!("at most {MAX_TRIALS}")).into());
     }
@@ -164,7 +200,9 @@ pub fn run(args: &ToleranceArgs) -> Result<()> {
     let nom = nominal(&doc, &o)?;
     let sens = if shard.0 == 0 {
         let bar = super::progress::bar(2 * set.tolerances.len() as u64, "settings");
-        let rows = sensitivity(&doc, &set, &nom, &o, &|d, _| bar.set_position(d as u64))?;
+        let rows = sensitivity(&doc, &set, &nom, &o, resolve, &|d, _| {
+            bar.set_position(d as u64)
+        })?;
         bar.finish_and_clear();
         Some(rows)
     } else {
@@ -346,7 +384,13 @@ fn write_outputs(
     let mut sens_json = Vec::new();
     if let Some(sens) = &s.sensitivity {
         files.push("sensitivity.csv".into());
-        let mut header = vec!["path".to_string(), "min".into(), "max".into()];
+        let mut header = vec![
+            "path".to_string(),
+            "min".into(),
+            "max".into(),
+            "rays_at_min".into(),
+            "rays_at_max".into(),
+        ];
         for end in ["min", "max"] {
             for m in SENSITIVITY_METRICS {
                 header.push(format!("{m}_diff_at_{end}"));
@@ -356,7 +400,13 @@ fn write_outputs(
         let rows: Vec<Vec<String>> = sens
             .iter()
             .map(|r| {
-                let mut row = vec![r.path.clone(), format!("{}", r.min), format!("{}", r.max)];
+                let mut row = vec![
+                    r.path.clone(),
+                    format!("{}", r.min),
+                    format!("{}", r.max),
+                    format!("{}", r.rays[0]),
+                    format!("{}", r.rays[1]),
+                ];
                 for high in [false, true] {
                     for m in SENSITIVITY_METRICS {
                         row.push(format!("{:e}", r.at(high, &format!("{m}_diff"))));
@@ -375,12 +425,14 @@ fn write_outputs(
         blocks.push(Block::Table {
             caption: Some(
                 "Each tolerance alone at its min / max: change from the nominal bench ± its \
-                 paired standard error, sorted by the largest |Δ imbalance|"
+                 paired standard error, sorted by the largest |Δ imbalance|; the rays of the \
+                 row's traces (more than the run's where --resolve asked for them)"
                     .into(),
             ),
             header: [
                 "tolerance",
                 "range",
+                "rays",
                 "Δ imbalance",
                 "Δ k' (A/W)",
                 "Δ(b₋ − b₊) (A)",
@@ -397,6 +449,7 @@ fn write_outputs(
                         let mut row = vec![
                             if high { String::new() } else { r.path.clone() },
                             format!("{}", if high { r.max } else { r.min }),
+                            r.rays[usize::from(high)].to_string(),
                         ];
                         for m in SENSITIVITY_METRICS {
                             row.push(pm(
@@ -414,6 +467,7 @@ fn write_outputs(
             m.insert("path".into(), Value::from(r.path.clone()));
             m.insert("min".into(), num(r.min));
             m.insert("max".into(), num(r.max));
+            m.insert("rays".into(), Value::from(r.rays.to_vec()));
             m.insert("at_min".into(), Value::Object(map_of(&r.at_min)));
             m.insert("at_max".into(), Value::Object(map_of(&r.at_max)));
             sens_json.push(Value::Object(m));

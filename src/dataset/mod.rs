@@ -215,7 +215,11 @@ fn clear_chart(
 }
 
 /// The run scene and object kernel of one bench of a dataset.
-fn bench_kernel(doc: &BenchDoc, spec: &DatasetSpec, schemes: &[Scheme]) -> Result<(RunScene, Kernel)> {
+fn bench_kernel(
+    doc: &BenchDoc,
+    spec: &DatasetSpec,
+    schemes: &[Scheme],
+) -> Result<(RunScene, Kernel)> {
     let scene = doc.run_scene()?;
     if scene.bench.dmd().is_none() {
         return Err(spec.error("bench", "a dataset needs a bench with a DMD"));
@@ -300,9 +304,12 @@ impl Prepared {
             ));
         }
         let drawn = match (&spec.tolerance_path, &spec.file.benches) {
-            (Some(path), BenchesSpec::Tolerance {
-                samples_per_bench, ..
-            }) => {
+            (
+                Some(path),
+                BenchesSpec::Tolerance {
+                    samples_per_bench, ..
+                },
+            ) => {
                 let text = crate::scene::read_text(path)?;
                 let set = crate::scene::tolerance::ToleranceSet::parse(
                     &text,
@@ -337,9 +344,7 @@ impl Prepared {
 
     /// The bench index of sample s (0 for every sample of a nominal dataset).
     pub fn bench_index(&self, s: u64) -> u64 {
-        self.drawn
-            .as_ref()
-            .map_or(0, |d| s / d.samples_per_bench)
+        self.drawn.as_ref().map_or(0, |d| s / d.samples_per_bench)
     }
 
     /// Bench t of a dataset over drawn benches: tolerance trial t with the dataset's seed, or
@@ -396,7 +401,12 @@ impl Prepared {
                 .tolerances
                 .iter()
                 .map(|t| t.path.clone())
-                .chain(d.set.compensators.iter().map(|c| format!("{} (compensator)", c.path)))
+                .chain(
+                    d.set
+                        .compensators
+                        .iter()
+                        .map(|c| format!("{} (compensator)", c.path)),
+                )
                 .collect()
         })
     }

@@ -487,7 +487,11 @@ pub fn record_frames(
             }
             let ch = &channels[o];
             // Per-source white current densities (√(A²/Hz)) and their draws.
-            let amp = if noisy { st.input_noise_a_per_rthz } else { 0.0 };
+            let amp = if noisy {
+                st.input_noise_a_per_rthz
+            } else {
+                0.0
+            };
             let (sources, draws): ([f64; 3], [f64; 3]) = match o {
                 RF => ([shot[0], -shot[1], amp], [z[0], z[1], z[2]]),
                 MONITOR_PLUS => ([shot[0], 0.0, amp], [z[0], z[1], z[3]]),
@@ -826,7 +830,11 @@ mod tests {
                     "output {o}: mean frames {mf} vs samples {ms}"
                 );
             }
-            for (o1, o2) in [(RF, MONITOR_PLUS), (RF, MONITOR_MINUS), (MONITOR_PLUS, MONITOR_MINUS)] {
+            for (o1, o2) in [
+                (RF, MONITOR_PLUS),
+                (RF, MONITOR_MINUS),
+                (MONITOR_PLUS, MONITOR_MINUS),
+            ] {
                 let (rs, rf) = (correlation(&s, o1, o2), correlation(&f, o1, o2));
                 let se = (1.0 - rs * rs) / n.sqrt();
                 assert!(
@@ -854,7 +862,10 @@ mod tests {
                 }
             }
             let got = ar1_sum_variance(a, k);
-            assert!((got / want - 1.0).abs() < 1e-10, "a {a} k {k}: {got} vs {want}");
+            assert!(
+                (got / want - 1.0).abs() < 1e-10,
+                "a {a} k {k}: {got} vs {want}"
+            );
         }
     }
 }

@@ -1271,7 +1271,13 @@ impl Ctx<'_> {
 
     /// An error at a field of a named element.
     fn err_el(&self, element: &str, field: &str, msg: impl Into<String>) -> Error {
-        self.err_entry(format!("elements[{element}]"), "elements", element, field, msg)
+        self.err_entry(
+            format!("elements[{element}]"),
+            "elements",
+            element,
+            field,
+            msg,
+        )
     }
 
     /// An error at `field` of the entry named `name` of the top-level list `list`, reported

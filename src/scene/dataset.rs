@@ -10,6 +10,11 @@
 //!     seed: 7,
 //!     samples: 64,
 //!     shard_samples: 16,
+//!     // Optional: benches drawn from a tolerance file, a new one every 16 samples
+//!     // (default Nominal); what else to write; how the outputs are recorded (default Frames).
+//!     benches: Tolerance(file: "tolerances/paper_bench.ron", samples_per_bench: 16),
+//!     write: (patterns: false, scope_frames: 0, reconstructions: false),
+//!     record: Frames,
 //! )
 //! ```
 

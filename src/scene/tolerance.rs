@@ -426,6 +426,10 @@ pub struct SensitivityRecord {
     pub path: String,
     pub min: f64,
     pub max: f64,
+    /// Lamp rays of the traces at [min, max] (each compared with the nominal bench traced with
+    /// as many): the run's rays, or more where `tolerance --resolve` asked for them.
+    #[serde(default)]
+    pub rays: [u64; 2],
     /// Changes from the nominal bench at the min (`NAME_diff`, `NAME_diff_stderr`, …).
     pub at_min: Vec<(String, f64)>,
     pub at_max: Vec<(String, f64)>,

@@ -131,34 +131,110 @@ fn settings(set: &ToleranceSet, deviations: &[(String, f64)]) -> Vec<(String, f6
         .collect()
 }
 
+/// How far each row of the sensitivity table is resolved: each end of a row (the tolerance at
+/// its min, at its max) is traced again, with the nominal bench, at more rays until the paired
+/// standard error of its imbalance change is at most max(`stderr`, `relative`·|Δ imbalance|),
+/// or the next step would pass `max_rays`. The ray counts are the run's rays times powers of 4
+/// (so the nominal bench is traced at few counts); from the standard error at one count, which
+/// falls as 1/√rays, the next count is the first that should meet the target.
+///
+/// A large change needs only a relative resolution: the paired standard error of a change that
+/// moves light across an edge (a spot leaving a diode) falls only as 1/√rays, since common
+/// random numbers pair nothing of the rays that switch between detected and lost.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Resolve {
+    pub stderr: f64,
+    pub relative: f64,
+    pub max_rays: u64,
+}
+
+impl Resolve {
+    /// The standard error a change `d` must reach.
+    pub fn target(&self, d: f64) -> f64 {
+        let rel = self.relative * d.abs();
+        if rel.is_finite() {
+            self.stderr.max(rel)
+        } else {
+            self.stderr
+        }
+    }
+
+    /// Whether a change `d` ± `se` is resolved (a change without a standard error cannot be
+    /// resolved further).
+    pub fn holds(&self, d: f64, se: f64) -> bool {
+        !se.is_finite() || se <= self.target(d)
+    }
+
+    /// The ray count after `rays` for a change `d` ± `se`: `rays`·4ᵏ, the smallest k ≥ 1 whose
+    /// predicted standard error se·2⁻ᵏ meets the target, or the largest within `max_rays`.
+    /// `None` when no step is allowed.
+    pub fn next_rays(&self, rays: u64, d: f64, se: f64) -> Option<u64> {
+        let mut next = rays.checked_mul(4).filter(|n| *n <= self.max_rays)?;
+        let need = rays as f64 * (se / self.target(d)).powi(2);
+        while (next as f64) < need {
+            match next.checked_mul(4).filter(|n| *n <= self.max_rays) {
+                Some(n) => next = n,
+                None => break,
+            }
+        }
+        Some(next)
+    }
+}
+
 /// The sensitivity table: each tolerance alone at its min and max (tolerances with a zero
 /// range are traced too, and show no change), sorted by the largest |Δ imbalance|, largest
-/// first. `progress(done, total)` counts traces.
+/// first. `nominal` is the nominal bench at `o.rays`; with `resolve`, ends that are not yet
+/// resolved are traced again with more rays. `progress(done, total)` counts ends.
 pub fn sensitivity(
     doc: &BenchDoc,
     set: &ToleranceSet,
     nominal: &SweepPoint,
     o: &ToleranceOptions,
+    resolve: Option<Resolve>,
     progress: &(dyn Fn(usize, usize) + Sync),
 ) -> Result<Vec<SensitivityRecord>> {
     let total = 2 * set.tolerances.len();
     let mut rows = Vec::with_capacity(set.tolerances.len());
+    // The nominal bench at every ray count used, traced once each.
+    let mut nominals: Vec<(u64, SweepPoint)> = vec![(o.rays, nominal.clone())];
+    let get =
+        |v: &[(String, f64)], k: &str| v.iter().find(|(n, _)| n == k).map_or(f64::NAN, |(_, x)| *x);
     for (i, t) in set.tolerances.iter().enumerate() {
         let mut ends = Vec::with_capacity(2);
+        let mut end_rays = [o.rays; 2];
         for (k, dev) in [t.min, t.max].into_iter().enumerate() {
-            let s = vec![(t.path.clone(), t.nominal + dev)];
-            let d = doc.with(&s)?;
-            let p = point(&d, s, &o.sweep(false))?;
-            let all = values(&p, nominal);
-            ends.push(
-                all.into_iter()
+            let mut rays = o.rays;
+            let end = loop {
+                let at = ToleranceOptions { rays, ..*o };
+                if !nominals.iter().any(|(r, _)| *r == rays) {
+                    nominals.push((rays, point(doc, Vec::new(), &at.sweep(false))?));
+                }
+                let nom = &nominals.iter().find(|(r, _)| *r == rays).expect("traced").1;
+                let s = vec![(t.path.clone(), t.nominal + dev)];
+                let d = doc.with(&s)?;
+                let p = point(&d, s, &at.sweep(false))?;
+                let end: Vec<(String, f64)> = values(&p, nom)
+                    .into_iter()
                     .filter(|(k, _)| {
                         SENSITIVITY_METRICS
                             .iter()
                             .any(|m| k == &format!("{m}_diff") || k == &format!("{m}_diff_stderr"))
                     })
-                    .collect::<Vec<_>>(),
-            );
+                    .collect();
+                let (dv, se) = (
+                    get(&end, "imbalance_diff"),
+                    get(&end, "imbalance_diff_stderr"),
+                );
+                match resolve {
+                    Some(r) if !r.holds(dv, se) => match r.next_rays(rays, dv, se) {
+                        Some(next) => rays = next,
+                        None => break end,
+                    },
+                    _ => break end,
+                }
+            };
+            end_rays[k] = rays;
+            ends.push(end);
             progress(2 * i + k + 1, total);
         }
         let at_max = ends.pop().unwrap_or_default();
@@ -167,6 +243,7 @@ pub fn sensitivity(
             path: t.path.clone(),
             min: t.min,
             max: t.max,
+            rays: end_rays,
             at_min,
             at_max,
         });

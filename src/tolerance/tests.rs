@@ -97,7 +97,7 @@ fn a_tolerance_that_cannot_matter_has_no_sensitivity() {
     );
     let o = opts(5);
     let nom = nominal(&doc, &o).unwrap();
-    let rows = sensitivity(&doc, &s, &nom, &o, &|_, _| {}).unwrap();
+    let rows = sensitivity(&doc, &s, &nom, &o, None, &|_, _| {}).unwrap();
     for r in &rows {
         for high in [false, true] {
             for m in ["imbalance", "k_prime", "b_minus_minus_b_plus", "leak_plus"] {
@@ -161,4 +161,106 @@ fn percentiles_and_yields() {
     let y = yield_row("x".into(), 3, 4);
     assert_eq!(y.fraction, 0.75);
     assert!((y.stderr - (0.75f64 * 0.25 / 4.0).sqrt()).abs() < 1e-15);
+}
+
+/// `Resolve`: a row whose imbalance change is not resolved at the run's rays is traced again
+/// with 4× the rays until it is (or until the cap), a row that is resolved keeps the run's
+/// rays, and a row traced at R rays is exactly the plain table's row at R rays.
+#[test]
+fn resolving_raises_the_rays_of_unresolved_rows_only() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/tests/symmetric_arms.ron");
+    let text = std::fs::read_to_string(&path).unwrap().replacen(
+        "elements: [",
+        "elements: [ Baffle(name: \"far_baffle\", position_mm: (300.0, 300.0, -200.0), \
+         axis: Vector((0.0, 0.0, 1.0)), width_mm: 20.0, height_mm: 20.0, hole_diameter_mm: 5.0),",
+        1,
+    );
+    let doc = BenchDoc::parse(&text, &path).unwrap();
+    let s = set(
+        &doc,
+        "(tolerances: [(path: \"far_baffle.decenter_mm.x\", range: PlusMinus(5.0)), \
+         (path: \"detectors.plus.decenter_mm.x\", range: PlusMinus(2.0))])",
+    );
+    let o = opts(6);
+    let nom = nominal(&doc, &o).unwrap();
+    let plain = sensitivity(&doc, &s, &nom, &o, None, &|_, _| {}).unwrap();
+    let row = |rows: &[SensitivityRecord], p: &str| {
+        rows.iter().find(|r| r.path.starts_with(p)).unwrap().clone()
+    };
+    let se = |r: &SensitivityRecord| {
+        r.at(false, "imbalance_diff_stderr")
+            .max(r.at(true, "imbalance_diff_stderr"))
+    };
+    for r in &plain {
+        eprintln!(
+            "{}: Δ {:+.3e} / {:+.3e}, SE {:.2e}",
+            r.path,
+            r.at(false, "imbalance_diff"),
+            r.at(true, "imbalance_diff"),
+            se(r)
+        );
+        assert_eq!(r.rays, [RAYS; 2]);
+    }
+    // The rule: an absolute standard error, or 1 % of a large change.
+    let rule = Resolve {
+        stderr: 1e-4,
+        relative: 0.01,
+        max_rays: 1 << 30,
+    };
+    assert!(rule.holds(0.0, 1e-4) && !rule.holds(0.0, 1.1e-4));
+    assert!(rule.holds(0.5, 4.9e-3) && !rule.holds(-0.5, 5.1e-3));
+    assert!(rule.holds(0.1, f64::NAN));
+    // The diode decentred by 2 mm barely clips its spot: a change of about 10⁻⁴, not resolved
+    // at the run's rays. A target below its standard error there.
+    let small = row(&plain, "detectors.plus");
+    let target = 0.4 * se(&small);
+    let resolve = Resolve {
+        stderr: target,
+        relative: 0.01,
+        max_rays: 16 * RAYS,
+    };
+    let resolved = sensitivity(&doc, &s, &nom, &o, Some(resolve), &|_, _| {}).unwrap();
+    let baffle = row(&resolved, "far_baffle");
+    assert_eq!(
+        baffle.rays, [RAYS; 2],
+        "a row that cannot matter is resolved at once"
+    );
+    assert_eq!(baffle, row(&plain, "far_baffle"));
+    let small = row(&resolved, "detectors.plus");
+    // The min end clips the spot; the max end moves the diode away from the edge and changes
+    // nothing, so it keeps the run's rays.
+    assert!(small.rays[0] > RAYS, "the decentre was not traced again");
+    assert_eq!(small.rays[1], RAYS);
+    let se_min = small.at(false, "imbalance_diff_stderr");
+    assert!(
+        se_min <= target || small.rays[0] == 16 * RAYS,
+        "SE {se_min:.2e} at {} rays, target {target:.2e}",
+        small.rays[0]
+    );
+    // The same end as the plain table's at that ray count.
+    let at = ToleranceOptions {
+        rays: small.rays[0],
+        ..o
+    };
+    let nom_at = point(&doc, Vec::new(), &at.sweep(false)).unwrap();
+    let again = sensitivity(&doc, &s, &nom_at, &at, None, &|_, _| {}).unwrap();
+    assert_eq!(small.at_min, row(&again, "detectors.plus").at_min);
+    assert_eq!(small.at_max, row(&plain, "detectors.plus").at_max);
+    // The ladder: from the standard error at one count, the first 4ᵏ step that should meet the
+    // target, within the cap.
+    assert_eq!(rule.next_rays(1000, 0.0, 1.9e-4), Some(4000));
+    assert_eq!(rule.next_rays(1000, 0.0, 2.1e-4), Some(16000));
+    assert_eq!(
+        rule.next_rays(1000, 0.0, 1.0),
+        Some(1000 << 20),
+        "the largest step in the cap"
+    );
+    assert_eq!(
+        rule.next_rays(1 << 29, 0.0, 1.0),
+        None,
+        "no step within the cap"
+    );
+    // A large change needs 1 % of itself: 0.5 ± 4·10⁻³ is resolved, at ± 10⁻² it needs 4×.
+    assert!(rule.holds(0.5, 4e-3));
+    assert_eq!(rule.next_rays(1000, 0.5, 1e-2), Some(4000));
 }

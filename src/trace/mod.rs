@@ -17,6 +17,7 @@
 pub mod fan;
 pub mod kernel;
 pub mod path;
+pub mod split;
 pub mod tally;
 
 use rayon::prelude::*;

@@ -360,7 +360,10 @@ fn drawn_benches_serve_samples_per_bench_samples() {
     let spec = write_spec(&dir, &[("seed: 7,", drawn.as_str())]);
     let s = spec.to_str().unwrap();
     let one = t.join("one");
-    ok(&spibench(&["dataset", s, "--out", one.to_str().unwrap()], &[]));
+    ok(&spibench(
+        &["dataset", s, "--out", one.to_str().unwrap()],
+        &[],
+    ));
     crate::outputs_schema::check_file(&one.join("manifest.json"), "DatasetManifest");
     let m = read_json(&one.join("manifest.json"));
     assert_eq!(m["provenance"]["tolerance_file"], "tolerances.ron");
@@ -372,7 +375,10 @@ fn drawn_benches_serve_samples_per_bench_samples() {
     assert_eq!(n_tol, 27, "the shipped file's 27 tolerances");
     for s in 0..10 {
         let same = s / 4 * 4;
-        assert_eq!(dev[s * n_tol..(s + 1) * n_tol], dev[same * n_tol..(same + 1) * n_tol]);
+        assert_eq!(
+            dev[s * n_tol..(s + 1) * n_tol],
+            dev[same * n_tol..(same + 1) * n_tol]
+        );
     }
     assert!(dev[..n_tol] != dev[4 * n_tol..5 * n_tol]);
     assert!(dev[..n_tol].iter().all(|v| v.is_finite()) && dev[..n_tol].iter().any(|v| *v != 0.0));
@@ -381,10 +387,18 @@ fn drawn_benches_serve_samples_per_bench_samples() {
     let nspec = write_spec(&t.0, &[]);
     let nout = t.join("nout");
     ok(&spibench(
-        &["dataset", nspec.to_str().unwrap(), "--out", nout.to_str().unwrap()],
+        &[
+            "dataset",
+            nspec.to_str().unwrap(),
+            "--out",
+            nout.to_str().unwrap(),
+        ],
         &[],
     ));
-    assert_eq!(dataset_array(&one, "object"), dataset_array(&nout, "object"));
+    assert_eq!(
+        dataset_array(&one, "object"),
+        dataset_array(&nout, "object")
+    );
     let (_, k) = dataset_array(&one, "k");
     let (_, k_nominal) = dataset_array(&nout, "k");
     for s in 0..10 {
@@ -398,7 +412,14 @@ fn drawn_benches_serve_samples_per_bench_samples() {
     for (i, j) in jobs.iter().enumerate() {
         let shard = format!("{i}/2");
         ok(&spibench(
-            &["dataset", s, "--out", j.to_str().unwrap(), "--shard", &shard],
+            &[
+                "dataset",
+                s,
+                "--out",
+                j.to_str().unwrap(),
+                "--shard",
+                &shard,
+            ],
             &[],
         ));
     }
@@ -427,7 +448,12 @@ fn drawn_benches_serve_samples_per_bench_samples() {
     let zspec = write_spec(&zdir, &[("seed: 7,", zdrawn.as_str())]);
     let zout = t.join("zout");
     ok(&spibench(
-        &["dataset", zspec.to_str().unwrap(), "--out", zout.to_str().unwrap()],
+        &[
+            "dataset",
+            zspec.to_str().unwrap(),
+            "--out",
+            zout.to_str().unwrap(),
+        ],
         &[],
     ));
     let m = read_json(&nout.join("manifest.json"));
@@ -439,7 +465,12 @@ fn drawn_benches_serve_samples_per_bench_samples() {
             "array {name}"
         );
     }
-    assert!(dataset_array(&zout, "deviations").1.iter().all(|v| *v == 0.0));
+    assert!(
+        dataset_array(&zout, "deviations")
+            .1
+            .iter()
+            .all(|v| *v == 0.0)
+    );
 }
 
 /// The optional arrays: the oscilloscope's record of the first frames, the reconstructions with
@@ -459,7 +490,12 @@ fn optional_arrays_hold_scope_records_and_scored_reconstructions() {
     );
     let out = t.join("out");
     ok(&spibench(
-        &["dataset", spec.to_str().unwrap(), "--out", out.to_str().unwrap()],
+        &[
+            "dataset",
+            spec.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ],
         &[],
     ));
     crate::outputs_schema::check_file(&out.join("manifest.json"), "DatasetManifest");
@@ -487,7 +523,11 @@ fn optional_arrays_hold_scope_records_and_scored_reconstructions() {
             let r = spibench::raster::Raster::new(48, 48, recon[s * 2304..(s + 1) * 2304].to_vec())
                 .unwrap();
             let sc = spibench::metrics::score(&truth, &r).unwrap();
-            assert_eq!([sc.psnr_db, sc.mssim], scores[2 * s..2 * s + 2], "{scheme} sample {s}");
+            assert_eq!(
+                [sc.psnr_db, sc.mssim],
+                scores[2 * s..2 * s + 2],
+                "{scheme} sample {s}"
+            );
             assert!(sc.mssim > 0.0 && sc.mssim <= 1.0);
         }
     }
@@ -502,7 +542,12 @@ fn optional_arrays_hold_scope_records_and_scored_reconstructions() {
     let o = t.join("bad");
     assert_input_error(
         &spibench(
-            &["dataset", bad.to_str().unwrap(), "--out", o.to_str().unwrap()],
+            &[
+                "dataset",
+                bad.to_str().unwrap(),
+                "--out",
+                o.to_str().unwrap(),
+            ],
             &[],
         ),
         &["scope_frames", "at most 100", "line 9"],

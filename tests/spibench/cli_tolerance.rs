@@ -214,3 +214,82 @@ fn align_writes_its_outputs() {
     let o = spibench(&["check", out.join("aligned.ron").to_str().unwrap()], &[]);
     assert!(o.status.success(), "{}", stderr(&o));
 }
+
+/// The paper's claim under tolerances: in a Monte Carlo of the paper bench built within the
+/// shipped tolerances, secondary complementary balancing's MSSIM yield at 40 % sampling is at
+/// least double-arm detection's (the ±1° DMD tilt alone unbalances the arms far beyond what
+/// double-arm tolerates; README "Fair baselines" has a 16-trial run at more rays).
+#[test]
+fn scb_yield_under_the_shipped_tolerances_is_at_least_double_arms() {
+    let dir = TempDir::new("tolerance-paper-yield");
+    let text = std::fs::read_to_string(scene("paper_bench.ron")).unwrap();
+    let end = text.trim_end().rfind(')').unwrap();
+    let bench = dir.join("paper_bench_40.ron");
+    std::fs::write(
+        &bench,
+        format!(
+            "{}    run: (sampling_ratios: [0.4], schemes: [DoubleArm, \
+             SecondaryComplementaryBalancing]),\n)\n",
+            &text[..end]
+        ),
+    )
+    .unwrap();
+    // The shipped file and its limit (MSSIM ≥ 0.95 at 40 %), at the tolerance command's default
+    // 2·10⁵ rays: fewer rays leave ray noise in the transport maps that alone costs SCB some
+    // MSSIM (0.889 for the nominal bench at 5·10⁴ rays, 0.945 at 2·10⁵). About 40 s.
+    let tol = std::path::PathBuf::from(scene("tolerances/paper_bench.ron"));
+    let out = dir.join("out");
+    let o = spibench(
+        &[
+            "tolerance",
+            bench.to_str().unwrap(),
+            "--tolerances",
+            tol.to_str().unwrap(),
+            "--trials",
+            "8",
+            "--rays",
+            "200000",
+            "--seed",
+            "1",
+            "--quality",
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        &[],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let s = read_json(&out.join("summary.json"));
+    let yields = s["analysis"]["quality_yields"].as_array().unwrap();
+    let get = |key: &str| -> (u64, u64) {
+        let y = yields
+            .iter()
+            .find(|y| y[0].as_str().unwrap().contains(key))
+            .unwrap_or_else(|| panic!("no yield for {key}: {yields:?}"));
+        (
+            y[1]["passed"].as_u64().unwrap(),
+            y[1]["trials"].as_u64().unwrap(),
+        )
+    };
+    let scb = get("secondary_complementary_balancing");
+    let da = yields
+        .iter()
+        .find(|y| {
+            let k = y[0].as_str().unwrap();
+            k.contains("double_arm") && !k.contains("calibrated") && !k.contains("offset")
+        })
+        .map(|y| {
+            (
+                y[1]["passed"].as_u64().unwrap(),
+                y[1]["trials"].as_u64().unwrap(),
+            )
+        })
+        .unwrap();
+    eprintln!(
+        "MSSIM yield at 40 %: SCB {}/{}, double-arm {}/{}",
+        scb.0, scb.1, da.0, da.1
+    );
+    assert_eq!((scb.1, da.1), (8, 8));
+    assert!(scb.0 >= da.0, "SCB {scb:?} vs double-arm {da:?}");
+    // Not vacuous: some built benches work with SCB.
+    assert!(scb.0 > 0, "no trial reached MSSIM 0.95 with SCB");
+}
