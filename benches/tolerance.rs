@@ -1,6 +1,6 @@
 //! Tolerance analysis of the shipped file on the paper bench: the sensitivity table resolved
 //! row by row (`tolerance --resolve 1e-4`: each row's paired standard error of Δimbalance at
-//! most max(10⁻⁴, 1 % of |Δ|), from 102 400 rays, 4ᵏ times that, up to 6.6·10⁶, per end), against the
+//! most max(10⁻⁴, 1 % of |Δ|), from 102 400 rays, 2ᵏ times that, up to 6.6·10⁶, per end), against the
 //! baseline of one ray count for every row (10⁶, the previous method), and a 100-trial Monte
 //! Carlo without `--quality`, with the time split between compensators and traces.
 //!

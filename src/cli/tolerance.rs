@@ -43,8 +43,8 @@ pub struct ToleranceArgs {
     #[arg(long, default_value_t = 200_000)]
     pub rays: u64,
     /// Resolve every sensitivity row to this paired standard error of its imbalance change
-    /// (or 1 % of the change, whichever is larger), tracing the row again with 4× the rays
-    /// until it is, up to --max-rays.
+    /// (or 1 % of the change, whichever is larger), tracing each end of the row again with
+    /// 2ᵏ× the rays (k predicted from its standard error) until it is, up to --max-rays.
     #[arg(long, value_name = "SE")]
     pub resolve: Option<f64>,
     /// The most rays per trace of a row being resolved (default 64 × --rays).

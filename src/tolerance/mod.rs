@@ -134,7 +134,7 @@ fn settings(set: &ToleranceSet, deviations: &[(String, f64)]) -> Vec<(String, f6
 /// How far each row of the sensitivity table is resolved: each end of a row (the tolerance at
 /// its min, at its max) is traced again, with the nominal bench, at more rays until the paired
 /// standard error of its imbalance change is at most max(`stderr`, `relative`·|Δ imbalance|),
-/// or the next step would pass `max_rays`. The ray counts are the run's rays times powers of 4
+/// or the next step would pass `max_rays`. The ray counts are the run's rays times powers of 2
 /// (so the nominal bench is traced at few counts); from the standard error at one count, which
 /// falls as 1/√rays, the next count is the first that should meet the target.
 ///
@@ -165,14 +165,14 @@ impl Resolve {
         !se.is_finite() || se <= self.target(d)
     }
 
-    /// The ray count after `rays` for a change `d` ± `se`: `rays`·4ᵏ, the smallest k ≥ 1 whose
-    /// predicted standard error se·2⁻ᵏ meets the target, or the largest within `max_rays`.
-    /// `None` when no step is allowed.
+    /// The ray count after `rays` for a change `d` ± `se`: `rays`·2ᵏ, the smallest k ≥ 1 whose
+    /// predicted standard error se·2^(−k/2) meets the target, or the largest within
+    /// `max_rays`. `None` when no step is allowed.
     pub fn next_rays(&self, rays: u64, d: f64, se: f64) -> Option<u64> {
-        let mut next = rays.checked_mul(4).filter(|n| *n <= self.max_rays)?;
+        let mut next = rays.checked_mul(2).filter(|n| *n <= self.max_rays)?;
         let need = rays as f64 * (se / self.target(d)).powi(2);
         while (next as f64) < need {
-            match next.checked_mul(4).filter(|n| *n <= self.max_rays) {
+            match next.checked_mul(2).filter(|n| *n <= self.max_rays) {
                 Some(n) => next = n,
                 None => break,
             }

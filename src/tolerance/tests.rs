@@ -164,7 +164,7 @@ fn percentiles_and_yields() {
 }
 
 /// `Resolve`: a row whose imbalance change is not resolved at the run's rays is traced again
-/// with 4× the rays until it is (or until the cap), a row that is resolved keeps the run's
+/// with 2ᵏ× the rays until it is (or until the cap), a row that is resolved keeps the run's
 /// rays, and a row traced at R rays is exactly the plain table's row at R rays.
 #[test]
 fn resolving_raises_the_rays_of_unresolved_rows_only() {
@@ -246,17 +246,18 @@ fn resolving_raises_the_rays_of_unresolved_rows_only() {
     let again = sensitivity(&doc, &s, &nom_at, &at, None, &|_, _| {}).unwrap();
     assert_eq!(small.at_min, row(&again, "detectors.plus").at_min);
     assert_eq!(small.at_max, row(&plain, "detectors.plus").at_max);
-    // The ladder: from the standard error at one count, the first 4ᵏ step that should meet the
+    // The ladder: from the standard error at one count, the first 2ᵏ step that should meet the
     // target, within the cap.
     assert_eq!(rule.next_rays(1000, 0.0, 1.9e-4), Some(4000));
-    assert_eq!(rule.next_rays(1000, 0.0, 2.1e-4), Some(16000));
+    assert_eq!(rule.next_rays(1000, 0.0, 2.1e-4), Some(8000));
+    assert_eq!(rule.next_rays(1000, 0.0, 1.3e-4), Some(2000));
     assert_eq!(
         rule.next_rays(1000, 0.0, 1.0),
         Some(1000 << 20),
         "the largest step in the cap"
     );
     assert_eq!(
-        rule.next_rays(1 << 29, 0.0, 1.0),
+        rule.next_rays(1 << 30, 0.0, 1.0),
         None,
         "no step within the cap"
     );

@@ -158,6 +158,21 @@ fn bad_tolerance_input_is_located() {
     let tol = scene("tolerances/symmetric_arms.ron");
     let o = tolerance(&[&bench, "--tolerances", &tol, "--shard", "2/2"], &out);
     assert_input_error(&o, &["--shard"], &out);
+    let o = tolerance(&[&bench, "--tolerances", &tol, "--resolve", "0"], &out);
+    assert_input_error(&o, &["--resolve", "(0, 1)"], &out);
+    let o = tolerance(
+        &[
+            &bench,
+            "--tolerances",
+            &tol,
+            "--resolve",
+            "1e-4",
+            "--max-rays",
+            "4096",
+        ],
+        &out,
+    );
+    assert_input_error(&o, &["--max-rays", "at least --rays"], &out);
     let o = spibench(
         &[
             "align",
@@ -292,4 +307,66 @@ fn scb_yield_under_the_shipped_tolerances_is_at_least_double_arms() {
     assert!(scb.0 >= da.0, "SCB {scb:?} vs double-arm {da:?}");
     // Not vacuous: some built benches work with SCB.
     assert!(scb.0 > 0, "no trial reached MSSIM 0.95 with SCB");
+}
+
+/// `--resolve`: every sensitivity row records the rays of each end, in `summary.json` and
+/// `sensitivity.csv`; a row that cannot reach the target goes to `--max-rays`, one that needs no
+/// more keeps `--rays`.
+#[test]
+fn resolve_records_the_rays_of_every_end() {
+    let dir = TempDir::new("tolerance-resolve");
+    let bench = scene("tests/symmetric_arms.ron");
+    // Decentred 2 mm one way the + diode clips its spot a little; the other way, nothing.
+    let tol = dir.join("tol.ron");
+    std::fs::write(
+        &tol,
+        "(tolerances: [(path: \"detectors.plus.decenter_mm.x\", range: PlusMinus(2.0)), \
+         (path: \"arm_minus_lens.despace_mm\", range: PlusMinus(2.0))])",
+    )
+    .unwrap();
+    let tol = tol.display().to_string();
+    let out = dir.join("out");
+    // An unreachable target (10⁻⁹) with a cap of 4× the rays: every end that changes anything
+    // is traced again once, at 32 768 rays; ends without any change (0 ± 0) stay at 8192.
+    let o = tolerance(
+        &[
+            &bench,
+            "--tolerances",
+            &tol,
+            "--trials",
+            "0",
+            "--resolve",
+            "1e-9",
+            "--max-rays",
+            "32768",
+        ],
+        &out,
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    crate::outputs_schema::check_file(&out.join("summary.json"), "ToleranceSummary");
+    let s = read_json(&out.join("summary.json"));
+    let rows = s["sensitivity"].as_array().unwrap();
+    assert_eq!(rows.len(), 2);
+    let mut raised = 0;
+    for r in rows {
+        for (k, end) in ["at_min", "at_max"].iter().enumerate() {
+            let rays = r["rays"][k].as_u64().unwrap();
+            let se = r[end]["imbalance_diff_stderr"].as_f64().unwrap_or(f64::NAN);
+            if se > 0.0 {
+                assert_eq!(rays, 32768, "{r}");
+                raised += 1;
+            } else {
+                assert_eq!(rays, 8192, "{r}");
+            }
+        }
+    }
+    assert!(raised > 0, "no end was traced again: {rows:?}");
+    let csv = std::fs::read_to_string(out.join("sensitivity.csv")).unwrap();
+    assert!(
+        csv.lines()
+            .next()
+            .unwrap()
+            .contains("rays_at_min,rays_at_max"),
+        "{csv}"
+    );
 }
