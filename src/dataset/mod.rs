@@ -609,7 +609,7 @@ impl Prepared {
                 transport.x_w.clone(),
             )?;
             let x_max = x.max();
-            if !(x_max > 0.0) {
+            if x_max.is_nan() || x_max <= 0.0 {
                 return Err(Error::input(format!(
                     "sample {s}: no light of the object reached the DMD's pattern area"
                 )));

@@ -79,9 +79,8 @@ fn symmetric_tolerances_centre_the_imbalance_on_zero() {
     assert!(imb.mean.abs() < bound, "{} vs {bound}", imb.mean);
 }
 
-/// A baffle far outside every beam: its sensitivity is zero within the paired standard error.
-#[test]
-fn a_tolerance_that_cannot_matter_has_no_sensitivity() {
+/// The symmetric bench with a baffle far outside every beam.
+fn with_far_baffle() -> BenchDoc {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/tests/symmetric_arms.ron");
     let text = std::fs::read_to_string(&path).unwrap().replacen(
         "elements: [",
@@ -89,7 +88,13 @@ fn a_tolerance_that_cannot_matter_has_no_sensitivity() {
          axis: Vector((0.0, 0.0, 1.0)), width_mm: 20.0, height_mm: 20.0, hole_diameter_mm: 5.0),",
         1,
     );
-    let doc = BenchDoc::parse(&text, &path).unwrap();
+    BenchDoc::parse(&text, &path).unwrap()
+}
+
+/// A baffle far outside every beam: its sensitivity is zero within the paired standard error.
+#[test]
+fn a_tolerance_that_cannot_matter_has_no_sensitivity() {
+    let doc = with_far_baffle();
     let s = set(
         &doc,
         "(tolerances: [(path: \"far_baffle.decenter_mm.x\", range: PlusMinus(5.0)), \
@@ -168,14 +173,7 @@ fn percentiles_and_yields() {
 /// rays, and a row traced at R rays is exactly the plain table's row at R rays.
 #[test]
 fn resolving_raises_the_rays_of_unresolved_rows_only() {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/tests/symmetric_arms.ron");
-    let text = std::fs::read_to_string(&path).unwrap().replacen(
-        "elements: [",
-        "elements: [ Baffle(name: \"far_baffle\", position_mm: (300.0, 300.0, -200.0), \
-         axis: Vector((0.0, 0.0, 1.0)), width_mm: 20.0, height_mm: 20.0, hole_diameter_mm: 5.0),",
-        1,
-    );
-    let doc = BenchDoc::parse(&text, &path).unwrap();
+    let doc = with_far_baffle();
     let s = set(
         &doc,
         "(tolerances: [(path: \"far_baffle.decenter_mm.x\", range: PlusMinus(5.0)), \
