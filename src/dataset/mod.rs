@@ -243,6 +243,14 @@ fn bench_kernel(
     settings.schemes = schemes.to_vec();
     settings.signal_trace_frames = spec.file.write.scope_frames;
     settings.record = spec.file.record.model();
+    if let Some(p) = spec
+        .file
+        .acquisition
+        .as_ref()
+        .and_then(|a| a.patterns.as_ref())
+    {
+        settings.patterns = p.family();
+    }
     Ok((RunScene { settings, ..scene }, kernel))
 }
 
@@ -266,10 +274,18 @@ impl Prepared {
         let (w, h) = scene.bench.units_shape();
         let units = w * h;
         let r_max = ratios.iter().copied().fold(0.0, f64::max);
-        let patterns = scene
-            .settings
-            .patterns
-            .build(w, h, patterns_for_ratio(r_max, units))?;
+        let named = spec
+            .file
+            .acquisition
+            .as_ref()
+            .and_then(|a| a.patterns.as_ref());
+        let family = named.map_or(scene.settings.patterns, |p| p.family());
+        let patterns = family
+            .build(w, h, patterns_for_ratio(r_max, units))
+            .map_err(|e| match named {
+                Some(_) => spec.error("patterns", e.to_string()),
+                None => e,
+            })?;
         let disk_gb = spec.file.max_disk_gb.unwrap_or(100.0);
         let per_sample = 8.0
             * (k.grid_px.0 * k.grid_px.1

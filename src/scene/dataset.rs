@@ -6,12 +6,15 @@
 //!                                        // sections give the detector, noise and patterns
 //!     kernel: (rays: 300000, seed: 1, grid_px: (96, 96), field_mm: (7.88, 7.88)),
 //!     objects: TestImages(names: ["astronaut", "coffee"], rule: RandomCrop),
-//!     acquisition: (schemes: [SecondaryComplementaryBalancing, DoubleArm], ratios: [0.25]),
+//!     // Optional in acquisition: the pattern family and ordering (default: the bench's run:
+//!     // section).
+//!     acquisition: (schemes: [SecondaryComplementaryBalancing, DoubleArm], ratios: [0.25],
+//!                   patterns: Hadamard(ordering: CakeCutting)),
 //!     seed: 7,
 //!     samples: 64,
 //!     shard_samples: 16,
-//!     // Optional: benches drawn from a tolerance file, a new one every 16 samples
-//!     // (default Nominal); what else to write; how the outputs are recorded (default Frames).
+//!     // Optional: benches drawn from a tolerance file, a new one every 16 samples (default
+//!     // Nominal); what else to write; how the outputs are recorded (default Frames).
 //!     benches: Tolerance(file: "tolerances/paper_bench.ron", samples_per_bench: 16),
 //!     write: (patterns: false, scope_frames: 0, reconstructions: false),
 //!     record: Frames,
@@ -153,6 +156,10 @@ pub enum ObjectsSpec {
 pub struct AcquisitionSpec {
     pub schemes: Vec<Scheme>,
     pub ratios: Vec<f64>,
+    /// The pattern family and ordering, `Random(seed: S)` or `Hadamard(ordering: O)` (default:
+    /// the bench's `run:` section).
+    #[serde(default)]
+    pub patterns: Option<crate::scene::experiment::PatternsSpec>,
 }
 
 #[derive(Debug, Clone, Default, PartialEq, Deserialize, Serialize)]

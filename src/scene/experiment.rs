@@ -136,6 +136,18 @@ impl Default for PatternsSpec {
     }
 }
 
+impl PatternsSpec {
+    /// The pattern family it names.
+    pub fn family(&self) -> crate::acquisition::PatternFamily {
+        match *self {
+            PatternsSpec::Random { seed } => crate::acquisition::PatternFamily::Random { seed },
+            PatternsSpec::Hadamard { ordering } => {
+                crate::acquisition::PatternFamily::Hadamard { ordering }
+            }
+        }
+    }
+}
+
 /// One acquisition case.
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]

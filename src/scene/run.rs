@@ -698,10 +698,7 @@ pub fn settings_si(r: &RunSpec) -> FieldResult<RunSettings> {
         rays: r.rays,
         sampling_ratios: r.sampling_ratios.iter().map(|x| x.0).collect(),
         schemes: r.schemes.clone(),
-        patterns: match r.patterns {
-            PatternsSpec::Random { seed } => PatternFamily::Random { seed },
-            PatternsSpec::Hadamard { ordering } => PatternFamily::Hadamard { ordering },
-        },
+        patterns: r.patterns.family(),
         dmd_rate_hz: r.dmd_rate_hz.0,
         settling_time_s: r.settling_time_us.0 * 1e-6,
         drift: Drift {

@@ -239,6 +239,12 @@ fn bad_specs_are_located_input_errors() {
         ),
         ("samples: 900000000,".into(), vec!["GB", "max_disk_gb"]),
         (
+            "acquisition: (schemes: [DoubleArm], ratios: [0.05], \
+             patterns: Hadamard(ordering: CakeCutting)),"
+                .into(),
+            vec!["patterns", "line 5"],
+        ),
+        (
             "seed: 7, benches: Tolerance(file: \"nowhere.ron\", samples_per_bench: 2),".into(),
             vec!["tolerance file", "nowhere.ron", "does not exist"],
         ),
@@ -256,6 +262,8 @@ fn bad_specs_are_located_input_errors() {
             "objects: TestImages(names: [\"astronaut\", \"coffee\"], rule: RandomCrop),"
         } else if replacement.starts_with("seed") {
             "seed: 7,"
+        } else if replacement.starts_with("acquisition") {
+            "acquisition: (schemes: [SecondaryComplementaryBalancing, DoubleArm], ratios: [0.05]),"
         } else {
             "samples: 10,"
         };
@@ -552,5 +560,55 @@ fn optional_arrays_hold_scope_records_and_scored_reconstructions() {
         ),
         &["scope_frames", "at most 100", "line 9"],
         &o,
+    );
+}
+
+/// The spec's pattern family replaces the bench's: another random seed gives other patterns and
+/// other measurements of the same objects, and the manifest names the family.
+#[test]
+fn the_spec_names_the_pattern_family() {
+    let t = TempDir::new("dataset-patterns");
+    let acq =
+        "acquisition: (schemes: [SecondaryComplementaryBalancing, DoubleArm], ratios: [0.05]),";
+    let mut outs = Vec::new();
+    for (k, family) in ["", ", patterns: Random(seed: 5)"].iter().enumerate() {
+        let dir = t.join(&format!("s{k}"));
+        std::fs::create_dir_all(&dir).unwrap();
+        let edited = acq.replace("]),", &format!("]{family}),"));
+        let spec = write_spec(
+            &dir,
+            &[
+                (acq, edited.as_str()),
+                ("samples: 10,", "samples: 2,\n    write: (patterns: true),"),
+            ],
+        );
+        let out = dir.join("out");
+        ok(&spibench(
+            &[
+                "dataset",
+                spec.to_str().unwrap(),
+                "--out",
+                out.to_str().unwrap(),
+            ],
+            &[],
+        ));
+        outs.push(out);
+    }
+    let label = |o: &Path| read_json(&o.join("manifest.json"))["pattern_family"].clone();
+    assert_ne!(label(&outs[0]), label(&outs[1]));
+    assert!(
+        label(&outs[1]).to_string().contains('5'),
+        "{}",
+        label(&outs[1])
+    );
+    assert_eq!(
+        dataset_array(&outs[0], "object"),
+        dataset_array(&outs[1], "object")
+    );
+    let m = "meas_double_arm_r0.0500";
+    assert_ne!(dataset_array(&outs[0], m), dataset_array(&outs[1], m));
+    assert_ne!(
+        std::fs::read(outs[0].join("patterns.npy")).unwrap(),
+        std::fs::read(outs[1].join("patterns.npy")).unwrap()
     );
 }
