@@ -258,7 +258,12 @@ impl Prepared {
     /// Reads the bench, traces the kernel and builds the patterns.
     pub fn new(spec: DatasetSpec) -> Result<Prepared> {
         let bench_text = crate::scene::read_text(&spec.bench_path)?;
-        let doc = BenchDoc::parse(&bench_text, &spec.bench_path)?;
+        let mut doc = BenchDoc::parse(&bench_text, &spec.bench_path)?;
+        if let Some(e) = &spec.file.electronics {
+            // The spec's electronics replace the bench's (checked, with located errors, when
+            // the spec was read).
+            doc.file.electronics = e.clone();
+        }
         let scene = doc.run_scene()?;
         if scene.bench.dmd().is_none() {
             return Err(spec.error("bench", "a dataset needs a bench with a DMD"));

@@ -18,6 +18,8 @@
 //!     benches: Tolerance(file: "tolerances/paper_bench.ron", samples_per_bench: 16),
 //!     write: (patterns: false, scope_frames: 0, reconstructions: false),
 //!     record: Frames,
+//!     // Optional: the detector and oscilloscope in place of the bench's electronics: section.
+//!     electronics: (detector: (load: FiftyOhm)),
 //! )
 //! ```
 
@@ -64,6 +66,10 @@ pub struct DatasetFile {
     /// How the detector outputs are recorded (default `Frames`).
     #[serde(default)]
     pub record: RecordSpec,
+    /// The detector and oscilloscope, in the form of a bench's `electronics:` section, in place
+    /// of the bench's (default: the bench's own).
+    #[serde(default)]
+    pub electronics: Option<crate::scene::run::ElectronicsSpec>,
 }
 
 /// How the detector outputs of each sample are recorded.
@@ -258,6 +264,9 @@ pub fn parse_dataset(text: &str, path: &Path) -> Result<DatasetSpec> {
     }
     if file.samples > 1_000_000_000 {
         return Err(err("samples", "more than 10⁹ samples is absurd".into()));
+    }
+    if let Some(e) = &file.electronics {
+        crate::scene::run::electronics_si(e, Some(text), path)?;
     }
     let tolerance_path = match &file.benches {
         BenchesSpec::Nominal => None,

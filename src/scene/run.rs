@@ -447,10 +447,7 @@ pub fn parse_run_scene(text: &str, path: &Path) -> Result<RunScene> {
 pub fn run_scene(file: &BenchFile, text: Option<&str>, path: &Path) -> Result<RunScene> {
     let bench = build_bench(file, text, path)?;
     let locate = |e: Error, section: &str, field: &str| locate_error(e, text, path, section, field);
-    let detector =
-        detector_si(&file.electronics.detector).map_err(|(f, e)| locate(e, "electronics", f))?;
-    let scope =
-        scope_si(&file.electronics.oscilloscope).map_err(|(f, e)| locate(e, "electronics", f))?;
+    let (detector, scope) = electronics_si(&file.electronics, text, path)?;
     let settings = settings_si(&file.run).map_err(|(f, e)| locate(e, "run", f))?;
     if bench.dmd().is_none() {
         return Err(Error::field("dmd", "`run` needs a bench with a DMD").in_file(path));
@@ -472,6 +469,19 @@ pub fn run_scene(file: &BenchFile, text: Option<&str>, path: &Path) -> Result<Ru
 }
 
 /// Adds the file, the field and (when the field is written in the file) its line.
+/// The `electronics:` section of a file (`text` at `path`, a bench or a dataset spec) in SI:
+/// the detector and the oscilloscope, errors located in that file.
+pub fn electronics_si(
+    e: &ElectronicsSpec,
+    text: Option<&str>,
+    path: &Path,
+) -> Result<(Bap, Scope)> {
+    let locate = |er: Error, field: &str| locate_error(er, text, path, "electronics", field);
+    let detector = detector_si(&e.detector).map_err(|(f, er)| locate(er, f))?;
+    let scope = scope_si(&e.oscilloscope).map_err(|(f, er)| locate(er, f))?;
+    Ok((detector, scope))
+}
+
 fn locate_error(e: Error, text: Option<&str>, path: &Path, section: &str, field: &str) -> Error {
     let mut e = e.in_file(path).at_field(field);
     if let Some((line, col)) = text.and_then(|t| find_field(t, section, field)) {

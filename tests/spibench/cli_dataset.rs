@@ -245,6 +245,10 @@ fn bad_specs_are_located_input_errors() {
             vec!["patterns", "line 5"],
         ),
         (
+            "seed: 7,\n    electronics: (oscilloscope: (bits: 40)),".into(),
+            vec!["bits", "1 to 24 bits", "line 7"],
+        ),
+        (
             "seed: 7, benches: Tolerance(file: \"nowhere.ron\", samples_per_bench: 2),".into(),
             vec!["tolerance file", "nowhere.ron", "does not exist"],
         ),
@@ -610,5 +614,46 @@ fn the_spec_names_the_pattern_family() {
     assert_ne!(
         std::fs::read(outs[0].join("patterns.npy")).unwrap(),
         std::fs::read(outs[1].join("patterns.npy")).unwrap()
+    );
+}
+
+/// The spec's electronics replace the bench's: into 50 Ω the detector's gains halve
+/// (docs/bench-facts.md §1.1), so the same objects give other measurements.
+#[test]
+fn the_spec_names_the_electronics() {
+    let t = TempDir::new("dataset-electronics");
+    let mut outs = Vec::new();
+    for (k, e) in ["", "\n    electronics: (detector: (load: FiftyOhm)),"]
+        .iter()
+        .enumerate()
+    {
+        let dir = t.join(&format!("s{k}"));
+        std::fs::create_dir_all(&dir).unwrap();
+        let samples = format!("samples: 2,{e}");
+        let spec = write_spec(&dir, &[("samples: 10,", samples.as_str())]);
+        let out = dir.join("out");
+        ok(&spibench(
+            &[
+                "dataset",
+                spec.to_str().unwrap(),
+                "--out",
+                out.to_str().unwrap(),
+            ],
+            &[],
+        ));
+        outs.push(out);
+    }
+    assert_eq!(
+        dataset_array(&outs[0], "object"),
+        dataset_array(&outs[1], "object")
+    );
+    let m = "meas_double_arm_r0.0500";
+    let (_, high_z) = dataset_array(&outs[0], m);
+    let (_, fifty) = dataset_array(&outs[1], m);
+    let mean = |v: &[f64]| v.iter().map(|x| x.abs()).sum::<f64>() / v.len() as f64;
+    let ratio = mean(&fifty) / mean(&high_z);
+    assert!(
+        (ratio - 0.5).abs() < 0.05,
+        "50 Ω / high-Z measurement ratio {ratio}"
     );
 }
