@@ -64,6 +64,16 @@ pub fn run(args: &DatasetArgs) -> anyhow::Result<()> {
         prep.kernel_seconds,
         prep.kernel.multi_crossing_current_fraction()
     );
+    if let Some(d) = &prep.drawn {
+        eprintln!(
+            "benches: drawn from {} ({} tolerance(s), {} compensator(s)), a new one every {} \
+             samples, each traced as its own kernel",
+            d.set.path.display(),
+            d.set.tolerances.len(),
+            d.set.compensators.len(),
+            d.samples_per_bench
+        );
+    }
     let g = generate(
         &prep,
         &args.out,
