@@ -567,26 +567,16 @@ fn optional_arrays_hold_scope_records_and_scored_reconstructions() {
     );
 }
 
-/// The spec's pattern family replaces the bench's: another random seed gives other patterns and
-/// other measurements of the same objects, and the manifest names the family.
-#[test]
-fn the_spec_names_the_pattern_family() {
-    let t = TempDir::new("dataset-patterns");
-    let acq =
-        "acquisition: (schemes: [SecondaryComplementaryBalancing, DoubleArm], ratios: [0.05]),";
+/// Datasets made from the tiny spec with each set of edits, in folders of their own below
+/// `dir`: their output folders.
+fn made_datasets(dir: &Path, edits: &[&[(&str, String)]]) -> Vec<PathBuf> {
     let mut outs = Vec::new();
-    for (k, family) in ["", ", patterns: Random(seed: 5)"].iter().enumerate() {
-        let dir = t.join(&format!("s{k}"));
-        std::fs::create_dir_all(&dir).unwrap();
-        let edited = acq.replace("]),", &format!("]{family}),"));
-        let spec = write_spec(
-            &dir,
-            &[
-                (acq, edited.as_str()),
-                ("samples: 10,", "samples: 2,\n    write: (patterns: true),"),
-            ],
-        );
-        let out = dir.join("out");
+    for (k, e) in edits.iter().enumerate() {
+        let d = dir.join(format!("s{k}"));
+        std::fs::create_dir_all(&d).unwrap();
+        let pairs: Vec<(&str, &str)> = e.iter().map(|(a, b)| (*a, b.as_str())).collect();
+        let spec = write_spec(&d, &pairs);
+        let out = d.join("out");
         ok(&spibench(
             &[
                 "dataset",
@@ -598,6 +588,26 @@ fn the_spec_names_the_pattern_family() {
         ));
         outs.push(out);
     }
+    outs
+}
+
+/// The spec's pattern family replaces the bench's: another random seed gives other patterns and
+/// other measurements of the same objects, and the manifest names the family.
+#[test]
+fn the_spec_names_the_pattern_family() {
+    let t = TempDir::new("dataset-patterns");
+    let acq =
+        "acquisition: (schemes: [SecondaryComplementaryBalancing, DoubleArm], ratios: [0.05]),";
+    let plain = [
+        (acq, acq.to_string()),
+        (
+            "samples: 10,",
+            "samples: 2,\n    write: (patterns: true),".into(),
+        ),
+    ];
+    let mut other = plain.clone();
+    other[0].1 = acq.replace("]),", "], patterns: Random(seed: 5)),");
+    let outs = made_datasets(&t.0, &[&plain, &other]);
     let label = |o: &Path| read_json(&o.join("manifest.json"))["pattern_family"].clone();
     assert_ne!(label(&outs[0]), label(&outs[1]));
     assert!(
@@ -622,27 +632,12 @@ fn the_spec_names_the_pattern_family() {
 #[test]
 fn the_spec_names_the_electronics() {
     let t = TempDir::new("dataset-electronics");
-    let mut outs = Vec::new();
-    for (k, e) in ["", "\n    electronics: (detector: (load: FiftyOhm)),"]
-        .iter()
-        .enumerate()
-    {
-        let dir = t.join(&format!("s{k}"));
-        std::fs::create_dir_all(&dir).unwrap();
-        let samples = format!("samples: 2,{e}");
-        let spec = write_spec(&dir, &[("samples: 10,", samples.as_str())]);
-        let out = dir.join("out");
-        ok(&spibench(
-            &[
-                "dataset",
-                spec.to_str().unwrap(),
-                "--out",
-                out.to_str().unwrap(),
-            ],
-            &[],
-        ));
-        outs.push(out);
-    }
+    let plain = [("samples: 10,", "samples: 2,".to_string())];
+    let fifty = [(
+        "samples: 10,",
+        "samples: 2,\n    electronics: (detector: (load: FiftyOhm)),".to_string(),
+    )];
+    let outs = made_datasets(&t.0, &[&plain, &fifty]);
     assert_eq!(
         dataset_array(&outs[0], "object"),
         dataset_array(&outs[1], "object")
