@@ -1,8 +1,8 @@
 //! Tolerance analysis of the shipped file on the paper bench: the sensitivity table resolved
-//! row by row (`tolerance --resolve 1e-4`: each row's paired standard error of Δimbalance at
-//! most max(10⁻⁴, 1 % of |Δ|), from 102 400 rays, 2ᵏ times that, up to 6.6·10⁶, per end), against the
-//! baseline of one ray count for every row (10⁶, the previous method), and a 100-trial Monte
-//! Carlo without `--quality`, with the time split between compensators and traces.
+//! end by end (`tolerance --resolve 1e-4`: each end's paired standard error of Δimbalance at
+//! most max(10⁻⁴, 1 % of |Δ|), from 102 400 rays, 2ᵏ times that, up to 6.6·10⁶), against
+//! the baseline of one ray count for every row (10⁶, the previous method), and a 100-trial
+//! Monte Carlo without `--quality`, with the time split between compensators and traces.
 //!
 //!     cargo bench --bench tolerance [-- TRIALS]
 //!
@@ -64,7 +64,7 @@ fn main() {
         quality: false,
     };
 
-    // Resolved row by row.
+    // Resolved end by end.
     let start = 100 * spibench::trace::RAYS_PER_BATCH;
     let rule = Resolve {
         stderr: 1e-4,

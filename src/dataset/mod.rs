@@ -148,11 +148,8 @@ pub struct BenchKernel {
     pub scene: RunScene,
     pub kernel: Kernel,
     /// Deviations of the tolerances (file order) then of the compensators, from the nominal
-    /// bench (empty for the nominal bench).
+    /// bench.
     pub deviations: Vec<f64>,
-    /// Trial index of the tolerance draw that gave this bench (draws that made an invalid
-    /// bench, such as two parts overlapping, are replaced by the next in a fixed sequence).
-    pub draw: u64,
 }
 
 /// Invalid drawn benches tolerated in a row before a dataset gives up.
@@ -166,6 +163,8 @@ pub struct Sample {
     pub measurements: Vec<Vec<f64>>,
     pub k_a_per_w: [f64; 2],
     pub b_a: [f64; 2],
+    /// The drawn bench's deviations (empty for the nominal bench).
+    pub deviations: Vec<f64>,
     /// The optional arrays of [`Prepared::optional_arrays`], in that order.
     pub optional: Vec<Vec<f64>>,
 }
@@ -214,16 +213,30 @@ fn clear_chart(
     }
 }
 
-/// The run scene and object kernel of one bench of a dataset.
-fn bench_kernel(
-    doc: &BenchDoc,
-    spec: &DatasetSpec,
-    schemes: &[Scheme],
-) -> Result<(RunScene, Kernel)> {
+/// The run scene of a dataset's bench `doc`, which must have a DMD.
+fn checked_scene(doc: &BenchDoc, spec: &DatasetSpec) -> Result<RunScene> {
     let scene = doc.run_scene()?;
     if scene.bench.dmd().is_none() {
         return Err(spec.error("bench", "a dataset needs a bench with a DMD"));
     }
+    Ok(scene)
+}
+
+/// A bench's run scene with the settings the spec asks for: its schemes, the pattern family it
+/// names, its oscilloscope frames and its record model.
+fn dataset_scene(mut scene: RunScene, spec: &DatasetSpec, schemes: &[Scheme]) -> RunScene {
+    let settings = &mut scene.settings;
+    settings.schemes = schemes.to_vec();
+    settings.signal_trace_frames = spec.file.write.scope_frames;
+    settings.record = spec.file.record.model();
+    if let Some(p) = spec.patterns() {
+        settings.patterns = p.family();
+    }
+    scene
+}
+
+/// The object kernel of a dataset's bench `doc`.
+fn bench_kernel(doc: &BenchDoc, spec: &DatasetSpec) -> Result<Kernel> {
     let k = &spec.file.kernel;
     let (clear, chart) = clear_chart(doc, k.chart.as_deref(), spec)?;
     let kernel_bench = clear.build()?;
@@ -234,24 +247,11 @@ fn bench_kernel(
         width_m: k.field_mm.0 * 1e-3,
         height_m: k.field_mm.1 * 1e-3,
     };
-    let kernel = trace_kernel(
+    trace_kernel(
         &kernel_bench,
         grid,
         &crate::trace::TraceOptions::new(k.rays, k.seed),
-    )?;
-    let mut settings = scene.settings.clone();
-    settings.schemes = schemes.to_vec();
-    settings.signal_trace_frames = spec.file.write.scope_frames;
-    settings.record = spec.file.record.model();
-    if let Some(p) = spec
-        .file
-        .acquisition
-        .as_ref()
-        .and_then(|a| a.patterns.as_ref())
-    {
-        settings.patterns = p.family();
-    }
-    Ok((RunScene { settings, ..scene }, kernel))
+    )
 }
 
 impl Prepared {
@@ -264,11 +264,7 @@ impl Prepared {
             // the spec was read).
             doc.file.electronics = e.clone();
         }
-        let scene = doc.run_scene()?;
-        if scene.bench.dmd().is_none() {
-            return Err(spec.error("bench", "a dataset needs a bench with a DMD"));
-        }
-        let k = &spec.file.kernel;
+        let scene = checked_scene(&doc, &spec)?;
         let (schemes, ratios) = match &spec.file.acquisition {
             Some(a) => (a.schemes.clone(), a.ratios.clone()),
             None => (
@@ -276,18 +272,16 @@ impl Prepared {
                 scene.settings.sampling_ratios.clone(),
             ),
         };
+        let scene = dataset_scene(scene, &spec, &schemes);
+        let k = &spec.file.kernel;
         let (w, h) = scene.bench.units_shape();
         let units = w * h;
         let r_max = ratios.iter().copied().fold(0.0, f64::max);
-        let named = spec
-            .file
-            .acquisition
-            .as_ref()
-            .and_then(|a| a.patterns.as_ref());
-        let family = named.map_or(scene.settings.patterns, |p| p.family());
-        let patterns = family
+        let patterns = scene
+            .settings
+            .patterns
             .build(w, h, patterns_for_ratio(r_max, units))
-            .map_err(|e| match named {
+            .map_err(|e| match spec.patterns() {
                 Some(_) => spec.error("patterns", e.to_string()),
                 None => e,
             })?;
@@ -348,7 +342,7 @@ impl Prepared {
             _ => None,
         };
         let start = std::time::Instant::now();
-        let (scene, kernel) = bench_kernel(&doc, &spec, &schemes)?;
+        let kernel = bench_kernel(&doc, &spec)?;
         let kernel_seconds = start.elapsed().as_secs_f64();
         Ok(Prepared {
             spec,
@@ -368,18 +362,10 @@ impl Prepared {
         self.drawn.as_ref().map_or(0, |d| s / d.samples_per_bench)
     }
 
-    /// Bench t of a dataset over drawn benches: tolerance trial t with the dataset's seed, or
-    /// the next valid draw when that one is not a valid bench. Its kernel is traced with the
+    /// Bench t of the benches `d` (this dataset's): tolerance trial t with the dataset's seed,
+    /// or the next valid draw when that one is not a valid bench. Its kernel is traced with the
     /// kernel spec's rays and seed.
-    pub fn drawn_bench(&self, t: u64) -> Result<BenchKernel> {
-        let Some(d) = &self.drawn else {
-            return Ok(BenchKernel {
-                scene: self.scene.clone(),
-                kernel: self.kernel.clone(),
-                deviations: Vec::new(),
-                draw: 0,
-            });
-        };
+    pub fn drawn_bench(&self, d: &DrawnBenches, t: u64) -> Result<BenchKernel> {
         let options = crate::tolerance::ToleranceOptions {
             rays: self.spec.file.kernel.rays,
             seed: self.spec.file.seed,
@@ -391,12 +377,14 @@ impl Prepared {
             let draw = t + (j << 40);
             let made = crate::tolerance::trial_doc(&d.doc, &d.set, &options, draw).and_then(
                 |(doc, dev, comp)| {
-                    let (scene, kernel) = bench_kernel(&doc, &self.spec, &self.schemes)?;
                     Ok(BenchKernel {
-                        scene,
-                        kernel,
+                        scene: dataset_scene(
+                            checked_scene(&doc, &self.spec)?,
+                            &self.spec,
+                            &self.schemes,
+                        ),
+                        kernel: bench_kernel(&doc, &self.spec)?,
                         deviations: dev.iter().chain(&comp).map(|(_, v)| *v).collect(),
-                        draw,
                     })
                 },
             );
@@ -589,19 +577,19 @@ impl Prepared {
     /// Sample s: its object, transport, recorded frames and measurements (for a dataset over
     /// drawn benches its bench is traced first: [`Prepared::sample_on`] reuses one).
     pub fn sample(&self, s: u64) -> Result<Sample> {
-        if self.drawn.is_some() {
-            let b = self.drawn_bench(self.bench_index(s))?;
-            return self.sample_on(s, &b);
+        match &self.drawn {
+            Some(d) => self.sample_on(s, Some(&self.drawn_bench(d, self.bench_index(s))?)),
+            None => self.sample_on(s, None),
         }
-        self.sample_with(s, &self.scene, &self.kernel)
     }
 
-    /// Sample s measured through `bench` (which must be bench [`Prepared::bench_index`]`(s)`).
-    pub fn sample_on(&self, s: u64, bench: &BenchKernel) -> Result<Sample> {
-        self.sample_with(s, &bench.scene, &bench.kernel)
-    }
-
-    fn sample_with(&self, s: u64, scene: &RunScene, kernel: &Kernel) -> Result<Sample> {
+    /// Sample s measured through `bench` (which must be bench [`Prepared::bench_index`]`(s)`),
+    /// or through the nominal bench.
+    pub fn sample_on(&self, s: u64, bench: Option<&BenchKernel>) -> Result<Sample> {
+        let (scene, kernel) = match bench {
+            Some(b) => (&b.scene, &b.kernel),
+            None => (&self.scene, &self.kernel),
+        };
         let object = self.object(s)?.data;
         let transport = Transport::from_kernel(&scene.bench, kernel, &object)?;
         let seed = rng::mix64(rng::mix64(self.spec.file.seed ^ NOISE) ^ s);
@@ -650,12 +638,9 @@ impl Prepared {
                 &|_, _, _| {},
             )?;
             optional.push(x.data);
-            for c in &cells {
-                optional.push(c.solution.data.clone());
-            }
-            for c in &cells {
-                optional.push(vec![c.psnr_db, c.mssim]);
-            }
+            let scores: Vec<Vec<f64>> = cells.iter().map(|c| vec![c.psnr_db, c.mssim]).collect();
+            optional.extend(cells.into_iter().map(|c| c.solution.data));
+            optional.extend(scores);
         }
         if w.scope_frames > 0 {
             for (q, len) in self.scope_sequences() {
@@ -678,6 +663,7 @@ impl Prepared {
             measurements,
             k_a_per_w: [transport.k[0].value, transport.k[1].value],
             b_a: [transport.b[0].value, transport.b[1].value],
+            deviations: bench.map_or_else(Vec::new, |b| b.deviations.clone()),
             optional,
         })
     }
@@ -686,22 +672,21 @@ impl Prepared {
     /// first `scope_frames` frames (samples n whose frame ⌊(n + 10⁻⁶)/P⌋ is below that, P the
     /// samples per frame, as [`crate::detector::record`] assigns them).
     pub fn scope_sequences(&self) -> Vec<(crate::acquisition::Sequence, usize)> {
-        let f = self.spec.file.write.scope_frames;
         let st = &self.scene.settings;
-        let fs = self.scene.scope.sample_rate_hz;
-        let per_frame = fs / st.dmd_rate_hz;
+        let timing = crate::detector::FrameTiming {
+            frame_s: 1.0 / st.dmd_rate_hz,
+            settling_s: st.settling_time_s,
+            sample_rate_hz: self.scene.scope.sample_rate_hz,
+        };
         let m = self.patterns.measurements();
         crate::acquisition::Sequence::all()
             .into_iter()
             .filter(|q| self.schemes.iter().any(|k| k.sequence() == *q))
             .map(|q| {
                 let frames = q.frames(m);
-                let len = if f >= frames {
-                    (frames as f64 / st.dmd_rate_hz * fs).ceil() as usize
-                } else {
-                    (f as f64 * per_frame - 1e-6).ceil() as usize
-                };
-                (q, len)
+                let f = self.spec.file.write.scope_frames.min(frames);
+                let len = crate::detector::frame_start_sample(timing, frames, f);
+                (q, len as usize)
             })
             .collect()
     }
@@ -722,8 +707,9 @@ impl Prepared {
                 dtype: "<f8".into(),
                 sample_shape: vec![down, across],
                 units: "W".into(),
-                description: "the object's light on each DMD unit (x_j, rows top to bottom): \
-                              what the reconstructions are scored against, scaled to 0–255"
+                description: "the object's light on each DMD unit (x_j, rows top to bottom); \
+                              the reconstructions are scored against it scaled to 0–255 by \
+                              its maximum"
                     .into(),
             });
             for (sch, r) in &cells {
@@ -788,21 +774,22 @@ impl Prepared {
         let end = (first + f.shard_samples).min(f.samples);
         // The benches this shard's samples see, each traced once (in index order; a kernel
         // trace is itself parallel).
-        let benches: Vec<(u64, BenchKernel)> = if self.drawn.is_some() {
-            (self.bench_index(first)..=self.bench_index(end - 1))
-                .map(|t| Ok((t, self.drawn_bench(t)?)))
-                .collect::<Result<_>>()?
-        } else {
-            Vec::new()
+        let t0 = self.bench_index(first);
+        let benches: Vec<BenchKernel> = match &self.drawn {
+            Some(d) => (t0..=self.bench_index(end - 1))
+                .map(|t| self.drawn_bench(d, t))
+                .collect::<Result<_>>()?,
+            None => Vec::new(),
         };
-        let bench_of = |s: u64| benches.iter().find(|(t, _)| *t == self.bench_index(s));
         let samples: Vec<Sample> = (first..end)
             .into_par_iter()
-            .map(|s| match bench_of(s) {
-                Some((_, b)) => self.sample_on(s, b),
-                None => self.sample_with(s, &self.scene, &self.kernel),
+            .map(|s| {
+                let bench = benches.get((self.bench_index(s) - t0) as usize);
+                self.sample_on(s, bench)
             })
             .collect::<Result<_>>()?;
+        let measurement_names = self.measurement_names();
+        let optional_arrays = self.optional_arrays();
         let n = samples.len();
         let mut out = Vec::new();
         for a in self.schema() {
@@ -813,18 +800,12 @@ impl Prepared {
                 "k" => samples.iter().for_each(|s| data.extend(s.k_a_per_w)),
                 "b" => samples.iter().for_each(|s| data.extend(s.b_a)),
                 "bench" => data.extend((first..end).map(|s| self.bench_index(s) as f64)),
-                "deviations" => {
-                    for s in first..end {
-                        let (_, b) = bench_of(s).expect("drawn benches");
-                        data.extend(&b.deviations);
-                    }
-                }
+                "deviations" => samples.iter().for_each(|s| data.extend(&s.deviations)),
                 name => {
-                    if let Some(i) = self.measurement_names().iter().position(|m| m.0 == name) {
+                    if let Some(i) = measurement_names.iter().position(|m| m.0 == name) {
                         samples.iter().for_each(|s| data.extend(&s.measurements[i]));
                     } else {
-                        let i = self
-                            .optional_arrays()
+                        let i = optional_arrays
                             .iter()
                             .position(|a| a.name == name)
                             .expect("schema names");

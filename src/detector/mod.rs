@@ -15,7 +15,7 @@ pub mod scope;
 pub use bap::{Bap, Load, MONITOR_MINUS, MONITOR_PLUS, OUTPUT_NAMES, OutputStage, RF};
 pub use drift::{Drift, DriftPath};
 pub use record::{
-    FrameTiming, Illumination, Record, RecordModel, SignalTrace, ideal_frames, record,
-    record_frames, record_with,
+    FrameTiming, Illumination, Record, RecordModel, SignalTrace, frame_start_sample, ideal_frames,
+    record, record_frames, record_with,
 };
 pub use scope::{Channel, ChannelRange, Scope, ScopeNoise, auto_range};

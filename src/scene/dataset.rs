@@ -453,6 +453,14 @@ pub fn parse_dataset(text: &str, path: &Path) -> Result<DatasetSpec> {
 }
 
 impl DatasetSpec {
+    /// The pattern family the spec's acquisition names, if it names one.
+    pub fn patterns(&self) -> Option<&crate::scene::experiment::PatternsSpec> {
+        self.file
+            .acquisition
+            .as_ref()
+            .and_then(|a| a.patterns.as_ref())
+    }
+
     /// An input error located at `field` of the spec.
     pub fn error(&self, field: &str, message: impl Into<String>) -> Error {
         let mut e = Error::field(field, message).in_file(&self.path);

@@ -468,7 +468,6 @@ pub fn run_scene(file: &BenchFile, text: Option<&str>, path: &Path) -> Result<Ru
     })
 }
 
-/// Adds the file, the field and (when the field is written in the file) its line.
 /// The `electronics:` section of a file (`text` at `path`, a bench or a dataset spec) in SI:
 /// the detector and the oscilloscope, errors located in that file.
 pub fn electronics_si(
@@ -482,6 +481,7 @@ pub fn electronics_si(
     Ok((detector, scope))
 }
 
+/// Adds the file, the field and (when the field is written in the file) its line.
 fn locate_error(e: Error, text: Option<&str>, path: &Path, section: &str, field: &str) -> Error {
     let mut e = e.in_file(path).at_field(field);
     if let Some((line, col)) = text.and_then(|t| find_field(t, section, field)) {

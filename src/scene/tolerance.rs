@@ -437,11 +437,15 @@ pub struct SensitivityRecord {
 
 impl SensitivityRecord {
     pub fn at(&self, high: bool, name: &str) -> f64 {
-        let v = if high { &self.at_max } else { &self.at_min };
-        v.iter()
-            .find(|(k, _)| k == name)
-            .map_or(f64::NAN, |(_, x)| *x)
+        value_of(if high { &self.at_max } else { &self.at_min }, name)
     }
+}
+
+/// The value named `name` in a list of named values (NaN when it is not there).
+pub fn value_of(v: &[(String, f64)], name: &str) -> f64 {
+    v.iter()
+        .find(|(k, _)| k == name)
+        .map_or(f64::NAN, |(_, x)| *x)
 }
 
 /// The records a (sharded) tolerance run writes, from which its outputs are made.

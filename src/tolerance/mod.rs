@@ -19,6 +19,8 @@
 //!   Carlo spread far from the RSS shows interactions or nonlinearity (e.g. a diode at the edge
 //!   of its spot).
 
+use std::collections::btree_map::Entry;
+
 use serde::Serialize;
 
 use crate::align::{AlignOptions, Free, Objective, align};
@@ -26,7 +28,7 @@ use crate::error::{Error, Result};
 use crate::rng;
 use crate::scene::doc::BenchDoc;
 use crate::scene::tolerance::{
-    CompensatorObjective, Distribution, SensitivityRecord, ToleranceSet, TrialRecord,
+    CompensatorObjective, Distribution, SensitivityRecord, ToleranceSet, TrialRecord, value_of,
 };
 use crate::sweep::{SweepOptions, SweepPoint, point};
 use crate::transport::metrics::{METRICS, MetricRow};
@@ -141,7 +143,7 @@ fn settings(set: &ToleranceSet, deviations: &[(String, f64)]) -> Vec<(String, f6
 /// A large change needs only a relative resolution: the paired standard error of a change that
 /// moves light across an edge (a spot leaving a diode) falls only as 1/√rays, since common
 /// random numbers pair nothing of the rays that switch between detected and lost.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Resolve {
     pub stderr: f64,
     pub relative: f64,
@@ -196,23 +198,21 @@ pub fn sensitivity(
     let total = 2 * set.tolerances.len();
     let mut rows = Vec::with_capacity(set.tolerances.len());
     // The nominal bench at every ray count used, traced once each.
-    let mut nominals: Vec<(u64, SweepPoint)> = vec![(o.rays, nominal.clone())];
-    let get =
-        |v: &[(String, f64)], k: &str| v.iter().find(|(n, _)| n == k).map_or(f64::NAN, |(_, x)| *x);
+    let mut nominals = std::collections::BTreeMap::from([(o.rays, nominal.clone())]);
     for (i, t) in set.tolerances.iter().enumerate() {
         let mut ends = Vec::with_capacity(2);
         let mut end_rays = [o.rays; 2];
         for (k, dev) in [t.min, t.max].into_iter().enumerate() {
+            let s = vec![(t.path.clone(), t.nominal + dev)];
+            let d = doc.with(&s)?;
             let mut rays = o.rays;
             let end = loop {
                 let at = ToleranceOptions { rays, ..*o };
-                if !nominals.iter().any(|(r, _)| *r == rays) {
-                    nominals.push((rays, point(doc, Vec::new(), &at.sweep(false))?));
-                }
-                let nom = &nominals.iter().find(|(r, _)| *r == rays).expect("traced").1;
-                let s = vec![(t.path.clone(), t.nominal + dev)];
-                let d = doc.with(&s)?;
-                let p = point(&d, s, &at.sweep(false))?;
+                let nom = match nominals.entry(rays) {
+                    Entry::Occupied(e) => e.into_mut(),
+                    Entry::Vacant(e) => e.insert(point(doc, Vec::new(), &at.sweep(false))?),
+                };
+                let p = point(&d, s.clone(), &at.sweep(false))?;
                 let end: Vec<(String, f64)> = values(&p, nom)
                     .into_iter()
                     .filter(|(k, _)| {
@@ -222,8 +222,8 @@ pub fn sensitivity(
                     })
                     .collect();
                 let (dv, se) = (
-                    get(&end, "imbalance_diff"),
-                    get(&end, "imbalance_diff_stderr"),
+                    value_of(&end, "imbalance_diff"),
+                    value_of(&end, "imbalance_diff_stderr"),
                 );
                 match resolve {
                     Some(r) if !r.holds(dv, se) => match r.next_rays(rays, dv, se) {

@@ -190,13 +190,6 @@ fn resolving_raises_the_rays_of_unresolved_rows_only() {
             .max(r.at(true, "imbalance_diff_stderr"))
     };
     for r in &plain {
-        eprintln!(
-            "{}: Δ {:+.3e} / {:+.3e}, SE {:.2e}",
-            r.path,
-            r.at(false, "imbalance_diff"),
-            r.at(true, "imbalance_diff"),
-            se(r)
-        );
         assert_eq!(r.rays, [RAYS; 2]);
     }
     // The rule: an absolute standard error, or 1 % of a large change.

@@ -250,11 +250,17 @@ fn bad_specs_are_located_input_errors() {
         ),
         (
             "seed: 7, benches: Tolerance(file: \"nowhere.ron\", samples_per_bench: 2),".into(),
-            vec!["tolerance file", "nowhere.ron", "does not exist"],
+            vec![
+                "tolerance file",
+                "nowhere.ron",
+                "does not exist",
+                "field `file`",
+                "line 6",
+            ],
         ),
         (
             format!("seed: 7, benches: Tolerance(file: {tol:?}, samples_per_bench: 0),"),
-            vec!["samples_per_bench", "at least one sample"],
+            vec!["field `samples_per_bench`", "at least one sample", "line 6"],
         ),
         (
             format!("seed: 7, benches: Tolerance(file: {bad_tol:?}, samples_per_bench: 2),"),
@@ -362,27 +368,38 @@ fn dataset_array(dir: &Path, name: &str) -> (Vec<usize>, Vec<f64>) {
 #[test]
 fn drawn_benches_serve_samples_per_bench_samples() {
     let t = TempDir::new("dataset-drawn");
-    let tol = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/tolerances/paper_bench.ron");
-    let drawn = format!(
-        "seed: 7,\n    benches: Tolerance(file: {:?}, samples_per_bench: 4),",
-        tol.display().to_string()
+    let drawn_from = |tol: &Path| {
+        [(
+            "seed: 7,",
+            format!(
+                "seed: 7,\n    benches: Tolerance(file: {:?}, samples_per_bench: 4),",
+                tol.display().to_string()
+            ),
+        )]
+    };
+    // Zero tolerances: every drawn bench is the nominal one.
+    let zero = t.join("zero.ron");
+    std::fs::write(
+        &zero,
+        "(tolerances: [(path: \"dmd.tilt_deg\", range: PlusMinus(0.0)), \
+         (path: \"detectors.minus.decenter_mm.x\", range: Between(0.0, 0.0), \
+         distribution: Normal(sigmas: 2.0))])",
+    )
+    .unwrap();
+    let shipped = drawn_from(
+        &Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/tolerances/paper_bench.ron"),
     );
-    let dir = t.join("spec");
-    std::fs::create_dir_all(&dir).unwrap();
-    let spec = write_spec(&dir, &[("seed: 7,", drawn.as_str())]);
+    let outs = made_datasets(&t.0, &[&shipped, &[], &drawn_from(&zero)]);
+    let (one, nout, zout) = (&outs[0], &outs[1], &outs[2]);
+    let spec = one.parent().unwrap().join("spec.ron");
     let s = spec.to_str().unwrap();
-    let one = t.join("one");
-    ok(&spibench(
-        &["dataset", s, "--out", one.to_str().unwrap()],
-        &[],
-    ));
     crate::outputs_schema::check_file(&one.join("manifest.json"), "DatasetManifest");
     let m = read_json(&one.join("manifest.json"));
     assert_eq!(m["provenance"]["tolerance_file"], "tolerances.ron");
     assert!(one.join("tolerances.ron").is_file());
-    let (_, bench) = dataset_array(&one, "bench");
+    let (_, bench) = dataset_array(one, "bench");
     assert_eq!(bench, [0., 0., 0., 0., 1., 1., 1., 1., 2., 2.]);
-    let (shape, dev) = dataset_array(&one, "deviations");
+    let (shape, dev) = dataset_array(one, "deviations");
     let n_tol = shape[0];
     assert_eq!(n_tol, 27, "the shipped file's 27 tolerances");
     for s in 0..10 {
@@ -396,23 +413,9 @@ fn drawn_benches_serve_samples_per_bench_samples() {
     assert!(dev[..n_tol].iter().all(|v| v.is_finite()) && dev[..n_tol].iter().any(|v| *v != 0.0));
     // The same objects (keyed by the seed and s) through the nominal bench: every sample's k±
     // differ, since every drawn bench differs from the nominal one.
-    let nspec = write_spec(&t.0, &[]);
-    let nout = t.join("nout");
-    ok(&spibench(
-        &[
-            "dataset",
-            nspec.to_str().unwrap(),
-            "--out",
-            nout.to_str().unwrap(),
-        ],
-        &[],
-    ));
-    assert_eq!(
-        dataset_array(&one, "object"),
-        dataset_array(&nout, "object")
-    );
-    let (_, k) = dataset_array(&one, "k");
-    let (_, k_nominal) = dataset_array(&nout, "k");
+    assert_eq!(dataset_array(one, "object"), dataset_array(nout, "object"));
+    let (_, k) = dataset_array(one, "k");
+    let (_, k_nominal) = dataset_array(nout, "k");
     for s in 0..10 {
         for d in 0..2 {
             assert!(k[2 * s + d] != k_nominal[2 * s + d], "sample {s}: {k:?}");
@@ -439,46 +442,20 @@ fn drawn_benches_serve_samples_per_bench_samples() {
     let mut args = vec!["dataset", "--out", merged.to_str().unwrap(), "--merge"];
     args.extend(jobs.iter().map(|j| j.to_str().unwrap()));
     ok(&spibench(&args, &[]));
-    assert_eq!(shard_files(&one), shard_files(&merged));
+    assert_eq!(shard_files(one), shard_files(&merged));
     assert!(merged.join("tolerances.ron").is_file());
 
-    // Zero tolerances: every drawn bench is the nominal one.
-    let zero = t.join("zero.ron");
-    std::fs::write(
-        &zero,
-        "(tolerances: [(path: \"dmd.tilt_deg\", range: PlusMinus(0.0)), \
-         (path: \"detectors.minus.decenter_mm.x\", range: Between(0.0, 0.0), \
-         distribution: Normal(sigmas: 2.0))])",
-    )
-    .unwrap();
-    let zdir = t.join("zspec");
-    std::fs::create_dir_all(&zdir).unwrap();
-    let zdrawn = format!(
-        "seed: 7,\n    benches: Tolerance(file: {:?}, samples_per_bench: 4),",
-        zero.display().to_string()
-    );
-    let zspec = write_spec(&zdir, &[("seed: 7,", zdrawn.as_str())]);
-    let zout = t.join("zout");
-    ok(&spibench(
-        &[
-            "dataset",
-            zspec.to_str().unwrap(),
-            "--out",
-            zout.to_str().unwrap(),
-        ],
-        &[],
-    ));
     let m = read_json(&nout.join("manifest.json"));
     for a in m["schema"].as_array().unwrap() {
         let name = a["name"].as_str().unwrap();
         assert_eq!(
-            dataset_array(&zout, name),
-            dataset_array(&nout, name),
+            dataset_array(zout, name),
+            dataset_array(nout, name),
             "array {name}"
         );
     }
     assert!(
-        dataset_array(&zout, "deviations")
+        dataset_array(zout, "deviations")
             .1
             .iter()
             .all(|v| *v == 0.0)
