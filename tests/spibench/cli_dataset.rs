@@ -467,26 +467,14 @@ fn drawn_benches_serve_samples_per_bench_samples() {
 #[test]
 fn optional_arrays_hold_scope_records_and_scored_reconstructions() {
     let t = TempDir::new("dataset-optional");
-    let spec = write_spec(
-        &t.0,
-        &[
-            ("samples: 10,", "samples: 3,"),
-            (
-                "shard_samples: 3,",
-                "shard_samples: 3,\n    write: (scope_frames: 2, reconstructions: true),",
-            ),
-        ],
-    );
-    let out = t.join("out");
-    ok(&spibench(
-        &[
-            "dataset",
-            spec.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-        ],
-        &[],
-    ));
+    let edits = [
+        ("samples: 10,", "samples: 3,".to_string()),
+        (
+            "shard_samples: 3,",
+            "shard_samples: 3,\n    write: (scope_frames: 2, reconstructions: true),".into(),
+        ),
+    ];
+    let out = made_datasets(&t.0, &[&edits]).remove(0);
     crate::outputs_schema::check_file(&out.join("manifest.json"), "DatasetManifest");
     // SCB reads the complementary sequence, double-arm the base one: 2 frames of 440.009
     // samples (1/22 727 Hz at 10 MS/s) each, so 881 samples begin in them.
