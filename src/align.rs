@@ -1,117 +1,14 @@
-//! Alignment: the bench variables that optimise an objective, found by a derivative-free search
-//! on traced benches.
-//!
-//! # Method
-//!
-//! The search is the Nelder–Mead simplex method (J. A. Nelder and R. Mead, "A simplex method for
-//! function minimization", *Computer Journal* 7, 308–313, 1965), with the standard coefficients
-//! (reflection 1, expansion 2, contraction ½, shrink ½) and the ordering and tie rules of
-//! J. C. Lagarias, J. A. Reeds, M. H. Wright and P. E. Wright, "Convergence properties of the
-//! Nelder–Mead simplex method in low dimensions", *SIAM J. Optim.* 9, 112–147 (1998). It works
-//! on the free variables scaled to the unit box [0, 1]ⁿ; a trial point outside the box is
-//! projected onto it.
-//!
-//! # Monte Carlo noise
-//!
-//! A traced objective is a random number. Two things keep the simplex from chasing noise:
-//!
-//! - **Common random numbers.** Every evaluation of one stage traces with the same seed and ray
-//!   count, so the objective is one fixed, smooth *sample path* of the random function, and
-//!   Nelder–Mead minimises that deterministic function. This is sample-path optimisation
-//!   (S. M. Robinson, "Analysis of sample-path optimization", *Math. Oper. Res.* 21, 513–528,
-//!   1996): its minimiser converges to the true one as the sample grows.
-//! - **A growing sample.** A stage stops when the objective values across the simplex differ by
-//!   less than the standard error of the objective's difference from the stage's first point
-//!   (paired, with common random numbers; smaller differences would fit the sample path, not
-//!   the bench) or when the simplex has shrunk below a set size; the next stage traces 4×
-//!   the rays and restarts the simplex at the best point with half the step. Raising the sample
-//!   size as the search converges is the variable-sample scheme of T. Homem-de-Mello,
-//!   "Variable-sample methods for stochastic optimization", *ACM TOMACS* 13, 108–133 (2003).
-//!
-//! # Objectives
-//!
-//! - `Balance { min_fraction }`: minimise |imbalance| + |b₋ − b₊|/(b₊ + b₋), plus a penalty
-//!   10·Σ max(0, f·k_ref − k±)/k_ref that holds each arm's k± at a fraction f of its best. The
-//!   best is taken as the better arm of the starting bench (k_ref = max(k₊, k₋) at the start):
-//!   balancing must not be bought by dimming the good arm.
-//! - `Power`: maximise k₊ + k₋ (minimise −(k₊ + k₋)/(k₊ + k₋)_start).
-//! - `Weighted`: minimise Σ w_m·m over named metrics (values in their SI units).
+//! The `align` job: the free bench variables that optimise an objective (the search of
+//! [`crate::pipeline::optimise`], Nelder–Mead on common-random-number traces), then the start
+//! and the result traced again at the search's highest ray count with the same seed, so their
+//! metric differences carry paired standard errors.
 
-use crate::error::{Error, Result};
+use crate::error::Result;
+use crate::pipeline::evaluate::{EvaluateOptions, Evaluation, evaluate};
+use crate::pipeline::optimise::{Search, search, settings};
 use crate::scene::doc::BenchDoc;
-use crate::sweep::{SweepOptions, SweepPoint, point};
-use crate::transport::metrics::{BenchMetrics, METRICS};
 
-/// A free variable and its bounds (values of the bench variable as `variables::get` reads
-/// them: a field's value, or a rigid-body move relative to the starting bench).
-#[derive(Debug, Clone, PartialEq)]
-pub struct Free {
-    pub path: String,
-    pub lo: f64,
-    pub hi: f64,
-}
-
-impl Free {
-    /// Parses `PATH=LO:HI`.
-    pub fn parse(text: &str) -> Result<Free> {
-        let bad = |why: &str| Error::field("--free", format!("`{text}`: {why}"));
-        let (path, range) = text
-            .split_once('=')
-            .ok_or_else(|| bad("expected PATH=LO:HI"))?;
-        let (a, b) = range
-            .split_once(':')
-            .ok_or_else(|| bad("expected PATH=LO:HI"))?;
-        let num = |s: &str| -> Result<f64> {
-            s.trim()
-                .parse::<f64>()
-                .ok()
-                .filter(|v| v.is_finite())
-                .ok_or_else(|| bad("LO and HI must be finite numbers"))
-        };
-        let (lo, hi) = (num(a)?, num(b)?);
-        if lo >= hi {
-            return Err(bad("LO must be below HI"));
-        }
-        Ok(Free {
-            path: path.trim().to_string(),
-            lo,
-            hi,
-        })
-    }
-}
-
-/// What to optimise.
-#[derive(Debug, Clone, PartialEq)]
-pub enum Objective {
-    Balance { min_fraction: f64 },
-    Power,
-    Weighted(Vec<(String, f64)>),
-}
-
-/// How to search.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct AlignOptions {
-    /// Rays of the first stage; each later stage traces 4× more, up to `max_rays`.
-    pub start_rays: u64,
-    pub max_rays: u64,
-    pub seed: u64,
-    /// The most traced evaluations in all.
-    pub max_evaluations: usize,
-}
-
-/// One traced evaluation.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Evaluation {
-    pub stage: usize,
-    pub rays: u64,
-    pub values: Vec<f64>,
-    pub objective: f64,
-    pub objective_stderr: f64,
-    pub imbalance: f64,
-    pub imbalance_stderr: f64,
-    pub k_plus: f64,
-    pub k_minus: f64,
-}
+pub use crate::pipeline::optimise::{AlignOptions, Free, Objective, Step, check_objective};
 
 /// A finished alignment.
 #[derive(Debug, Clone)]
@@ -122,9 +19,9 @@ pub struct Alignment {
     pub best_values: Vec<f64>,
     /// The start and the best bench traced at `max_rays` with the same seed (their metric
     /// differences carry paired standard errors).
-    pub start: SweepPoint,
-    pub best: SweepPoint,
-    pub history: Vec<Evaluation>,
+    pub start: Evaluation,
+    pub best: Evaluation,
+    pub history: Vec<Step>,
 }
 
 impl Alignment {
@@ -134,107 +31,8 @@ impl Alignment {
     }
 }
 
-/// An objective to minimise: the value and its standard error at a point of the unit box.
-type ObjectiveFn<'a> = dyn FnMut(&[f64]) -> Result<(f64, f64)> + 'a;
-
-fn settings(free: &[Free], x: &[f64]) -> Vec<(String, f64)> {
-    free.iter()
-        .zip(x)
-        .map(|(f, &v)| (f.path.clone(), v))
-        .collect()
-}
-
-fn value(m: &BenchMetrics, name: &str) -> (f64, f64) {
-    m.get(name)
-        .map_or((f64::NAN, f64::NAN), |x| (x.value, x.stderr()))
-}
-
-/// The objective (to minimise) and its standard error, given the reference k (see the module
-/// notes). With `paired`, the standard error is that of the difference from the `paired`
-/// bench traced with the same random numbers: the noise that matters when two nearby points
-/// are compared.
-fn objective(
-    obj: &Objective,
-    m: &BenchMetrics,
-    k_ref: f64,
-    paired: Option<&BenchMetrics>,
-) -> (f64, f64) {
-    let value = |m: &BenchMetrics, name: &str| -> (f64, f64) {
-        let (v, se) = value(m, name);
-        match (paired.and_then(|p| p.get(name)), m.get(name)) {
-            (Some(r), Some(x)) => (v, x.diff(r).stderr),
-            _ => (v, se),
-        }
-    };
-    let (imb, imb_se) = value(m, "imbalance");
-    let (kp, _) = value(m, "k_plus");
-    let (km, _) = value(m, "k_minus");
-    match obj {
-        Objective::Balance { min_fraction } => {
-            let (bp, _) = value(m, "b_plus");
-            let (bm, _) = value(m, "b_minus");
-            let (db, db_se) = value(m, "b_minus_minus_b_plus");
-            let scale = (bp + bm).abs();
-            let (off, off_se) = if scale > 0.0 {
-                (db.abs() / scale, db_se / scale)
-            } else {
-                (0.0, 0.0)
-            };
-            let short = |k: f64| (min_fraction * k_ref - k).max(0.0) / k_ref;
-            let penalty = 10.0 * (short(kp) + short(km));
-            let imb = if imb.is_nan() { 1.0 } else { imb.abs() };
-            (imb + off + penalty, imb_se.hypot(off_se))
-        }
-        Objective::Power => {
-            let (k, se) = value(m, "k_prime");
-            (-k / k_ref, se / k_ref)
-        }
-        Objective::Weighted(w) => {
-            let mut f = 0.0;
-            let mut v = 0.0;
-            for (name, wt) in w {
-                let (x, se) = value(m, name);
-                f += wt * x;
-                v += (wt * se).powi(2);
-            }
-            (f, v.sqrt())
-        }
-    }
-}
-
-/// Checks an objective's metric names.
-pub fn check_objective(obj: &Objective) -> Result<()> {
-    match obj {
-        Objective::Balance { min_fraction } if !(*min_fraction >= 0.0 && *min_fraction <= 1.0) => {
-            Err(Error::field(
-                "--min-fraction",
-                format!("must lie in [0, 1], got {min_fraction}"),
-            ))
-        }
-        Objective::Weighted(w) if w.is_empty() => Err(Error::field(
-            "--weight",
-            "the weighted objective needs at least one --weight METRIC=W",
-        )),
-        Objective::Weighted(w) => {
-            for (name, wt) in w {
-                if !METRICS.iter().any(|m| m.0 == name) || !wt.is_finite() {
-                    return Err(Error::field(
-                        "--weight",
-                        format!(
-                            "`{name}={wt}`: the metrics are {}",
-                            METRICS.map(|m| m.0).join(", ")
-                        ),
-                    ));
-                }
-            }
-            Ok(())
-        }
-        _ => Ok(()),
-    }
-}
-
-/// Finds the free variables that minimise the objective (see the module notes).
-/// `progress(evaluations done)` is called after each trace.
+/// Finds the free variables that minimise the objective and traces the start and the result at
+/// the search's highest ray count. `progress(evaluations done)` is called after each trace.
 pub fn align(
     doc: &BenchDoc,
     free: &[Free],
@@ -242,143 +40,18 @@ pub fn align(
     o: &AlignOptions,
     progress: &(dyn Fn(usize) + Sync),
 ) -> Result<Alignment> {
-    check_objective(obj)?;
-    if free.is_empty() {
-        return Err(Error::field("--free", "give at least one free variable"));
-    }
-    for (i, f) in free.iter().enumerate() {
-        if f.lo.partial_cmp(&f.hi) != Some(std::cmp::Ordering::Less) {
-            return Err(Error::field(
-                "--free",
-                format!("`{}`: LO must be below HI", f.path),
-            ));
-        }
-        if free[..i].iter().any(|g| g.path == f.path) {
-            return Err(Error::field(
-                "--free",
-                format!("`{}` is free twice", f.path),
-            ));
-        }
-    }
-    let n = free.len();
-    // The start, inside the box.
-    let start_values: Vec<f64> = free
-        .iter()
-        .map(|f| Ok(doc.get(&f.path)?.clamp(f.lo, f.hi)))
-        .collect::<Result<_>>()?;
-    let to_x = |u: &[f64]| -> Vec<f64> {
-        free.iter()
-            .zip(u)
-            .map(|(f, &t)| f.lo + t.clamp(0.0, 1.0) * (f.hi - f.lo))
-            .collect()
-    };
-    let u0: Vec<f64> = free
-        .iter()
-        .zip(&start_values)
-        .map(|(f, &v)| (v - f.lo) / (f.hi - f.lo))
-        .collect();
-    let trace = |x: &[f64], rays: u64| -> Result<Option<SweepPoint>> {
-        let d = doc.with(&settings(free, x))?;
-        // A point where the bench is not valid (e.g. two parts overlapping) is infeasible.
-        if d.build().is_err() {
-            return Ok(None);
-        }
-        let so = SweepOptions {
-            rays,
-            seed: o.seed,
-            quality: false,
-        };
-        point(&d, settings(free, x), &so).map(Some)
-    };
-    let start_rays = o.start_rays.max(2 * crate::trace::RAYS_PER_BATCH);
-    let max_rays = o.max_rays.max(start_rays);
-    let first = trace(&start_values, start_rays)?
-        .ok_or_else(|| Error::input("the starting bench is not valid"))?;
-    let k_ref = match obj {
-        Objective::Power => value(&first.metrics, "k_prime").0,
-        _ => value(&first.metrics, "k_plus")
-            .0
-            .max(value(&first.metrics, "k_minus").0),
-    };
-    if k_ref.is_nan() || k_ref <= 0.0 {
-        return Err(Error::input(
-            "the starting bench sends no light to the diodes: align needs a start that detects \
-             some light (check the free variables' start values, or trace more rays)",
-        ));
-    }
-    let history: std::cell::RefCell<Vec<Evaluation>> = std::cell::RefCell::new(Vec::new());
-    let reference: std::cell::RefCell<Option<(usize, BenchMetrics)>> = Default::default();
-    let evaluate = |u: &[f64], stage: usize, rays: u64| -> Result<(f64, f64)> {
-        let x = to_x(u);
-        let Some(p) = trace(&x, rays)? else {
-            history.borrow_mut().push(Evaluation {
-                stage,
-                rays,
-                values: x,
-                objective: f64::INFINITY,
-                objective_stderr: f64::NAN,
-                imbalance: f64::NAN,
-                imbalance_stderr: f64::NAN,
-                k_plus: f64::NAN,
-                k_minus: f64::NAN,
-            });
-            progress(history.borrow().len());
-            return Ok((f64::INFINITY, f64::NAN));
-        };
-        // The stage's first point is the reference of its paired standard errors.
-        let mut r = reference.borrow_mut();
-        if r.as_ref().is_none_or(|(s, _)| *s != stage) {
-            *r = Some((stage, p.metrics.clone()));
-        }
-        let (f, se) = objective(obj, &p.metrics, k_ref, r.as_ref().map(|(_, m)| m));
-        let (imb, imb_se) = value(&p.metrics, "imbalance");
-        history.borrow_mut().push(Evaluation {
-            stage,
-            rays,
-            values: x,
-            objective: f,
-            objective_stderr: se,
-            imbalance: imb,
-            imbalance_stderr: imb_se,
-            k_plus: value(&p.metrics, "k_plus").0,
-            k_minus: value(&p.metrics, "k_minus").0,
-        });
-        progress(history.borrow().len());
-        Ok((if f.is_nan() { f64::INFINITY } else { f }, se))
-    };
-
-    let mut best_u = u0.clone();
-    let mut step = 0.25;
-    let mut rays = start_rays;
-    let mut stage = 0;
-    loop {
-        let stages_left = {
-            let mut k = 1;
-            let mut r = rays;
-            while r < max_rays {
-                r = (r * 4).min(max_rays);
-                k += 1;
-            }
-            k
-        };
-        let used = history.borrow().len();
-        let budget = (o.max_evaluations.saturating_sub(used) / stages_left).max(n + 2);
-        best_u = nelder_mead(&mut |u| evaluate(u, stage, rays), &best_u, step, budget)?;
-        if rays >= max_rays || history.borrow().len() >= o.max_evaluations {
-            break;
-        }
-        rays = (rays * 4).min(max_rays);
-        step *= 0.5;
-        stage += 1;
-    }
-    let best_values = to_x(&best_u);
-    let so = SweepOptions {
-        rays: max_rays,
+    let Search {
+        start_values,
+        best_values,
+        history,
+    } = search(doc, free, obj, o, progress)?;
+    let so = EvaluateOptions {
+        rays: o.stage_rays().1,
         seed: o.seed,
         quality: false,
     };
-    let start = point(doc, Vec::new(), &so)?;
-    let best = point(
+    let start = evaluate(doc, Vec::new(), &so)?;
+    let best = evaluate(
         &doc.with(&settings(free, &best_values))?,
         settings(free, &best_values),
         &so,
@@ -390,118 +63,8 @@ pub fn align(
         best_values,
         start,
         best,
-        history: history.into_inner(),
+        history,
     })
-}
-
-/// Nelder–Mead on the unit box from `u0` with an initial step `step`, at most `budget`
-/// evaluations. `f` returns the objective and its standard error; the stage stops when the
-/// simplex is smaller than 1e-3 of the box or the objective's spread over the simplex is below
-/// the best vertex's standard error (Lagarias et al. 1998 for the steps; the stopping rule is
-/// the module's).
-fn nelder_mead(f: &mut ObjectiveFn, u0: &[f64], step: f64, budget: usize) -> Result<Vec<f64>> {
-    let n = u0.len();
-    let clamp = |u: Vec<f64>| -> Vec<f64> { u.into_iter().map(|t| t.clamp(0.0, 1.0)).collect() };
-    let mut simplex: Vec<(Vec<f64>, f64)> = Vec::with_capacity(n + 1);
-    let mut evals = 0;
-    // The standard error of each evaluated point's objective: the noise floor is the best
-    // vertex's.
-    let mut se_of: Vec<(Vec<f64>, f64)> = Vec::new();
-    fn call(
-        f: &mut ObjectiveFn,
-        u: &[f64],
-        evals: &mut usize,
-        se_of: &mut Vec<(Vec<f64>, f64)>,
-    ) -> Result<f64> {
-        *evals += 1;
-        let (v, se) = f(u)?;
-        se_of.push((u.to_vec(), se));
-        Ok(v)
-    }
-    simplex.push((u0.to_vec(), call(f, u0, &mut evals, &mut se_of)?));
-    for i in 0..n {
-        let mut u = u0.to_vec();
-        // Step toward the interior when the start sits near an edge of the box.
-        u[i] = if u[i] + step <= 1.0 {
-            u[i] + step
-        } else {
-            u[i] - step
-        };
-        let u = clamp(u);
-        let v = call(f, &u, &mut evals, &mut se_of)?;
-        simplex.push((u, v));
-    }
-    let order = |s: &mut Vec<(Vec<f64>, f64)>| {
-        // Stable: ties keep their order (Lagarias et al.'s rule).
-        s.sort_by(|a, b| a.1.total_cmp(&b.1));
-    };
-    while evals < budget {
-        order(&mut simplex);
-        let size = simplex[1..]
-            .iter()
-            .map(|(u, _)| {
-                u.iter()
-                    .zip(&simplex[0].0)
-                    .map(|(a, b)| (a - b).abs())
-                    .fold(0.0, f64::max)
-            })
-            .fold(0.0, f64::max);
-        let best = simplex[0].1;
-        let worst = simplex[n].1;
-        let noise = se_of
-            .iter()
-            .rev()
-            .find(|(u, _)| *u == simplex[0].0)
-            .map_or(0.0, |(_, se)| if se.is_finite() { *se } else { 0.0 });
-        if size < 1e-3 || (worst.is_finite() && worst - best < noise) {
-            break;
-        }
-        let second = simplex[n - 1].1;
-        let centroid: Vec<f64> = (0..n)
-            .map(|j| simplex[..n].iter().map(|(u, _)| u[j]).sum::<f64>() / n as f64)
-            .collect();
-        let along = |t: f64| -> Vec<f64> {
-            clamp(
-                centroid
-                    .iter()
-                    .zip(&simplex[n].0)
-                    .map(|(c, w)| c + t * (c - w))
-                    .collect(),
-            )
-        };
-        let r = along(1.0);
-        let fr = call(f, &r, &mut evals, &mut se_of)?;
-        if fr < best {
-            let e = along(2.0);
-            let fe = call(f, &e, &mut evals, &mut se_of)?;
-            simplex[n] = if fe < fr { (e, fe) } else { (r, fr) };
-        } else if fr < second {
-            simplex[n] = (r, fr);
-        } else {
-            let (c, fc) = if fr < worst {
-                let c = along(0.5);
-                let fc = call(f, &c, &mut evals, &mut se_of)?;
-                (c, fc)
-            } else {
-                let c = along(-0.5);
-                let fc = call(f, &c, &mut evals, &mut se_of)?;
-                (c, fc)
-            };
-            if fc < fr.min(worst) {
-                simplex[n] = (c, fc);
-            } else {
-                // Shrink toward the best vertex.
-                let b = simplex[0].0.clone();
-                for v in simplex.iter_mut().skip(1) {
-                    let u: Vec<f64> = v.0.iter().zip(&b).map(|(x, y)| y + 0.5 * (x - y)).collect();
-                    let fu = call(f, &u, &mut evals, &mut se_of)?;
-                    *v = (u, fu);
-                }
-            }
-        }
-    }
-    order(&mut simplex);
-    Ok(simplex.swap_remove(0).0)
 }
 
 #[cfg(test)]
@@ -581,26 +144,5 @@ mod tests {
         );
         assert!(imb.value.abs() < 3.0 * imb.stderr(), "{}", imb.value);
         assert!(miss < 0.4, "the diode is {miss} mm from its nominal place");
-    }
-
-    #[test]
-    fn free_parses() {
-        let f = Free::parse("a.b=-1:2.5").unwrap();
-        assert_eq!((f.lo, f.hi), (-1.0, 2.5));
-        for bad in ["a", "a=1", "a=2:1", "a=x:1", "a=1:inf"] {
-            assert!(Free::parse(bad).unwrap_err().is_user_error(), "{bad}");
-        }
-    }
-
-    #[test]
-    fn nelder_mead_finds_a_quadratic_minimum() {
-        let mut f = |u: &[f64]| -> Result<(f64, f64)> {
-            Ok(((u[0] - 0.3).powi(2) + 2.0 * (u[1] - 0.7).powi(2), 0.0))
-        };
-        let u = nelder_mead(&mut f, &[0.5, 0.5], 0.25, 500).unwrap();
-        assert!(
-            (u[0] - 0.3).abs() < 2e-3 && (u[1] - 0.7).abs() < 2e-3,
-            "{u:?}"
-        );
     }
 }

@@ -8,11 +8,9 @@
 //! the nominal bench, their differences with the paired standard error. With `quality`, the
 //! whole pipeline (record, solve, score) runs on every point.
 
-use crate::acquisition::patterns_for_ratio;
 use crate::error::{Error, Result};
-use crate::pipeline::{self, Progress, SchemeResult, TraceRequest, Traced};
+use crate::pipeline::evaluate::{EvaluateOptions, Evaluation, evaluate};
 use crate::scene::doc::BenchDoc;
-use crate::transport::metrics::BenchMetrics;
 
 /// The most grid points one sweep may have (each is a full trace).
 pub const MAX_POINTS: usize = 10_000;
@@ -83,37 +81,21 @@ impl Vary {
     }
 }
 
-/// How to sweep.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct SweepOptions {
-    pub rays: u64,
-    pub seed: u64,
-    /// Run the whole pipeline (record, solve, score) on every point.
-    pub quality: bool,
-}
+/// How to sweep: every point is evaluated with these rays and seed (and, with `quality`,
+/// through the whole pipeline).
+pub type SweepOptions = EvaluateOptions;
 
-/// One traced bench of a sweep.
-#[derive(Debug, Clone)]
-pub struct SweepPoint {
-    /// The variables set on the nominal bench (empty for the nominal bench itself).
-    pub settings: Vec<(String, f64)>,
-    pub metrics: BenchMetrics,
-    /// The balanced detector's common-mode rejection (dB) from its electronics section (not
-    /// traced; infinite for matched diodes); None when the electronics are invalid.
-    pub cmrr_db: Option<f64>,
-    pub arrivals: u64,
-    /// With `quality`: every scheme × ratio of the bench's `run` settings.
-    pub quality: Option<Vec<SchemeResult>>,
-}
+/// One evaluated point of a sweep (the evaluate step's result).
+pub type SweepPoint = Evaluation;
 
 /// A finished sweep.
 #[derive(Debug, Clone)]
 pub struct Sweep {
     pub vary: Vec<Vary>,
     pub options: SweepOptions,
-    pub nominal: SweepPoint,
+    pub nominal: Evaluation,
     /// Row-major over the grid: the first variable is the slow index.
-    pub points: Vec<SweepPoint>,
+    pub points: Vec<Evaluation>,
 }
 
 /// The grid's settings, row-major.
@@ -168,12 +150,12 @@ pub fn sweep(
     }
     let total = settings.len() + 1;
     progress(0, total);
-    let nominal = point(doc, Vec::new(), options)?;
+    let nominal = evaluate(doc, Vec::new(), options)?;
     progress(1, total);
     let mut points = Vec::with_capacity(settings.len());
     for (i, s) in settings.into_iter().enumerate() {
         let d = doc.with(&s)?;
-        points.push(point(&d, s, options)?);
+        points.push(evaluate(&d, s, options)?);
         progress(i + 2, total);
     }
     Ok(Sweep {
@@ -181,42 +163,6 @@ pub fn sweep(
         options: *options,
         nominal,
         points,
-    })
-}
-
-/// Traces one bench (and with `quality` runs the whole pipeline on it): one point of a sweep, or
-/// one bench of a tolerance analysis or an alignment.
-pub fn point(doc: &BenchDoc, settings: Vec<(String, f64)>, o: &SweepOptions) -> Result<SweepPoint> {
-    let req = TraceRequest::new(o.rays, o.seed);
-    // The electronics alone (no bench build): the detector's CMRR is not traced.
-    let cmrr_db = crate::scene::run::detector_si(&doc.file.electronics.detector)
-        .ok()
-        .map(|d| d.cmrr_db());
-    let quiet: Progress = &|_, _, _| {};
-    let (traced, quality): (Traced, _) = if o.quality {
-        let scene = doc.run_scene()?;
-        let traced = pipeline::trace_stage(&scene.bench, &req)?;
-        let (across, down) = scene.bench.units_shape();
-        let max_m = scene
-            .settings
-            .sampling_ratios
-            .iter()
-            .map(|&r| patterns_for_ratio(r, across * down))
-            .max()
-            .unwrap_or(1);
-        let patterns = scene.settings.patterns.build(across, down, max_m)?;
-        let outcome = crate::run::downstream(&scene, &traced, &patterns, o.seed, quiet)?;
-        (traced, Some(outcome.results))
-    } else {
-        let bench = doc.build()?;
-        (pipeline::trace_stage(&bench, &req)?, None)
-    };
-    Ok(SweepPoint {
-        settings,
-        cmrr_db,
-        arrivals: traced.arrivals(),
-        metrics: traced.metrics,
-        quality,
     })
 }
 
@@ -239,7 +185,7 @@ mod tests {
         }
     }
 
-    fn metric<'a>(p: &'a SweepPoint, name: &str) -> &'a crate::transport::metrics::Metric {
+    fn metric<'a>(p: &'a Evaluation, name: &str) -> &'a crate::transport::metrics::Metric {
         p.metrics.get(name).unwrap()
     }
 

@@ -32,6 +32,7 @@ use sha2::{Digest, Sha256};
 
 use crate::acquisition::{PatternSet, Scheme, patterns_for_ratio};
 use crate::error::{Error, Result};
+use crate::pipeline::evaluate;
 use crate::raster::Raster;
 use crate::rng::{self, uniform};
 use crate::scene::dataset::{BenchesSpec, DatasetSpec, FitRule, ObjectSource};
@@ -330,7 +331,7 @@ impl Prepared {
                     &text,
                     path,
                     &doc,
-                    &crate::tolerance::is_metric,
+                    &crate::pipeline::evaluate::is_metric,
                 )?;
                 Some(DrawnBenches {
                     doc: doc.clone(),
@@ -366,7 +367,7 @@ impl Prepared {
     /// or the next valid draw when that one is not a valid bench. Its kernel is traced with the
     /// kernel spec's rays and seed.
     pub fn drawn_bench(&self, d: &DrawnBenches, t: u64) -> Result<BenchKernel> {
-        let options = crate::tolerance::ToleranceOptions {
+        let options = crate::pipeline::evaluate::EvaluateOptions {
             rays: self.spec.file.kernel.rays,
             seed: self.spec.file.seed,
             quality: false,
@@ -375,8 +376,8 @@ impl Prepared {
         for j in 0..MAX_REDRAWS {
             // Redraws use trial indices far beyond any bench index.
             let draw = t + (j << 40);
-            let made = crate::tolerance::trial_doc(&d.doc, &d.set, &options, draw).and_then(
-                |(doc, dev, comp)| {
+            let made = crate::pipeline::perturb::trial_doc(&d.doc, &d.set, &options, draw)
+                .and_then(|(doc, dev, comp)| {
                     Ok(BenchKernel {
                         scene: dataset_scene(
                             checked_scene(&doc, &self.spec)?,
@@ -386,8 +387,7 @@ impl Prepared {
                         kernel: bench_kernel(&doc, &self.spec)?,
                         deviations: dev.iter().chain(&comp).map(|(_, v)| *v).collect(),
                     })
-                },
-            );
+                });
             match made {
                 Ok(b) => return Ok(b),
                 Err(e) if e.is_user_error() => last = Some(e),
@@ -593,15 +593,7 @@ impl Prepared {
         let object = self.object(s)?.data;
         let transport = Transport::from_kernel(&scene.bench, kernel, &object)?;
         let seed = rng::mix64(rng::mix64(self.spec.file.seed ^ NOISE) ^ s);
-        let rec = crate::pipeline::record_transport(
-            &transport,
-            &scene.detector,
-            &scene.scope,
-            &scene.settings,
-            &self.patterns,
-            seed,
-            &|_, _, _| {},
-        )?;
+        let rec = evaluate::acquire(scene, &transport, &self.patterns, seed, &|_, _, _| {})?;
         let mut measurements = Vec::new();
         for (_, scheme, m) in self.measurement_names() {
             let r = rec.record(scheme.sequence()).ok_or_else(|| {
@@ -617,23 +609,17 @@ impl Prepared {
                 transport.units_down,
                 transport.x_w.clone(),
             )?;
-            let x_max = x.max();
-            if x_max.is_nan() || x_max <= 0.0 {
-                return Err(Error::input(format!(
+            let truth = evaluate::truth_view(&x).ok_or_else(|| {
+                Error::input(format!(
                     "sample {s}: no light of the object reached the DMD's pattern area"
-                )));
-            }
-            let truth = x.map(|v| 255.0 * v / x_max);
-            let solver = crate::reconstruction::Solver::new(
-                scene.settings.solver.clone(),
-                crate::reconstruction::ZeroOneHandling::Plain,
-            );
-            let cells = crate::pipeline::solve_stage(
+                ))
+            })?;
+            let cells = evaluate::solve_scored(
+                &scene.settings,
                 &rec,
                 &self.schemes,
                 &self.ratios,
                 &truth,
-                &solver,
                 None,
                 &|_, _, _| {},
             )?;

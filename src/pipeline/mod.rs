@@ -31,6 +31,9 @@
 //! run in parallel and are collected in cell order.
 
 pub mod cache;
+pub mod evaluate;
+pub mod optimise;
+pub mod perturb;
 mod record;
 mod solve;
 pub mod summary;
@@ -117,8 +120,7 @@ impl Traced {
     /// error: the bench, not the code, is at fault.
     pub fn truth(&self) -> Result<Raster> {
         let x = self.x()?;
-        let x_max = x.max();
-        if x_max.is_nan() || x_max <= 0.0 {
+        let Some(truth) = evaluate::truth_view(&x) else {
             return Err(Error::input(format!(
                 "no traced light reached the DMD's pattern area ({} rays, {} arrivals): the lamp, \
                  the chart and the imaging lens do not send light onto it; check their \
@@ -127,19 +129,21 @@ impl Traced {
                 self.arrivals()
             ))
             .at_field("rays"));
-        }
+        };
         // An arm that detects nothing leaves its leak ratios 0/0: a blocked or misplaced
         // photodiode is the bench's fault, reported like no light at all.
         for (arm, k) in ["+", "−"].iter().zip(&self.transport.k) {
             if !(k.value.is_finite() && k.value > 0.0) {
                 return Err(Error::input(format!(
-                    "no traced light reached the photodiode of arm {arm} ({} rays): check the                      positions and axes of the arm's lens and photodiode (`spibench layout`                      draws the bench), or trace more rays",
+                    "no traced light reached the photodiode of arm {arm} ({} rays): check the \
+                     positions and axes of the arm's lens and photodiode (`spibench layout` \
+                     draws the bench), or trace more rays",
                     self.rays
                 ))
                 .at_field("detectors"));
             }
         }
-        Ok(x.map(|v| 255.0 * v / x_max))
+        Ok(truth)
     }
 }
 

@@ -15,9 +15,10 @@
 
 use serde::Serialize;
 
-use super::{RunOutcome, downstream};
-use crate::acquisition::{PatternFamily, Scheme, patterns_for_ratio};
+use super::RunOutcome;
+use crate::acquisition::{PatternFamily, Scheme};
 use crate::error::{Error, Result};
+use crate::pipeline::evaluate::{base_patterns, evaluate_traced};
 use crate::pipeline::{self, Progress, TraceRequest};
 use crate::rng;
 use crate::scene::run::RunScene;
@@ -106,24 +107,16 @@ pub fn run_repeats(
             format!("must lie between 1 and {MAX_REPEATS}, got {n}"),
         ));
     }
-    let s = &scene.settings;
-    let (across, down) = scene.bench.units_shape();
-    let max_m = s
-        .sampling_ratios
-        .iter()
-        .map(|&r| patterns_for_ratio(r, across * down))
-        .max()
-        .unwrap_or(1);
     // Every repeat's patterns first: a bad pattern setting fails before the trace.
     let patterns = (0..n)
-        .map(|r| repeat_patterns(&s.patterns, r).build(across, down, max_m))
+        .map(|r| base_patterns(&repeat_patterns(&scene.settings.patterns, r), scene))
         .collect::<Result<Vec<_>>>()?;
     let t0 = std::time::Instant::now();
     let traced = pipeline::trace_stage(&scene.bench, &TraceRequest { seed, ..*trace })?;
     let trace_s = t0.elapsed().as_secs_f64();
     let mut outcomes = Vec::with_capacity(n);
     for (r, p) in patterns.iter().enumerate() {
-        let mut o = downstream(scene, &traced, p, repeat_seed(seed, r), progress)?;
+        let mut o = evaluate_traced(scene, &traced, p, repeat_seed(seed, r), progress)?;
         o.timings.trace_s = if r == 0 { trace_s } else { 0.0 };
         o.timings.total_s += o.timings.trace_s;
         outcomes.push(o);

@@ -11,6 +11,7 @@ use crate::detector::{
 };
 use crate::scene::run::{RunScene, parse_run_scene};
 use crate::trace::{TraceOptions, trace};
+use crate::transport::Transport;
 
 fn paper_text() -> String {
     std::fs::read_to_string(concat!(

@@ -7,7 +7,7 @@
 //!   sorted by their largest change of the imbalance.
 //! - **Monte Carlo** ([`trial`]): trial i draws every tolerance from the stream keyed by
 //!   (seed, i) of [`crate::rng`] (a salted seed, so the draws are unrelated to the rays' streams),
-//!   applies the compensators with the alignment optimiser ([`crate::align`]), and traces the
+//!   applies the compensators with the optimiser ([`crate::pipeline::perturb`]), and traces the
 //!   perturbed bench with the nominal bench's seed and ray count, so that the spread over
 //!   trials is the tolerances' and not the ray noise's. Trials are independent of each other:
 //!   any subset (a shard) gives the same records as the full run.
@@ -23,15 +23,14 @@ use std::collections::btree_map::Entry;
 
 use serde::Serialize;
 
-use crate::align::{AlignOptions, Free, Objective, align};
 use crate::error::{Error, Result};
-use crate::rng;
+use crate::pipeline::evaluate::{EvaluateOptions, Evaluation, evaluate};
 use crate::scene::doc::BenchDoc;
-use crate::scene::tolerance::{
-    CompensatorObjective, Distribution, SensitivityRecord, ToleranceSet, TrialRecord, value_of,
-};
-use crate::sweep::{SweepOptions, SweepPoint, point};
-use crate::transport::metrics::{METRICS, MetricRow};
+use crate::scene::tolerance::{SensitivityRecord, ToleranceSet, TrialRecord, value_of};
+use crate::transport::metrics::METRICS;
+
+pub use crate::pipeline::evaluate::{is_metric, quality_key, values};
+pub use crate::pipeline::perturb::{TrialBench, draw, trial_doc};
 
 /// The metrics of the sensitivity table, in its column order.
 pub const SENSITIVITY_METRICS: [&str; 6] = [
@@ -43,94 +42,13 @@ pub const SENSITIVITY_METRICS: [&str; 6] = [
     "cmrr_db",
 ];
 
-/// A salt that separates the tolerance draws' streams from the rays' streams of the same seed.
-const DRAW_SALT: u64 = 0x70_1e_7a_4c_e5_d7_a3_11;
-
-/// How to analyse.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct ToleranceOptions {
-    pub rays: u64,
-    pub seed: u64,
-    /// Run the whole pipeline on every trial (image scores).
-    pub quality: bool,
-}
-
-impl ToleranceOptions {
-    fn sweep(&self, quality: bool) -> SweepOptions {
-        SweepOptions {
-            rays: self.rays,
-            seed: self.seed,
-            quality,
-        }
-    }
-}
-
-/// Whether `name` is a metric recorded for every trial (quality scores are checked when the
-/// trials exist).
-pub fn is_metric(name: &str) -> bool {
-    METRICS.iter().any(|m| m.0 == name)
-        || name == "cmrr_db"
-        || name.ends_with("_mssim")
-        || name.ends_with("_psnr_db")
-        || name.ends_with("_finest_lp_per_mm")
-}
-
-/// The recorded numbers of a traced bench against the nominal one: each metric, its standard
-/// error, its difference from the nominal bench and the paired standard error of that
-/// difference; the CMRR; with `quality`, each scheme × ratio's MSSIM, PSNR and finest resolved
-/// USAF element (lp/mm; NaN when none is resolved).
-pub fn values(p: &SweepPoint, nominal: &SweepPoint) -> Vec<(String, f64)> {
-    let mut v = Vec::new();
-    for (i, (name, _, _)) in METRICS.iter().enumerate() {
-        let r = MetricRow::new(&p.metrics.values[i], &nominal.metrics.values[i]);
-        v.push((name.to_string(), r.value));
-        v.push((format!("{name}_stderr"), r.stderr));
-        v.push((format!("{name}_diff"), r.diff));
-        v.push((format!("{name}_diff_stderr"), r.diff_stderr));
-    }
-    let cmrr = p.cmrr_db.unwrap_or(f64::NAN);
-    v.push(("cmrr_db".into(), cmrr));
-    let c0 = nominal.cmrr_db.unwrap_or(f64::NAN);
-    v.push((
-        "cmrr_db_diff".into(),
-        if cmrr == c0 { 0.0 } else { cmrr - c0 },
-    ));
-    v.push(("cmrr_db_diff_stderr".into(), 0.0));
-    v.push(("arrivals".into(), p.arrivals as f64));
-    if let Some(q) = &p.quality {
-        for r in q {
-            let key = quality_key(r.scheme.key(), r.ratio);
-            v.push((format!("{key}_mssim"), r.mssim));
-            v.push((format!("{key}_psnr_db"), r.psnr_db));
-            v.push((
-                format!("{key}_finest_lp_per_mm"),
-                r.finest_resolved.as_ref().map_or(f64::NAN, |e| e.lp_per_mm),
-            ));
-        }
-    }
-    v
-}
-
-/// `SCHEME_PERCENT`, e.g. `secondary_complementary_balancing_40`.
-pub fn quality_key(scheme: &str, ratio: f64) -> String {
-    format!("{scheme}_{}", (ratio * 100.0).round() as u32)
-}
+/// How to analyse: the rays and seed of every traced bench, and whether every trial runs the
+/// whole pipeline (image scores).
+pub type ToleranceOptions = EvaluateOptions;
 
 /// The nominal bench, traced (with `quality`, through the whole pipeline).
-pub fn nominal(doc: &BenchDoc, o: &ToleranceOptions) -> Result<SweepPoint> {
-    point(doc, Vec::new(), &o.sweep(o.quality))
-}
-
-/// The settings (absolute values of each variable) for deviations from the nominal bench. A
-/// zero deviation sets nothing: a rigid-body move by 0 would still rewrite the part's axis as
-/// a vector, which need not be bit-identical to the file's form.
-fn settings(set: &ToleranceSet, deviations: &[(String, f64)]) -> Vec<(String, f64)> {
-    set.tolerances
-        .iter()
-        .zip(deviations)
-        .filter(|(_, (_, d))| *d != 0.0)
-        .map(|(t, (_, d))| (t.path.clone(), t.nominal + d))
-        .collect()
+pub fn nominal(doc: &BenchDoc, o: &ToleranceOptions) -> Result<Evaluation> {
+    evaluate(doc, Vec::new(), o)
 }
 
 /// How far each row of the sensitivity table is resolved: each end of a row (the tolerance at
@@ -190,7 +108,7 @@ impl Resolve {
 pub fn sensitivity(
     doc: &BenchDoc,
     set: &ToleranceSet,
-    nominal: &SweepPoint,
+    nominal: &Evaluation,
     o: &ToleranceOptions,
     resolve: Option<Resolve>,
     progress: &(dyn Fn(usize, usize) + Sync),
@@ -210,9 +128,11 @@ pub fn sensitivity(
                 let at = ToleranceOptions { rays, ..*o };
                 let nom = match nominals.entry(rays) {
                     Entry::Occupied(e) => e.into_mut(),
-                    Entry::Vacant(e) => e.insert(point(doc, Vec::new(), &at.sweep(false))?),
+                    Entry::Vacant(e) => {
+                        e.insert(evaluate(doc, Vec::new(), &at.with_quality(false))?)
+                    }
                 };
-                let p = point(&d, s.clone(), &at.sweep(false))?;
+                let p = evaluate(&d, s.clone(), &at.with_quality(false))?;
                 let end: Vec<(String, f64)> = values(&p, nom)
                     .into_iter()
                     .filter(|(k, _)| {
@@ -259,107 +179,12 @@ pub fn sensitivity(
     Ok(rows)
 }
 
-/// Trial i's deviations, drawn from the stream keyed by (seed, i).
-pub fn draw(set: &ToleranceSet, seed: u64, i: u64) -> Vec<(String, f64)> {
-    let mut r = rng::stream(rng::mix64(seed ^ DRAW_SALT), i);
-    set.tolerances
-        .iter()
-        .map(|t| {
-            let (lo, hi) = (t.min, t.max);
-            let mid = 0.5 * (lo + hi);
-            let half = 0.5 * (hi - lo);
-            let v = match t.distribution {
-                Distribution::Uniform => lo + rng::uniform(&mut r) * (hi - lo),
-                Distribution::Normal { sigmas } => mid + half / sigmas * rng::normal(&mut r),
-                Distribution::TruncatedNormal { sigmas } => {
-                    // Rejection: with the range at ±kσ, k ≥ 0.1, fewer than 13 draws on average.
-                    let mut v = mid;
-                    for _ in 0..10_000 {
-                        let z = rng::normal(&mut r);
-                        if z.abs() <= sigmas {
-                            v = mid + half / sigmas * z;
-                            break;
-                        }
-                    }
-                    v
-                }
-            };
-            // A zero range draws exactly zero, so that zero tolerances give the nominal bench.
-            (t.path.clone(), if half == 0.0 { lo } else { v })
-        })
-        .collect()
-}
-
-/// The alignment options of the compensators: a quarter of the trial's rays at most, starting
-/// at a sixteenth.
-fn compensator_options(o: &ToleranceOptions) -> AlignOptions {
-    AlignOptions {
-        start_rays: o.rays / 16,
-        max_rays: (o.rays / 4).max(2 * crate::trace::RAYS_PER_BATCH),
-        seed: o.seed,
-        max_evaluations: 60,
-    }
-}
-
-/// A trial's bench, its tolerances' deviations and its compensators' deviations.
-pub type TrialBench = (BenchDoc, Vec<(String, f64)>, Vec<(String, f64)>);
-
-/// The perturbed bench of trial i, with its compensators applied, and the compensators'
-/// deviations.
-pub fn trial_doc(
-    doc: &BenchDoc,
-    set: &ToleranceSet,
-    o: &ToleranceOptions,
-    i: u64,
-) -> Result<TrialBench> {
-    let deviations = draw(set, o.seed, i);
-    let mut d = doc.with(&settings(set, &deviations))?;
-    let mut comp = Vec::new();
-    // Compensators that share an objective are adjusted together, in file order of their
-    // objectives.
-    for objective in [CompensatorObjective::Balance, CompensatorObjective::Power] {
-        let group: Vec<_> = set
-            .compensators
-            .iter()
-            .filter(|c| c.objective == objective)
-            .collect();
-        if group.is_empty() {
-            continue;
-        }
-        let free: Vec<Free> = group
-            .iter()
-            .map(|c| {
-                let v = d.get(&c.path)?;
-                Ok(Free {
-                    path: c.path.clone(),
-                    lo: v + c.min,
-                    hi: v + c.max,
-                })
-            })
-            .collect::<Result<_>>()?;
-        let base: Vec<f64> = group
-            .iter()
-            .map(|c| d.get(&c.path))
-            .collect::<Result<_>>()?;
-        let obj = match objective {
-            CompensatorObjective::Balance => Objective::Balance { min_fraction: 0.9 },
-            CompensatorObjective::Power => Objective::Power,
-        };
-        let a = align(&d, &free, &obj, &compensator_options(o), &|_| {})?;
-        for ((c, b), v) in group.iter().zip(&base).zip(&a.best_values) {
-            comp.push((c.path.clone(), v - b));
-        }
-        d = d.with(&a.settings())?;
-    }
-    Ok((d, deviations, comp))
-}
-
 /// Runs trial i: draws, compensates, traces, records. A perturbed bench that is not valid (e.g.
 /// two parts overlapping) is recorded with its error and no values.
 pub fn trial(
     doc: &BenchDoc,
     set: &ToleranceSet,
-    nominal: &SweepPoint,
+    nominal: &Evaluation,
     o: &ToleranceOptions,
     i: u64,
 ) -> Result<(TrialRecord, TrialTiming)> {
@@ -388,7 +213,7 @@ pub fn trial(
         }
         Err(e) => return Err(e),
     };
-    let p = point(&d, Vec::new(), &o.sweep(o.quality))?;
+    let p = evaluate(&d, Vec::new(), o)?;
     let rec = TrialRecord {
         index: i,
         deviations,

@@ -130,7 +130,7 @@ fn a_trial_rebuilt_from_ron_traces_identically() {
     let (d, _, _) = trial_doc(&doc, &s, &o, 3).unwrap();
     let text = d.to_ron().unwrap();
     let back = BenchDoc::parse(&text, Path::new("trial_3.ron")).unwrap();
-    let p = point(&back, Vec::new(), &o.sweep(false)).unwrap();
+    let p = evaluate(&back, Vec::new(), &o.with_quality(false)).unwrap();
     assert_eq!(values(&p, &nom), rec.values);
 }
 
@@ -233,7 +233,7 @@ fn resolving_raises_the_rays_of_unresolved_rows_only() {
         rays: small.rays[0],
         ..o
     };
-    let nom_at = point(&doc, Vec::new(), &at.sweep(false)).unwrap();
+    let nom_at = evaluate(&doc, Vec::new(), &at.with_quality(false)).unwrap();
     let again = sensitivity(&doc, &s, &nom_at, &at, None, &|_, _| {}).unwrap();
     assert_eq!(small.at_min, row(&again, "detectors.plus").at_min);
     assert_eq!(small.at_max, row(&plain, "detectors.plus").at_max);

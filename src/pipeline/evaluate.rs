@@ -1,0 +1,319 @@
+//! The evaluate step: one bench (or one traced transport, or one object through an object
+//! kernel) in, its metrics, recorded measurements and, when asked, its solved and scored images
+//! out. Every job composes it — `run` (one repeat or many), `sweep` (every grid point), `align`
+//! (every simplex vertex), `tolerance` (the nominal bench, every sensitivity end and trial) and
+//! `dataset` (every sample) — so the stages of [`crate::pipeline`] are chained in one place.
+//!
+//! - [`evaluate`]: a bench document → [`Evaluation`] (metrics with standard errors, the
+//!   detector's CMRR, arrivals; with `quality`, every scheme × ratio of the bench's `run:`
+//!   settings recorded, solved and scored);
+//! - [`evaluate_traced`]: a traced bench of a [`RunScene`] → [`RunOutcome`], everything a run
+//!   reports (records, solutions, scores, the USAF read-out);
+//! - [`acquire`] and [`solve_scored`]: a transport made any way (an object kernel's product for
+//!   a dataset sample) → its records, then its reconstructions scored against the ideal object.
+//!
+//! The ideal object's 0–255 view ([`truth_view`]) and the solver of the traced experiment
+//! ([`run_solver`]) are defined here once.
+
+use crate::acquisition::{PatternSet, Scheme, patterns_for_ratio};
+use crate::detector::{Bap, Channel, FrameTiming, Scope, SignalTrace};
+use crate::error::Result;
+use crate::pipeline::{
+    self, CacheStatus, Progress, Recorded, ResolutionContext, Saturation, SchemeResult,
+    SequenceSummary, TraceRequest, Traced,
+};
+use crate::raster::Raster;
+use crate::reconstruction::{Solver, ZeroOneHandling};
+use crate::scene::doc::BenchDoc;
+use crate::scene::run::{RunScene, RunSettings};
+use crate::transport::Transport;
+use crate::transport::metrics::{BenchMetrics, METRICS, MetricRow};
+
+pub use crate::acquisition::Sequence;
+
+/// How to evaluate a bench.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EvaluateOptions {
+    pub rays: u64,
+    pub seed: u64,
+    /// Run the whole pipeline (record, solve, score) on the bench.
+    pub quality: bool,
+}
+
+impl EvaluateOptions {
+    /// The same rays and seed, with or without the image-quality stages.
+    pub fn with_quality(&self, quality: bool) -> EvaluateOptions {
+        EvaluateOptions { quality, ..*self }
+    }
+}
+
+/// One evaluated bench: a point of a sweep, a vertex of an alignment, a trial of a tolerance
+/// analysis.
+#[derive(Debug, Clone)]
+pub struct Evaluation {
+    /// The variables set on the nominal bench (empty for the nominal bench itself).
+    pub settings: Vec<(String, f64)>,
+    pub metrics: BenchMetrics,
+    /// The balanced detector's common-mode rejection (dB) from its electronics section (not
+    /// traced; infinite for matched diodes); None when the electronics are invalid.
+    pub cmrr_db: Option<f64>,
+    pub arrivals: u64,
+    /// With `quality`: every scheme × ratio of the bench's `run` settings.
+    pub quality: Option<Vec<SchemeResult>>,
+}
+
+/// Traces one bench (and with `quality` runs the whole pipeline on it). `settings` are only
+/// recorded in the result: `doc` already has them applied.
+pub fn evaluate(
+    doc: &BenchDoc,
+    settings: Vec<(String, f64)>,
+    o: &EvaluateOptions,
+) -> Result<Evaluation> {
+    let req = TraceRequest::new(o.rays, o.seed);
+    // The electronics alone (no bench build): the detector's CMRR is not traced.
+    let cmrr_db = crate::scene::run::detector_si(&doc.file.electronics.detector)
+        .ok()
+        .map(|d| d.cmrr_db());
+    let quiet: Progress = &|_, _, _| {};
+    let (traced, quality) = if o.quality {
+        let scene = doc.run_scene()?;
+        let traced = pipeline::trace_stage(&scene.bench, &req)?;
+        let patterns = base_patterns(&scene.settings.patterns, &scene)?;
+        let outcome = evaluate_traced(&scene, &traced, &patterns, o.seed, quiet)?;
+        (traced, Some(outcome.results))
+    } else {
+        let bench = doc.build()?;
+        (pipeline::trace_stage(&bench, &req)?, None)
+    };
+    Ok(Evaluation {
+        settings,
+        cmrr_db,
+        arrivals: traced.arrivals(),
+        metrics: traced.metrics,
+        quality,
+    })
+}
+
+/// Whether `name` is a number recorded for every evaluated bench by [`values`] (quality scores
+/// are checked when the evaluations exist).
+pub fn is_metric(name: &str) -> bool {
+    METRICS.iter().any(|m| m.0 == name)
+        || name == "cmrr_db"
+        || name.ends_with("_mssim")
+        || name.ends_with("_psnr_db")
+        || name.ends_with("_finest_lp_per_mm")
+}
+
+/// `SCHEME_PERCENT`, e.g. `secondary_complementary_balancing_40`.
+pub fn quality_key(scheme: &str, ratio: f64) -> String {
+    format!("{scheme}_{}", (ratio * 100.0).round() as u32)
+}
+
+/// The recorded numbers of an evaluated bench against the nominal one: each metric, its
+/// standard error, its difference from the nominal bench and the paired standard error of that
+/// difference; the CMRR; with `quality`, each scheme × ratio's MSSIM, PSNR and finest resolved
+/// USAF element (lp/mm; NaN when none is resolved).
+pub fn values(p: &Evaluation, nominal: &Evaluation) -> Vec<(String, f64)> {
+    let mut v = Vec::new();
+    for (i, (name, _, _)) in METRICS.iter().enumerate() {
+        let r = MetricRow::new(&p.metrics.values[i], &nominal.metrics.values[i]);
+        v.push((name.to_string(), r.value));
+        v.push((format!("{name}_stderr"), r.stderr));
+        v.push((format!("{name}_diff"), r.diff));
+        v.push((format!("{name}_diff_stderr"), r.diff_stderr));
+    }
+    let cmrr = p.cmrr_db.unwrap_or(f64::NAN);
+    v.push(("cmrr_db".into(), cmrr));
+    let c0 = nominal.cmrr_db.unwrap_or(f64::NAN);
+    v.push((
+        "cmrr_db_diff".into(),
+        if cmrr == c0 { 0.0 } else { cmrr - c0 },
+    ));
+    v.push(("cmrr_db_diff_stderr".into(), 0.0));
+    v.push(("arrivals".into(), p.arrivals as f64));
+    if let Some(q) = &p.quality {
+        for r in q {
+            let key = quality_key(r.scheme.key(), r.ratio);
+            v.push((format!("{key}_mssim"), r.mssim));
+            v.push((format!("{key}_psnr_db"), r.psnr_db));
+            v.push((
+                format!("{key}_finest_lp_per_mm"),
+                r.finest_resolved.as_ref().map_or(f64::NAN, |e| e.lp_per_mm),
+            ));
+        }
+    }
+    v
+}
+
+/// The base patterns of `family` for the highest sampling ratio of the scene's settings (a lower
+/// ratio uses their first rows). Built before any trace, so a bad pattern setting fails first.
+pub fn base_patterns(
+    family: &crate::acquisition::PatternFamily,
+    scene: &RunScene,
+) -> Result<PatternSet> {
+    let (across, down) = scene.bench.units_shape();
+    let max_m = scene
+        .settings
+        .sampling_ratios
+        .iter()
+        .map(|&r| patterns_for_ratio(r, across * down))
+        .max()
+        .unwrap_or(1);
+    family.build(across, down, max_m)
+}
+
+/// The solver of the traced experiment: the scene's TVAL3 settings with the paper's plain
+/// handling of traditional CS's 0/1 patterns (`run` reproduces the paper's set-up; the
+/// zero-mean remedy is `simulate`'s and `reconstruct`'s option).
+pub fn run_solver(settings: &RunSettings) -> Solver {
+    Solver::new(settings.solver.clone(), ZeroOneHandling::Plain)
+}
+
+/// The ideal object x (W per unit) shown on 0–255 as 255·x / max x, the scale every
+/// reconstruction is scored on; None when no light reached the pattern area.
+pub fn truth_view(x: &Raster) -> Option<Raster> {
+    let x_max = x.max();
+    if x_max.is_nan() || x_max <= 0.0 {
+        return None;
+    }
+    Some(x.map(|v| 255.0 * v / x_max))
+}
+
+/// Everything a report needs from a run.
+#[derive(Debug, Clone)]
+pub struct RunOutcome {
+    pub seed: u64,
+    pub settings: RunSettings,
+    pub transport: Transport,
+    /// Lamp rays whose path reached the pattern area.
+    pub trace_arrivals: u64,
+    pub detector: Bap,
+    pub scope: Scope,
+    /// The oscilloscope channels as set for the run [RF, MONITOR+, MONITOR−].
+    pub channels: [Channel; 3],
+    pub timing: FrameTiming,
+    /// Ideal object: x_j (W) and its 0–255 view (255·x / max x), units_across × units_down.
+    pub x: Raster,
+    pub truth: Raster,
+    /// Scheme-major, ratio-minor, in the settings' order.
+    pub results: Vec<SchemeResult>,
+    /// The USAF resolution read-out's registration (None without a registrable USAF chart).
+    pub resolution: Option<ResolutionContext>,
+    /// The recorded sequences (those some scheme needed).
+    pub sequences: Vec<SequenceSummary>,
+    /// The first frames of each recorded sequence, sample by sample.
+    pub traces: Vec<(Sequence, SignalTrace)>,
+    pub saturation: Vec<Saturation>,
+    pub timings: pipeline::Timings,
+    /// What the trace cache did.
+    pub cache: CacheStatus,
+    /// The bench's metrics with standard errors (crate::transport::metrics).
+    pub metrics: BenchMetrics,
+}
+
+impl RunOutcome {
+    /// The result of `scheme` at ratio index `r`.
+    pub fn result(&self, scheme: Scheme, r: usize) -> Option<&SchemeResult> {
+        let s = self.settings.schemes.iter().position(|&x| x == scheme)?;
+        self.results
+            .get(s * self.settings.sampling_ratios.len() + r)
+    }
+}
+
+/// Everything after the trace: record, solve and score a traced bench (a fresh or cached trace,
+/// one point of a sweep, one repeat of a run). `patterns` holds the base patterns for the
+/// highest ratio ([`base_patterns`]).
+pub fn evaluate_traced(
+    scene: &RunScene,
+    traced: &Traced,
+    patterns: &PatternSet,
+    seed: u64,
+    progress: Progress,
+) -> Result<RunOutcome> {
+    let s = &scene.settings;
+    let x = traced.x()?;
+    let truth = traced.truth()?;
+    let t1 = std::time::Instant::now();
+    let recorded = acquire(scene, &traced.transport, patterns, seed, progress)?;
+    let record_s = t1.elapsed().as_secs_f64();
+    let t2 = std::time::Instant::now();
+    let resolution = pipeline::resolution_context(&scene.bench, &x)?;
+    let results = solve_scored(
+        s,
+        &recorded,
+        &s.schemes,
+        &s.sampling_ratios,
+        &truth,
+        resolution.as_ref(),
+        progress,
+    )?;
+    let solve_s = t2.elapsed().as_secs_f64();
+    Ok(RunOutcome {
+        seed,
+        settings: s.clone(),
+        trace_arrivals: traced.arrivals(),
+        transport: traced.transport.clone(),
+        detector: scene.detector.clone(),
+        scope: scene.scope.clone(),
+        channels: recorded.channels,
+        timing: recorded.timing,
+        x,
+        truth,
+        results,
+        resolution,
+        traces: recorded.traces(),
+        sequences: recorded.sequences,
+        saturation: recorded.saturation,
+        timings: pipeline::Timings {
+            trace_s: 0.0,
+            record_s,
+            solve_s,
+            total_s: record_s + solve_s,
+        },
+        cache: traced.cache.clone(),
+        metrics: traced.metrics.clone(),
+    })
+}
+
+/// The record stage for a transport made any way (a trace, or an object kernel's product): the
+/// scene's electronics and acquisition settings, the noise and drift keyed by `seed`.
+pub fn acquire(
+    scene: &RunScene,
+    transport: &Transport,
+    patterns: &PatternSet,
+    seed: u64,
+    progress: Progress,
+) -> Result<Recorded> {
+    pipeline::record_transport(
+        transport,
+        &scene.detector,
+        &scene.scope,
+        &scene.settings,
+        patterns,
+        seed,
+        progress,
+    )
+}
+
+/// Each scheme × ratio (scheme-major) of a record solved with the traced experiment's solver
+/// ([`run_solver`]) and scored against `truth` (the ideal object's [`truth_view`]); the USAF
+/// read-out when `resolution` is given.
+pub fn solve_scored(
+    settings: &RunSettings,
+    recorded: &Recorded,
+    schemes: &[Scheme],
+    ratios: &[f64],
+    truth: &Raster,
+    resolution: Option<&ResolutionContext>,
+    progress: Progress,
+) -> Result<Vec<SchemeResult>> {
+    pipeline::solve_stage(
+        recorded,
+        schemes,
+        ratios,
+        truth,
+        &run_solver(settings),
+        resolution,
+        progress,
+    )
+}
