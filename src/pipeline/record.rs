@@ -118,8 +118,6 @@ pub fn record_transport(
     progress: Progress,
 ) -> Result<Recorded> {
     let s = settings;
-    let bits = patterns.base_patterns();
-    let max_m = patterns.measurements();
     let timing = FrameTiming {
         frame_s: 1.0 / s.dmd_rate_hz,
         settling_s: s.settling_time_s,
@@ -129,7 +127,56 @@ pub fn record_transport(
         .into_iter()
         .filter(|q| s.schemes.iter().any(|k| k.sequence() == *q))
         .collect();
-    let lights: Vec<Vec<[f64; 2]>> = needed
+    let lights = frame_lights(transport, patterns, &needed);
+    let illum: Vec<Illumination> = lights
+        .iter()
+        .map(|l| Illumination {
+            light_a: l,
+            ambient_a: transport.ambient_a,
+            dark_a: transport.dark_a,
+        })
+        .collect();
+    let ideal: Vec<Vec<[f64; 3]>> = illum
+        .iter()
+        .map(|il| detector::ideal_frames(detector, il))
+        .collect();
+    let (channels, seq_channels) = channel_settings(detector, scope, s.noise, &needed, &ideal);
+    let total_frames: u64 = lights.iter().map(|l| l.len() as u64).sum();
+    progress(Stage::Record, 0, total_frames);
+    let records: Vec<Record> = needed
+        .par_iter()
+        .zip(illum.par_iter())
+        .zip(seq_channels.par_iter())
+        .map(|((&q, il), channels)| record_sequence(s, detector, channels, timing, il, seed, q))
+        .collect();
+    progress(Stage::Record, total_frames, total_frames);
+
+    let mut sequences = Vec::new();
+    let mut saturation = Vec::new();
+    for (((&q, r), id), channels) in needed.iter().zip(&records).zip(&ideal).zip(&seq_channels) {
+        let (summary, found) = summarize_sequence(detector, channels, timing, q, r, id);
+        sequences.push(summary);
+        saturation.extend(found);
+    }
+    Ok(Recorded {
+        patterns: patterns.clone(),
+        timing,
+        channels,
+        records: needed.into_iter().zip(records).collect(),
+        sequences,
+        saturation,
+    })
+}
+
+/// The light on each diode, frame by frame, of each sequence in `needed`.
+fn frame_lights(
+    transport: &crate::transport::Transport,
+    patterns: &PatternSet,
+    needed: &[Sequence],
+) -> Vec<Vec<[f64; 2]>> {
+    let bits = patterns.base_patterns();
+    let max_m = patterns.measurements();
+    needed
         .iter()
         .map(|&q| match q {
             Sequence::Base => transport.frame_currents(&bits, max_m, false),
@@ -146,23 +193,22 @@ pub fn record_transport(
                 l
             }
         })
-        .collect();
-    let illum: Vec<Illumination> = lights
-        .iter()
-        .map(|l| Illumination {
-            light_a: l,
-            ambient_a: transport.ambient_a,
-            dark_a: transport.dark_a,
-        })
-        .collect();
-    let ideal: Vec<Vec<[f64; 3]>> = illum
-        .iter()
-        .map(|il| detector::ideal_frames(detector, il))
-        .collect();
-    // Channel ranges from the clipped noise-free outputs of the recorded frames. The pattern
-    // sequences share one setting of the oscilloscope; the calibrated acquisition is set up on
-    // its own (its all-on frames need a wider range than any pattern), so adding it changes
-    // nothing for the others.
+        .collect()
+}
+
+/// The oscilloscope's channels: those shared by the pattern sequences, and each sequence's.
+///
+/// Channel ranges come from the clipped noise-free outputs of the recorded frames. The pattern
+/// sequences share one setting of the oscilloscope; the calibrated acquisition is set up on its
+/// own (its all-on frames need a wider range than any pattern), so adding it changes nothing
+/// for the others.
+fn channel_settings(
+    detector: &Bap,
+    scope: &Scope,
+    noise: bool,
+    needed: &[Sequence],
+    ideal: &[Vec<[f64; 3]>],
+) -> ([Channel; 3], Vec<[Channel; 3]>) {
     let range = |frames: &mut dyn Iterator<Item = &[f64; 3]>| -> [Channel; 3] {
         let frames: Vec<&[f64; 3]> = frames.collect();
         [0, 1, 2].map(|o| {
@@ -173,127 +219,130 @@ pub fn record_transport(
                 .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
                     (a.min(v), b.max(v))
                 });
-            scope.channel(o, lo, hi, !s.noise)
+            scope.channel(o, lo, hi, !noise)
         })
     };
     let patterns_only = needed.iter().any(|&q| q != Sequence::CalibratedBase);
     let shared = range(
         &mut needed
             .iter()
-            .zip(&ideal)
+            .zip(ideal)
             .filter(|(q, _)| !patterns_only || **q != Sequence::CalibratedBase)
             .flat_map(|(_, f)| f.iter()),
     );
-    let seq_channels: Vec<[Channel; 3]> = needed
+    let per_sequence = needed
         .iter()
-        .zip(&ideal)
+        .zip(ideal)
         .map(|(&q, f)| match q {
             Sequence::CalibratedBase if patterns_only => range(&mut f.iter()),
             _ => shared,
         })
         .collect();
-    let channels = shared;
-    let total_frames: u64 = lights.iter().map(|l| l.len() as u64).sum();
-    progress(Stage::Record, 0, total_frames);
-    let records: Vec<Record> = needed
-        .par_iter()
-        .zip(illum.par_iter())
-        .zip(seq_channels.par_iter())
-        .map(|((&q, il), channels)| {
-            let q_seed = sequence_seed(seed, q);
-            let drift = if s.noise {
-                DriftPath::draw(&s.drift, il.light_a.len(), timing.frame_s, q_seed)
-            } else {
-                DriftPath::flat(il.light_a.len(), timing.frame_s)
-            };
-            let mut r = detector::record_with(
-                s.record,
-                detector,
-                channels,
-                timing,
-                il,
-                &drift,
-                q_seed,
-                s.noise,
-                s.signal_trace_frames,
-            );
-            if let Some(noise) = &s.additive_noise {
-                add_paper_noise(&mut r, noise, q_seed);
-            }
-            r
-        })
-        .collect();
-    progress(Stage::Record, total_frames, total_frames);
+    (shared, per_sequence)
+}
 
-    let mut sequences = Vec::new();
-    let mut saturation = Vec::new();
-    for (((&q, r), id), channels) in needed.iter().zip(&records).zip(&ideal).zip(&seq_channels) {
-        let frames = r.frames.len();
-        let peak = [0, 1, 2].map(|o| id.iter().map(|v| v[o].abs()).fold(0.0, f64::max));
-        let clipped = [0, 1, 2].map(|o| r.clipped_frames(o, frames));
-        let over = [0, 1, 2].map(|o| r.over_range_frames(o, frames));
-        for o in 0..3 {
-            let swing = detector.stage(o).swing_v;
-            if clipped[o] > 0 {
-                saturation.push(Saturation {
-                    sequence: q,
-                    output: OUTPUT_NAMES[o],
-                    kind: "detector_swing",
-                    frames: clipped[o],
-                    of_frames: frames,
-                    limit_v: swing,
-                    peak_abs_ideal_v: peak[o],
-                    message: format!(
-                        "{} output clipped at ±{swing} V in {} of {frames} frames of the {} \
-                         sequence (noise-free peak |V| = {:.4} V): the light saturates the \
-                         detector; results that read it are marked saturated",
-                        OUTPUT_NAMES[o],
-                        clipped[o],
-                        q.key(),
-                        peak[o]
-                    ),
-                });
-            }
-            if over[o] > 0 {
-                let (lo, hi) = channels[o].window();
-                saturation.push(Saturation {
-                    sequence: q,
-                    output: OUTPUT_NAMES[o],
-                    kind: "oscilloscope_range",
-                    frames: over[o],
-                    of_frames: frames,
-                    limit_v: hi.abs().max(lo.abs()),
-                    peak_abs_ideal_v: peak[o],
-                    message: format!(
-                        "{} channel over the oscilloscope's range [{lo:.4}, {hi:.4}] V in {} of \
-                         {frames} frames of the {} sequence; results that read it are marked \
-                         saturated",
-                        OUTPUT_NAMES[o],
-                        over[o],
-                        q.key()
-                    ),
-                });
-            }
-        }
-        sequences.push(SequenceSummary {
-            sequence: q,
-            frames,
-            duration_s: frames as f64 * timing.frame_s,
-            scope_samples: r.samples,
-            settled_samples_per_frame: r.settled_samples,
-            clipped_frames: clipped,
-            over_range_frames: over,
-            peak_abs_ideal_v: peak,
-        });
-    }
-    Ok(Recorded {
-        patterns: patterns.clone(),
-        timing,
+/// One sequence recorded through the detector and oscilloscope, with its drift and noise drawn
+/// from the streams of the sequence's seed.
+fn record_sequence(
+    s: &RunSettings,
+    detector: &Bap,
+    channels: &[Channel; 3],
+    timing: FrameTiming,
+    il: &Illumination,
+    seed: u64,
+    q: Sequence,
+) -> Record {
+    let q_seed = sequence_seed(seed, q);
+    let drift = if s.noise {
+        DriftPath::draw(&s.drift, il.light_a.len(), timing.frame_s, q_seed)
+    } else {
+        DriftPath::flat(il.light_a.len(), timing.frame_s)
+    };
+    let mut r = detector::record_with(
+        s.record,
+        detector,
         channels,
-        records: needed.into_iter().zip(records).collect(),
-        sequences,
-        saturation,
-    })
+        timing,
+        il,
+        &drift,
+        q_seed,
+        s.noise,
+        s.signal_trace_frames,
+    );
+    if let Some(noise) = &s.additive_noise {
+        add_paper_noise(&mut r, noise, q_seed);
+    }
+    r
+}
+
+/// What one recorded sequence holds, and its clipping and over-range findings.
+fn summarize_sequence(
+    detector: &Bap,
+    channels: &[Channel; 3],
+    timing: FrameTiming,
+    q: Sequence,
+    r: &Record,
+    ideal: &[[f64; 3]],
+) -> (SequenceSummary, Vec<Saturation>) {
+    let frames = r.frames.len();
+    let peak = [0, 1, 2].map(|o| ideal.iter().map(|v| v[o].abs()).fold(0.0, f64::max));
+    let clipped = [0, 1, 2].map(|o| r.clipped_frames(o, frames));
+    let over = [0, 1, 2].map(|o| r.over_range_frames(o, frames));
+    let mut saturation = Vec::new();
+    for o in 0..3 {
+        let swing = detector.stage(o).swing_v;
+        if clipped[o] > 0 {
+            saturation.push(Saturation {
+                sequence: q,
+                output: OUTPUT_NAMES[o],
+                kind: "detector_swing",
+                frames: clipped[o],
+                of_frames: frames,
+                limit_v: swing,
+                peak_abs_ideal_v: peak[o],
+                message: format!(
+                    "{} output clipped at ±{swing} V in {} of {frames} frames of the {} \
+                     sequence (noise-free peak |V| = {:.4} V): the light saturates the \
+                     detector; results that read it are marked saturated",
+                    OUTPUT_NAMES[o],
+                    clipped[o],
+                    q.key(),
+                    peak[o]
+                ),
+            });
+        }
+        if over[o] > 0 {
+            let (lo, hi) = channels[o].window();
+            saturation.push(Saturation {
+                sequence: q,
+                output: OUTPUT_NAMES[o],
+                kind: "oscilloscope_range",
+                frames: over[o],
+                of_frames: frames,
+                limit_v: hi.abs().max(lo.abs()),
+                peak_abs_ideal_v: peak[o],
+                message: format!(
+                    "{} channel over the oscilloscope's range [{lo:.4}, {hi:.4}] V in {} of \
+                     {frames} frames of the {} sequence; results that read it are marked \
+                     saturated",
+                    OUTPUT_NAMES[o],
+                    over[o],
+                    q.key()
+                ),
+            });
+        }
+    }
+    let summary = SequenceSummary {
+        sequence: q,
+        frames,
+        duration_s: frames as f64 * timing.frame_s,
+        scope_samples: r.samples,
+        settled_samples_per_frame: r.settled_samples,
+        clipped_frames: clipped,
+        over_range_frames: over,
+        peak_abs_ideal_v: peak,
+    };
+    (summary, saturation)
 }
 
 /// The paper's idealised additive noise on every recorded frame value of every output: output
