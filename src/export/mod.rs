@@ -42,7 +42,7 @@ use serde_json::json;
 
 use crate::error::{Error, Result};
 use crate::optics::Bench;
-use crate::optics::bench::{Coating, Interaction, state_of_bit};
+use crate::optics::bench::{Coating, DmdSetup, Interaction, Surface, state_of_bit};
 use crate::optics::chart::ChartMask;
 use crate::optics::dmd::MirrorState;
 use crate::optics::geometry::{Frame, Geometry, Shape2D, sag};
@@ -443,68 +443,145 @@ pub fn export_mitsuba(bench: &Bench, opts: &ExportOptions) -> Result<MitsubaScen
             ),
         ));
     }
-    let mut files: Vec<(String, Vec<u8>)> = Vec::new();
     let notes: Vec<String> = Vec::new();
-    let mut xml = String::new();
     let depth = bench.max_interactions() + 1;
-    let _ = writeln!(
-        xml,
-        "<?xml version=\"1.0\"?>\n<!-- spibench export: millimetres; powers in W. -->\n\
-         <scene version=\"3.0.0\">\n  <integrator type=\"path\">\n    \
-         <integer name=\"max_depth\" value=\"{depth}\"/>\n    \
-         <integer name=\"rr_depth\" value=\"{depth}\"/>\n  </integrator>"
-    );
-    let mut black = Soup::default();
-    let mut shape_index = 0usize;
-    let mut add_mesh = |xml: &mut String,
-                        files: &mut Vec<(String, Vec<u8>)>,
-                        id: &str,
-                        soup: &Soup,
-                        bsdf: &str| {
-        let file = format!("meshes/{shape_index:03}_{id}.ply");
+    let mut w = SceneWriter::new(depth);
+    for s in bench.surfaces() {
+        w.surface(bench, opts, s)?;
+    }
+    w.meshes(bench);
+    if let Some(setup) = &bench.dmd() {
+        w.dmd(setup, opts)?;
+    }
+    if !w.black.is_empty() {
+        let black = std::mem::take(&mut w.black);
+        w.add_mesh("absorbers", &black, BLACK);
+    }
+    let lamp_json = w.lamp(bench, opts)?;
+    let manifest = json!({
+        "generator": format!("spibench {} export-mitsuba", env!("CARGO_PKG_VERSION")),
+        "mitsuba_version": "3.9.1",
+        "units": "millimetres; powers in W",
+        "wavelength_nm": opts.wavelength_m.map(|w| w * 1e9),
+        "pattern": opts.pattern_label,
+        "pattern_units": opts.pattern.len(),
+        "max_depth": depth,
+        "lamp": lamp_json,
+        "band_nm": [bench.band().0 * 1e9, bench.band().1 * 1e9],
+        "detectors": w.detectors_json,
+    });
+    let mut files = w.files;
+    files.push(("scene.xml".into(), w.xml.into_bytes()));
+    files.push((
+        "manifest.json".into(),
+        serde_json::to_string_pretty(&manifest)
+            .map_err(|e| Error::Numerical(e.to_string()))?
+            .into_bytes(),
+    ));
+    Ok(MitsubaScene { files, notes })
+}
+
+/// The scene as it is written: `scene.xml`, the files beside it, the black surfaces gathered
+/// into one mesh (written last), and the detectors for the manifest.
+struct SceneWriter {
+    xml: String,
+    files: Vec<(String, Vec<u8>)>,
+    black: Soup,
+    shape_index: usize,
+    detectors_json: Vec<serde_json::Value>,
+    charts_done: Vec<usize>,
+}
+
+/// A `dielectric` BSDF between indices `n1` (normal side) and `n2`.
+fn dielectric(n1: f64, n2: f64) -> String {
+    format!(
+        "<bsdf type=\"dielectric\"><float name=\"ext_ior\" value=\"{}\"/>\
+         <float name=\"int_ior\" value=\"{}\"/></bsdf>",
+        fmt(n1),
+        fmt(n2)
+    )
+}
+
+/// A front-surface mirror BSDF of reflectance `r`.
+fn conductor(r: f64) -> String {
+    format!(
+        "<bsdf type=\"conductor\"><string name=\"material\" value=\"none\"/>\
+         <float name=\"specular_reflectance\" value=\"{}\"/></bsdf>",
+        fmt(r)
+    )
+}
+
+/// A surface with a clear aperture, as its clear part and the ring outside it (None without
+/// a clear aperture, or for a geometry that has no ring).
+fn clear_split(s: &Surface) -> Option<(Soup, Soup)> {
+    let c = s.clear?;
+    match &s.geometry {
+        Geometry::SphereCap {
+            vertex,
+            axis,
+            radius,
+            aperture,
+            inner,
+        } => Some((
+            cap_soup(*vertex, *axis, *radius, *inner, c.radius.max(*inner)),
+            cap_soup(*vertex, *axis, *radius, c.radius.max(*inner), *aperture),
+        )),
+        Geometry::Plane {
+            frame,
+            shape: Shape2D::Disk { radius },
+        } => Some((
+            plane_soup(frame, Shape2D::Disk { radius: c.radius }),
+            plane_soup(
+                frame,
+                Shape2D::Annulus {
+                    inner: c.radius,
+                    outer: *radius,
+                },
+            ),
+        )),
+        _ => None,
+    }
+}
+
+impl SceneWriter {
+    /// Starts `scene.xml` with the integrator (path depth `depth`).
+    fn new(depth: u32) -> Self {
+        let mut xml = String::new();
         let _ = writeln!(
             xml,
+            "<?xml version=\"1.0\"?>\n<!-- spibench export: millimetres; powers in W. -->\n\
+             <scene version=\"3.0.0\">\n  <integrator type=\"path\">\n    \
+             <integer name=\"max_depth\" value=\"{depth}\"/>\n    \
+             <integer name=\"rr_depth\" value=\"{depth}\"/>\n  </integrator>"
+        );
+        SceneWriter {
+            xml,
+            files: Vec::new(),
+            black: Soup::default(),
+            shape_index: 0,
+            detectors_json: Vec::new(),
+            charts_done: Vec::new(),
+        }
+    }
+
+    /// Writes `soup` as the next PLY shape with the BSDF `bsdf`.
+    fn add_mesh(&mut self, id: &str, soup: &Soup, bsdf: &str) {
+        let shape_index = self.shape_index;
+        let file = format!("meshes/{shape_index:03}_{id}.ply");
+        let _ = writeln!(
+            self.xml,
             "  <shape type=\"ply\" id=\"s{shape_index:03}_{id}\">\n    \
              <string name=\"filename\" value=\"{file}\"/>\n    {bsdf}\n  </shape>"
         );
-        files.push((file, soup.ply()));
-        shape_index += 1;
-    };
-    let mut detectors_json = Vec::new();
-    let mut charts_done = Vec::new();
-    for s in bench.surfaces() {
+        self.files.push((file, soup.ply()));
+        self.shape_index += 1;
+    }
+
+    /// One traced surface, by its interaction.
+    fn surface(&mut self, bench: &Bench, opts: &ExportOptions, s: &Surface) -> Result<()> {
         let el = bench.elements()[s.element].replace(|c: char| !c.is_ascii_alphanumeric(), "_");
-        let clear_split = |s: &crate::optics::bench::Surface| -> Option<(Soup, Soup)> {
-            let c = s.clear?;
-            match &s.geometry {
-                Geometry::SphereCap {
-                    vertex,
-                    axis,
-                    radius,
-                    aperture,
-                    inner,
-                } => Some((
-                    cap_soup(*vertex, *axis, *radius, *inner, c.radius.max(*inner)),
-                    cap_soup(*vertex, *axis, *radius, c.radius.max(*inner), *aperture),
-                )),
-                Geometry::Plane {
-                    frame,
-                    shape: Shape2D::Disk { radius },
-                } => Some((
-                    plane_soup(frame, Shape2D::Disk { radius: c.radius }),
-                    plane_soup(
-                        frame,
-                        Shape2D::Annulus {
-                            inner: c.radius,
-                            outer: *radius,
-                        },
-                    ),
-                )),
-                _ => None,
-            }
-        };
         match &s.interaction {
-            Interaction::Absorber => black.append(&geometry_soup(&s.geometry, None)),
+            Interaction::Absorber => self.black.append(&geometry_soup(&s.geometry, None)),
             Interaction::Interface {
                 front,
                 back,
@@ -522,16 +599,10 @@ pub fn export_mitsuba(bench: &Bench, opts: &ExportOptions) -> Result<MitsubaScen
                     None => (geometry_soup(&s.geometry, None), None),
                 };
                 if let Some(ring) = ring {
-                    black.append(&ring);
+                    self.black.append(&ring);
                 }
                 if n1 != n2 {
-                    let bsdf = format!(
-                        "<bsdf type=\"dielectric\"><float name=\"ext_ior\" value=\"{}\"/>\
-                         <float name=\"int_ior\" value=\"{}\"/></bsdf>",
-                        fmt(n1),
-                        fmt(n2)
-                    );
-                    add_mesh(&mut xml, &mut files, &el, &clear, &bsdf);
+                    self.add_mesh(&el, &clear, &dielectric(n1, n2));
                 }
             }
             Interaction::Mirror { reflectance } => {
@@ -541,206 +612,205 @@ pub fn export_mitsuba(bench: &Bench, opts: &ExportOptions) -> Result<MitsubaScen
                     None => (geometry_soup(&s.geometry, None), None),
                 };
                 if let Some(ring) = ring {
-                    black.append(&ring);
+                    self.black.append(&ring);
                 }
-                let bsdf = format!(
-                    "<bsdf type=\"conductor\"><string name=\"material\" value=\"none\"/>\
-                     <float name=\"specular_reflectance\" value=\"{}\"/></bsdf>",
-                    fmt(r)
-                );
-                add_mesh(&mut xml, &mut files, &el, &face, &bsdf);
+                self.add_mesh(&el, &face, &conductor(r));
             }
-            Interaction::Detector { index } => {
-                let det = &bench.detectors()[*index];
-                if !opts.spectral {
-                    constant(&det.responsivity, format!("the responsivity of `{el}`"))?;
-                }
-                let (b0, b1) = (bench.band().0 * 1e9, bench.band().1 * 1e9);
-                let table: Vec<[f64; 2]> = if opts.spectral {
-                    let n = (b1 - b0).round().max(1.0) as usize;
-                    (0..=n)
-                        .map(|k| {
-                            let nm = b0 + (b1 - b0) * k as f64 / n as f64;
-                            [nm, det.responsivity.at(nm * 1e-9)]
-                        })
-                        .collect()
-                } else {
-                    Vec::new()
-                };
-                let f = det.frame;
-                let r = det.radius * MM;
-                let id = if *index == 0 { "pd_plus" } else { "pd_minus" };
-                let _ = writeln!(
-                    xml,
-                    "  <shape type=\"disk\" id=\"{id}\">\n    <transform name=\"to_world\">\
-                     <matrix value=\"{}\"/></transform>\n    {BLACK}\n    \
-                     <sensor type=\"irradiancemeter\">\n      \
-                     <sampler type=\"independent\"><integer name=\"sample_count\" value=\"{}\"/>\
-                     <integer name=\"seed\" value=\"{}\"/></sampler>\n      \
-                     <film type=\"hdrfilm\"><integer name=\"width\" value=\"1\"/>\
-                     <integer name=\"height\" value=\"1\"/><rfilter type=\"box\"/></film>\n    \
-                     </sensor>\n  </shape>",
-                    matrix([f.u * r, f.v * r, f.w], f.origin),
-                    opts.sensor_samples,
-                    index + 1
-                );
-                detectors_json.push(json!({
-                    "id": id,
-                    "index": index,
-                    "center_mm": [f.origin.x * MM, f.origin.y * MM, f.origin.z * MM],
-                    "normal": [f.w.x, f.w.y, f.w.z],
-                    "radius_mm": r,
-                    "area_mm2": std::f64::consts::PI * r * r,
-                    "responsivity_a_per_w": det.responsivity.at(bench.band().0),
-                    "responsivity_table_nm_a_per_w": table,
-                }));
-            }
+            Interaction::Detector { index } => self.detector(bench, opts, *index, &el)?,
             Interaction::Chart { chart, front, back } => {
-                let n1 = constant_index(bench, *front, &el)?;
-                let n2 = constant_index(bench, *back, &el)?;
-                let plate = &bench.charts()[*chart];
-                let Geometry::Plane {
-                    frame: face,
-                    shape: Shape2D::Rect { half_u, half_v },
-                } = s.geometry
-                else {
-                    return Err(Error::input(format!(
-                        "`{el}`: a chart face must be a rectangle"
-                    )));
-                };
-                if matches!(plate.mask, ChartMask::Clear) {
-                    if n1 != n2 {
-                        let bsdf = format!(
-                            "<bsdf type=\"dielectric\"><float name=\"ext_ior\" value=\"{}\"/>\
-                             <float name=\"int_ior\" value=\"{}\"/></bsdf>",
-                            fmt(n1),
-                            fmt(n2)
-                        );
-                        add_mesh(
-                            &mut xml,
-                            &mut files,
-                            &el,
-                            &geometry_soup(&s.geometry, None),
-                            &bsdf,
-                        );
-                    }
-                    continue;
-                }
-                if n1 != n2 {
-                    return Err(unrepresentable(format!(
-                        "`{el}`: a printed chart on a refracting substrate"
-                    )));
-                }
-                let rc = constant(
-                    &plate.chrome_reflectance,
-                    format!("the chrome reflectance of `{el}`"),
-                )?;
-                if rc != 0.0 {
-                    return Err(unrepresentable(format!("`{el}`: chrome that reflects")));
-                }
-                let tc = 10f64.powf(-constant(
-                    &plate.chrome_od,
-                    format!("the chrome OD of `{el}`"),
-                )?);
-                let ChartMask::Image {
-                    raster,
-                    width_m,
-                    height_m,
-                } = &plate.mask
-                else {
-                    return Err(unrepresentable(format!("`{el}`: an analytic USAF pattern")));
-                };
-                // The image in the chart face plane: its centre and half sizes in the face's
-                // (u, v) coordinates (the face frame is the plate frame with v and w reversed).
-                let pf = plate.frame;
-                let c = face.to_local(pf.origin);
-                let (hw, hh) = (0.5 * width_m, 0.5 * height_m);
-                if c.x.abs() + hw > half_u * (1.0 + 1e-9) || c.y.abs() + hh > half_v * (1.0 + 1e-9)
-                {
-                    return Err(Error::input(format!(
-                        "`{el}`: the chart image extends beyond the plate"
-                    )));
-                }
-                // Opacity 1 − (c + (1 − c)·T). Mitsuba flips a PFM on loading (PFM stores the
-                // bottom scanline first) and maps its bitmap row 0 to local −y, so the file's
-                // first scanline lands at local +y: spibench's raster row 0 (the top, +v) is
-                // written first. Checked in validation/mitsuba (the chart case disagrees by 35 %
-                // with the rows reversed).
-                let (w, h) = (raster.width, raster.height);
-                let mut pfm = format!("Pf\n{w} {h}\n-1.0\n").into_bytes();
-                for r in 0..h {
-                    for col in 0..w {
-                        let clear = raster.get(r, col).clamp(0.0, 1.0);
-                        let opacity = 1.0 - (clear + (1.0 - clear) * tc);
-                        pfm.extend_from_slice(&(opacity as f32).to_le_bytes());
-                    }
-                }
-                let k = charts_done.len();
-                charts_done.push(*chart);
-                let bitmap = format!("charts/chart{k}.pfm");
-                files.push((bitmap.clone(), pfm));
-                let axis_w = pf.u.cross(pf.v);
-                let _ = writeln!(
-                    xml,
-                    "  <shape type=\"rectangle\" id=\"{el}_mask\">\n    <transform name=\"to_world\">\
-                     <matrix value=\"{}\"/></transform>\n    <bsdf type=\"mask\">\n      \
-                     <texture name=\"opacity\" type=\"bitmap\"><string name=\"filename\" value=\"{bitmap}\"/>\
-                     <boolean name=\"raw\" value=\"true\"/><string name=\"filter_type\" value=\"nearest\"/>\
-                     <string name=\"wrap_mode\" value=\"clamp\"/></texture>\n      {BLACK}\n    </bsdf>\n  </shape>",
-                    matrix([pf.u * (hw * MM), pf.v * (hh * MM), axis_w], pf.origin)
-                );
-                // The plate outside the image: four strips of constant opacity 1 − T.
-                let mut rest = Soup::default();
-                let at = |x: f64, y: f64| face.origin + x * face.u + y * face.v;
-                let (x0, x1, y0, y1) = (c.x - hw, c.x + hw, c.y - hh, c.y + hh);
-                for (a, b, cc, d) in [
-                    (
-                        (-half_u, -half_v),
-                        (half_u, -half_v),
-                        (half_u, y0),
-                        (-half_u, y0),
-                    ),
-                    (
-                        (-half_u, y1),
-                        (half_u, y1),
-                        (half_u, half_v),
-                        (-half_u, half_v),
-                    ),
-                    ((-half_u, y0), (x0, y0), (x0, y1), (-half_u, y1)),
-                    ((x1, y0), (half_u, y0), (half_u, y1), (x1, y1)),
-                ] {
-                    if (b.0 - a.0) <= 0.0 || (cc.1 - b.1) <= 0.0 {
-                        continue;
-                    }
-                    let i = rest.vertex(at(a.0, a.1), None);
-                    let j = rest.vertex(at(b.0, b.1), None);
-                    let l = rest.vertex(at(cc.0, cc.1), None);
-                    let m = rest.vertex(at(d.0, d.1), None);
-                    rest.tri(i, j, l);
-                    rest.tri(i, l, m);
-                }
-                if !rest.is_empty() {
-                    let bsdf = format!(
-                        "<bsdf type=\"mask\"><float name=\"opacity\" value=\"{}\"/>{BLACK}</bsdf>",
-                        fmt(1.0 - tc)
-                    );
-                    add_mesh(&mut xml, &mut files, &format!("{el}_chrome"), &rest, &bsdf);
-                }
+                self.chart(bench, s, *chart, (*front, *back), &el)?
             }
         }
+        Ok(())
     }
-    for (m, _) in bench.meshes() {
-        let mut soup = Soup::default();
-        for t in m.triangles() {
-            let p = |v: glam::Vec3A| DVec3::new(v.x as f64, v.y as f64, v.z as f64);
-            let a = soup.vertex(p(t.v0), None);
-            let b = soup.vertex(p(t.v1), None);
-            let c = soup.vertex(p(t.v2), None);
-            soup.tri(a, b, c);
+
+    /// A photodiode: a black disk with an irradiancemeter, and its manifest entry.
+    fn detector(
+        &mut self,
+        bench: &Bench,
+        opts: &ExportOptions,
+        index: usize,
+        el: &str,
+    ) -> Result<()> {
+        let det = &bench.detectors()[index];
+        if !opts.spectral {
+            constant(&det.responsivity, format!("the responsivity of `{el}`"))?;
         }
-        black.append(&soup);
+        let (b0, b1) = (bench.band().0 * 1e9, bench.band().1 * 1e9);
+        let table: Vec<[f64; 2]> = if opts.spectral {
+            let n = (b1 - b0).round().max(1.0) as usize;
+            (0..=n)
+                .map(|k| {
+                    let nm = b0 + (b1 - b0) * k as f64 / n as f64;
+                    [nm, det.responsivity.at(nm * 1e-9)]
+                })
+                .collect()
+        } else {
+            Vec::new()
+        };
+        let f = det.frame;
+        let r = det.radius * MM;
+        let id = if index == 0 { "pd_plus" } else { "pd_minus" };
+        let _ = writeln!(
+            self.xml,
+            "  <shape type=\"disk\" id=\"{id}\">\n    <transform name=\"to_world\">\
+             <matrix value=\"{}\"/></transform>\n    {BLACK}\n    \
+             <sensor type=\"irradiancemeter\">\n      \
+             <sampler type=\"independent\"><integer name=\"sample_count\" value=\"{}\"/>\
+             <integer name=\"seed\" value=\"{}\"/></sampler>\n      \
+             <film type=\"hdrfilm\"><integer name=\"width\" value=\"1\"/>\
+             <integer name=\"height\" value=\"1\"/><rfilter type=\"box\"/></film>\n    \
+             </sensor>\n  </shape>",
+            matrix([f.u * r, f.v * r, f.w], f.origin),
+            opts.sensor_samples,
+            index + 1
+        );
+        self.detectors_json.push(json!({
+            "id": id,
+            "index": index,
+            "center_mm": [f.origin.x * MM, f.origin.y * MM, f.origin.z * MM],
+            "normal": [f.w.x, f.w.y, f.w.z],
+            "radius_mm": r,
+            "area_mm2": std::f64::consts::PI * r * r,
+            "responsivity_a_per_w": det.responsivity.at(bench.band().0),
+            "responsivity_table_nm_a_per_w": table,
+        }));
+        Ok(())
     }
-    if let Some(setup) = &bench.dmd() {
+
+    /// The chrome face of a chart plate: a plain dielectric when nothing is printed, else the
+    /// image as a mask and the chrome around it.
+    fn chart(
+        &mut self,
+        bench: &Bench,
+        s: &Surface,
+        chart: usize,
+        (front, back): (usize, usize),
+        el: &str,
+    ) -> Result<()> {
+        let n1 = constant_index(bench, front, el)?;
+        let n2 = constant_index(bench, back, el)?;
+        let plate = &bench.charts()[chart];
+        let Geometry::Plane {
+            frame: face,
+            shape: Shape2D::Rect { half_u, half_v },
+        } = s.geometry
+        else {
+            return Err(Error::input(format!(
+                "`{el}`: a chart face must be a rectangle"
+            )));
+        };
+        if matches!(plate.mask, ChartMask::Clear) {
+            if n1 != n2 {
+                self.add_mesh(el, &geometry_soup(&s.geometry, None), &dielectric(n1, n2));
+            }
+            return Ok(());
+        }
+        if n1 != n2 {
+            return Err(unrepresentable(format!(
+                "`{el}`: a printed chart on a refracting substrate"
+            )));
+        }
+        let rc = constant(
+            &plate.chrome_reflectance,
+            format!("the chrome reflectance of `{el}`"),
+        )?;
+        if rc != 0.0 {
+            return Err(unrepresentable(format!("`{el}`: chrome that reflects")));
+        }
+        let tc = 10f64.powf(-constant(
+            &plate.chrome_od,
+            format!("the chrome OD of `{el}`"),
+        )?);
+        let ChartMask::Image {
+            raster,
+            width_m,
+            height_m,
+        } = &plate.mask
+        else {
+            return Err(unrepresentable(format!("`{el}`: an analytic USAF pattern")));
+        };
+        // The image in the chart face plane: its centre and half sizes in the face's
+        // (u, v) coordinates (the face frame is the plate frame with v and w reversed).
+        let pf = plate.frame;
+        let c = face.to_local(pf.origin);
+        let (hw, hh) = (0.5 * width_m, 0.5 * height_m);
+        if c.x.abs() + hw > half_u * (1.0 + 1e-9) || c.y.abs() + hh > half_v * (1.0 + 1e-9) {
+            return Err(Error::input(format!(
+                "`{el}`: the chart image extends beyond the plate"
+            )));
+        }
+        self.chart_image(chart, raster, tc, &pf, (hw, hh), el);
+        // The plate outside the image: four strips of constant opacity 1 − T.
+        let bounds = (c.x - hw, c.x + hw, c.y - hh, c.y + hh);
+        let rest = chrome_strips(&face, (half_u, half_v), bounds);
+        if !rest.is_empty() {
+            let bsdf = format!(
+                "<bsdf type=\"mask\"><float name=\"opacity\" value=\"{}\"/>{BLACK}</bsdf>",
+                fmt(1.0 - tc)
+            );
+            self.add_mesh(&format!("{el}_chrome"), &rest, &bsdf);
+        }
+        Ok(())
+    }
+
+    /// A chart's image as a `mask` rectangle of opacity 1 − (c + (1 − c)·T) read from a PFM
+    /// bitmap (`tc`: the chrome's transmittance T; half sizes `(hw, hh)` in metres).
+    fn chart_image(
+        &mut self,
+        chart: usize,
+        raster: &crate::raster::Raster,
+        tc: f64,
+        pf: &Frame,
+        (hw, hh): (f64, f64),
+        el: &str,
+    ) {
+        // Opacity 1 − (c + (1 − c)·T). Mitsuba flips a PFM on loading (PFM stores the bottom
+        // scanline first) and maps its bitmap row 0 to local −y, so the file's first scanline
+        // lands at local +y: spibench's raster row 0 (the top, +v) is written first. Checked in
+        // validation/mitsuba (the chart case disagrees by 35 % with the rows reversed).
+        let (w, h) = (raster.width, raster.height);
+        let mut pfm = format!("Pf\n{w} {h}\n-1.0\n").into_bytes();
+        for r in 0..h {
+            for col in 0..w {
+                let clear = raster.get(r, col).clamp(0.0, 1.0);
+                let opacity = 1.0 - (clear + (1.0 - clear) * tc);
+                pfm.extend_from_slice(&(opacity as f32).to_le_bytes());
+            }
+        }
+        let k = self.charts_done.len();
+        self.charts_done.push(chart);
+        let bitmap = format!("charts/chart{k}.pfm");
+        self.files.push((bitmap.clone(), pfm));
+        let axis_w = pf.u.cross(pf.v);
+        let _ = writeln!(
+            self.xml,
+            "  <shape type=\"rectangle\" id=\"{el}_mask\">\n    <transform name=\"to_world\">\
+             <matrix value=\"{}\"/></transform>\n    <bsdf type=\"mask\">\n      \
+             <texture name=\"opacity\" type=\"bitmap\"><string name=\"filename\" value=\"{bitmap}\"/>\
+             <boolean name=\"raw\" value=\"true\"/><string name=\"filter_type\" value=\"nearest\"/>\
+             <string name=\"wrap_mode\" value=\"clamp\"/></texture>\n      {BLACK}\n    </bsdf>\n  </shape>",
+            matrix([pf.u * (hw * MM), pf.v * (hh * MM), axis_w], pf.origin)
+        );
+    }
+
+    /// The triangle meshes (baffles), black.
+    fn meshes(&mut self, bench: &Bench) {
+        for (m, _) in bench.meshes() {
+            let mut soup = Soup::default();
+            for t in m.triangles() {
+                let p = |v: glam::Vec3A| DVec3::new(v.x as f64, v.y as f64, v.z as f64);
+                let a = soup.vertex(p(t.v0), None);
+                let b = soup.vertex(p(t.v1), None);
+                let c = soup.vertex(p(t.v2), None);
+                soup.tri(a, b, c);
+            }
+            self.black.append(&soup);
+        }
+    }
+
+    /// The DMD: one mesh of every facet in its pattern state, over a black substrate.
+    fn dmd(&mut self, setup: &DmdSetup, opts: &ExportOptions) -> Result<()> {
         let d = &setup.dmd;
         let r = constant(&d.reflectance, "the DMD mirror reflectance".into())?;
         let mut soup = Soup::default();
@@ -767,82 +837,71 @@ pub fn export_mitsuba(bench: &Bench, opts: &ExportOptions) -> Result<MitsubaScen
                 ]);
             }
         }
-        let bsdf = format!(
-            "<bsdf type=\"conductor\"><string name=\"material\" value=\"none\"/>\
-             <float name=\"specular_reflectance\" value=\"{}\"/></bsdf>",
-            fmt(r)
-        );
-        add_mesh(&mut xml, &mut files, "dmd_mirrors", &soup, &bsdf);
+        self.add_mesh("dmd_mirrors", &soup, &conductor(r));
         // The substrate below the tilted mirrors: light that falls between them is absorbed,
         // as in spibench (DmdHit::Gap).
         let (hx, hy) = d.half_size();
         let z = -2.0 * d.slab_half_height();
-        black.append(&plane_soup(
+        self.black.append(&plane_soup(
             &Frame::new(DVec3::new(0.0, 0.0, z), DVec3::Z, Some(DVec3::X)),
             Shape2D::Rect {
                 half_u: hx,
                 half_v: hy,
             },
         ));
+        Ok(())
     }
-    if !black.is_empty() {
-        add_mesh(&mut xml, &mut files, "absorbers", &black, BLACK);
-    }
-    // The lamp.
-    let lamp = &bench.lamp();
-    let f = lamp.frame;
-    let area_mm2 = lamp.shape.area() * MM * MM;
-    let radiance = lamp.band_power_w / (std::f64::consts::PI * area_mm2);
-    let (shape_xml, shape_json) = match lamp.shape {
-        EmitterShape::Rect { half_u, half_v } => (
-            format!(
-                "<shape type=\"rectangle\" id=\"lamp\">\n    <transform name=\"to_world\">\
-                 <matrix value=\"{}\"/></transform>",
-                matrix([f.u * (half_u * MM), f.v * (half_v * MM), f.w], f.origin)
+
+    /// The lamp's filament as an area emitter (closing `scene.xml`); returns its manifest
+    /// entry.
+    fn lamp(&mut self, bench: &Bench, opts: &ExportOptions) -> Result<serde_json::Value> {
+        let lamp = &bench.lamp();
+        let f = lamp.frame;
+        let area_mm2 = lamp.shape.area() * MM * MM;
+        let radiance = lamp.band_power_w / (std::f64::consts::PI * area_mm2);
+        let (shape_xml, shape_json) = match lamp.shape {
+            EmitterShape::Rect { half_u, half_v } => (
+                format!(
+                    "<shape type=\"rectangle\" id=\"lamp\">\n    <transform name=\"to_world\">\
+                     <matrix value=\"{}\"/></transform>",
+                    matrix([f.u * (half_u * MM), f.v * (half_v * MM), f.w], f.origin)
+                ),
+                json!({"type": "rect", "half_u_mm": half_u * MM, "half_v_mm": half_v * MM}),
             ),
-            json!({"type": "rect", "half_u_mm": half_u * MM, "half_v_mm": half_v * MM}),
-        ),
-        EmitterShape::Disk { radius } => (
-            format!(
-                "<shape type=\"disk\" id=\"lamp\">\n    <transform name=\"to_world\">\
-                 <matrix value=\"{}\"/></transform>",
-                matrix([f.u * (radius * MM), f.v * (radius * MM), f.w], f.origin)
+            EmitterShape::Disk { radius } => (
+                format!(
+                    "<shape type=\"disk\" id=\"lamp\">\n    <transform name=\"to_world\">\
+                     <matrix value=\"{}\"/></transform>",
+                    matrix([f.u * (radius * MM), f.v * (radius * MM), f.w], f.origin)
+                ),
+                json!({"type": "disk", "radius_mm": radius * MM}),
             ),
-            json!({"type": "disk", "radius_mm": radius * MM}),
-        ),
-    };
-    let _ = writeln!(
-        xml,
-        "  {shape_xml}\n    {BLACK}\n    <emitter type=\"area\">\
-         <float name=\"radiance\" value=\"{}\"/></emitter>\n  </shape>\n</scene>",
-        fmt(radiance)
-    );
-    let spectrum_json = match (&lamp.spectrum, opts.spectral) {
-        (_, false) => json!({"kind": "monochromatic"}),
-        (
-            LampSpectrum::Graybody {
-                temperature_k,
-                emissivity,
-            },
-            true,
-        ) => {
-            json!({"kind": "graybody", "temperature_k": temperature_k, "emissivity": emissivity})
-        }
-        (_, true) => {
-            return Err(unrepresentable(
-                "the lamp spectrum is not a graybody (Mitsuba's blackbody times a constant)".into(),
-            ));
-        }
-    };
-    let manifest = json!({
-        "generator": format!("spibench {} export-mitsuba", env!("CARGO_PKG_VERSION")),
-        "mitsuba_version": "3.9.1",
-        "units": "millimetres; powers in W",
-        "wavelength_nm": opts.wavelength_m.map(|w| w * 1e9),
-        "pattern": opts.pattern_label,
-        "pattern_units": opts.pattern.len(),
-        "max_depth": depth,
-        "lamp": {
+        };
+        let _ = writeln!(
+            self.xml,
+            "  {shape_xml}\n    {BLACK}\n    <emitter type=\"area\">\
+             <float name=\"radiance\" value=\"{}\"/></emitter>\n  </shape>\n</scene>",
+            fmt(radiance)
+        );
+        let spectrum_json = match (&lamp.spectrum, opts.spectral) {
+            (_, false) => json!({"kind": "monochromatic"}),
+            (
+                LampSpectrum::Graybody {
+                    temperature_k,
+                    emissivity,
+                },
+                true,
+            ) => {
+                json!({"kind": "graybody", "temperature_k": temperature_k, "emissivity": emissivity})
+            }
+            (_, true) => {
+                return Err(unrepresentable(
+                    "the lamp spectrum is not a graybody (Mitsuba's blackbody times a constant)"
+                        .into(),
+                ));
+            }
+        };
+        Ok(json!({
             "origin_mm": [f.origin.x * MM, f.origin.y * MM, f.origin.z * MM],
             "u": [f.u.x, f.u.y, f.u.z],
             "v": [f.v.x, f.v.y, f.v.z],
@@ -852,18 +911,44 @@ pub fn export_mitsuba(bench: &Bench, opts: &ExportOptions) -> Result<MitsubaScen
             "radiance_w_per_mm2_sr": radiance,
             "sin2_max": lamp.sin2_max,
             "spectrum": spectrum_json,
-        },
-        "band_nm": [bench.band().0 * 1e9, bench.band().1 * 1e9],
-        "detectors": detectors_json,
-    });
-    files.push(("scene.xml".into(), xml.into_bytes()));
-    files.push((
-        "manifest.json".into(),
-        serde_json::to_string_pretty(&manifest)
-            .map_err(|e| Error::Numerical(e.to_string()))?
-            .into_bytes(),
-    ));
-    Ok(MitsubaScene { files, notes })
+        }))
+    }
+}
+
+/// The chrome of a chart face outside its image: up to four rectangles (below, above, left and
+/// right of the image) of the plate `(half_u, half_v)`, the image spanning `(x0, x1, y0, y1)`
+/// in face coordinates.
+fn chrome_strips(face: &Frame, (half_u, half_v): (f64, f64), bounds: (f64, f64, f64, f64)) -> Soup {
+    let (x0, x1, y0, y1) = bounds;
+    let mut rest = Soup::default();
+    let at = |x: f64, y: f64| face.origin + x * face.u + y * face.v;
+    for (a, b, cc, d) in [
+        (
+            (-half_u, -half_v),
+            (half_u, -half_v),
+            (half_u, y0),
+            (-half_u, y0),
+        ),
+        (
+            (-half_u, y1),
+            (half_u, y1),
+            (half_u, half_v),
+            (-half_u, half_v),
+        ),
+        ((-half_u, y0), (x0, y0), (x0, y1), (-half_u, y1)),
+        ((x1, y0), (half_u, y0), (half_u, y1), (x1, y1)),
+    ] {
+        if (b.0 - a.0) <= 0.0 || (cc.1 - b.1) <= 0.0 {
+            continue;
+        }
+        let i = rest.vertex(at(a.0, a.1), None);
+        let j = rest.vertex(at(b.0, b.1), None);
+        let l = rest.vertex(at(cc.0, cc.1), None);
+        let m = rest.vertex(at(d.0, d.1), None);
+        rest.tri(i, j, l);
+        rest.tri(i, l, m);
+    }
+    rest
 }
 
 #[cfg(test)]

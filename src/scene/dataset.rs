@@ -30,6 +30,7 @@ use serde::{Deserialize, Serialize};
 use crate::acquisition::Scheme;
 use crate::error::{Error, Result};
 use crate::raster::Raster;
+use crate::scene::locate;
 
 /// The largest object grid side (pixels).
 pub const MAX_GRID_SIDE: usize = 1024;
@@ -220,21 +221,6 @@ pub struct DatasetSpec {
     pub objects: ObjectSource,
 }
 
-/// The 1-based line and column of the first `field:` in `text`, for errors found after parsing.
-fn locate(text: &str, field: &str) -> Option<(usize, usize)> {
-    let key = format!("{field}:");
-    text.lines().enumerate().find_map(|(i, l)| {
-        l.find(&key).and_then(|c| {
-            let before = &l[..c];
-            let ok = before
-                .chars()
-                .last()
-                .is_none_or(|ch| !ch.is_alphanumeric() && ch != '_');
-            ok.then_some((i + 1, c + 1))
-        })
-    })
-}
-
 /// Reads and validates a dataset spec; images are loaded (and checked against the grid) here.
 /// `bytes_per_sample` gives the disk a sample needs, to check `max_disk_gb` (the caller knows
 /// the acquisition; pass 0 to skip).
@@ -246,11 +232,8 @@ pub fn read_dataset(path: &Path) -> Result<DatasetSpec> {
 pub fn parse_dataset(text: &str, path: &Path) -> Result<DatasetSpec> {
     let file: DatasetFile = crate::scene::parse_ron(text, path)?;
     let err = |field: &str, msg: String| {
-        let mut e = Error::field(field, msg).in_file(path);
-        if let Some((l, c)) = locate(text, field) {
-            e = e.at_line(l, c);
-        }
-        e
+        let e = Error::field(field, msg).in_file(path);
+        locate::at(e, text, locate::first_key(text, field))
     };
     let base = path.parent().unwrap_or(Path::new("."));
     if file.samples == 0 {
@@ -463,10 +446,7 @@ impl DatasetSpec {
 
     /// An input error located at `field` of the spec.
     pub fn error(&self, field: &str, message: impl Into<String>) -> Error {
-        let mut e = Error::field(field, message).in_file(&self.path);
-        if let Some((l, c)) = locate(&self.text, field) {
-            e = e.at_line(l, c);
-        }
-        e
+        let e = Error::field(field, message).in_file(&self.path);
+        locate::at(e, &self.text, locate::first_key(&self.text, field))
     }
 }

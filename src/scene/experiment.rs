@@ -27,6 +27,7 @@ use crate::error::{Error, Result};
 use crate::objects::ObjectSpec;
 use crate::reconstruction::ZeroOneHandling;
 use crate::reconstruction::tval3::Tval3Options;
+use crate::scene::locate;
 
 /// The largest image an experiment may ask for, in pattern units (a 1024×1024 grid: the whole
 /// DMD at one mirror per unit). Larger grids are almost certainly a typing error.
@@ -91,26 +92,7 @@ fn default_dmd_rate() -> f64 {
 }
 
 /// A sampling ratio in (0, 1], validated while parsing so that errors carry line and column.
-#[derive(Debug, Clone, Copy, PartialEq, Deserialize, serde::Serialize)]
-#[serde(try_from = "f64", into = "f64")]
-pub struct Ratio(pub f64);
-
-impl From<Ratio> for f64 {
-    fn from(v: Ratio) -> f64 {
-        v.0
-    }
-}
-
-impl TryFrom<f64> for Ratio {
-    type Error = String;
-    fn try_from(v: f64) -> std::result::Result<Self, String> {
-        if v.is_finite() && v > 0.0 && v <= 1.0 {
-            Ok(Ratio(v))
-        } else {
-            Err(format!("a sampling ratio must lie in (0, 1], got {v}"))
-        }
-    }
-}
+pub use crate::scene::numbers::Ratio;
 
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -405,9 +387,8 @@ fn locate(e: Error, text: &str, path: &Path) -> Error {
     if let Some(field) = field {
         let mut probe = field.as_str();
         loop {
-            if let Some(pos) = super::find_path(text, probe) {
-                let (line, col) = super::line_col(text, pos);
-                return e.at_line(line, col);
+            if let Some(pos) = locate::find_path(text, probe) {
+                return locate::at(e, text, Some(pos));
             }
             // Up one level: `a.b[2].c` → `a.b[2]` → `a.b` → `a`.
             match probe.rfind(['.', '[']) {
@@ -415,11 +396,9 @@ fn locate(e: Error, text: &str, path: &Path) -> Error {
                 None => break,
             }
         }
-        if let Some((line, col)) =
-            super::find_path(text, field.split(['[', '.']).next().unwrap_or(&field))
-                .map(|p| super::line_col(text, p))
-        {
-            return e.at_line(line, col);
+        let top = field.split(['[', '.']).next().unwrap_or(&field);
+        if let Some(pos) = locate::find_path(text, top) {
+            return locate::at(e, text, Some(pos));
         }
         // A field not written at all: the top of the file.
         return e.at_line(1, 1);

@@ -3,12 +3,15 @@
 //! Scene and experiment files carry their units in field names (`focal_length_mm`,
 //! `wavelength_nm`); this module validates them and converts to SI once, so that everything
 //! downstream holds valid, SI-valued data. Every error names the file, the line and column, and
-//! the field.
+//! the field; [`locate`] finds
+//! where a field is written, [`numbers`] holds the checked number types.
 
 pub mod bench;
 pub mod dataset;
 pub mod doc;
 pub mod experiment;
+pub mod locate;
+pub mod numbers;
 pub mod run;
 pub mod tolerance;
 pub mod variables;
@@ -18,6 +21,10 @@ use std::path::Path;
 use serde::de::DeserializeOwned;
 
 use crate::error::{Error, Result};
+
+pub(crate) use locate::line_col;
+pub use locate::{field_before, find_path, path_at};
+use locate::{last_key_before, offset_of};
 
 /// Parses RON text into `T`, mapping every parse or validation error to an [`Error::Input`]
 /// that names `path`, the line and column, and the field.
@@ -145,192 +152,6 @@ fn join_path(base: Option<&str>, field: &str) -> String {
         Some(b) if !b.is_empty() => b.to_string(),
         _ => field.to_string(),
     }
-}
-
-/// Byte offset of a 1-based line and column.
-fn offset_of(text: &str, line: usize, col: usize) -> usize {
-    let mut offset = 0;
-    for (i, l) in text.split_inclusive('\n').enumerate() {
-        if i + 1 == line {
-            return offset
-                + l.char_indices()
-                    .nth(col.saturating_sub(1))
-                    .map_or(l.len(), |(b, _)| b);
-        }
-        offset += l.len();
-    }
-    text.len()
-}
-
-/// 1-based line and column of a byte offset.
-pub(crate) fn line_col(text: &str, pos: usize) -> (usize, usize) {
-    let mut pos = pos.min(text.len());
-    while !text.is_char_boundary(pos) {
-        pos -= 1;
-    }
-    let before = &text[..pos];
-    let line = before.matches('\n').count() + 1;
-    let col = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
-    (line, col)
-}
-
-/// Offset of the last `key:` (as a whole word, outside comments and strings) before `pos`.
-fn last_key_before(text: &str, key: &str, pos: usize) -> Option<usize> {
-    keys(text)
-        .into_iter()
-        .filter(|&(p, k)| k == key && p < pos)
-        .map(|(p, _)| p)
-        .next_back()
-}
-
-/// Every `identifier:` of the text outside comments and strings: (offset, identifier).
-fn keys(text: &str) -> Vec<(usize, &str)> {
-    let b = text.as_bytes();
-    let mut out = Vec::new();
-    let mut i = 0;
-    while i < b.len() {
-        if let Some(next) = bench::skip_trivia(b, i) {
-            i = next;
-            continue;
-        }
-        if b[i].is_ascii_alphabetic() || b[i] == b'_' {
-            let start = i;
-            while i < b.len() && (b[i].is_ascii_alphanumeric() || b[i] == b'_') {
-                i += 1;
-            }
-            let mut j = i;
-            while j < b.len() && b[j].is_ascii_whitespace() {
-                j += 1;
-            }
-            if j < b.len() && b[j] == b':' && b.get(j + 1) != Some(&b':') {
-                out.push((start, &text[start..i]));
-            }
-            continue;
-        }
-        i += 1;
-    }
-    out
-}
-
-/// The full path (`cases[1].arms.b_minus`) of the field whose value holds byte offset `pos`:
-/// struct fields joined by `.`, list items by their index. None outside every field.
-pub fn path_at(text: &str, pos: usize) -> Option<String> {
-    enum Frame {
-        Struct(Option<String>),
-        List(usize),
-    }
-    let b = text.as_bytes();
-    let end = pos.min(b.len());
-    let mut stack: Vec<Frame> = Vec::new();
-    let mut i = 0;
-    while i < end {
-        if let Some(next) = bench::skip_trivia(b, i) {
-            i = next;
-            continue;
-        }
-        match b[i] {
-            b'(' | b'{' => stack.push(Frame::Struct(None)),
-            b'[' => stack.push(Frame::List(0)),
-            b')' | b']' | b'}' => {
-                stack.pop();
-            }
-            b',' => match stack.last_mut() {
-                Some(Frame::List(n)) => *n += 1,
-                Some(Frame::Struct(f)) => *f = None,
-                None => {}
-            },
-            c if c.is_ascii_alphabetic() || c == b'_' => {
-                let start = i;
-                while i < b.len() && (b[i].is_ascii_alphanumeric() || b[i] == b'_') {
-                    i += 1;
-                }
-                let mut j = i;
-                while j < b.len() && b[j].is_ascii_whitespace() {
-                    j += 1;
-                }
-                if j < b.len()
-                    && b[j] == b':'
-                    && b.get(j + 1) != Some(&b':')
-                    && let Some(Frame::Struct(f)) = stack.last_mut()
-                {
-                    *f = Some(text[start..i].to_string());
-                }
-                continue;
-            }
-            _ => {}
-        }
-        i += 1;
-    }
-    let mut path = String::new();
-    for f in &stack {
-        match f {
-            Frame::Struct(Some(name)) => {
-                if !path.is_empty() {
-                    path.push('.');
-                }
-                path.push_str(name);
-            }
-            Frame::Struct(None) => {}
-            Frame::List(n) => path.push_str(&format!("[{n}]")),
-        }
-    }
-    (!path.is_empty()).then_some(path)
-}
-
-/// Offset of the field at a full path (`cases[1].label`, as [`path_at`] writes it): the
-/// first `key:` whose path is that one. None when the field is not written in the text.
-pub fn find_path(text: &str, path: &str) -> Option<usize> {
-    let last = path.rsplit('.').next().unwrap_or(path);
-    let last = last.split('[').next().unwrap_or(last);
-    keys(text)
-        .into_iter()
-        .filter(|&(_, k)| k == last)
-        .map(|(p, k)| (p, p + k.len() + 1))
-        .find(|&(_, after)| {
-            path_at(text, after + 1).is_some_and(|found| {
-                found == path || found.strip_prefix(path).is_some_and(|r| r.starts_with('['))
-            })
-        })
-        .map(|(p, _)| p)
-}
-
-/// The name of the field whose value contains the position (1-based line and column): the last
-/// `identifier:` at or before it. Used to name the field of a value that failed validation.
-pub fn field_before(text: &str, line: usize, col: usize) -> Option<String> {
-    let mut offset = 0;
-    for (i, l) in text.split_inclusive('\n').enumerate() {
-        if i + 1 == line {
-            offset += l
-                .char_indices()
-                .nth(col.saturating_sub(1))
-                .map_or(l.len(), |(b, _)| b);
-            break;
-        }
-        offset += l.len();
-    }
-    let before = &text[..offset.min(text.len())];
-    let bytes = before.as_bytes();
-    let mut i = bytes.len();
-    while i > 0 {
-        i -= 1;
-        if bytes[i] == b':'
-            && !(i + 1 < bytes.len() && bytes[i + 1] == b':')
-            && !(i > 0 && bytes[i - 1] == b':')
-        {
-            let mut j = i;
-            while j > 0 && bytes[j - 1] == b' ' {
-                j -= 1;
-            }
-            let end = j;
-            while j > 0 && (bytes[j - 1].is_ascii_alphanumeric() || bytes[j - 1] == b'_') {
-                j -= 1;
-            }
-            if j < end {
-                return Some(before[j..end].to_string());
-            }
-        }
-    }
-    None
 }
 
 #[cfg(test)]

@@ -35,6 +35,7 @@ use crate::optics::Bench;
 use crate::reconstruction::tval3::Tval3Options;
 use crate::scene::bench::{BenchFile, NonNegative, Positive, build_bench};
 use crate::scene::experiment::{NoiseSpec, PatternsSpec, Ratio};
+use crate::scene::locate;
 
 /// Everything `spibench run` needs, validated and in SI.
 #[derive(Debug, Clone)]
@@ -481,48 +482,14 @@ pub fn electronics_si(
     Ok((detector, scope))
 }
 
-/// Adds the file, the field and (when the field is written in the file) its line.
+/// Adds the file, the field and (when the field is written in the file) its line: the first
+/// `field:` after the top-level `section:`, or the section itself when the field is not written.
 fn locate_error(e: Error, text: Option<&str>, path: &Path, section: &str, field: &str) -> Error {
-    let mut e = e.in_file(path).at_field(field);
-    if let Some((line, col)) = text.and_then(|t| find_field(t, section, field)) {
-        e = e.at_line(line, col);
+    let e = e.in_file(path).at_field(field);
+    match text {
+        Some(t) => locate::at(e, t, locate::key_after(t, section, field)),
+        None => e,
     }
-    e
-}
-
-/// The line and column of `field:` after the top-level `section:` (a plain text search, with
-/// `//` comments skipped), or of the section itself when the field is not written.
-fn find_field(text: &str, section: &str, field: &str) -> Option<(usize, usize)> {
-    let mut in_section = None;
-    for (i, line) in text.lines().enumerate() {
-        let code = line.split("//").next().unwrap_or("");
-        let trimmed = code.trim_start();
-        if in_section.is_none() && trimmed.starts_with(&format!("{section}:")) {
-            in_section = Some((i + 1, code.len() - trimmed.len() + 1));
-        }
-        if in_section.is_some()
-            && let Some(c) = find_word(code, &format!("{field}:"))
-        {
-            return Some((i + 1, c + 1));
-        }
-    }
-    in_section
-}
-
-fn find_word(code: &str, word: &str) -> Option<usize> {
-    let mut start = 0;
-    while let Some(k) = code[start..].find(word) {
-        let at = start + k;
-        let before_ok = at == 0 || {
-            let c = code.as_bytes()[at - 1];
-            !(c.is_ascii_alphanumeric() || c == b'_')
-        };
-        if before_ok {
-            return Some(code[..at].chars().count());
-        }
-        start = at + word.len();
-    }
-    None
 }
 
 type FieldResult<T> = std::result::Result<T, (&'static str, Error)>;

@@ -227,16 +227,10 @@ impl ToleranceSet {
         is_metric: &dyn Fn(&str) -> bool,
     ) -> Result<Self> {
         let spec: ToleranceFileSpec = crate::scene::parse_ron(text, path)?;
-        // An error at the line where `needle` (a quoted path) first appears after `from`.
+        // An error at the line where `needle` (a path or a metric, a string) is first written.
         let locate = |needle: &str, field: &str, msg: String| -> Error {
-            let quoted = format!("\"{needle}\"");
-            let mut e = Error::field(field, msg).in_file(path);
-            if let Some(k) = text.find(&quoted) {
-                let line = text[..k].matches('\n').count() + 1;
-                let col = k - text[..k].rfind('\n').map_or(0, |j| j + 1) + 1;
-                e = e.at_line(line, col);
-            }
-            e
+            let e = Error::field(field, msg).in_file(path);
+            crate::scene::locate::at(e, text, crate::scene::locate::string_literal(text, needle))
         };
         if spec.tolerances.len() > MAX_ENTRIES || spec.compensators.len() > MAX_ENTRIES {
             return Err(Error::field(
