@@ -927,11 +927,7 @@ impl Solid {
 
 /// The mirror state used by traces that set the pattern area explicitly.
 pub fn state_of_bit(bit: bool) -> MirrorState {
-    if bit {
-        MirrorState::Plus
-    } else {
-        MirrorState::Minus
-    }
+    MirrorState::from_bit(bit)
 }
 
 #[cfg(test)]

@@ -14,6 +14,9 @@
 
 use glam::{DMat3, DVec3};
 
+use super::arm::Arm;
+use super::fresnel::reflect;
+use super::geometry::SURFACE_OFFSET;
 use super::spectrum::Spectrum;
 
 /// A mirror's state. Powered mirrors are only ever at ±tilt; `Flat` is the unpowered (parked)
@@ -23,6 +26,28 @@ pub enum MirrorState {
     Plus,
     Minus,
     Flat,
+}
+
+impl MirrorState {
+    /// The state of a unit that a pattern bit sets: + for a set bit, − otherwise.
+    #[inline]
+    pub const fn from_bit(bit: bool) -> MirrorState {
+        if bit {
+            MirrorState::Plus
+        } else {
+            MirrorState::Minus
+        }
+    }
+
+    /// The arm this state sends light into (state + into arm +); `Flat` sends it into neither.
+    #[inline]
+    pub const fn arm(self) -> Option<Arm> {
+        match self {
+            MirrorState::Plus => Some(Arm::Plus),
+            MirrorState::Minus => Some(Arm::Minus),
+            MirrorState::Flat => None,
+        }
+    }
 }
 
 /// The block of mirrors that carries the pattern: `units_across` × `units_down` units of
@@ -93,6 +118,37 @@ pub enum DmdHit {
     /// The ray went down between mirrors (into the gaps or onto the back of a mirror): absorbed
     /// by the CMOS substrate and hinges. `t` is where it crossed z = 0.
     Gap { t: f64 },
+}
+
+/// The mirror states of the pattern area as one path sees them; mirrors outside the pattern area
+/// are always in the array's `outside` state.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum PatternStates<'a> {
+    /// Every pattern mirror in one state.
+    Uniform(MirrorState),
+    /// Unit j's mirrors in state + when `bits[j]`, − otherwise (row-major units).
+    Bits(&'a [bool]),
+}
+
+/// What the array does to a ray that meets it ([`Dmd::interact`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum DmdOutcome {
+    /// Reflected by the front of a mirror: the ray leaves from `origin` (just off the facet)
+    /// along `direction`, its weight multiplied by the aluminium's `reflectance` (the rest is
+    /// absorbed by the mirrors). `unit`: the pattern unit the mirror belongs to, None for a
+    /// mirror outside the pattern area.
+    Reflected {
+        origin: DVec3,
+        direction: DVec3,
+        reflectance: f64,
+        unit: Option<usize>,
+    },
+    /// The ray went down between the mirrors (into the gaps or onto the back of a mirror): the
+    /// CMOS substrate and hinges absorb it.
+    Absorbed,
+    /// An upward ray that met no neighbouring mirror: it carries on in its direction from
+    /// `origin`, just above the slab that holds the mirrors.
+    Left { origin: DVec3 },
 }
 
 #[inline]
@@ -298,6 +354,66 @@ impl Dmd {
         }
     }
 
+    /// The pattern unit whose footprint a downward ray crosses on the array plane z = 0, if any:
+    /// where a trace attributes a path to a unit (and splits it into its mirror-state branches).
+    #[inline]
+    pub fn unit_crossed(&self, o: DVec3, d: DVec3) -> Option<usize> {
+        let q = self.plane_crossing(o, d)?;
+        self.cell_at(q.x, q.y)
+            .and_then(|(c, r)| self.pattern.unit_of(c, r))
+    }
+
+    /// A ray (origin `o`, unit direction `d`, wavelength `wavelength_m`) that has reached the
+    /// array ([`Dmd::slab_entry`]) meets the actual tilted facets, with the pattern mirrors in
+    /// `states` and all others in the `outside` state: geometric reflection on the front of a
+    /// facet with the aluminium's reflectance R(λ) (docs/bench-facts.md §2.2–2.3), absorption
+    /// in the gaps, or, for an upward ray that meets no neighbouring facet, a way out of the
+    /// slab. The one place where the DMD acts on a ray; its diffraction (blaze and orders) is not
+    /// modelled.
+    pub fn interact(
+        &self,
+        o: DVec3,
+        d: DVec3,
+        wavelength_m: f64,
+        states: PatternStates,
+    ) -> DmdOutcome {
+        let pattern = self.pattern;
+        let outside = self.outside;
+        let state_of = |c: usize, r: usize| -> MirrorState {
+            match pattern.unit_of(c, r) {
+                None => outside,
+                Some(j) => match states {
+                    PatternStates::Uniform(s) => s,
+                    PatternStates::Bits(bits) => MirrorState::from_bit(bits[j]),
+                },
+            }
+        };
+        match self.intersect(o, d, 0.0, state_of) {
+            Some(DmdHit::Mirror {
+                t,
+                col,
+                row,
+                normal,
+            }) => {
+                let hit = o + t * d;
+                DmdOutcome::Reflected {
+                    origin: hit + SURFACE_OFFSET * normal,
+                    direction: reflect(d, normal),
+                    reflectance: self.reflectance.at(wavelength_m).clamp(0.0, 1.0),
+                    unit: pattern.unit_of(col, row),
+                }
+            }
+            Some(DmdHit::Gap { .. }) => DmdOutcome::Absorbed,
+            None => {
+                // An upward ray that met no neighbouring mirror: move it just above the slab.
+                let t_exit = (self.h - o.z) / d.z;
+                DmdOutcome::Left {
+                    origin: o + (t_exit + SURFACE_OFFSET / d.z) * d,
+                }
+            }
+        }
+    }
+
     /// The rotation that takes a flat mirror into `state` (for tests and exporters).
     pub fn rotation(&self, state: MirrorState) -> DMat3 {
         self.rot[state_index(state)]
@@ -307,7 +423,6 @@ impl Dmd {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::optics::fresnel::reflect;
 
     fn dlp7000() -> Dmd {
         Dmd::new(

@@ -7,6 +7,11 @@
 
 use glam::{DMat3, DVec3};
 
+/// Distance (m) by which a ray leaving a surface is moved off it, to the side it leaves on.
+/// 1 nm: far below every feature of the bench (the thinnest gap is the DMD's ~1 µm) and far above
+/// f64 rounding at bench scale (~1e-16 m).
+pub const SURFACE_OFFSET: f64 = 1e-9;
+
 /// An orthonormal frame: `origin`, in-plane axes `u`, `v` and normal `w` (u × v = w).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Frame {

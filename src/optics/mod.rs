@@ -1,7 +1,9 @@
 //! The optics of the bench, pure and in SI units (metres, watts, amperes): spectra, glasses,
-//! Fresnel and thin-film coatings, analytic surfaces, meshes (obvhs), the DMD, the chart masks,
-//! the lamp and the assembled [`bench::Bench`]. Knows nothing of files, threads or serde.
+//! Fresnel and thin-film coatings, analytic surfaces, meshes (obvhs), the DMD and the two
+//! detection arms it serves, the chart masks, the lamp and the assembled [`bench::Bench`]. Knows
+//! nothing of files, threads or serde.
 
+pub mod arm;
 pub mod bench;
 pub mod chart;
 pub mod dmd;
@@ -15,4 +17,5 @@ pub mod monochromatic;
 pub mod outline;
 pub mod spectrum;
 
+pub use arm::Arm;
 pub use bench::Bench;

@@ -15,10 +15,10 @@
 use glam::DVec3;
 
 use crate::error::{Error, Result};
-use crate::optics::Bench;
 use crate::optics::bench::{Interaction, Target};
-use crate::optics::dmd::MirrorState;
+use crate::optics::dmd::{MirrorState, state_index};
 use crate::optics::fresnel::{reflect, refract};
+use crate::optics::{Arm, Bench};
 
 use super::path::{PatternMode, Recorder, SURFACE_OFFSET, run_batch_recorded};
 use super::tally::{
@@ -420,17 +420,14 @@ pub fn dmd_axes(bench: &Bench, wl: f64) -> std::result::Result<DmdAxes, String> 
 }
 
 impl DmdAxes {
-    /// The chief ray of arm k (0 = +, 1 = −) from the arrival point, started just above the
-    /// slab that holds the tilted mirrors.
+    /// The chief ray of arm k (0 = +, 1 = −, [`Arm::index`]) from the arrival point, started
+    /// just above the slab that holds the tilted mirrors: the reflection by mirrors in the state
+    /// that sends light into the arm.
     pub fn arm_chief_ray(&self, bench: &Bench, k: usize, wl: f64) -> ChiefRay {
-        let d = self.outgoing[k];
+        let state = Arm::from_index(k).state();
+        let d = self.outgoing[state_index(state)];
         let h = bench.dmd().map_or(0.0, |s| s.dmd.slab_half_height());
         let start = self.arrival + ((h - self.arrival.z) / d.z.max(1e-9) + SURFACE_OFFSET) * d;
-        let state = if k == 0 {
-            MirrorState::Plus
-        } else {
-            MirrorState::Minus
-        };
         let mut ray = chief_ray(bench, start, d, wl, state);
         ray.points[0] = self.arrival;
         ray
@@ -455,15 +452,19 @@ mod tests {
         assert_eq!(a, b);
         assert!(a.rays.len() <= 300 && a.rays.len() > 250);
         let c = a.counts();
-        assert!(c[0] > 0 && c[1] > 0, "both arms detected: {c:?}");
+        let detected = |f: Fate| c[Fate::ALL.iter().position(|g| *g == f).unwrap()];
+        assert!(
+            detected(Fate::DetectedPlus) > 0 && detected(Fate::DetectedMinus) > 0,
+            "both arms detected: {c:?}"
+        );
         for r in &a.rays {
             let end = *r.points.last().unwrap();
-            if let Some(i) = match r.fate {
-                Fate::DetectedPlus => Some(0),
-                Fate::DetectedMinus => Some(1),
+            if let Some(arm) = match r.fate {
+                Fate::DetectedPlus => Some(Arm::Plus),
+                Fate::DetectedMinus => Some(Arm::Minus),
                 _ => None,
             } {
-                let det = &bench.detectors()[i];
+                let det = &bench.detectors()[arm];
                 let l = det.frame.to_local(end);
                 assert!(l.z.abs() < 1e-6, "{l:?}");
                 assert!(l.x.hypot(l.y) <= det.radius * (1.0 + 1e-9));

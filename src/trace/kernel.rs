@@ -38,10 +38,11 @@ use std::collections::HashMap;
 use rayon::prelude::*;
 
 use crate::error::{Error, Result};
-use crate::optics::Bench;
+use crate::optics::dmd::MirrorState;
+use crate::optics::{Arm, Bench};
 
 use super::path::{self, ChartCrossing, Detection, NO_PIXEL, PatternMode, Recorder};
-use super::tally::{BRANCH_MINUS, BRANCH_PLUS, BatchTally, COMMON, Tallies};
+use super::tally::{BatchTally, Tallies, branch_state};
 use super::{BATCHES_PER_CHUNK, RAYS_PER_BATCH, TraceOptions};
 
 /// The object grid on a chart face: `width_px` × `height_px` pixels covering `width_m` ×
@@ -76,8 +77,46 @@ impl ObjectGrid {
     }
 }
 
-/// Per-pixel batch vector: (g₊, g₋, x, c₊, c₋) summed over units.
+/// Per-pixel batch vector: (g₊, g₋, x, c₊, c₋) summed over units. The same length holds a
+/// kernel entry's batch values: T[d][s] at [`BatchTally::t_block`], then x at [`ENTRY_X`].
 const PV: usize = 5;
+
+/// Index of g of `arm` in the per-pixel vector.
+pub const fn pv_g(arm: Arm) -> usize {
+    arm.index()
+}
+
+/// Index of x in the per-pixel vector.
+pub const PV_X: usize = 2;
+
+/// Index of c of `arm` in the per-pixel vector.
+pub const fn pv_c(arm: Arm) -> usize {
+    3 + arm.index()
+}
+
+/// Index of x in a kernel entry's batch values (after the four T[d][s]).
+const ENTRY_X: usize = 4;
+
+/// A kernel entry's accumulator: the sums of its batch values ([`PV`] of them), then the raw
+/// batch second moments Σ g² (per arm, from [`ACC_G2`]), Σ g·x (per arm, from [`ACC_GX`]) and
+/// Σ x² ([`ACC_X2`]).
+const ACC: usize = 10;
+const ACC_G2: usize = 5;
+const ACC_GX: usize = 7;
+const ACC_X2: usize = 9;
+
+/// The gain g_d = T[d][on] − T[d][off] of `arm` from the four T[d][s] of `t` (blocks of
+/// [`BatchTally::t_block`]).
+#[inline]
+fn gain(t: &[f64], arm: Arm) -> f64 {
+    t[BatchTally::t_block(arm, arm.state())] - t[off_block(arm)]
+}
+
+/// The block T[d][off] of `arm`: the current of arm d from units in the other state, part of c_d.
+#[inline]
+fn off_block(arm: Arm) -> usize {
+    BatchTally::t_block(arm, arm.other().state())
+}
 /// Its second moments (upper triangle, row-major).
 const PQ: usize = 15;
 
@@ -201,18 +240,17 @@ impl Recorder for KernelBatch {
             self.multi_n += 1;
         }
         let i = self.pixel(hit.pixel);
-        if hit.world == COMMON {
-            self.b.entry(i).or_insert([0.0; 2])[hit.detector] += hit.current_a;
-        } else {
-            let s = hit.world - BRANCH_PLUS;
-            debug_assert!(hit.world == BRANCH_PLUS || hit.world == BRANCH_MINUS);
-            self.slot(i, hit.unit)[hit.detector * 2 + s] += hit.current_a;
+        match branch_state(hit.world) {
+            None => self.b.entry(i).or_insert([0.0; 2])[hit.detector] += hit.current_a,
+            Some(state) => {
+                self.slot(i, hit.unit)[BatchTally::t_block(hit.detector, state)] += hit.current_a
+            }
         }
     }
 
     fn incident(&mut self, unit: usize, pixel: u32, w: f64) {
         let i = self.pixel(pixel);
-        self.slot(i, unit)[4] += w;
+        self.slot(i, unit)[ENTRY_X] += w;
     }
 }
 
@@ -254,7 +292,7 @@ pub fn trace_kernel(bench: &Bench, grid: ObjectGrid, options: &TraceOptions) -> 
         options.seed,
         bench.lamp().power_outside_cone(),
     );
-    let mut acc: HashMap<u64, [f64; 10]> = HashMap::new();
+    let mut acc: HashMap<u64, [f64; ACC]> = HashMap::new();
     let mut b = vec![[0.0; 2]; npix + 1];
     let mut psum = vec![[0.0; PV]; npix + 1];
     let mut pq = vec![[0.0; PQ]; npix + 1];
@@ -294,40 +332,43 @@ pub fn trace_kernel(bench: &Bench, grid: ObjectGrid, options: &TraceOptions) -> 
             multi_n += kb.multi_n;
             // Per-entry sums and raw second moments (centred at the end).
             for (key, v) in &kb.values {
-                let a = acc.entry(*key).or_insert([0.0; 10]);
-                let g = [v[0] - v[1], v[3] - v[2]];
+                let a = acc.entry(*key).or_insert([0.0; ACC]);
+                let g = Arm::ALL.map(|arm| gain(v, arm));
+                let x = v[ENTRY_X];
                 for k in 0..PV {
                     a[k] += v[k];
                 }
-                a[5] += g[0] * g[0];
-                a[6] += g[1] * g[1];
-                a[7] += g[0] * v[4];
-                a[8] += g[1] * v[4];
-                a[9] += v[4] * v[4];
+                for arm in Arm::ALL {
+                    a[ACC_G2 + arm.index()] += g[arm] * g[arm];
+                    a[ACC_GX + arm.index()] += g[arm] * x;
+                }
+                a[ACC_X2] += x * x;
                 let i = (*key / units as u64) as usize;
                 let pv = &mut touched[i];
                 if pv.iter().all(|&z| z == 0.0) {
                     touched_list.push(i);
                 }
                 // (g₊, g₋, x, c₊, c₋): c₊ gets T[+][−], c₋ gets T[−][+].
-                pv[0] += g[0];
-                pv[1] += g[1];
-                pv[2] += v[4];
-                pv[3] += v[1];
-                pv[4] += v[2];
+                for arm in Arm::ALL {
+                    pv[pv_g(arm)] += g[arm];
+                    pv[pv_c(arm)] += v[off_block(arm)];
+                }
+                pv[PV_X] += x;
             }
             let mut bkeys: Vec<(&u32, &[f64; 2])> = kb.b.iter().collect();
             bkeys.sort_unstable_by_key(|e| *e.0);
             for (&i, v) in bkeys {
                 let i = i as usize;
-                b[i][0] += v[0];
-                b[i][1] += v[1];
+                for arm in Arm::ALL {
+                    b[i][arm] += v[arm];
+                }
                 let pv = &mut touched[i];
                 if pv.iter().all(|&z| z == 0.0) {
                     touched_list.push(i);
                 }
-                pv[3] += v[0];
-                pv[4] += v[1];
+                for arm in Arm::ALL {
+                    pv[pv_c(arm)] += v[arm];
+                }
             }
             // Sorted so that the floating-point sums per pixel are made in a fixed order.
             touched_list.sort_unstable();
@@ -351,14 +392,14 @@ pub fn trace_kernel(bench: &Bench, grid: ObjectGrid, options: &TraceOptions) -> 
         .into_iter()
         .map(|(key, a)| {
             let (i, j) = ((key / units as u64) as u32, (key % units as u64) as u32);
-            let g = [a[0] - a[1], a[3] - a[2]];
-            let x = a[4];
+            let g = Arm::ALL.map(|arm| gain(&a, arm));
+            let x = a[ENTRY_X];
             let e = KernelEntry {
                 t: [a[0], a[1], a[2], a[3]],
                 x,
-                g2: [a[5] - g[0] * g[0] / nb, a[6] - g[1] * g[1] / nb],
-                gx: [a[7] - g[0] * x / nb, a[8] - g[1] * x / nb],
-                x2: a[9] - x * x / nb,
+                g2: Arm::ALL.map(|arm| a[ACC_G2 + arm.index()] - g[arm] * g[arm] / nb),
+                gx: Arm::ALL.map(|arm| a[ACC_GX + arm.index()] - g[arm] * x / nb),
+                x2: a[ACC_X2] - x * x / nb,
             };
             (i, j, e)
         })
@@ -464,9 +505,9 @@ impl Kernel {
                 p.t[ds * units + j] += ti * e.t[ds];
             }
             p.x[j] += ti * e.x;
-            for d in 0..2 {
-                p.g2[d][j] += t2 * e.g2[d];
-                p.gx[d][j] += t2 * e.gx[d];
+            for arm in Arm::ALL {
+                p.g2[arm][j] += t2 * e.g2[arm];
+                p.gx[arm][j] += t2 * e.gx[arm];
             }
             p.x2[j] += t2 * e.x2;
         }
@@ -475,24 +516,29 @@ impl Kernel {
             if ti == 0.0 {
                 continue;
             }
-            p.b[0] += ti * bi[0];
-            p.b[1] += ti * bi[1];
+            for arm in Arm::ALL {
+                p.b[arm] += ti * bi[arm];
+            }
             for (a, v) in p.q.iter_mut().zip(qi) {
                 *a += ti * ti * v;
             }
         }
-        let g =
-            |d: usize, j: usize| p.t[(d * 2 + d) * units + j] - p.t[(d * 2 + 1 - d) * units + j];
+        let t_at =
+            |arm: Arm, state: MirrorState, j: usize| p.t[BatchTally::t_index(units, arm, state, j)];
         let mut sums = [0.0; PV];
         for j in 0..units {
-            sums[0] += g(0, j);
-            sums[1] += g(1, j);
-            sums[2] += p.x[j];
-            sums[3] += p.t[units + j];
-            sums[4] += p.t[2 * units + j];
+            for arm in Arm::ALL {
+                let (on, off) = (arm.state(), arm.other().state());
+                sums[pv_g(arm)] += t_at(arm, on, j) - t_at(arm, off, j);
+            }
+            sums[PV_X] += p.x[j];
+            for arm in Arm::ALL {
+                sums[pv_c(arm)] += t_at(arm, arm.other().state(), j);
+            }
         }
-        sums[3] += p.b[0];
-        sums[4] += p.b[1];
+        for arm in Arm::ALL {
+            sums[pv_c(arm)] += p.b[arm];
+        }
         p.sums = sums;
         p
     }

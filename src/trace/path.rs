@@ -34,24 +34,23 @@
 //! returning to the array (via window or chart reflections, ~1 %) would meet a mix of states.
 //! Mirrors outside the pattern area are always in the bench's outside state; for an unsplit path
 //! the pattern mirrors adjacent to its crossing cell (only rays within ~2 µm of the pattern
-//! border) are also taken in the outside state.
+//! border) are also taken in the outside state. What the array does to a ray (the facets of each
+//! state, reflection, the gaps) is `optics::dmd::Dmd::interact`; `meet_dmd` here splits the path,
+//! books x_j and the absorbed power.
 
 use glam::DVec3;
 
+use crate::optics::Arm;
 use crate::optics::bench::{Bench, Interaction, Target};
-use crate::optics::dmd::{DmdHit, MirrorState};
+use crate::optics::dmd::{DmdOutcome, MirrorState, PatternStates};
 use crate::optics::fresnel::{reflect, refract};
+pub use crate::optics::geometry::SURFACE_OFFSET;
 use crate::rng::{StreamRng, uniform};
 
 use super::tally::{
-    BRANCH_MINUS, BRANCH_PLUS, BatchTally, COMMON, SLOT_DETECTED_MINUS, SLOT_DETECTED_PLUS,
-    SLOT_EMITTED, SLOT_ESCAPED, SLOT_PATH_CAP,
+    BatchTally, COMMON, SLOT_EMITTED, SLOT_ESCAPED, SLOT_PATH_CAP, branch, branch_state,
+    slot_detected,
 };
-
-/// Distance (m) by which a ray leaving a surface is moved off it, to the side it leaves on.
-/// 1 nm: far below every feature of the bench (the thinnest gap is the DMD's ~1 µm) and far above
-/// f64 rounding at bench scale (~1e-16 m).
-pub const SURFACE_OFFSET: f64 = 1e-9;
 
 /// How the pattern area is set during a trace.
 #[derive(Debug, Clone, Copy)]
@@ -186,12 +185,14 @@ pub(super) trait Recorder {
 /// One photocurrent tallied by a path, for [`Recorder::detected`].
 #[derive(Debug, Clone, Copy)]
 pub(super) struct Detection {
-    /// [`COMMON`] (never met the pattern area), [`BRANCH_PLUS`] or [`BRANCH_MINUS`].
+    /// [`COMMON`] (never met the pattern area), or the branch of a mirror state
+    /// ([`super::tally::BRANCH_PLUS`], [`super::tally::BRANCH_MINUS`]).
     pub world: usize,
     pub unit: usize,
     pub pixel: u32,
     pub chart_hits: u16,
-    pub detector: usize,
+    /// The arm whose photodiode the path reached.
+    pub detector: Arm,
     pub current_a: f64,
 }
 
@@ -287,12 +288,18 @@ fn trace_ray<R: Recorder>(
         pixel: NO_PIXEL,
         chart_hits: 0,
     });
+    let ctx = Walk {
+        bench,
+        mode,
+        wl,
+        index,
+    };
     while let Some(p) = stack.pop() {
-        if p.world == BRANCH_MINUS {
-            // The − branch of the split (pushed by `walk`) draws from its own stream.
+        if p.world == branch(MirrorState::Minus) {
+            // The − branch of the split (pushed by `meet_dmd`) draws from its own stream.
             *rng = key.stream(STREAM_MINUS);
         }
-        walk(bench, mode, wl, index, p, key, rng, tally, stack, rec);
+        walk(&ctx, p, key, rng, tally, stack, rec);
     }
 }
 
@@ -301,12 +308,28 @@ fn book(tally: &mut BatchTally, world: usize, slot: usize, w: f64) {
     tally.ledger[world][slot] += w;
 }
 
-#[allow(clippy::too_many_arguments)]
-fn walk<R: Recorder>(
-    bench: &Bench,
-    mode: PatternMode,
+/// What every path of one lamp ray walks through: the bench, how its pattern area is set, the
+/// ray's wavelength and the refractive index of every medium at that wavelength.
+#[derive(Clone, Copy)]
+struct Walk<'a> {
+    bench: &'a Bench,
+    mode: PatternMode<'a>,
     wl: f64,
-    index: &[f64],
+    index: &'a [f64],
+}
+
+/// Whether a path goes on after an interaction.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Flow {
+    Go,
+    End,
+}
+
+/// Walks one path (the lamp ray or one of its branches) to its end (escape, absorption,
+/// detection or the interaction cap): finds each next hit, hands it to the physics of the target
+/// and books what ends the path.
+fn walk<R: Recorder>(
+    ctx: &Walk,
     mut p: Path,
     key: RayKey,
     rng: &mut StreamRng,
@@ -314,8 +337,8 @@ fn walk<R: Recorder>(
     stack: &mut Vec<Path>,
     rec: &mut R,
 ) {
+    let bench = ctx.bench;
     let n_el = bench.elements().len();
-    let units = tally.x.len();
     loop {
         if p.interactions >= bench.max_interactions() {
             book(tally, p.world, n_el + SLOT_PATH_CAP, p.w);
@@ -324,217 +347,275 @@ fn walk<R: Recorder>(
         p.interactions += 1;
         let (t, target) = bench.nearest(p.o, p.d);
         rec.segment(p.o, p.d, t);
-        let Some(target) = target else {
-            book(tally, p.world, n_el + SLOT_ESCAPED, p.w);
-            return;
-        };
-        match target {
-            Target::Mesh(k) => {
+        let flow = match target {
+            None => {
+                book(tally, p.world, n_el + SLOT_ESCAPED, p.w);
+                Flow::End
+            }
+            Some(Target::Mesh(k)) => {
                 book(tally, p.world, bench.meshes()[k].1, p.w);
-                return;
+                Flow::End
             }
-            Target::Surface(i, n) => {
-                let s = &bench.surfaces()[i];
-                let hit = p.o + t * p.d;
-                let cos_signed = -p.d.dot(n);
-                if s.clear.is_some_and(|c| c.blocks(hit)) {
-                    book(tally, p.world, s.element, p.w);
-                    return;
-                }
-                match &s.interaction {
-                    Interaction::Absorber => {
-                        book(tally, p.world, s.element, p.w);
-                        return;
-                    }
-                    Interaction::Mirror { reflectance } => {
-                        if cos_signed <= 0.0 {
-                            book(tally, p.world, s.element, p.w);
-                            return;
-                        }
-                        let r = reflectance.at(wl).clamp(0.0, 1.0);
-                        let kept = p.w * r;
-                        book(tally, p.world, s.element, p.w - kept);
-                        p.w = kept;
-                        p.d = reflect(p.d, n);
-                        p.o = hit + SURFACE_OFFSET * n;
-                    }
-                    Interaction::Detector { index } => {
-                        if cos_signed <= 0.0 {
-                            book(tally, p.world, s.element, p.w);
-                            return;
-                        }
-                        let det = &bench.detectors()[*index];
-                        let current = p.w * det.responsivity.at(wl);
-                        rec.detected(Detection {
-                            world: p.world,
-                            unit: p.unit,
-                            pixel: p.pixel,
-                            chart_hits: p.chart_hits,
-                            detector: *index,
-                            current_a: current,
-                        });
-                        if p.world == COMMON {
-                            tally.b[*index] += current;
-                        } else {
-                            let st = p.world - BRANCH_PLUS;
-                            tally.t[BatchTally::t_index(units, *index, st, p.unit)] += current;
-                        }
-                        let slot = if *index == 0 {
-                            SLOT_DETECTED_PLUS
-                        } else {
-                            SLOT_DETECTED_MINUS
-                        };
-                        book(tally, p.world, n_el + slot, p.w);
-                        return;
-                    }
-                    Interaction::Interface {
-                        front,
-                        back,
-                        coating,
-                    } => {
-                        let (m_in, m_out, nn, cos_i) = if cos_signed >= 0.0 {
-                            (*front, *back, n, cos_signed)
-                        } else {
-                            (*back, *front, -n, -cos_signed)
-                        };
-                        attenuate(bench, m_in, t, wl, &mut p, tally);
-                        let (n1, n2) = (index[m_in], index[m_out]);
-                        let r = coating.reflectance(n1, n2, cos_i, wl);
-                        scatter(&mut p, hit, nn, n1, n2, r, rng);
-                    }
-                    Interaction::Chart { chart, front, back } => {
-                        let (m_in, m_out, nn, cos_i) = if cos_signed >= 0.0 {
-                            (*front, *back, n, cos_signed)
-                        } else {
-                            (*back, *front, -n, -cos_signed)
-                        };
-                        attenuate(bench, m_in, t, wl, &mut p, tally);
-                        let plate = &bench.charts()[*chart];
-                        let local = plate.frame.to_local(hit);
-                        p.chart_hits = p.chart_hits.saturating_add(1);
-                        match rec.chart_crossing(*chart, local.x, local.y) {
-                            ChartCrossing::Untracked => {}
-                            ChartCrossing::Pixel(i) => {
-                                // The first meeting names the pixel; later ones (ghosts that
-                                // come back to the chart) are what the kernel neglects.
-                                if p.pixel == NO_PIXEL {
-                                    p.pixel = i;
-                                }
-                            }
-                            ChartCrossing::Outside => {
-                                book(tally, p.world, s.element, p.w);
-                                return;
-                            }
-                        }
-                        let clear = plate.mask.clear_fraction(local.x, local.y);
-                        let (n1, n2) = (index[m_in], index[m_out]);
-                        if clear >= 1.0 || (clear > 0.0 && uniform(rng) < clear) {
-                            let r = crate::optics::fresnel::reflectance(n1, n2, cos_i);
-                            scatter(&mut p, hit, nn, n1, n2, r, rng);
-                        } else {
-                            // Chrome: reflect R_c, transmit T_c = 10^−OD, absorb the rest,
-                            // with the event drawn (see `chrome_event`).
-                            let rc = plate.chrome_reflectance.at(wl).clamp(0.0, 1.0);
-                            let tc = 10f64.powf(-plate.chrome_od.at(wl)).min(1.0 - rc);
-                            let (event, kept) = chrome_event(rc, tc, uniform(rng));
-                            let kept = p.w * kept;
-                            book(tally, p.world, s.element, p.w - kept);
-                            p.w = kept;
-                            match event {
-                                ChromeEvent::Absorbed => return,
-                                ChromeEvent::Reflected => {
-                                    p.d = reflect(p.d, nn);
-                                    p.o = hit + SURFACE_OFFSET * nn;
-                                }
-                                // Into the substrate (or out of it), as at clear glass but
-                                // without the bare-glass Fresnel split: R_c and T_c are the
-                                // chrome film's own reflectance and transmittance.
-                                ChromeEvent::Transmitted => {
-                                    scatter(&mut p, hit, nn, n1, n2, 0.0, rng)
-                                }
-                            }
-                        }
-                    }
-                }
+            Some(Target::Surface(i, n)) => surface(ctx, &mut p, t, i, n, rng, tally, rec),
+            Some(Target::Dmd) => meet_dmd(ctx, &mut p, key, rng, tally, stack, rec),
+        };
+        if flow == Flow::End {
+            return;
+        }
+    }
+}
+
+/// The sides of an interface that a ray crosses: the medium it comes from and the one beyond,
+/// the normal facing the ray and the cosine of incidence.
+#[derive(Debug, Clone, Copy)]
+struct Crossing {
+    m_in: usize,
+    m_out: usize,
+    nn: DVec3,
+    cos_i: f64,
+}
+
+impl Crossing {
+    /// For an interface with media `front` (the side `n` points to) and `back`, met with
+    /// cos_signed = −d·n.
+    #[inline]
+    fn new(front: usize, back: usize, n: DVec3, cos_signed: f64) -> Crossing {
+        let (m_in, m_out, nn, cos_i) = if cos_signed >= 0.0 {
+            (front, back, n, cos_signed)
+        } else {
+            (back, front, -n, -cos_signed)
+        };
+        Crossing {
+            m_in,
+            m_out,
+            nn,
+            cos_i,
+        }
+    }
+}
+
+/// A path meeting surface `i` (normal `n`) after a segment of length `t`.
+#[allow(clippy::too_many_arguments)]
+fn surface<R: Recorder>(
+    ctx: &Walk,
+    p: &mut Path,
+    t: f64,
+    i: usize,
+    n: DVec3,
+    rng: &mut StreamRng,
+    tally: &mut BatchTally,
+    rec: &mut R,
+) -> Flow {
+    let (bench, wl) = (ctx.bench, ctx.wl);
+    let s = &bench.surfaces()[i];
+    let hit = p.o + t * p.d;
+    let cos_signed = -p.d.dot(n);
+    if s.clear.is_some_and(|c| c.blocks(hit)) {
+        book(tally, p.world, s.element, p.w);
+        return Flow::End;
+    }
+    match &s.interaction {
+        Interaction::Absorber => {
+            book(tally, p.world, s.element, p.w);
+            Flow::End
+        }
+        Interaction::Mirror { reflectance } => {
+            if cos_signed <= 0.0 {
+                book(tally, p.world, s.element, p.w);
+                return Flow::End;
             }
-            Target::Dmd => {
-                let setup = bench.dmd().expect("DMD target implies a DMD");
-                let dmd = &setup.dmd;
-                let pattern = dmd.pattern;
-                // Split an unsplit path at its first crossing of the pattern area.
-                if !p.arrived
-                    && let Some(q) = dmd.plane_crossing(p.o, p.d)
-                    && let Some(j) = dmd
-                        .cell_at(q.x, q.y)
-                        .and_then(|(c, r)| pattern.unit_of(c, r))
-                {
-                    p.arrived = true;
-                    p.x_pending = true;
-                    p.unit = j;
-                    tally.arrivals += 1;
-                    if matches!(mode, PatternMode::Branch) && p.world == COMMON {
-                        let mut other = p;
-                        other.world = BRANCH_MINUS;
-                        p.world = BRANCH_PLUS;
-                        // The minus copy is walked after this one finishes; each branch draws
-                        // from its own stream (see RayKey).
-                        other.interactions -= 1;
-                        stack.push(other);
-                        *rng = key.stream(STREAM_PLUS);
-                    }
-                }
-                let world = p.world;
-                let outside = dmd.outside;
-                let state_of = |c: usize, r: usize| -> MirrorState {
-                    match pattern.unit_of(c, r) {
-                        None => outside,
-                        Some(j) => match (mode, world) {
-                            (PatternMode::Fixed(bits), _) => {
-                                crate::optics::bench::state_of_bit(bits[j])
-                            }
-                            (PatternMode::Branch, BRANCH_PLUS) => MirrorState::Plus,
-                            (PatternMode::Branch, BRANCH_MINUS) => MirrorState::Minus,
-                            (PatternMode::Branch, _) => outside,
-                        },
-                    }
-                };
-                let hit = dmd.intersect(p.o, p.d, 0.0, state_of);
-                if p.x_pending {
-                    // x_j: the power incident on pattern mirrors in unit j's footprint. The two
-                    // branches see slightly different facets (they differ only at the edges), so
-                    // each books half of what it meets: x_j is the mean over the two states.
-                    p.x_pending = false;
-                    if let Some(DmdHit::Mirror { col, row, .. }) = hit
-                        && pattern.unit_of(col, row).is_some()
-                    {
-                        let share = if p.world == COMMON { 1.0 } else { 0.5 };
-                        tally.x[p.unit] += share * p.w;
-                        rec.incident(p.unit, p.pixel, share * p.w);
-                    }
-                }
-                match hit {
-                    Some(DmdHit::Mirror { t, normal, .. }) => {
-                        let hit = p.o + t * p.d;
-                        let r = dmd.reflectance.at(wl).clamp(0.0, 1.0);
-                        let kept = p.w * r;
-                        book(tally, p.world, setup.mirrors_element, p.w - kept);
-                        p.w = kept;
-                        p.d = reflect(p.d, normal);
-                        p.o = hit + SURFACE_OFFSET * normal;
-                    }
-                    Some(DmdHit::Gap { .. }) => {
-                        book(tally, p.world, setup.gaps_element, p.w);
-                        return;
-                    }
-                    None => {
-                        // An upward ray that met no neighbouring mirror: move it just above the
-                        // slab and carry on.
-                        let h = dmd.slab_half_height();
-                        let t_exit = (h - p.o.z) / p.d.z;
-                        p.o += (t_exit + SURFACE_OFFSET / p.d.z) * p.d;
-                    }
-                }
+            let r = reflectance.at(wl).clamp(0.0, 1.0);
+            let kept = p.w * r;
+            book(tally, p.world, s.element, p.w - kept);
+            p.w = kept;
+            p.d = reflect(p.d, n);
+            p.o = hit + SURFACE_OFFSET * n;
+            Flow::Go
+        }
+        Interaction::Detector { index } => {
+            if cos_signed <= 0.0 {
+                book(tally, p.world, s.element, p.w);
+            } else {
+                detect(ctx, p, Arm::from_index(*index), tally, rec);
             }
+            Flow::End
+        }
+        Interaction::Interface {
+            front,
+            back,
+            coating,
+        } => {
+            let x = Crossing::new(*front, *back, n, cos_signed);
+            attenuate(bench, x.m_in, t, wl, p, tally);
+            let (n1, n2) = (ctx.index[x.m_in], ctx.index[x.m_out]);
+            let r = coating.reflectance(n1, n2, x.cos_i, wl);
+            scatter(p, hit, x.nn, n1, n2, r, rng);
+            Flow::Go
+        }
+        Interaction::Chart { chart, front, back } => {
+            let x = Crossing::new(*front, *back, n, cos_signed);
+            attenuate(bench, x.m_in, t, wl, p, tally);
+            cross_chart(ctx, p, hit, x, s.element, *chart, rng, tally, rec)
+        }
+    }
+}
+
+/// A path reaching the photodiode of `arm`: its photocurrent w·ℜ(λ) is tallied (to B± before
+/// the pattern area, to T[arm][state][unit] in a branch) and its power booked as detected.
+fn detect<R: Recorder>(ctx: &Walk, p: &Path, arm: Arm, tally: &mut BatchTally, rec: &mut R) {
+    let det = &ctx.bench.detectors()[arm];
+    let current = p.w * det.responsivity.at(ctx.wl);
+    rec.detected(Detection {
+        world: p.world,
+        unit: p.unit,
+        pixel: p.pixel,
+        chart_hits: p.chart_hits,
+        detector: arm,
+        current_a: current,
+    });
+    match branch_state(p.world) {
+        None => tally.b[arm] += current,
+        Some(state) => {
+            let units = tally.x.len();
+            tally.t[BatchTally::t_index(units, arm, state, p.unit)] += current;
+        }
+    }
+    let n_el = ctx.bench.elements().len();
+    book(tally, p.world, n_el + slot_detected(arm), p.w);
+}
+
+/// A path crossing the face of chart `chart` at `hit` (after the bulk absorption of the
+/// segment): clear glass or chrome by the mask, or the recorder's object grid.
+#[allow(clippy::too_many_arguments)]
+fn cross_chart<R: Recorder>(
+    ctx: &Walk,
+    p: &mut Path,
+    hit: DVec3,
+    x: Crossing,
+    element: usize,
+    chart: usize,
+    rng: &mut StreamRng,
+    tally: &mut BatchTally,
+    rec: &mut R,
+) -> Flow {
+    let plate = &ctx.bench.charts()[chart];
+    let local = plate.frame.to_local(hit);
+    p.chart_hits = p.chart_hits.saturating_add(1);
+    match rec.chart_crossing(chart, local.x, local.y) {
+        ChartCrossing::Untracked => {}
+        ChartCrossing::Pixel(i) => {
+            // The first meeting names the pixel; later ones (ghosts that come back to the
+            // chart) are what the kernel neglects.
+            if p.pixel == NO_PIXEL {
+                p.pixel = i;
+            }
+        }
+        ChartCrossing::Outside => {
+            book(tally, p.world, element, p.w);
+            return Flow::End;
+        }
+    }
+    let clear = plate.mask.clear_fraction(local.x, local.y);
+    let (n1, n2) = (ctx.index[x.m_in], ctx.index[x.m_out]);
+    if clear >= 1.0 || (clear > 0.0 && uniform(rng) < clear) {
+        let r = crate::optics::fresnel::reflectance(n1, n2, x.cos_i);
+        scatter(p, hit, x.nn, n1, n2, r, rng);
+        return Flow::Go;
+    }
+    // Chrome: reflect R_c, transmit T_c = 10^−OD, absorb the rest, with the event drawn (see
+    // `chrome_event`).
+    let wl = ctx.wl;
+    let rc = plate.chrome_reflectance.at(wl).clamp(0.0, 1.0);
+    let tc = 10f64.powf(-plate.chrome_od.at(wl)).min(1.0 - rc);
+    let (event, kept) = chrome_event(rc, tc, uniform(rng));
+    let kept = p.w * kept;
+    book(tally, p.world, element, p.w - kept);
+    p.w = kept;
+    match event {
+        ChromeEvent::Absorbed => return Flow::End,
+        ChromeEvent::Reflected => {
+            p.d = reflect(p.d, x.nn);
+            p.o = hit + SURFACE_OFFSET * x.nn;
+        }
+        // Into the substrate (or out of it), as at clear glass but without the bare-glass
+        // Fresnel split: R_c and T_c are the chrome film's own reflectance and transmittance.
+        ChromeEvent::Transmitted => scatter(p, hit, x.nn, n1, n2, 0.0, rng),
+    }
+    Flow::Go
+}
+
+/// A path reaching the DMD: split at its first crossing of the pattern area (see the module
+/// docs), x_j booked on its first mirror hit after that, and what the array does to it
+/// (`Dmd::interact`, the one place of the DMD's physics) applied and booked.
+fn meet_dmd<R: Recorder>(
+    ctx: &Walk,
+    p: &mut Path,
+    key: RayKey,
+    rng: &mut StreamRng,
+    tally: &mut BatchTally,
+    stack: &mut Vec<Path>,
+    rec: &mut R,
+) -> Flow {
+    let setup = ctx.bench.dmd().expect("DMD target implies a DMD");
+    let dmd = &setup.dmd;
+    // Split an unsplit path at its first crossing of the pattern area.
+    if !p.arrived
+        && let Some(j) = dmd.unit_crossed(p.o, p.d)
+    {
+        p.arrived = true;
+        p.x_pending = true;
+        p.unit = j;
+        tally.arrivals += 1;
+        if matches!(ctx.mode, PatternMode::Branch) && p.world == COMMON {
+            let mut other = *p;
+            other.world = branch(MirrorState::Minus);
+            p.world = branch(MirrorState::Plus);
+            // The minus copy is walked after this one finishes; each branch draws from its own
+            // stream (see RayKey).
+            other.interactions -= 1;
+            stack.push(other);
+            *rng = key.stream(STREAM_PLUS);
+        }
+    }
+    // A branch sees every pattern mirror in its own state; an unsplit path (before the pattern
+    // area, or only grazing its border) sees them in the outside state.
+    let states = match ctx.mode {
+        PatternMode::Fixed(bits) => PatternStates::Bits(bits),
+        PatternMode::Branch => PatternStates::Uniform(branch_state(p.world).unwrap_or(dmd.outside)),
+    };
+    let outcome = dmd.interact(p.o, p.d, ctx.wl, states);
+    if p.x_pending {
+        // x_j: the power incident on pattern mirrors in unit j's footprint. The two branches see
+        // slightly different facets (they differ only at the edges), so each books half of what
+        // it meets: x_j is the mean over the two states.
+        p.x_pending = false;
+        if let DmdOutcome::Reflected { unit: Some(_), .. } = outcome {
+            let share = if p.world == COMMON { 1.0 } else { 0.5 };
+            tally.x[p.unit] += share * p.w;
+            rec.incident(p.unit, p.pixel, share * p.w);
+        }
+    }
+    match outcome {
+        DmdOutcome::Reflected {
+            origin,
+            direction,
+            reflectance,
+            ..
+        } => {
+            let kept = p.w * reflectance;
+            book(tally, p.world, setup.mirrors_element, p.w - kept);
+            p.w = kept;
+            p.d = direction;
+            p.o = origin;
+            Flow::Go
+        }
+        DmdOutcome::Absorbed => {
+            book(tally, p.world, setup.gaps_element, p.w);
+            Flow::End
+        }
+        DmdOutcome::Left { origin } => {
+            p.o = origin;
+            Flow::Go
         }
     }
 }

@@ -1,10 +1,37 @@
 //! What a trace records: per-batch tallies and their merge in batch order.
+//!
+//! Per-arm arrays (`[T; 2]`) are indexed by [`Arm`] (+ is 0, − is 1); the tallies T keep arm
+//! and mirror state apart ([`BatchTally::t_index`]).
+
+use crate::optics::Arm;
+use crate::optics::dmd::{MirrorState, state_index};
 
 /// Index of the ledger "worlds": light before any DMD split (counted in both mirror-state worlds)
 /// and the two branches after it.
 pub const COMMON: usize = 0;
 pub const BRANCH_PLUS: usize = 1;
 pub const BRANCH_MINUS: usize = 2;
+
+/// The ledger world of the branch whose pattern mirrors are all in `state` (+ or −).
+#[inline]
+pub const fn branch(state: MirrorState) -> usize {
+    match state {
+        MirrorState::Plus => BRANCH_PLUS,
+        MirrorState::Minus => BRANCH_MINUS,
+        MirrorState::Flat => panic!("a branch has its pattern mirrors in state + or −"),
+    }
+}
+
+/// The mirror state of the pattern area in ledger world `world`: None for [`COMMON`] (light
+/// that has not met the pattern area yet).
+#[inline]
+pub const fn branch_state(world: usize) -> Option<MirrorState> {
+    match world {
+        BRANCH_PLUS => Some(MirrorState::Plus),
+        BRANCH_MINUS => Some(MirrorState::Minus),
+        _ => None,
+    }
+}
 
 /// Ledger slots after the per-element absorption slots (offsets from `elements.len()`).
 pub const SLOT_ESCAPED: usize = 0;
@@ -15,6 +42,15 @@ pub const SLOT_DETECTED_MINUS: usize = 3;
 pub const SLOT_EMITTED: usize = 4;
 pub const EXTRA_SLOTS: usize = 5;
 
+/// The ledger slot of the power reaching the photodiode of `arm`.
+#[inline]
+pub const fn slot_detected(arm: Arm) -> usize {
+    match arm {
+        Arm::Plus => SLOT_DETECTED_PLUS,
+        Arm::Minus => SLOT_DETECTED_MINUS,
+    }
+}
+
 /// The tallies of one batch of rays. Powers in W, currents in A.
 #[derive(Debug, Clone)]
 pub struct BatchTally {
@@ -23,8 +59,8 @@ pub struct BatchTally {
     pub arrivals: u64,
     /// Power incident on each unit's mirrors (units, row-major).
     pub x: Vec<f64>,
-    /// Photocurrent of detector d when the path's first pattern unit j is in state s:
-    /// index (d·2 + s)·units + j (d, s: 0 = +, 1 = −).
+    /// Photocurrent of the detector of arm d when the path's first pattern unit j is in state s:
+    /// index (d·2 + s)·units + j (d, s: 0 = +, 1 = −; [`BatchTally::t_index`]).
     pub t: Vec<f64>,
     /// Photocurrent of detector d from light that never met the pattern area (A).
     pub b: [f64; 2],
@@ -46,31 +82,39 @@ impl BatchTally {
         }
     }
 
+    /// The index of T[arm][state][j] in `t`: (d·2 + s)·units + j.
     #[inline]
-    pub fn t_index(units: usize, d: usize, s: usize, j: usize) -> usize {
-        (d * 2 + s) * units + j
+    pub fn t_index(units: usize, arm: Arm, state: MirrorState, j: usize) -> usize {
+        Self::t_block(arm, state) * units + j
     }
 
-    /// Σ_j (T[d][d'][j] − T[d][other][j]) for arm d: the batch's total gain Σ_j g_j of arm d,
+    /// The block d·2 + s of T[arm][state] (d, s: 0 = +, 1 = −), of `units` entries in `t`.
+    #[inline]
+    pub fn t_block(arm: Arm, state: MirrorState) -> usize {
+        debug_assert!(state != MirrorState::Flat, "T has states + and − only");
+        arm.index() * 2 + state_index(state)
+    }
+
+    /// Σ_j (T[d][on][j] − T[d][off][j]) for arm d: the batch's total gain Σ_j g_j of arm d,
     /// where arm + gains when a unit is in state + and arm − when it is in state −.
-    pub fn gain_sum(&self, d: usize) -> f64 {
+    pub fn gain_sum(&self, arm: Arm) -> f64 {
         let units = self.x.len();
-        let (on, off) = (d, 1 - d);
+        let (on, off) = (arm.state(), arm.other().state());
         (0..units)
             .map(|j| {
-                self.t[Self::t_index(units, d, on, j)] - self.t[Self::t_index(units, d, off, j)]
+                self.t[Self::t_index(units, arm, on, j)] - self.t[Self::t_index(units, arm, off, j)]
             })
             .sum()
     }
 
     /// The pattern-independent traced current of arm d: Σ_j T[d][off][j] + B_d.
-    pub fn offset_sum(&self, d: usize) -> f64 {
+    pub fn offset_sum(&self, arm: Arm) -> f64 {
         let units = self.x.len();
-        let off = 1 - d;
+        let off = arm.other().state();
         (0..units)
-            .map(|j| self.t[Self::t_index(units, d, off, j)])
+            .map(|j| self.t[Self::t_index(units, arm, off, j)])
             .sum::<f64>()
-            + self.b[d]
+            + self.b[arm]
     }
 }
 
@@ -155,19 +199,19 @@ impl Tallies {
         for j in 0..units {
             self.x[j] += b.x[j];
             self.x2[j] += b.x[j] * b.x[j];
-            for d in 0..2 {
-                let on = b.t[BatchTally::t_index(units, d, d, j)];
-                let off = b.t[BatchTally::t_index(units, d, 1 - d, j)];
+            for arm in Arm::ALL {
+                let on = b.t[BatchTally::t_index(units, arm, arm.state(), j)];
+                let off = b.t[BatchTally::t_index(units, arm, arm.other().state(), j)];
                 let g = on - off;
-                self.g2[d][j] += g * g;
-                self.gx[d][j] += g * b.x[j];
+                self.g2[arm][j] += g * g;
+                self.gx[arm][j] += g * b.x[j];
             }
         }
         for (a, v) in self.t.iter_mut().zip(&b.t) {
             *a += v;
         }
-        for d in 0..2 {
-            self.b[d] += b.b[d];
+        for arm in Arm::ALL {
+            self.b[arm] += b.b[arm];
         }
         for w in 0..3 {
             for (a, v) in self.ledger[w].iter_mut().zip(&b.ledger[w]) {
@@ -177,13 +221,15 @@ impl Tallies {
         self.batches.push(BatchScalars {
             rays: b.rays,
             x: b.x.iter().sum(),
-            g: [b.gain_sum(0), b.gain_sum(1)],
-            c: [b.offset_sum(0), b.offset_sum(1)],
+            g: Arm::ALL.map(|arm| b.gain_sum(arm)),
+            c: Arm::ALL.map(|arm| b.offset_sum(arm)),
             b: b.b,
-            detected_w: [BRANCH_PLUS, BRANCH_MINUS].map(|branch| {
-                let n_el = b.ledger[COMMON].len() - EXTRA_SLOTS;
-                [SLOT_DETECTED_PLUS, SLOT_DETECTED_MINUS]
-                    .map(|slot| b.ledger[COMMON][n_el + slot] + b.ledger[branch][n_el + slot])
+            detected_w: [MirrorState::Plus, MirrorState::Minus].map(|state| {
+                let (world, n_el) = (branch(state), b.ledger[COMMON].len() - EXTRA_SLOTS);
+                Arm::ALL.map(|arm| {
+                    let slot = n_el + slot_detected(arm);
+                    b.ledger[COMMON][slot] + b.ledger[world][slot]
+                })
             }),
         });
     }

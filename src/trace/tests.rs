@@ -4,6 +4,7 @@
 
 use super::testing::{bench_with, paper_bench_with_mask, scene_path};
 use super::*;
+use crate::optics::Arm;
 use crate::transport::{Estimate, Transport, fixed_pattern_currents, ratio_estimate};
 
 fn run(bench: &Bench, rays: u64, seed: u64) -> Tallies {
@@ -130,7 +131,7 @@ fn paper_bench_with_usaf_chart() {
     // The imaged region holds clear bars of group −1 elements 5–6: light reaches the pattern
     // and both arms see it, with efficiencies of the order of the silicon responsivity.
     assert!(t.x_total.value > 0.0);
-    for d in 0..2 {
+    for d in Arm::ALL {
         assert!(
             t.k[d].value > 0.1 && t.k[d].value < 0.65,
             "k = {:?}",
@@ -172,7 +173,7 @@ fn chart_guidance_is_unbiased_and_pays() {
         );
     };
     close(&a.x_total, &b.x_total, "x total");
-    for d in 0..2 {
+    for d in Arm::ALL {
         close(&a.k[d], &b.k[d], "k");
         close(&a.c_traced[d], &b.c_traced[d], "c");
     }
@@ -244,16 +245,17 @@ fn lambertian_disk_to_coaxial_disk_matches_view_factor() {
         // All light reaching the diode is pattern independent: b₊ = Φ·F·ℜ with Φ = 2 W and
         // ℜ = 0.5 A/W; its batch-means standard error gives the tolerance (4 standard errors).
         let phi_r = 2.0 * 0.5;
-        let est = t.b[0].value / phi_r;
-        let se = t.b[0].stderr / phi_r;
+        let est = t.b[Arm::Plus].value / phi_r;
+        let se = t.b[Arm::Plus].stderr / phi_r;
         assert!(se > 0.0 && se < 0.05 * f, "se {se}");
         assert!(
             (est - f).abs() < 4.0 * se,
             "F = {est} ± {se}, closed form {f}"
         );
         // The detected power in the ledger is the same light.
-        let det = t.ledger.worlds[0].detected_w[0];
-        assert!((det * 0.5 - t.b[0].value).abs() < 1e-12 * t.b[0].value);
+        let det = t.ledger.worlds[0].detected_w[Arm::Plus];
+        let b = t.b[Arm::Plus].value;
+        assert!((det * 0.5 - b).abs() < 1e-12 * b);
     }
 }
 
@@ -262,7 +264,7 @@ fn k_difference(t: &Tallies) -> Estimate {
     ratio_estimate(
         &t.batches
             .iter()
-            .map(|b| (b.g[0] - b.g[1], b.x))
+            .map(|b| (b.g[Arm::Plus] - b.g[Arm::Minus], b.x))
             .collect::<Vec<_>>(),
     )
 }
@@ -274,7 +276,7 @@ fn mirror_symmetric_arms_have_equal_k() {
     let tr = Transport::from_tallies(&bench, &t);
     let diff = k_difference(&t);
     // The arms collect most of the light: k near the mean responsivity times the losses.
-    assert!(tr.k[0].value > 0.2, "{:?}", tr.k);
+    assert!(tr.k[Arm::Plus].value > 0.2, "{:?}", tr.k);
     assert!(diff.stderr > 0.0);
     // Equal within 3 standard errors of the difference (the brief's criterion).
     assert!(
@@ -304,7 +306,7 @@ fn swapping_the_arms_swaps_k() {
     assert!(da.value < -5.0 * da.stderr, "{da:?}");
     // Bench B is bench A reflected in x = y, which swaps the arms: k₊(A) = k₋(B) and
     // k₋(A) = k₊(B). Independent traces: 4 combined standard errors.
-    for (x, y) in [(ta.k[0], tb.k[1]), (ta.k[1], tb.k[0])] {
+    for (x, y) in Arm::ALL.map(|arm| (ta.k[arm], tb.k[arm.other()])) {
         let se = x.stderr.hypot(y.stderr);
         assert!(
             (x.value - y.value).abs() < 4.0 * se,
@@ -326,14 +328,15 @@ fn defocusing_one_photodiode_lowers_that_arm() {
     let td = transport(&defocused, 150_000, 32);
     let se = |a: Estimate, b: Estimate| a.stderr.hypot(b.stderr);
     // Arm + loses light well beyond the noise (10 combined standard errors) ...
+    let (plus, minus) = (Arm::Plus, Arm::Minus);
     assert!(
-        tf.k[0].value - td.k[0].value > 10.0 * se(tf.k[0], td.k[0]),
+        tf.k[plus].value - td.k[plus].value > 10.0 * se(tf.k[plus], td.k[plus]),
         "{:?} -> {:?}",
-        tf.k[0],
-        td.k[0]
+        tf.k[plus],
+        td.k[plus]
     );
     // ... and arm − is unchanged within 4 combined standard errors.
-    assert!((tf.k[1].value - td.k[1].value).abs() < 4.0 * se(tf.k[1], td.k[1]));
+    assert!((tf.k[minus].value - td.k[minus].value).abs() < 4.0 * se(tf.k[minus], td.k[minus]));
 }
 
 #[test]
@@ -362,7 +365,7 @@ fn fixed_patterns_reproduce_the_transport_maps() {
             progress: None,
         };
         let direct = fixed_pattern_currents(&bench, &trace(&bench, &opts).unwrap());
-        for (d, direct) in direct.iter().enumerate() {
+        for (d, direct) in Arm::ALL.into_iter().zip(&direct) {
             let preds: Vec<f64> = transports
                 .iter()
                 .map(|t| {
@@ -378,7 +381,8 @@ fn fixed_patterns_reproduce_the_transport_maps() {
             // 4 combined standard errors (both exactly 0 when no light can reach the arm).
             assert!(
                 (direct.value - mean).abs() <= 4.0 * se,
-                "arm {d}: direct {direct:?} vs transport {mean} ± {se_pred}"
+                "arm {}: direct {direct:?} vs transport {mean} ± {se_pred}",
+                d.label()
             );
         }
     }

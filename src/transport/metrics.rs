@@ -18,6 +18,8 @@
 
 use serde::Serialize;
 
+use crate::optics::Arm;
+use crate::optics::dmd::{MirrorState, state_index};
 use crate::trace::Tallies;
 use crate::transport::{Estimate, Transport};
 
@@ -155,26 +157,29 @@ impl BenchMetrics {
         };
         let n: Vec<u64> = bs.iter().map(|b| b.rays).collect();
         let x = col(&|b| b.x);
-        let g = [col(&|b| b.g[0]), col(&|b| b.g[1])];
-        let gsum: Vec<f64> = g[0].iter().zip(&g[1]).map(|(a, b)| a + b).collect();
-        let gdiff: Vec<f64> = g[0].iter().zip(&g[1]).map(|(a, b)| a - b).collect();
-        let constant = |d: usize| transport.ambient_a[d] + transport.dark_a[d];
-        let b = [0, 1].map(|d| Metric::total(&n, &col(&|s| s.c[d])).plus(constant(d)));
-        let b_diff = Metric::total(&n, &col(&|s| s.c[1] - s.c[0])).plus(constant(1) - constant(0));
-        // detected_w[world][diode]: world 0 = every unit +, 1 = every unit −.
-        let det = |w: usize, d: usize| col(&|s| s.detected_w[w][d]);
+        let (plus, minus) = (Arm::Plus, Arm::Minus);
+        let g = Arm::ALL.map(|arm| col(&|b| b.g[arm]));
+        let gsum: Vec<f64> = g[plus].iter().zip(&g[minus]).map(|(a, b)| a + b).collect();
+        let gdiff: Vec<f64> = g[plus].iter().zip(&g[minus]).map(|(a, b)| a - b).collect();
+        let constant = |arm: Arm| transport.ambient_a[arm] + transport.dark_a[arm];
+        let b = Arm::ALL.map(|arm| Metric::total(&n, &col(&|s| s.c[arm])).plus(constant(arm)));
+        let b_diff = Metric::total(&n, &col(&|s| s.c[minus] - s.c[plus]))
+            .plus(constant(minus) - constant(plus));
+        // detected_w[world][diode]: world 0 = every unit in state +, 1 = every unit in state −.
+        let det = |w: MirrorState, d: Arm| col(&|s| s.detected_w[state_index(w)][d]);
+        let (all_plus, all_minus) = (MirrorState::Plus, MirrorState::Minus);
         let values = vec![
-            Metric::ratio(&g[0], &x),
-            Metric::ratio(&g[1], &x),
+            Metric::ratio(&g[plus], &x),
+            Metric::ratio(&g[minus], &x),
             Metric::ratio(&gsum, &x),
             Metric::ratio(&gdiff, &gsum),
-            b[0].clone(),
-            b[1].clone(),
+            b[plus].clone(),
+            b[minus].clone(),
             b_diff,
-            Metric::total(&n, &det(0, 0)),
-            Metric::total(&n, &det(1, 1)),
-            Metric::ratio(&det(0, 1), &det(0, 0)),
-            Metric::ratio(&det(1, 0), &det(1, 1)),
+            Metric::total(&n, &det(all_plus, plus)),
+            Metric::total(&n, &det(all_minus, minus)),
+            Metric::ratio(&det(all_plus, minus), &det(all_plus, plus)),
+            Metric::ratio(&det(all_minus, plus), &det(all_minus, minus)),
             Metric::total(&n, &x),
         ];
         BenchMetrics { values }

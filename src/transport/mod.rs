@@ -18,12 +18,17 @@
 //! Standard errors use batch means over the trace's fixed batches: for a total S = Σ_b S_b,
 //! var ≈ B/(B−1)·Σ_b (S_b − (n_b/N)·S)²; for a ratio R = ΣA_b/ΣD_b (delta method),
 //! var ≈ B/(B−1)·Σ_b (A_b − R·D_b)² / (ΣD_b)².
+//! A trace of a single batch has no spread to measure: its standard errors are NaN for the
+//! scalars and +∞ for the per-unit maps ([`Transport::k_map_stderr`]), whether the transport
+//! comes from a trace's tallies or from an object kernel.
+//!
+//! Per-arm arrays (`[T; 2]`) are indexed by [`Arm`]: + is 0, − is 1.
 
-use crate::optics::Bench;
+use crate::optics::dmd::MirrorState;
+use crate::optics::{Arm, Bench};
 use crate::reconstruction::{BitMatrix, LinearOperator, PackedOperator, PatternForm};
 use crate::trace::tally::{
-    BRANCH_MINUS, BRANCH_PLUS, COMMON, SLOT_DETECTED_MINUS, SLOT_DETECTED_PLUS, SLOT_EMITTED,
-    SLOT_ESCAPED, SLOT_PATH_CAP,
+    COMMON, SLOT_EMITTED, SLOT_ESCAPED, SLOT_PATH_CAP, branch, slot_detected,
 };
 pub mod kernel;
 pub mod metrics;
@@ -138,12 +143,12 @@ impl Ledger {
                 .collect();
             let escaped = get(n_el + SLOT_ESCAPED);
             let cap = get(n_el + SLOT_PATH_CAP);
-            let det = [
-                get(n_el + SLOT_DETECTED_PLUS),
-                get(n_el + SLOT_DETECTED_MINUS),
-            ];
-            let out: f64 =
-                absorbed.iter().map(|a| a.1).sum::<f64>() + escaped + cap + det[0] + det[1];
+            let det = Arm::ALL.map(|arm| get(n_el + slot_detected(arm)));
+            let out: f64 = absorbed.iter().map(|a| a.1).sum::<f64>()
+                + escaped
+                + cap
+                + det[Arm::Plus]
+                + det[Arm::Minus];
             LedgerWorld {
                 absorbed_w: absorbed,
                 escaped_w: escaped,
@@ -156,7 +161,7 @@ impl Ledger {
             emitted_w: emitted,
             emitted_nominal_w: bench.lamp().band_power_w,
             outside_cone_w: t.outside_cone_w,
-            worlds: [world(BRANCH_PLUS), world(BRANCH_MINUS)],
+            worlds: [MirrorState::Plus, MirrorState::Minus].map(|state| world(branch(state))),
         }
     }
 }
@@ -180,7 +185,8 @@ pub struct Transport {
     /// Standard error of k±_j (A/W), from the spread of the batch ratios; +∞ where light reached
     /// the unit in fewer than two batches (unresolved: one batch's ratio has no spread to
     /// measure, and the batch formula would give exactly 0). Infinite rather than NaN so that
-    /// two identical transports compare equal.
+    /// two identical transports compare equal. A transport from an object kernel shows this only
+    /// for a single-batch trace (its moments are centred and summed over pixels).
     pub k_map_stderr: [Vec<f64>; 2],
     /// c± (A) = traced pattern-independent current + ambient + dark.
     pub c_a: [f64; 2],
@@ -198,73 +204,153 @@ pub struct Transport {
     pub ledger: Ledger,
 }
 
+/// The batch-means factor B/(B − 1) of B batches; None for fewer than two batches, which have no
+/// spread to measure.
+pub(crate) fn batch_factor(batches: u64) -> Option<f64> {
+    let nb = batches as f64;
+    (nb >= 2.0).then(|| nb / (nb - 1.0))
+}
+
+/// The batch second moments of the per-unit gains g±_j and powers x_j that the standard errors
+/// of the k±_j maps come from.
+pub(crate) struct UnitMoments<'a> {
+    /// Σ_b g_bj² per arm.
+    pub g2: &'a [Vec<f64>; 2],
+    /// Σ_b g_bj·x_bj per arm.
+    pub gx: &'a [Vec<f64>; 2],
+    /// Σ_b x_bj².
+    pub x2: &'a [f64],
+    /// Raw sums over the batches (a trace's tallies) rather than sums centred on the batch mean
+    /// (an object kernel's product, summed over pixels taken as independent). Only raw sums show
+    /// a unit lit in one batch alone, whose k±_j is unresolved.
+    pub raw: bool,
+}
+
+/// Everything a transport is made of besides the per-unit maps, which [`Transport::assemble`]
+/// derives from the summed T and x and their batch moments.
+pub(crate) struct TransportParts<'a> {
+    pub rays: u64,
+    pub seed: u64,
+    pub units_across: usize,
+    pub units_down: usize,
+    pub batches: u64,
+    /// T[d][s][j] (A), index [`BatchTally::t_index`].
+    pub t_a: Vec<f64>,
+    pub x_w: Vec<f64>,
+    pub moments: UnitMoments<'a>,
+    pub c_traced: [Estimate; 2],
+    pub x_total: Estimate,
+    pub k: [Estimate; 2],
+    pub k_prime: Estimate,
+    pub imbalance: Estimate,
+    pub ledger: Ledger,
+}
+
 impl Transport {
     pub fn from_tallies(bench: &Bench, t: &Tallies) -> Transport {
-        let units = t.units();
-        let idx = |d: usize, s: usize, j: usize| BatchTally::t_index(units, d, s, j);
-        let g_a: [Vec<f64>; 2] = [0, 1].map(|d| {
-            (0..units)
-                .map(|j| t.t[idx(d, d, j)] - t.t[idx(d, 1 - d, j)])
-                .collect()
-        });
-        let nb = t.batches.len() as f64;
-        let bfac = if nb >= 2.0 { nb / (nb - 1.0) } else { f64::NAN };
-        let mut k_map = [vec![0.0; units], vec![0.0; units]];
-        let mut k_map_stderr = [vec![0.0; units], vec![0.0; units]];
-        for d in 0..2 {
-            for j in 0..units {
-                let x = t.x[j];
-                if x > 0.0 {
-                    let k = g_a[d][j] / x;
-                    k_map[d][j] = k;
-                    // Σ_b x_bj² = (Σ_b x_bj)² exactly when one batch holds all of x_j (the
-                    // batch ratio estimator's residuals then vanish identically), and is below
-                    // it by at least 2·x_min·x_max otherwise; 1e-9 separates the two cases far
-                    // above rounding.
-                    if x * x - t.x2[j] <= 1e-9 * x * x {
-                        k_map_stderr[d][j] = f64::INFINITY;
-                        continue;
-                    }
-                    let q = t.g2[d][j] - 2.0 * k * t.gx[d][j] + k * k * t.x2[j];
-                    k_map_stderr[d][j] = (q.max(0.0) * bfac).sqrt() / x;
-                }
-            }
-        }
-        let ambient_a = [0, 1].map(|d| bench.detectors()[d].ambient_current_a);
-        let dark_a = [0, 1].map(|d| bench.detectors()[d].dark_current_a);
-        let c_traced = [0, 1].map(|d| {
-            let v: Vec<(u64, f64)> = t.batches.iter().map(|b| (b.rays, b.c[d])).collect();
+        let c_traced = Arm::ALL.map(|arm| {
+            let v: Vec<(u64, f64)> = t.batches.iter().map(|b| (b.rays, b.c[arm])).collect();
             total_estimate(&v)
         });
-        let c_a = [0, 1].map(|d| c_traced[d].value + ambient_a[d] + dark_a[d]);
-        let b = [0, 1].map(|d| Estimate {
-            value: c_a[d],
-            stderr: c_traced[d].stderr,
-        });
-        let k = [0, 1].map(|d| {
-            let v: Vec<(f64, f64)> = t.batches.iter().map(|b| (b.g[d], b.x)).collect();
+        let k = Arm::ALL.map(|arm| {
+            let v: Vec<(f64, f64)> = t.batches.iter().map(|b| (b.g[arm], b.x)).collect();
             ratio_estimate(&v)
         });
+        let (plus, minus) = (Arm::Plus, Arm::Minus);
         let k_prime = ratio_estimate(
             &t.batches
                 .iter()
-                .map(|b| (b.g[0] + b.g[1], b.x))
+                .map(|b| (b.g[plus] + b.g[minus], b.x))
                 .collect::<Vec<_>>(),
         );
         let imbalance = ratio_estimate(
             &t.batches
                 .iter()
-                .map(|b| (b.g[0] - b.g[1], b.g[0] + b.g[1]))
+                .map(|b| (b.g[plus] - b.g[minus], b.g[plus] + b.g[minus]))
                 .collect::<Vec<_>>(),
         );
         let x_total = total_estimate(&t.batches.iter().map(|b| (b.rays, b.x)).collect::<Vec<_>>());
+        Transport::assemble(
+            bench,
+            TransportParts {
+                rays: t.rays,
+                seed: t.seed,
+                units_across: t.units_across,
+                units_down: t.units_down,
+                batches: t.batches.len() as u64,
+                t_a: t.t.clone(),
+                x_w: t.x.clone(),
+                moments: UnitMoments {
+                    g2: &t.g2,
+                    gx: &t.gx,
+                    x2: &t.x2,
+                    raw: true,
+                },
+                c_traced,
+                x_total,
+                k,
+                k_prime,
+                imbalance,
+                ledger: Ledger::from_tallies(bench, t),
+            },
+        )
+    }
+
+    /// The one body of [`Transport::from_tallies`] and [`Transport::from_kernel`]: the gains
+    /// g±_j, the maps k±_j with their standard errors (and the guards on them), and c± and b±
+    /// with the ambient and dark currents of `bench`'s detectors.
+    pub(crate) fn assemble(bench: &Bench, parts: TransportParts) -> Transport {
+        let units = parts.x_w.len();
+        let (t, m) = (&parts.t_a, &parts.moments);
+        let idx =
+            |arm: Arm, state: MirrorState, j: usize| BatchTally::t_index(units, arm, state, j);
+        let g_a: [Vec<f64>; 2] = Arm::ALL.map(|arm| {
+            let (on, off) = (arm.state(), arm.other().state());
+            (0..units)
+                .map(|j| t[idx(arm, on, j)] - t[idx(arm, off, j)])
+                .collect()
+        });
+        let bfac = batch_factor(parts.batches);
+        let mut k_map = [vec![0.0; units], vec![0.0; units]];
+        let mut k_map_stderr = [vec![0.0; units], vec![0.0; units]];
+        for arm in Arm::ALL {
+            for j in 0..units {
+                let x = parts.x_w[j];
+                if x > 0.0 {
+                    let k = g_a[arm][j] / x;
+                    k_map[arm][j] = k;
+                    // Σ_b x_bj² = (Σ_b x_bj)² exactly when one batch holds all of x_j (the
+                    // batch ratio estimator's residuals then vanish identically), and is below
+                    // it by at least 2·x_min·x_max otherwise; 1e-9 separates the two cases far
+                    // above rounding. A single batch holds all of every x_j.
+                    let Some(bfac) = bfac else {
+                        k_map_stderr[arm][j] = f64::INFINITY;
+                        continue;
+                    };
+                    if m.raw && x * x - m.x2[j] <= 1e-9 * x * x {
+                        k_map_stderr[arm][j] = f64::INFINITY;
+                        continue;
+                    }
+                    let q = m.g2[arm][j] - 2.0 * k * m.gx[arm][j] + k * k * m.x2[j];
+                    k_map_stderr[arm][j] = (q.max(0.0) * bfac).sqrt() / x;
+                }
+            }
+        }
+        let ambient_a = Arm::ALL.map(|arm| bench.detectors()[arm].ambient_current_a);
+        let dark_a = Arm::ALL.map(|arm| bench.detectors()[arm].dark_current_a);
+        let c_traced = parts.c_traced;
+        let c_a = Arm::ALL.map(|arm| c_traced[arm].value + ambient_a[arm] + dark_a[arm]);
+        let b = Arm::ALL.map(|arm| Estimate {
+            value: c_a[arm],
+            stderr: c_traced[arm].stderr,
+        });
         Transport {
-            rays: t.rays,
-            seed: t.seed,
-            units_across: t.units_across,
-            units_down: t.units_down,
-            x_w: t.x.clone(),
-            t_a: t.t.clone(),
+            rays: parts.rays,
+            seed: parts.seed,
+            units_across: parts.units_across,
+            units_down: parts.units_down,
+            x_w: parts.x_w,
+            t_a: parts.t_a,
             g_a,
             k_map,
             k_map_stderr,
@@ -272,12 +358,12 @@ impl Transport {
             c_traced,
             ambient_a,
             dark_a,
-            x_total,
-            k,
+            x_total: parts.x_total,
+            k: parts.k,
             b,
-            k_prime,
-            imbalance,
-            ledger: Ledger::from_tallies(bench, t),
+            k_prime: parts.k_prime,
+            imbalance: parts.imbalance,
+            ledger: parts.ledger,
         }
     }
 
@@ -285,9 +371,9 @@ impl Transport {
         self.x_w.len()
     }
 
-    /// T[d][s][j] (A).
-    pub fn t(&self, d: usize, s: usize, j: usize) -> f64 {
-        self.t_a[BatchTally::t_index(self.units(), d, s, j)]
+    /// T[d][s][j] (A): the current of arm d from light first meeting unit j in state s.
+    pub fn t(&self, arm: Arm, state: MirrorState, j: usize) -> f64 {
+        self.t_a[BatchTally::t_index(self.units(), arm, state, j)]
     }
 
     /// The forward model (the one place it is written): the traced light currents [I₊, I₋] (A)
@@ -308,13 +394,14 @@ impl Transport {
         for (g, out) in self.g_a.iter().zip(pg.iter_mut()) {
             op.apply(g, out);
         }
-        let total = [0, 1].map(|d| self.g_a[d].iter().sum::<f64>());
-        let c = [0, 1].map(|d| self.c_traced[d].value);
+        let total = Arm::ALL.map(|arm| self.g_a[arm].iter().sum::<f64>());
+        let c = Arm::ALL.map(|arm| self.c_traced[arm].value);
+        let (plus, minus) = (Arm::Plus, Arm::Minus);
         let mut out = Vec::with_capacity(if complementary { 2 * m } else { m });
-        for (p_plus, p_minus) in pg[0].iter().zip(&pg[1]) {
-            out.push([p_plus + c[0], (total[1] - p_minus) + c[1]]);
+        for (p_plus, p_minus) in pg[plus].iter().zip(&pg[minus]) {
+            out.push([p_plus + c[plus], (total[minus] - p_minus) + c[minus]]);
             if complementary {
-                out.push([(total[0] - p_plus) + c[0], p_minus + c[1]]);
+                out.push([(total[plus] - p_plus) + c[plus], p_minus + c[minus]]);
             }
         }
         out
@@ -329,20 +416,19 @@ impl Transport {
         let [light] = self.frame_currents(&bits, 1, false)[..] else {
             return [f64::NAN; 2];
         };
-        [0, 1].map(|d| light[d] + self.ambient_a[d] + self.dark_a[d])
+        Arm::ALL.map(|arm| light[arm] + self.ambient_a[arm] + self.dark_a[arm])
     }
 }
 
 /// The photocurrents of a fixed-pattern trace ([`crate::trace::PatternMode::Fixed`]):
 /// y± = traced current + ambient + dark (A), with the traced part's standard error.
 pub fn fixed_pattern_currents(bench: &Bench, t: &Tallies) -> [Estimate; 2] {
-    [0, 1].map(|d| {
-        let v: Vec<(u64, f64)> = t.batches.iter().map(|b| (b.rays, b.b[d])).collect();
+    Arm::ALL.map(|arm| {
+        let v: Vec<(u64, f64)> = t.batches.iter().map(|b| (b.rays, b.b[arm])).collect();
         let e = total_estimate(&v);
+        let det = &bench.detectors()[arm];
         Estimate {
-            value: e.value
-                + bench.detectors()[d].ambient_current_a
-                + bench.detectors()[d].dark_current_a,
+            value: e.value + det.ambient_current_a + det.dark_current_a,
             stderr: e.stderr,
         }
     })

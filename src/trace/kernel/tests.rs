@@ -2,6 +2,7 @@
 
 use super::{Kernel, ObjectGrid, trace_kernel};
 use crate::objects::usaf::{Polarity, UsafChart};
+use crate::optics::Arm;
 use crate::raster::Raster;
 use crate::trace::testing::bench_with;
 use crate::trace::{TraceOptions, trace};
@@ -93,15 +94,16 @@ fn objects() -> Vec<(&'static str, Raster)> {
 fn direct_gains(t: &crate::trace::Tallies) -> ([Vec<f64>; 2], [Vec<f64>; 2]) {
     let units = t.units();
     let nb = t.batches.len() as f64;
-    let g: [Vec<f64>; 2] = [0, 1].map(|d| {
+    let g: [Vec<f64>; 2] = Arm::ALL.map(|d| {
+        let (on, off) = (d.state(), d.other().state());
         (0..units)
             .map(|j| {
-                t.t[crate::trace::BatchTally::t_index(units, d, d, j)]
-                    - t.t[crate::trace::BatchTally::t_index(units, d, 1 - d, j)]
+                t.t[crate::trace::BatchTally::t_index(units, d, on, j)]
+                    - t.t[crate::trace::BatchTally::t_index(units, d, off, j)]
             })
             .collect()
     });
-    let se = [0, 1].map(|d| {
+    let se = Arm::ALL.map(|d| {
         (0..units)
             .map(|j| ((t.g2[d][j] - g[d][j] * g[d][j] / nb).max(0.0) * nb / (nb - 1.0)).sqrt())
             .collect()
@@ -148,7 +150,7 @@ fn kernel_matches_direct_traces() {
         const BLOCK: usize = 6;
         let (across, down) = (tk.units_across, tk.units_down);
         let (mut z2, mut zsum, mut n) = (0.0, 0.0, 0usize);
-        for d in 0..2 {
+        for d in Arm::ALL {
             for by in 0..down / BLOCK {
                 for bx in 0..across / BLOCK {
                     let (mut a, mut b, mut s2) = (0.0, 0.0, 0.0);
@@ -172,7 +174,10 @@ fn kernel_matches_direct_traces() {
         let (mz2, mz) = (z2 / n as f64, zsum / n as f64);
         eprintln!(
             "{name}: block mean z² {mz2:.3}, mean z {mz:.3} over {n}; k+ {:?} vs {:?}; x {:?} vs {:?}",
-            tk.k[0], td.k[0], tk.x_total, td.x_total
+            tk.k[Arm::Plus],
+            td.k[Arm::Plus],
+            tk.x_total,
+            td.x_total
         );
         assert!(n > 60, "{name}: {n} blocks compared");
         assert!((0.4..1.8).contains(&mz2), "{name}: mean z² {mz2}");
@@ -184,7 +189,7 @@ fn kernel_matches_direct_traces() {
                 "{name} {what}: kernel {a:?} vs direct {b:?}"
             );
         };
-        for d in 0..2 {
+        for d in Arm::ALL {
             close(tk.k[d], td.k[d], "k");
             close(tk.c_traced[d], td.c_traced[d], "c");
         }
