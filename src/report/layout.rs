@@ -338,6 +338,7 @@ pub fn svg_to_png(svg: &str) -> Result<Vec<u8>> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    #[cfg(feature = "figures")]
     use crate::trace::fan::ray_fan;
 
     #[test]
