@@ -7,6 +7,7 @@
 
 pub mod acquisition;
 pub mod align;
+#[cfg(feature = "cli")]
 pub mod cli;
 pub mod dataset;
 pub mod detector;

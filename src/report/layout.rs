@@ -330,6 +330,7 @@ pub fn layout_svg(bench: &Bench, fan: &RayFan, title: &str) -> Result<String> {
 
 /// Renders SVG text to PNG bytes at its own size (1 px per SVG unit) with resvg, text set in the
 /// embedded DejaVu Sans (no system fonts are consulted); see `report::svg`.
+#[cfg(feature = "figures")]
 pub fn svg_to_png(svg: &str) -> Result<Vec<u8>> {
     super::svg::svg_to_png(svg)
 }
@@ -337,6 +338,7 @@ pub fn svg_to_png(svg: &str) -> Result<Vec<u8>> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    #[cfg(feature = "figures")]
     use crate::trace::fan::ray_fan;
 
     #[test]
@@ -364,6 +366,7 @@ mod tests {
 
     /// The SVG has three views, a path for every ray in each, and renders to a PNG of its size.
     #[test]
+    #[cfg(feature = "figures")]
     fn svg_and_png_of_the_test_bench() {
         let bench = crate::trace::testing::bench_with("tests/symmetric_arms.ron", &[]);
         let fan = ray_fan(&bench, 60, 1).unwrap();

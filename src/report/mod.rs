@@ -1,18 +1,26 @@
 //! Output files: JSON summaries, images (PNG, EXR), arrays (.npy), plots and HTML reports.
 //! Together with `scene` and `cli`, the only module that touches files.
+//!
+//! The figure modules (plot, heatmap, montage, svg, font: plotters, resvg, svg2pdf and the
+//! embedded font) are built with the `figures` feature only; the plain writers are always there.
 
 pub mod csv;
 pub mod exr;
+#[cfg(feature = "figures")]
 mod font;
+#[cfg(feature = "figures")]
 pub mod heatmap;
 pub mod html;
 pub mod json;
 pub mod layout;
+#[cfg(feature = "figures")]
 pub mod montage;
 pub mod npy;
 pub mod output;
+#[cfg(feature = "figures")]
 pub mod plot;
 pub mod png;
+#[cfg(feature = "figures")]
 pub mod svg;
 
 /// An integer exponent in Unicode superscript digits ("−3" → "⁻³"), for 10ⁿ in labels.
