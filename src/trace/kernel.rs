@@ -141,6 +141,22 @@ pub struct KernelEntry {
     pub x2: f64,
 }
 
+impl KernelEntry {
+    /// From an entry's accumulator over `nb` batches (see [`ACC`]): the sums, and the second
+    /// moments centred on the batch means.
+    fn from_sums(a: &[f64; ACC], nb: f64) -> KernelEntry {
+        let g = Arm::ALL.map(|arm| gain(a, arm));
+        let x = a[ENTRY_X];
+        KernelEntry {
+            t: [a[0], a[1], a[2], a[3]],
+            x,
+            g2: Arm::ALL.map(|arm| a[ACC_G2 + arm.index()] - g[arm] * g[arm] / nb),
+            gx: Arm::ALL.map(|arm| a[ACC_GX + arm.index()] - g[arm] * x / nb),
+            x2: a[ACC_X2] - x * x / nb,
+        }
+    }
+}
+
 /// A traced object kernel (see the module docs).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Kernel {
@@ -254,10 +270,8 @@ impl Recorder for KernelBatch {
     }
 }
 
-/// Traces the object kernel of `bench` (whose chart `grid.chart` should be clear glass: any
-/// mask it carries multiplies the kernel) on the current rayon pool. `options.mode` must be
-/// `PatternMode::Branch`.
-pub fn trace_kernel(bench: &Bench, grid: ObjectGrid, options: &TraceOptions) -> Result<Kernel> {
+/// The errors of [`trace_kernel`]'s input, each at its field.
+fn check_kernel_options(bench: &Bench, grid: ObjectGrid, options: &TraceOptions) -> Result<()> {
     if options.rays == 0 {
         return Err(Error::field(
             "rays",
@@ -282,6 +296,14 @@ pub fn trace_kernel(bench: &Bench, grid: ObjectGrid, options: &TraceOptions) -> 
             "the object grid needs at least one pixel and a positive size",
         ));
     }
+    Ok(())
+}
+
+/// Traces the object kernel of `bench` (whose chart `grid.chart` should be clear glass: any
+/// mask it carries multiplies the kernel) on the current rayon pool. `options.mode` must be
+/// `PatternMode::Branch`.
+pub fn trace_kernel(bench: &Bench, grid: ObjectGrid, options: &TraceOptions) -> Result<Kernel> {
+    check_kernel_options(bench, grid, options)?;
     let (across, down) = bench.units_shape();
     let units = across * down;
     let npix = grid.pixels();
@@ -392,16 +414,7 @@ pub fn trace_kernel(bench: &Bench, grid: ObjectGrid, options: &TraceOptions) -> 
         .into_iter()
         .map(|(key, a)| {
             let (i, j) = ((key / units as u64) as u32, (key % units as u64) as u32);
-            let g = Arm::ALL.map(|arm| gain(&a, arm));
-            let x = a[ENTRY_X];
-            let e = KernelEntry {
-                t: [a[0], a[1], a[2], a[3]],
-                x,
-                g2: Arm::ALL.map(|arm| a[ACC_G2 + arm.index()] - g[arm] * g[arm] / nb),
-                gx: Arm::ALL.map(|arm| a[ACC_GX + arm.index()] - g[arm] * x / nb),
-                x2: a[ACC_X2] - x * x / nb,
-            };
-            (i, j, e)
+            (i, j, KernelEntry::from_sums(&a, nb))
         })
         .collect();
     entries.sort_unstable_by_key(|e| (e.0, e.1));
