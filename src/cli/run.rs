@@ -39,7 +39,6 @@ use clap::Args;
 use crate::pipeline::TraceRequest;
 use crate::pipeline::cache::{CacheKey, TraceCache};
 use crate::report::csv::{ResultRow, write_results};
-use crate::report::json::write_json;
 use crate::report::montage::{Montage, write_montage};
 use crate::report::output::OutputDir;
 use crate::report::plot::{LinePlot, ScopePlot, Series, write_plot, write_scope};
@@ -251,8 +250,8 @@ pub(super) fn bench_provenance(
     name: &str,
     doc: &BenchDoc,
     seeds: &[u64],
-) -> crate::Result<super::provenance::Provenance> {
-    let p = super::provenance::Provenance::new(seeds);
+) -> crate::Result<crate::provenance::Provenance> {
+    let p = crate::provenance::Provenance::new(seeds);
     let mut p = if name == PAPER_BENCH_NAME {
         p.text(PAPER_BENCH_NAME, PAPER_BENCH)
     } else {
@@ -269,7 +268,7 @@ fn write_outputs(
     bench: &crate::optics::Bench,
     o: &RunOutcome,
     settings_ron: &str,
-    provenance: &super::provenance::Provenance,
+    provenance: &crate::provenance::Provenance,
     out: &OutputDir,
 ) -> crate::Result<usize> {
     let mut files = Vec::new();
@@ -425,8 +424,7 @@ fn write_outputs(
     // for the same seed whatever the timings file holds.
     let count = files.len() + 1;
     let summary = summarize_run(name, bench, o, files);
-    super::provenance::write_summary(out, &summary, provenance)?;
-    write_json(&out.path("timings.json"), &run_timings(o))?;
+    super::provenance::write_summary_and_timings(out, &summary, provenance, Some(&run_timings(o)))?;
     super::run_report::write_report(name, bench, o, &summary, settings_ron, out)?;
     Ok(count)
 }

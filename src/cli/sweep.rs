@@ -248,7 +248,7 @@ fn write_outputs(
     bench: &crate::optics::Bench,
     s: &Sweep,
     nominal_values: &[f64],
-    provenance: &super::provenance::Provenance,
+    provenance: &crate::provenance::Provenance,
     out: &OutputDir,
 ) -> Result<usize> {
     let mut files = vec![

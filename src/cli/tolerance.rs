@@ -272,7 +272,7 @@ fn run_merge(args: &ToleranceArgs) -> Result<()> {
     // The merge's provenance is its own command and the shard records it read; the bench and
     // tolerance files are inside those records (docs/outputs.md). Everything but this block
     // equals the unsharded run's summary.
-    let mut provenance = super::provenance::Provenance::new(&[merged.seed]);
+    let mut provenance = crate::provenance::Provenance::new(&[merged.seed]);
     for d in &args.merge {
         provenance = provenance.file(&d.join("trials.ron"))?;
     }
@@ -303,7 +303,7 @@ fn pm(v: f64, se: f64) -> String {
 fn write_outputs(
     s: &ShardFile,
     set: &ToleranceSet,
-    provenance: &super::provenance::Provenance,
+    provenance: &crate::provenance::Provenance,
     out: &OutputDir,
 ) -> crate::Result<usize> {
     let analysis = analyse(set, &s.records, s.sensitivity.as_deref());

@@ -91,7 +91,7 @@ pub fn run(args: &TraceArgs) -> anyhow::Result<()> {
         &traced.metrics,
         traced.arrivals(),
     );
-    let mut provenance = super::provenance::Provenance::new(&[args.seed]).file(&args.scene)?;
+    let mut provenance = crate::provenance::Provenance::new(&[args.seed]).file(&args.scene)?;
     for f in crate::scene::doc::BenchDoc::read(&args.scene)?.input_files() {
         provenance = provenance.file(&f)?;
     }
@@ -149,7 +149,7 @@ fn write_outputs(
     out: &Path,
     t: &Transport,
     summary: &mut TraceSummary,
-    provenance: &super::provenance::Provenance,
+    provenance: &crate::provenance::Provenance,
 ) -> Result<()> {
     let dir = OutputDir::create(out)?;
     let mut files = Vec::new();
