@@ -9,8 +9,6 @@
 //! `history.svg/png` (the convergence), `layout_before.svg`, `layout_after.svg` and
 //! `report.html`.
 
-use std::path::PathBuf;
-
 use anyhow::Result;
 use clap::{Args, ValueEnum};
 use serde_json::{Map, Value};
@@ -34,9 +32,16 @@ pub enum ObjectiveArg {
 
 /// Arguments of `spibench align`.
 #[derive(Debug, Clone, Args)]
+#[command(
+    mut_arg("rays", |a| a.default_value("200000")
+        .help("Lamp rays of the last stage (and of the reported benches)")),
+    mut_arg("seed", |a| a.default_value("1")),
+    mut_arg("set", |a| a.help("Set a bench variable of the starting bench first (repeatable)")),
+    mut_arg("out", |a| a.default_value("out/align")),
+)]
 pub struct AlignArgs {
-    /// Bench file (RON); default: the paper's bench built into the binary.
-    pub scene: Option<PathBuf>,
+    #[command(flatten)]
+    pub bench: super::args::BenchArgs,
     /// A free variable and its bounds, PATH=LO:HI (the variable's values; a rigid-body move
     /// such as `detectors.minus.decenter_mm.x` starts at 0).
     #[arg(long, value_name = "PATH=LO:HI", required = true)]
@@ -49,23 +54,16 @@ pub struct AlignArgs {
     /// For `weighted`: METRIC=W (repeatable), e.g. `imbalance=1`, `k_prime=-1`.
     #[arg(long, value_name = "METRIC=W")]
     pub weight: Vec<String>,
-    /// Lamp rays of the last stage (and of the reported benches).
-    #[arg(long, default_value_t = 200_000)]
-    pub rays: u64,
     /// Lamp rays of the first stage (default: --rays / 16).
     #[arg(long)]
     pub start_rays: Option<u64>,
     /// The most traced evaluations.
     #[arg(long, default_value_t = 200)]
     pub max_evaluations: usize,
-    #[arg(long, default_value_t = 1)]
-    pub seed: u64,
-    /// Set a bench variable of the starting bench first (repeatable).
-    #[arg(long = "set", value_name = "PATH=VALUE")]
-    pub set: Vec<String>,
-    #[arg(long, default_value = "out/align")]
-    pub out: PathBuf,
 }
+
+/// `align`'s default ray count of the last stage (also set on the flag, for `--help`).
+const DEFAULT_RAYS: u64 = 200_000;
 
 fn num(v: f64) -> Value {
     serde_json::Number::from_f64(v).map_or(Value::Null, Value::Number)
@@ -73,7 +71,7 @@ fn num(v: f64) -> Value {
 
 /// Runs `spibench align`.
 pub fn run(args: &AlignArgs) -> Result<()> {
-    let (name, doc) = super::run::load_doc(args.scene.as_deref(), &args.set)?;
+    let (name, doc) = args.bench.load()?;
     let free: Vec<Free> = args
         .free
         .iter()
@@ -95,22 +93,13 @@ pub fn run(args: &AlignArgs) -> Result<()> {
         ),
     };
     crate::align::check_objective(&objective)?;
-    if args.rays < 2 * crate::trace::RAYS_PER_BATCH || args.rays > crate::scene::run::MAX_RAYS {
-        return Err(crate::Error::field(
-            "--rays",
-            format!(
-                "must lie between {} and {}",
-                2 * crate::trace::RAYS_PER_BATCH,
-                crate::scene::run::MAX_RAYS
-            ),
-        )
-        .into());
-    }
-    let out = OutputDir::create(&args.out)?;
+    let opts = &args.bench.opts;
+    let rays = opts.rays_or(DEFAULT_RAYS, super::args::MIN_RAYS_WITH_STDERR)?;
+    let out = OutputDir::create(&opts.out_or("out/align"))?;
     let o = AlignOptions {
-        start_rays: args.start_rays.unwrap_or(args.rays / 16).min(args.rays),
-        max_rays: args.rays,
-        seed: args.seed,
+        start_rays: args.start_rays.unwrap_or(rays / 16).min(rays),
+        max_rays: rays,
+        seed: opts.seed(),
         max_evaluations: args.max_evaluations.max(free.len() + 2),
     };
     let bar = super::progress::bar(o.max_evaluations as u64, "evals");

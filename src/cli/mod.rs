@@ -4,6 +4,7 @@
 //! impossible values, a missing file; also clap's usage errors), 1 for anything else.
 
 mod align;
+mod args;
 mod check;
 mod completions;
 mod dataset;

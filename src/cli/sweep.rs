@@ -8,8 +8,6 @@
 //! columns), plots (1-D: each metric against the variable with ±1 standard-error bars; 2-D:
 //! heatmaps with a colour bar and the nominal bench marked) and `report.html`.
 
-use std::path::PathBuf;
-
 use anyhow::Result;
 use clap::Args;
 use serde::Serialize;
@@ -25,31 +23,29 @@ use crate::transport::metrics::{METRICS, MetricRow};
 
 /// Arguments of `spibench sweep`.
 #[derive(Debug, Clone, Args)]
+#[command(
+    mut_arg("rays", |a| a.default_value("500000").help("Lamp rays per grid point")),
+    mut_arg("seed", |a| a.default_value("1")
+        .help("Seed of every point's trace (the same for all: common random numbers)")),
+    mut_arg("set", |a| a.help("Set a bench variable of the nominal bench first (repeatable)")),
+    mut_arg("out", |a| a.default_value("out/sweep")),
+)]
 pub struct SweepArgs {
-    /// Bench file (RON); default: the paper's bench built into the binary.
-    pub scene: Option<PathBuf>,
+    #[command(flatten)]
+    pub bench: super::args::BenchArgs,
     /// A variable and its grid, PATH=START:STOP:N (N values, both ends included); once for a
     /// 1-D sweep, twice for a 2-D grid. PATH is a bench variable such as
     /// `detectors.minus.position_mm.x`, `arm_minus_lens.despace_mm` or `dmd.tilt_deg`.
     #[arg(long, value_name = "PATH=START:STOP:N", required = true)]
     pub vary: Vec<String>,
-    /// Lamp rays per grid point.
-    #[arg(long, default_value_t = 500_000)]
-    pub rays: u64,
-    /// Seed of every point's trace (the same for all: common random numbers).
-    #[arg(long, default_value_t = 1)]
-    pub seed: u64,
     /// Run the whole pipeline (detector, the four schemes, reconstruction, scores) on every
     /// point, with the bench's `run` settings.
     #[arg(long)]
     pub quality: bool,
-    /// Set a bench variable of the nominal bench first (repeatable).
-    #[arg(long = "set", value_name = "PATH=VALUE")]
-    pub set: Vec<String>,
-    /// Output folder.
-    #[arg(long, default_value = "out/sweep")]
-    pub out: PathBuf,
 }
+
+/// `sweep`'s default ray count per point (also set on the flag, for `--help`).
+const DEFAULT_RAYS: u64 = 500_000;
 
 /// The metrics plotted, with their axis labels.
 const PLOTTED: [(&str, &str); 6] = [
@@ -142,39 +138,33 @@ fn row(p: &SweepPoint, nominal: &SweepPoint) -> Map<String, Value> {
 
 /// Runs `spibench sweep`.
 pub fn run(args: &SweepArgs) -> Result<()> {
-    let (name, doc) = super::run::load_doc(args.scene.as_deref(), &args.set)?;
+    let (name, doc) = args.bench.load()?;
     let vary: Vec<Vary> = args
         .vary
         .iter()
         .map(|v| Vary::parse(v))
         .collect::<crate::Result<_>>()?;
-    if args.rays < 2 * crate::trace::RAYS_PER_BATCH || args.rays > crate::scene::run::MAX_RAYS {
-        return Err(crate::Error::field(
-            "--rays",
-            format!(
-                "must lie between {} (two batches, for standard errors) and {}",
-                2 * crate::trace::RAYS_PER_BATCH,
-                crate::scene::run::MAX_RAYS
-            ),
-        )
-        .into());
-    }
+    let opts = &args.bench.opts;
+    let (rays, seed) = (
+        opts.rays_or(DEFAULT_RAYS, super::args::MIN_RAYS_WITH_STDERR)?,
+        opts.seed(),
+    );
     // Unknown paths fail here, before anything is traced.
     let nominal_values: Vec<f64> = vary
         .iter()
         .map(|v| doc.get(&v.path))
         .collect::<crate::Result<_>>()?;
-    let out = OutputDir::create(&args.out)?;
+    let out = OutputDir::create(&opts.out_or("out/sweep"))?;
     let options = SweepOptions {
-        rays: args.rays,
-        seed: args.seed,
+        rays,
+        seed,
         quality: args.quality,
     };
     let points: usize = vary.iter().map(|v| v.n).product();
     eprintln!(
         "{name}: sweep of {points} point(s) + the nominal bench, {} rays each (seed {}){}",
-        args.rays,
-        args.seed,
+        rays,
+        seed,
         if args.quality { ", full pipeline" } else { "" }
     );
     let bar = super::progress::bar(points as u64 + 1, "points");
@@ -185,7 +175,7 @@ pub fn run(args: &SweepArgs) -> Result<()> {
     bar.finish_and_clear();
     let seconds = start.elapsed().as_secs_f64();
     let bench = doc.build()?;
-    let provenance = super::run::bench_provenance(&name, &doc, &[args.seed])?;
+    let provenance = super::run::bench_provenance(&name, &doc, &[seed])?;
     let files = write_outputs(&name, &bench, &s, &nominal_values, &provenance, &out)?;
     let dir = out.commit()?;
     print_table(&s);

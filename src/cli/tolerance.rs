@@ -25,23 +25,28 @@ use crate::scene::doc::BenchDoc;
 use crate::scene::tolerance::{ShardFile, ToleranceSet, read_shard, shard_to_ron};
 use crate::tolerance::{
     Analysis, SENSITIVITY_METRICS, ToleranceOptions, analyse, is_metric, merge, nominal,
-    sensitivity, shard_indices, trial, trial_doc,
+    sensitivity, trial, trial_doc,
 };
 
 /// Arguments of `spibench tolerance`.
 #[derive(Debug, Clone, Args)]
+#[command(
+    mut_arg("rays", |a| a.default_value("200000").help("Lamp rays per traced bench")),
+    mut_arg("seed", |a| a.default_value("1").help(
+        "Seed: of every trace (common random numbers) and, salted, of the tolerance draws"
+    )),
+    mut_arg("set", |a| a.help("Set a bench variable of the nominal bench first (repeatable)")),
+    mut_arg("out", |a| a.default_value("out/tolerance")),
+)]
 pub struct ToleranceArgs {
-    /// Bench file (RON); default: the paper's bench built into the binary.
-    pub scene: Option<PathBuf>,
+    #[command(flatten)]
+    pub bench: super::args::BenchArgs,
     /// Tolerance file (RON; see `scenes/tolerances/paper_bench.ron`).
     #[arg(long, required_unless_present = "merge")]
     pub tolerances: Option<PathBuf>,
     /// Monte Carlo trials (0: the sensitivity table only).
     #[arg(long, default_value_t = 100)]
     pub trials: u64,
-    /// Lamp rays per traced bench.
-    #[arg(long, default_value_t = 200_000)]
-    pub rays: u64,
     /// Resolve every sensitivity row to this paired standard error of its imbalance change
     /// (or 1 % of the change, whichever is larger), tracing each end of the row again with
     /// 2ᵏ× the rays (k predicted from its standard error) until it is, up to --max-rays.
@@ -50,73 +55,44 @@ pub struct ToleranceArgs {
     /// The most rays per trace of a row being resolved (default 64 × --rays).
     #[arg(long, value_name = "N", requires = "resolve")]
     pub max_rays: Option<u64>,
-    /// Seed: of every trace (common random numbers) and, salted, of the tolerance draws.
-    #[arg(long, default_value_t = 1)]
-    pub seed: u64,
     /// Run the whole pipeline on every trial and the nominal bench (image scores per scheme).
     #[arg(long)]
     pub quality: bool,
     /// Write only the bench of trial K (as RON) and stop.
     #[arg(long, value_name = "K")]
     pub trial: Option<u64>,
-    /// Run the trials i ≡ I (mod N) only (shard 0 also runs the sensitivity table).
+    /// Run part I of N of the trials, strided: the trials i ≡ I (mod N) (shard 0 also runs
+    /// the sensitivity table); `--merge` over the N folders gives the unsharded run's outputs.
     #[arg(long, value_name = "I/N")]
     pub shard: Option<String>,
     /// Merge the output folders of the shards of one run into DIR (no tracing).
     #[arg(long, value_name = "DIR", num_args = 1..)]
     pub merge: Vec<PathBuf>,
-    /// Set a bench variable of the nominal bench first (repeatable).
-    #[arg(long = "set", value_name = "PATH=VALUE")]
-    pub set: Vec<String>,
-    /// Output folder.
-    #[arg(long, default_value = "out/tolerance")]
-    pub out: PathBuf,
 }
 
 /// The most trials one run may have.
 const MAX_TRIALS: u64 = 1_000_000;
 
-fn parse_shard(text: &str) -> crate::Result<(u64, u64)> {
-    let bad = || {
-        crate::Error::field(
-            "--shard",
-            format!("`{text}`: expected I/N with 0 ≤ I < N, e.g. 0/4"),
-        )
-    };
-    let (i, n) = text.split_once('/').ok_or_else(bad)?;
-    let (i, n): (u64, u64) = (
-        i.trim().parse().map_err(|_| bad())?,
-        n.trim().parse().map_err(|_| bad())?,
-    );
-    if n == 0 || i >= n {
-        return Err(bad());
-    }
-    Ok((i, n))
-}
+/// `tolerance`'s default ray count per trace (also set on the flag, for `--help`).
+const DEFAULT_RAYS: u64 = 200_000;
 
 /// Runs `spibench tolerance`.
 pub fn run(args: &ToleranceArgs) -> Result<()> {
     if !args.merge.is_empty() {
         return run_merge(args);
     }
-    let (name, doc) = super::run::load_doc(args.scene.as_deref(), &args.set)?;
+    let (name, doc) = args.bench.load()?;
+    let opts = &args.bench.opts;
     let tol_path = args
         .tolerances
         .as_deref()
         .ok_or_else(|| crate::Error::field("--tolerances", "give the tolerance file"))?;
     let tol_text = crate::scene::read_text(tol_path)?;
     let set = ToleranceSet::parse(&tol_text, tol_path, &doc, &is_metric)?;
-    if args.rays < 2 * crate::trace::RAYS_PER_BATCH || args.rays > crate::scene::run::MAX_RAYS {
-        return Err(crate::Error::field(
-            "--rays",
-            format!(
-                "must lie between {} (two batches, for standard errors) and {}",
-                2 * crate::trace::RAYS_PER_BATCH,
-                crate::scene::run::MAX_RAYS
-            ),
-        )
-        .into());
-    }
+    let (rays, seed) = (
+        opts.rays_or(DEFAULT_RAYS, super::args::MIN_RAYS_WITH_STDERR)?,
+        opts.seed(),
+    );
     let resolve = match args.resolve {
         None => None,
         Some(se) => {
@@ -129,12 +105,12 @@ pub fn run(args: &ToleranceArgs) -> Result<()> {
             }
             let max_rays = args
                 .max_rays
-                .unwrap_or(args.rays.saturating_mul(64))
+                .unwrap_or(rays.saturating_mul(64))
                 .min(crate::scene::run::MAX_RAYS);
-            if max_rays < args.rays {
+            if max_rays < rays {
                 return Err(crate::Error::field(
                     "--max-rays",
-                    format!("must be at least --rays ({})", args.rays),
+                    format!("must be at least --rays ({rays})"),
                 )
                 .into());
             }
@@ -148,15 +124,11 @@ pub fn run(args: &ToleranceArgs) -> Result<()> {
     if args.trials > MAX_TRIALS {
         return Err(crate::Error::field("--trials", format!("at most {MAX_TRIALS}")).into());
     }
-    let shard = args
-        .shard
-        .as_deref()
-        .map(parse_shard)
-        .transpose()?
-        .unwrap_or((0, 1));
+    let shard =
+        super::args::Shard::parse_opt(args.shard.as_deref())?.unwrap_or(super::args::Shard::WHOLE);
     let o = ToleranceOptions {
-        rays: args.rays,
-        seed: args.seed,
+        rays,
+        seed,
         quality: args.quality,
     };
     if o.quality {
@@ -164,7 +136,7 @@ pub fn run(args: &ToleranceArgs) -> Result<()> {
         doc.run_scene()?;
     }
     if let Some(k) = args.trial {
-        let out = OutputDir::create(&args.out)?;
+        let out = OutputDir::create(&opts.out_or("out/tolerance"))?;
         let (d, dev, comp) = trial_doc(&doc, &set, &o, k)?;
         d.build()?;
         let file = format!("trial_{k}.ron");
@@ -172,8 +144,8 @@ pub fn run(args: &ToleranceArgs) -> Result<()> {
         text += &format!(
             "Trial {k} of `spibench tolerance {name} --tolerances {} --seed {} --rays {}`.\n",
             tol_path.display(),
-            args.seed,
-            args.rays
+            seed,
+            rays
         );
         for (p, v) in dev.iter().chain(&comp) {
             text += &format!("//   {p}: {v:+.6e}\n");
@@ -185,7 +157,7 @@ pub fn run(args: &ToleranceArgs) -> Result<()> {
         println!("wrote {}", dir.join(file).display());
         return Ok(());
     }
-    let out = OutputDir::create(&args.out)?;
+    let out = OutputDir::create(&opts.out_or("out/tolerance"))?;
     // A trial whose perturbed bench is not valid is not an input error: it is recorded as a
     // failed trial (a built bench that does not work).
     let start = std::time::Instant::now();
@@ -193,12 +165,12 @@ pub fn run(args: &ToleranceArgs) -> Result<()> {
         "{name}: {} tolerance(s), {} compensator(s); {} rays per trace (seed {}){}",
         set.tolerances.len(),
         set.compensators.len(),
-        args.rays,
-        args.seed,
+        rays,
+        seed,
         if args.quality { ", full pipeline" } else { "" }
     );
     let nom = nominal(&doc, &o)?;
-    let sens = if shard.0 == 0 {
+    let sens = if shard.index == 0 {
         let bar = super::progress::bar(2 * set.tolerances.len() as u64, "settings");
         let rows = sensitivity(&doc, &set, &nom, &o, resolve, &|d, _| {
             bar.set_position(d as u64)
@@ -208,7 +180,7 @@ pub fn run(args: &ToleranceArgs) -> Result<()> {
     } else {
         None
     };
-    let indices: Vec<u64> = shard_indices(args.trials, shard).collect();
+    let indices: Vec<u64> = shard.strided(args.trials).collect();
     let bar = super::progress::bar(indices.len() as u64, "trials");
     let mut records = Vec::with_capacity(indices.len());
     let (mut comp_s, mut trace_s) = (0.0, 0.0);
@@ -230,17 +202,17 @@ pub fn run(args: &ToleranceArgs) -> Result<()> {
         bench_ron: doc.to_ron()?,
         tolerances_path: tol_path.display().to_string(),
         tolerances_text: tol_text,
-        rays: args.rays,
-        seed: args.seed,
+        rays,
+        seed,
         trials: args.trials,
         quality: args.quality,
-        shard,
+        shard: shard.pair(),
         nominal: crate::tolerance::values(&nom, &nom),
         sensitivity: sens,
         records,
     };
     let provenance =
-        super::run::bench_provenance(&name, &doc, &[args.seed])?.file(Path::new(tol_path))?;
+        super::run::bench_provenance(&name, &doc, &[seed])?.file(Path::new(tol_path))?;
     let files = write_outputs(&shard_file, &set, &provenance, &out)?;
     let dir = out.commit()?;
     println!(
@@ -268,7 +240,7 @@ fn run_merge(args: &ToleranceArgs) -> Result<()> {
         &doc,
         &is_metric,
     )?;
-    let out = OutputDir::create(&args.out)?;
+    let out = OutputDir::create(&args.bench.opts.out_or("out/tolerance"))?;
     // The merge's provenance is its own command and the shard records it read; the bench and
     // tolerance files are inside those records (docs/outputs.md). Everything but this block
     // equals the unsharded run's summary.
