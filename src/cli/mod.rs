@@ -14,6 +14,7 @@ mod patterns;
 pub(crate) mod progress;
 mod provenance;
 mod reconstruct;
+mod rows;
 mod run;
 mod run_arrays;
 mod run_repeats;

@@ -15,14 +15,19 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Result;
 use clap::Args;
-use serde_json::{Map, Value};
+use serde::Serialize;
 
 use crate::report::csv::write_csv;
 use crate::report::html::{Block, Page, write_page};
 use crate::report::output::OutputDir;
 use crate::report::plot::{LinePlot, Series, write_plot};
 use crate::scene::doc::BenchDoc;
-use crate::scene::tolerance::{ShardFile, ToleranceSet, read_shard, shard_to_ron};
+use crate::scene::tolerance::{
+    Compensator, Limit, QualityLimit, SensitivityRecord, ShardFile, Tolerance, ToleranceSet,
+    read_shard, shard_to_ron,
+};
+
+use super::rows::Row;
 use crate::tolerance::{
     Analysis, SENSITIVITY_METRICS, ToleranceOptions, analyse, is_metric, merge, nominal,
     sensitivity, trial, trial_doc,
@@ -259,14 +264,6 @@ fn run_merge(args: &ToleranceArgs) -> Result<()> {
     Ok(())
 }
 
-fn num(v: f64) -> Value {
-    serde_json::Number::from_f64(v).map_or(Value::Null, Value::Number)
-}
-
-fn map_of(v: &[(String, f64)]) -> Map<String, Value> {
-    v.iter().map(|(k, x)| (k.clone(), num(*x))).collect()
-}
-
 fn pm(v: f64, se: f64) -> String {
     format!("{v:+.3e} ± {se:.1e}")
 }
@@ -284,8 +281,84 @@ fn write_outputs(
         .to_vec();
     let path = out.path("trials.ron");
     std::fs::write(&path, shard_to_ron(s)?).map_err(|e| crate::Error::write(&path, e))?;
+    // Every trial's numbers in the metric rows sweep and align write too.
+    let values: Vec<Row> = s
+        .records
+        .iter()
+        .map(|r| Row::from_values(&r.values, &s.nominal))
+        .collect();
+    write_trials_csv(s, set, &values, out)?;
+    let mut blocks = vec![intro_block(s, set, &analysis)];
+    if let Some(sens) = &s.sensitivity {
+        files.push("sensitivity.csv".into());
+        write_sensitivity_csv(sens, out)?;
+        blocks.extend(sensitivity_blocks(sens));
+    }
+    if !s.records.is_empty() {
+        blocks.extend(monte_carlo_blocks(&analysis));
+        blocks.extend(distribution_plots(s, set, &analysis, out, &mut files)?);
+    }
+    write_page(
+        &out.path("report.html"),
+        &Page {
+            title: format!("spibench tolerance of {}", s.scene),
+            blocks,
+        },
+    )?;
+    let summary = ToleranceSummary {
+        command: "tolerance",
+        spibench_version: env!("CARGO_PKG_VERSION"),
+        scene: &s.scene,
+        tolerances_file: &s.tolerances_path,
+        rays: s.rays,
+        seed: s.seed,
+        trials: s.trials,
+        shard: [s.shard.0, s.shard.1],
+        quality: s.quality,
+        tolerances: &set.tolerances,
+        compensators: &set.compensators,
+        limits: &set.limits,
+        quality_limit: &set.quality,
+        nominal: Row::from_values(&s.nominal, &s.nominal),
+        sensitivity: s
+            .sensitivity
+            .iter()
+            .flatten()
+            .map(|r| SensitivitySummary {
+                path: &r.path,
+                min: r.min,
+                max: r.max,
+                rays: r.rays,
+                at_min: Row(r.at_min.clone()),
+                at_max: Row(r.at_max.clone()),
+            })
+            .collect(),
+        analysis: &analysis,
+        trial_rows: s
+            .records
+            .iter()
+            .zip(values)
+            .map(|(r, values)| TrialSummary {
+                index: r.index,
+                deviations: Row(r.deviations.clone()),
+                compensators: Row(r.compensators.clone()),
+                values,
+                error: r.error.as_deref(),
+            })
+            .collect(),
+        files: &files,
+    };
+    super::provenance::write_summary(out, &summary, provenance)?;
+    Ok(files.len())
+}
 
-    // Trials CSV: index, deviations, compensators, values, error.
+/// `trials.csv`: index, deviations, compensators, each trial's metric row, error.
+fn write_trials_csv(
+    s: &ShardFile,
+    set: &ToleranceSet,
+    values: &[Row],
+    out: &OutputDir,
+) -> crate::Result<()> {
     let mut header: Vec<String> = vec!["index".into()];
     header.extend(set.tolerances.iter().map(|t| t.path.clone()));
     header.extend(
@@ -296,16 +369,16 @@ fn write_outputs(
     let value_names: Vec<String> = s
         .records
         .iter()
-        .find(|r| r.error.is_none())
-        .map_or_else(Vec::new, |r| {
-            r.values.iter().map(|(k, _)| k.clone()).collect()
-        });
+        .zip(values)
+        .find(|(r, _)| r.error.is_none())
+        .map_or_else(Vec::new, |(_, v)| v.keys().map(String::from).collect());
     header.extend(value_names.iter().cloned());
     header.push("error".into());
     let rows: Vec<Vec<String>> = s
         .records
         .iter()
-        .map(|r| {
+        .zip(values)
+        .map(|(r, v)| {
             let mut row = vec![r.index.to_string()];
             row.extend(r.deviations.iter().map(|(_, v)| format!("{v:e}")));
             for c in &set.compensators {
@@ -317,7 +390,7 @@ fn write_outputs(
                 );
             }
             for n in &value_names {
-                row.push(r.value(n).map_or_else(String::new, |v| format!("{v:e}")));
+                row.push(v.get(n).map_or_else(String::new, |v| format!("{v:e}")));
             }
             row.push(r.error.clone().unwrap_or_default());
             row
@@ -325,8 +398,12 @@ fn write_outputs(
         .collect();
     let h: Vec<&str> = header.iter().map(String::as_str).collect();
     write_csv(&out.path("trials.csv"), &h, &rows)?;
+    Ok(())
+}
 
-    let mut blocks = vec![Block::Paragraph(format!(
+/// The report's opening paragraph: what was traced, how often, and how many trials failed.
+fn intro_block(s: &ShardFile, set: &ToleranceSet, analysis: &Analysis) -> Block {
+    Block::Paragraph(format!(
         "{}: {} tolerance(s) from {}, {} compensator(s); every bench traced with {} rays and \
          seed {} (common random numbers: differences from the nominal bench carry paired \
          standard errors); {} Monte Carlo trial(s){}{}.",
@@ -350,359 +427,358 @@ fn write_outputs(
         } else {
             String::new()
         }
-    ))];
+    ))
+}
 
-    // Sensitivity.
-    let mut sens_json = Vec::new();
-    if let Some(sens) = &s.sensitivity {
-        files.push("sensitivity.csv".into());
-        let mut header = vec![
-            "path".to_string(),
-            "min".into(),
-            "max".into(),
-            "rays_at_min".into(),
-            "rays_at_max".into(),
-        ];
-        for end in ["min", "max"] {
-            for m in SENSITIVITY_METRICS {
-                header.push(format!("{m}_diff_at_{end}"));
-                header.push(format!("{m}_diff_stderr_at_{end}"));
-            }
-        }
-        let rows: Vec<Vec<String>> = sens
-            .iter()
-            .map(|r| {
-                let mut row = vec![
-                    r.path.clone(),
-                    format!("{}", r.min),
-                    format!("{}", r.max),
-                    format!("{}", r.rays[0]),
-                    format!("{}", r.rays[1]),
-                ];
-                for high in [false, true] {
-                    for m in SENSITIVITY_METRICS {
-                        row.push(format!("{:e}", r.at(high, &format!("{m}_diff"))));
-                        row.push(format!("{:e}", r.at(high, &format!("{m}_diff_stderr"))));
-                    }
-                }
-                row
-            })
-            .collect();
-        let h: Vec<&str> = header.iter().map(String::as_str).collect();
-        write_csv(&out.path("sensitivity.csv"), &h, &rows)?;
-        blocks.push(Block::Heading {
-            level: 2,
-            text: "Sensitivity".into(),
-        });
-        blocks.push(Block::Table {
-            caption: Some(
-                "Each tolerance alone at its min / max: change from the nominal bench ± its \
-                 paired standard error, sorted by the largest |Δ imbalance|; the rays of the \
-                 row's traces (more than the run's where --resolve asked for them)"
-                    .into(),
-            ),
-            header: [
-                "tolerance",
-                "range",
-                "rays",
-                "Δ imbalance",
-                "Δ k' (A/W)",
-                "Δ(b₋ − b₊) (A)",
-                "Δ leak +",
-                "Δ leak −",
-                "Δ CMRR (dB)",
-            ]
-            .map(String::from)
-            .to_vec(),
-            rows: sens
-                .iter()
-                .flat_map(|r| {
-                    [false, true].map(|high| {
-                        let mut row = vec![
-                            if high { String::new() } else { r.path.clone() },
-                            format!("{}", if high { r.max } else { r.min }),
-                            r.rays[usize::from(high)].to_string(),
-                        ];
-                        for m in SENSITIVITY_METRICS {
-                            row.push(pm(
-                                r.at(high, &format!("{m}_diff")),
-                                r.at(high, &format!("{m}_diff_stderr")),
-                            ));
-                        }
-                        row
-                    })
-                })
-                .collect(),
-        });
-        for r in sens {
-            let mut m = Map::new();
-            m.insert("path".into(), Value::from(r.path.clone()));
-            m.insert("min".into(), num(r.min));
-            m.insert("max".into(), num(r.max));
-            m.insert("rays".into(), Value::from(r.rays.to_vec()));
-            m.insert("at_min".into(), Value::Object(map_of(&r.at_min)));
-            m.insert("at_max".into(), Value::Object(map_of(&r.at_max)));
-            sens_json.push(Value::Object(m));
+/// `sensitivity.csv`: each tolerance alone at its min and max, the change of every
+/// sensitivity metric with its paired standard error.
+fn write_sensitivity_csv(sens: &[SensitivityRecord], out: &OutputDir) -> crate::Result<()> {
+    let mut header = vec![
+        "path".to_string(),
+        "min".into(),
+        "max".into(),
+        "rays_at_min".into(),
+        "rays_at_max".into(),
+    ];
+    for end in ["min", "max"] {
+        for m in SENSITIVITY_METRICS {
+            header.push(format!("{m}_diff_at_{end}"));
+            header.push(format!("{m}_diff_stderr_at_{end}"));
         }
     }
+    let rows: Vec<Vec<String>> = sens
+        .iter()
+        .map(|r| {
+            let mut row = vec![
+                r.path.clone(),
+                format!("{}", r.min),
+                format!("{}", r.max),
+                format!("{}", r.rays[0]),
+                format!("{}", r.rays[1]),
+            ];
+            for high in [false, true] {
+                for m in SENSITIVITY_METRICS {
+                    row.push(format!("{:e}", r.at(high, &format!("{m}_diff"))));
+                    row.push(format!("{:e}", r.at(high, &format!("{m}_diff_stderr"))));
+                }
+            }
+            row
+        })
+        .collect();
+    let h: Vec<&str> = header.iter().map(String::as_str).collect();
+    write_csv(&out.path("sensitivity.csv"), &h, &rows)?;
+    Ok(())
+}
 
-    if !s.records.is_empty() {
-        blocks.push(Block::Heading {
-            level: 2,
-            text: "Monte Carlo".into(),
-        });
+/// The sensitivity table of the report.
+fn sensitivity_blocks(sens: &[SensitivityRecord]) -> Vec<Block> {
+    let mut blocks = Vec::new();
+    blocks.push(Block::Heading {
+        level: 2,
+        text: "Sensitivity".into(),
+    });
+    blocks.push(Block::Table {
+        caption: Some(
+            "Each tolerance alone at its min / max: change from the nominal bench ± its \
+             paired standard error, sorted by the largest |Δ imbalance|; the rays of the \
+             row's traces (more than the run's where --resolve asked for them)"
+                .into(),
+        ),
+        header: [
+            "tolerance",
+            "range",
+            "rays",
+            "Δ imbalance",
+            "Δ k' (A/W)",
+            "Δ(b₋ − b₊) (A)",
+            "Δ leak +",
+            "Δ leak −",
+            "Δ CMRR (dB)",
+        ]
+        .map(String::from)
+        .to_vec(),
+        rows: sens
+            .iter()
+            .flat_map(|r| {
+                [false, true].map(|high| {
+                    let mut row = vec![
+                        if high { String::new() } else { r.path.clone() },
+                        format!("{}", if high { r.max } else { r.min }),
+                        r.rays[usize::from(high)].to_string(),
+                    ];
+                    for m in SENSITIVITY_METRICS {
+                        row.push(pm(
+                            r.at(high, &format!("{m}_diff")),
+                            r.at(high, &format!("{m}_diff_stderr")),
+                        ));
+                    }
+                    row
+                })
+            })
+            .collect(),
+    });
+    blocks
+}
+
+/// The Monte Carlo tables of the report: percentiles, yields, RSS against Monte Carlo.
+fn monte_carlo_blocks(analysis: &Analysis) -> Vec<Block> {
+    let mut blocks = Vec::new();
+    blocks.push(Block::Heading {
+        level: 2,
+        text: "Monte Carlo".into(),
+    });
+    blocks.push(Block::Table {
+        caption: Some(
+            "Distribution over the trials (percentiles of the value and of its magnitude)".into(),
+        ),
+        header: [
+            "metric",
+            "mean",
+            "std dev",
+            "median",
+            "90 %",
+            "97.7 %",
+            "|·| median",
+            "|·| 90 %",
+            "|·| 97.7 %",
+        ]
+        .map(String::from)
+        .to_vec(),
+        rows: analysis
+            .percentiles
+            .iter()
+            .map(|p| {
+                let mut r = vec![p.metric.clone()];
+                r.extend(
+                    [
+                        p.mean,
+                        p.std_dev,
+                        p.p50,
+                        p.p90,
+                        p.p97_7,
+                        p.abs_p50,
+                        p.abs_p90,
+                        p.abs_p97_7,
+                    ]
+                    .map(|v| format!("{v:.4e}")),
+                );
+                r
+            })
+            .collect(),
+    });
+    let mut yrows: Vec<Vec<String>> = analysis
+        .yields
+        .iter()
+        .map(|y| {
+            vec![
+                y.limit.clone(),
+                format!("{}/{}", y.passed, y.trials),
+                format!("{:.1} % ± {:.1} %", 100.0 * y.fraction, 100.0 * y.stderr),
+            ]
+        })
+        .collect();
+    yrows.extend(analysis.quality_yields.iter().map(|(scheme, y)| {
+        vec![
+            format!("{scheme}: {}", y.limit),
+            format!("{}/{}", y.passed, y.trials),
+            format!("{:.1} % ± {:.1} %", 100.0 * y.fraction, 100.0 * y.stderr),
+        ]
+    }));
+    if !yrows.is_empty() {
         blocks.push(Block::Table {
             caption: Some(
-                "Distribution over the trials (percentiles of the value and of its magnitude)"
+                "Yield: the fraction of trials meeting each limit (± binomial standard \
+                 error); image quality per scheme side by side"
+                    .into(),
+            ),
+            header: ["limit", "trials passing", "yield"]
+                .map(String::from)
+                .to_vec(),
+            rows: yrows,
+        });
+    }
+    if !analysis.rss.is_empty() {
+        blocks.push(Block::Table {
+            caption: Some(
+                "Root-sum-square spread from the sensitivity table (linear, independent \
+                 tolerances) against the Monte Carlo spread: a large gap means the \
+                 tolerances interact or act nonlinearly"
                     .into(),
             ),
             header: [
                 "metric",
-                "mean",
-                "std dev",
-                "median",
-                "90 %",
-                "97.7 %",
-                "|·| median",
-                "|·| 90 %",
-                "|·| 97.7 %",
+                "RSS σ",
+                "Monte Carlo σ",
+                "dominant tolerance",
+                "its share",
             ]
             .map(String::from)
             .to_vec(),
             rows: analysis
-                .percentiles
+                .rss
                 .iter()
-                .map(|p| {
-                    let mut r = vec![p.metric.clone()];
-                    r.extend(
-                        [
-                            p.mean,
-                            p.std_dev,
-                            p.p50,
-                            p.p90,
-                            p.p97_7,
-                            p.abs_p50,
-                            p.abs_p90,
-                            p.abs_p97_7,
-                        ]
-                        .map(|v| format!("{v:.4e}")),
-                    );
-                    r
+                .map(|r| {
+                    vec![
+                        r.metric.clone(),
+                        format!("{:.3e}", r.rss_std_dev),
+                        format!("{:.3e}", r.monte_carlo_std_dev),
+                        r.dominant.clone(),
+                        format!("{:.0} %", 100.0 * r.dominant_share),
+                    ]
                 })
                 .collect(),
         });
-        let mut yrows: Vec<Vec<String>> = analysis
-            .yields
-            .iter()
-            .map(|y| {
-                vec![
-                    y.limit.clone(),
-                    format!("{}/{}", y.passed, y.trials),
-                    format!("{:.1} % ± {:.1} %", 100.0 * y.fraction, 100.0 * y.stderr),
-                ]
-            })
-            .collect();
-        yrows.extend(analysis.quality_yields.iter().map(|(scheme, y)| {
-            vec![
-                format!("{scheme}: {}", y.limit),
-                format!("{}/{}", y.passed, y.trials),
-                format!("{:.1} % ± {:.1} %", 100.0 * y.fraction, 100.0 * y.stderr),
-            ]
-        }));
-        if !yrows.is_empty() {
-            blocks.push(Block::Table {
-                caption: Some(
-                    "Yield: the fraction of trials meeting each limit (± binomial standard \
-                     error); image quality per scheme side by side"
-                        .into(),
-                ),
-                header: ["limit", "trials passing", "yield"]
-                    .map(String::from)
-                    .to_vec(),
-                rows: yrows,
-            });
-        }
-        if !analysis.rss.is_empty() {
-            blocks.push(Block::Table {
-                caption: Some(
-                    "Root-sum-square spread from the sensitivity table (linear, independent \
-                     tolerances) against the Monte Carlo spread: a large gap means the \
-                     tolerances interact or act nonlinearly"
-                        .into(),
-                ),
-                header: [
-                    "metric",
-                    "RSS σ",
-                    "Monte Carlo σ",
-                    "dominant tolerance",
-                    "its share",
-                ]
-                .map(String::from)
-                .to_vec(),
-                rows: analysis
-                    .rss
-                    .iter()
-                    .map(|r| {
-                        vec![
-                            r.metric.clone(),
-                            format!("{:.3e}", r.rss_std_dev),
-                            format!("{:.3e}", r.monte_carlo_std_dev),
-                            r.dominant.clone(),
-                            format!("{:.0} %", 100.0 * r.dominant_share),
-                        ]
-                    })
-                    .collect(),
-            });
-        }
-        // Histograms (as steps) and empirical CDFs.
-        let mut plotted: Vec<(String, String)> = [
-            ("imbalance", "imbalance (k₊ − k₋)/(k₊ + k₋)"),
-            ("k_prime", "k' = k₊ + k₋ (A/W)"),
-            ("b_minus_minus_b_plus", "b₋ − b₊ (A)"),
-            ("leak_plus", "off-arm leak, all units +"),
-        ]
-        .map(|(a, b)| (a.to_string(), b.to_string()))
-        .to_vec();
-        for (scheme, _) in &analysis.quality_yields {
-            if let Some(q) = set.quality {
-                plotted.push((
-                    format!("{scheme}_{}_mssim", q.ratio_percent),
-                    format!("MSSIM at {} %, {scheme}", q.ratio_percent),
-                ));
-            }
-        }
-        let mut figs = Vec::new();
-        for (metric, label) in &plotted {
-            let mut v: Vec<f64> = s
-                .records
-                .iter()
-                .filter_map(|r| r.value(metric))
-                .filter(|v| v.is_finite())
-                .collect();
-            if v.len() < 2 {
-                continue;
-            }
-            v.sort_by(f64::total_cmp);
-            let n = v.len();
-            let cdf = LinePlot {
-                title: String::new(),
-                x_label: label.clone(),
-                y_label: "fraction of trials ≤ x".into(),
-                series: vec![Series {
-                    label: String::new(),
-                    x: v.clone(),
-                    y: (0..n).map(|i| (i + 1) as f64 / n as f64).collect(),
-                    y_err: None,
-                }],
-                log_x: false,
-            };
-            let (lo, hi) = (v[0], v[n - 1]);
-            let bins = ((n as f64).sqrt().ceil() as usize).clamp(5, 40);
-            let w = if hi > lo {
-                (hi - lo) / bins as f64
-            } else {
-                1.0
-            };
-            let mut counts = vec![0usize; bins];
-            for x in &v {
-                counts[(((x - lo) / w) as usize).min(bins - 1)] += 1;
-            }
-            let (mut hx, mut hy) = (vec![lo], vec![0.0]);
-            for (b, c) in counts.iter().enumerate() {
-                let (a, z) = (lo + b as f64 * w, lo + (b + 1) as f64 * w);
-                hx.extend([a, z]);
-                hy.extend([*c as f64, *c as f64]);
-            }
-            hx.push(lo + bins as f64 * w);
-            hy.push(0.0);
-            let hist = LinePlot {
-                title: String::new(),
-                x_label: label.clone(),
-                y_label: "trials".into(),
-                series: vec![Series {
-                    label: String::new(),
-                    x: hx,
-                    y: hy,
-                    y_err: None,
-                }],
-                log_x: false,
-            };
-            for (kind, plot) in [("hist", hist), ("cdf", cdf)] {
-                let (svg, png) = (
-                    format!("{kind}_{metric}.svg"),
-                    format!("{kind}_{metric}.png"),
-                );
-                write_plot(&plot, &out.path(&svg), &out.path(&png))?;
-                let text = std::fs::read_to_string(out.path(&svg))
-                    .map_err(|e| crate::Error::read(&out.path(&svg), e))?;
-                figs.push(Block::Svg {
-                    caption: format!(
-                        "{} of {label} over {n} trials",
-                        if kind == "hist" {
-                            "Histogram"
-                        } else {
-                            "Empirical CDF"
-                        }
-                    ),
-                    svg: text,
-                });
-                files.extend([svg, png]);
-            }
-        }
-        blocks.extend(figs);
     }
-    write_page(
-        &out.path("report.html"),
-        &Page {
-            title: format!("spibench tolerance of {}", s.scene),
-            blocks,
-        },
-    )?;
-    let trials: Vec<Value> = s
-        .records
-        .iter()
-        .map(|r| {
-            let mut m = Map::new();
-            m.insert("index".into(), Value::from(r.index));
-            m.insert("deviations".into(), Value::Object(map_of(&r.deviations)));
-            m.insert(
-                "compensators".into(),
-                Value::Object(map_of(&r.compensators)),
-            );
-            m.insert("values".into(), Value::Object(map_of(&r.values)));
-            m.insert(
-                "error".into(),
-                r.error.clone().map_or(Value::Null, Value::from),
-            );
-            Value::Object(m)
-        })
-        .collect();
-    let summary = serde_json::json!({
-        "command": "tolerance",
-        "spibench_version": env!("CARGO_PKG_VERSION"),
-        "scene": s.scene,
-        "tolerances_file": s.tolerances_path,
-        "rays": s.rays,
-        "seed": s.seed,
-        "trials": s.trials,
-        "shard": [s.shard.0, s.shard.1],
-        "quality": s.quality,
-        "tolerances": set.tolerances,
-        "compensators": set.compensators,
-        "limits": set.limits,
-        "quality_limit": set.quality,
-        "nominal": Value::Object(map_of(&s.nominal)),
-        "sensitivity": sens_json,
-        "analysis": analysis_json(&analysis),
-        "trial_rows": trials,
-        "files": files,
-    });
-    super::provenance::write_summary(out, &summary, provenance)?;
-    Ok(files.len())
+    blocks
 }
 
-/// The analysis with NaN written as null.
-fn analysis_json(a: &Analysis) -> Value {
-    let text = crate::report::json::to_json_string(a).unwrap_or_else(|_| "null".into());
-    serde_json::from_str(&text).unwrap_or(Value::Null)
+/// Histograms (as steps) and empirical CDFs of the main metrics over the trials, written as
+/// figures and returned as report blocks.
+fn distribution_plots(
+    s: &ShardFile,
+    set: &ToleranceSet,
+    analysis: &Analysis,
+    out: &OutputDir,
+    files: &mut Vec<String>,
+) -> crate::Result<Vec<Block>> {
+    let mut plotted: Vec<(String, String)> = [
+        ("imbalance", "imbalance (k₊ − k₋)/(k₊ + k₋)"),
+        ("k_prime", "k' = k₊ + k₋ (A/W)"),
+        ("b_minus_minus_b_plus", "b₋ − b₊ (A)"),
+        ("leak_plus", "off-arm leak, all units +"),
+    ]
+    .map(|(a, b)| (a.to_string(), b.to_string()))
+    .to_vec();
+    for (scheme, _) in &analysis.quality_yields {
+        if let Some(q) = set.quality {
+            plotted.push((
+                format!("{scheme}_{}_mssim", q.ratio_percent),
+                format!("MSSIM at {} %, {scheme}", q.ratio_percent),
+            ));
+        }
+    }
+    let mut figs = Vec::new();
+    for (metric, label) in &plotted {
+        let mut v: Vec<f64> = s
+            .records
+            .iter()
+            .filter_map(|r| r.value(metric))
+            .filter(|v| v.is_finite())
+            .collect();
+        if v.len() < 2 {
+            continue;
+        }
+        v.sort_by(f64::total_cmp);
+        let n = v.len();
+        let cdf = LinePlot {
+            title: String::new(),
+            x_label: label.clone(),
+            y_label: "fraction of trials ≤ x".into(),
+            series: vec![Series {
+                label: String::new(),
+                x: v.clone(),
+                y: (0..n).map(|i| (i + 1) as f64 / n as f64).collect(),
+                y_err: None,
+            }],
+            log_x: false,
+        };
+        let (lo, hi) = (v[0], v[n - 1]);
+        let bins = ((n as f64).sqrt().ceil() as usize).clamp(5, 40);
+        let w = if hi > lo {
+            (hi - lo) / bins as f64
+        } else {
+            1.0
+        };
+        let mut counts = vec![0usize; bins];
+        for x in &v {
+            counts[(((x - lo) / w) as usize).min(bins - 1)] += 1;
+        }
+        let (mut hx, mut hy) = (vec![lo], vec![0.0]);
+        for (b, c) in counts.iter().enumerate() {
+            let (a, z) = (lo + b as f64 * w, lo + (b + 1) as f64 * w);
+            hx.extend([a, z]);
+            hy.extend([*c as f64, *c as f64]);
+        }
+        hx.push(lo + bins as f64 * w);
+        hy.push(0.0);
+        let hist = LinePlot {
+            title: String::new(),
+            x_label: label.clone(),
+            y_label: "trials".into(),
+            series: vec![Series {
+                label: String::new(),
+                x: hx,
+                y: hy,
+                y_err: None,
+            }],
+            log_x: false,
+        };
+        for (kind, plot) in [("hist", hist), ("cdf", cdf)] {
+            let (svg, png) = (
+                format!("{kind}_{metric}.svg"),
+                format!("{kind}_{metric}.png"),
+            );
+            write_plot(&plot, &out.path(&svg), &out.path(&png))?;
+            let text = std::fs::read_to_string(out.path(&svg))
+                .map_err(|e| crate::Error::read(&out.path(&svg), e))?;
+            figs.push(Block::Svg {
+                caption: format!(
+                    "{} of {label} over {n} trials",
+                    if kind == "hist" {
+                        "Histogram"
+                    } else {
+                        "Empirical CDF"
+                    }
+                ),
+                svg: text,
+            });
+            files.extend([svg, png]);
+        }
+    }
+    Ok(figs)
+}
+
+/// `summary.json` of `tolerance`.
+#[derive(Serialize)]
+struct ToleranceSummary<'a> {
+    command: &'static str,
+    spibench_version: &'static str,
+    scene: &'a str,
+    tolerances_file: &'a str,
+    rays: u64,
+    seed: u64,
+    trials: u64,
+    /// [I, N] of `--shard I/N` ([0, 1] unsharded).
+    shard: [u64; 2],
+    quality: bool,
+    tolerances: &'a [Tolerance],
+    compensators: &'a [Compensator],
+    limits: &'a [Limit],
+    quality_limit: &'a Option<QualityLimit>,
+    /// The nominal bench's metric row (differences against itself).
+    nominal: Row,
+    sensitivity: Vec<SensitivitySummary<'a>>,
+    /// NaN written as null.
+    analysis: &'a Analysis,
+    trial_rows: Vec<TrialSummary<'a>>,
+    files: &'a [String],
+}
+
+#[derive(Serialize)]
+struct SensitivitySummary<'a> {
+    path: &'a str,
+    min: f64,
+    max: f64,
+    rays: [u64; 2],
+    at_min: Row,
+    at_max: Row,
+}
+
+#[derive(Serialize)]
+struct TrialSummary<'a> {
+    index: u64,
+    deviations: Row,
+    compensators: Row,
+    values: Row,
+    error: Option<&'a str>,
 }
