@@ -18,6 +18,7 @@ pub mod npy;
 pub mod objects;
 pub mod optics;
 pub mod pipeline;
+pub mod provenance;
 pub mod raster;
 pub mod reconstruction;
 pub mod report;

@@ -9,18 +9,18 @@
 //! `history.svg/png` (the convergence), `layout_before.svg`, `layout_after.svg` and
 //! `report.html`.
 
-use std::path::PathBuf;
-
 use anyhow::Result;
 use clap::{Args, ValueEnum};
-use serde_json::{Map, Value};
+use serde::Serialize;
 
-use crate::align::{AlignOptions, Free, Objective, align};
+use crate::align::{AlignOptions, Alignment, Free, Objective, align};
 use crate::report::csv::write_csv;
 use crate::report::html::{Block, Page, write_page};
 use crate::report::output::OutputDir;
 use crate::report::plot::{LinePlot, Series, write_plot};
 use crate::transport::metrics::{METRICS, MetricRow};
+
+use super::rows::Row;
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum ObjectiveArg {
@@ -34,9 +34,16 @@ pub enum ObjectiveArg {
 
 /// Arguments of `spibench align`.
 #[derive(Debug, Clone, Args)]
+#[command(
+    mut_arg("rays", |a| a.default_value("200000")
+        .help("Lamp rays of the last stage (and of the reported benches)")),
+    mut_arg("seed", |a| a.default_value("1")),
+    mut_arg("set", |a| a.help("Set a bench variable of the starting bench first (repeatable)")),
+    mut_arg("out", |a| a.default_value("out/align")),
+)]
 pub struct AlignArgs {
-    /// Bench file (RON); default: the paper's bench built into the binary.
-    pub scene: Option<PathBuf>,
+    #[command(flatten)]
+    pub bench: super::args::BenchArgs,
     /// A free variable and its bounds, PATH=LO:HI (the variable's values; a rigid-body move
     /// such as `detectors.minus.decenter_mm.x` starts at 0).
     #[arg(long, value_name = "PATH=LO:HI", required = true)]
@@ -49,31 +56,50 @@ pub struct AlignArgs {
     /// For `weighted`: METRIC=W (repeatable), e.g. `imbalance=1`, `k_prime=-1`.
     #[arg(long, value_name = "METRIC=W")]
     pub weight: Vec<String>,
-    /// Lamp rays of the last stage (and of the reported benches).
-    #[arg(long, default_value_t = 200_000)]
-    pub rays: u64,
     /// Lamp rays of the first stage (default: --rays / 16).
     #[arg(long)]
     pub start_rays: Option<u64>,
     /// The most traced evaluations.
     #[arg(long, default_value_t = 200)]
     pub max_evaluations: usize,
-    #[arg(long, default_value_t = 1)]
-    pub seed: u64,
-    /// Set a bench variable of the starting bench first (repeatable).
-    #[arg(long = "set", value_name = "PATH=VALUE")]
-    pub set: Vec<String>,
-    #[arg(long, default_value = "out/align")]
-    pub out: PathBuf,
 }
 
-fn num(v: f64) -> Value {
-    serde_json::Number::from_f64(v).map_or(Value::Null, Value::Number)
+/// `align`'s default ray count of the last stage (also set on the flag, for `--help`).
+const DEFAULT_RAYS: u64 = 200_000;
+
+/// `summary.json` of `align`.
+#[derive(Serialize)]
+struct AlignSummary<'a> {
+    command: &'static str,
+    spibench_version: &'static str,
+    scene: &'a str,
+    /// `Balance`, `Power` or the weighted sum, as Rust's `Debug` writes it.
+    objective: String,
+    rays: u64,
+    start_rays: u64,
+    seed: u64,
+    evaluations: usize,
+    free: Vec<FreeSummary<'a>>,
+    /// The metrics of the starting bench ([`Row::metrics`] against itself: zero differences).
+    start: Row,
+    /// The metrics of the aligned bench against the start: `M_diff` is the change, with its
+    /// paired standard error `M_diff_stderr`.
+    aligned: Row,
+    files: &'a [String],
+}
+
+#[derive(Serialize)]
+struct FreeSummary<'a> {
+    path: &'a str,
+    lo: f64,
+    hi: f64,
+    start: f64,
+    aligned: f64,
 }
 
 /// Runs `spibench align`.
 pub fn run(args: &AlignArgs) -> Result<()> {
-    let (name, doc) = super::run::load_doc(args.scene.as_deref(), &args.set)?;
+    let (name, doc) = args.bench.load()?;
     let free: Vec<Free> = args
         .free
         .iter()
@@ -95,22 +121,13 @@ pub fn run(args: &AlignArgs) -> Result<()> {
         ),
     };
     crate::align::check_objective(&objective)?;
-    if args.rays < 2 * crate::trace::RAYS_PER_BATCH || args.rays > crate::scene::run::MAX_RAYS {
-        return Err(crate::Error::field(
-            "--rays",
-            format!(
-                "must lie between {} and {}",
-                2 * crate::trace::RAYS_PER_BATCH,
-                crate::scene::run::MAX_RAYS
-            ),
-        )
-        .into());
-    }
-    let out = OutputDir::create(&args.out)?;
+    let opts = &args.bench.opts;
+    let rays = opts.rays_or(DEFAULT_RAYS, super::args::MIN_RAYS_WITH_STDERR)?;
+    let out = OutputDir::create(&opts.out_or("out/align"))?;
     let o = AlignOptions {
-        start_rays: args.start_rays.unwrap_or(args.rays / 16).min(args.rays),
-        max_rays: args.rays,
-        seed: args.seed,
+        start_rays: args.start_rays.unwrap_or(rays / 16).min(rays),
+        max_rays: rays,
+        seed: opts.seed(),
         max_evaluations: args.max_evaluations.max(free.len() + 2),
     };
     let bar = super::progress::bar(o.max_evaluations as u64, "evals");
@@ -133,7 +150,98 @@ pub fn run(args: &AlignArgs) -> Result<()> {
     let path = out.path("aligned.ron");
     std::fs::write(&path, aligned.to_ron()?).map_err(|e| crate::Error::write(&path, e))?;
 
-    // History.
+    write_history(&a, &free, &out)?;
+
+    // Layouts.
+    let mut blocks = vec![Block::Paragraph(format!(
+        "{name}: {} free variable(s), objective {:?}; {} evaluations in {:.1} s (Nelder–Mead on \
+         common-random-number traces, {} → {} rays). The start and the aligned bench are traced \
+         with {} rays and seed {}; their difference carries a paired standard error.",
+        free.len(),
+        args.objective,
+        a.history.len(),
+        t0.elapsed().as_secs_f64(),
+        o.start_rays,
+        o.max_rays,
+        o.max_rays,
+        o.seed
+    ))];
+    blocks.extend(tables(&free, &a));
+    let svg = std::fs::read_to_string(out.path("history.svg"))
+        .map_err(|e| crate::Error::read(&out.path("history.svg"), e))?;
+    blocks.push(Block::Svg {
+        caption: "Convergence: the objective at each evaluation (stages trace more rays)".into(),
+        svg,
+    });
+    for (file, d, title) in [
+        ("layout_before.svg", &doc, "before"),
+        ("layout_after.svg", &aligned, "after"),
+    ] {
+        let (block, svg) =
+            super::layout::layout_block(&d.build()?, &format!("{name}, {title} alignment"))?;
+        let path = out.path(file);
+        std::fs::write(&path, &svg).map_err(|e| crate::Error::write(&path, e))?;
+        blocks.push(Block::Heading {
+            level: 2,
+            text: format!("Layout {title}"),
+        });
+        blocks.push(block);
+    }
+    write_page(
+        &out.path("report.html"),
+        &Page {
+            title: format!("spibench align of {name}"),
+            blocks,
+        },
+    )?;
+    let summary = AlignSummary {
+        command: "align",
+        spibench_version: env!("CARGO_PKG_VERSION"),
+        scene: &name,
+        objective: format!("{objective:?}"),
+        rays: o.max_rays,
+        start_rays: o.start_rays,
+        seed: o.seed,
+        evaluations: a.history.len(),
+        free: free
+            .iter()
+            .zip(a.start_values.iter().zip(&a.best_values))
+            .map(|(f, (&start, &aligned))| FreeSummary {
+                path: &f.path,
+                lo: f.lo,
+                hi: f.hi,
+                start,
+                aligned,
+            })
+            .collect(),
+        start: Row::metrics(&a.start, &a.start),
+        aligned: Row::metrics(&a.best, &a.start),
+        files: &files,
+    };
+    let provenance = super::run::bench_provenance(&name, &doc, &[o.seed])?;
+    super::provenance::write_summary(&out, &summary, &provenance)?;
+    files.sort();
+    let dir = out.commit()?;
+    let imb = a.best.metrics.get("imbalance").map(|m| m.estimate());
+    println!(
+        "aligned: {}; imbalance {}; wrote {}",
+        free.iter()
+            .zip(&a.best_values)
+            .map(|(f, v)| format!("{} = {v:.5}", f.path))
+            .collect::<Vec<_>>()
+            .join(", "),
+        imb.map_or_else(String::new, |e| format!(
+            "{:.3e} ± {:.1e}",
+            e.value, e.stderr
+        )),
+        dir.display()
+    );
+    Ok(())
+}
+
+/// `history.csv` and the convergence plot `history.svg`/`.png`: every evaluation's stage,
+/// rays, free values, objective with its standard error, imbalance and k±.
+fn write_history(a: &Alignment, free: &[Free], out: &OutputDir) -> crate::Result<()> {
     let mut header: Vec<String> = vec!["evaluation".into(), "stage".into(), "rays".into()];
     header.extend(free.iter().map(|f| f.path.clone()));
     header.extend(
@@ -210,21 +318,13 @@ pub fn run(args: &AlignArgs) -> Result<()> {
         log_x: false,
     };
     write_plot(&plot, &out.path("history.svg"), &out.path("history.png"))?;
+    Ok(())
+}
 
-    // Layouts.
-    let mut blocks = vec![Block::Paragraph(format!(
-        "{name}: {} free variable(s), objective {:?}; {} evaluations in {:.1} s (Nelder–Mead on \
-         common-random-number traces, {} → {} rays). The start and the aligned bench are traced \
-         with {} rays and seed {}; their difference carries a paired standard error.",
-        free.len(),
-        args.objective,
-        a.history.len(),
-        t0.elapsed().as_secs_f64(),
-        o.start_rays,
-        o.max_rays,
-        o.max_rays,
-        o.seed
-    ))];
+/// The report's tables: the free variables (bounds, start, aligned) and every metric of the
+/// start and the aligned bench with the change and its paired standard error.
+fn tables(free: &[Free], a: &Alignment) -> Vec<Block> {
+    let mut blocks = Vec::new();
     let var_rows: Vec<Vec<String>> = free
         .iter()
         .zip(a.start_values.iter().zip(&a.best_values))
@@ -244,19 +344,10 @@ pub fn run(args: &AlignArgs) -> Result<()> {
             .to_vec(),
         rows: var_rows,
     });
-    let mut metrics_json = Map::new();
     let mut mrows = Vec::new();
     for (i, (m, unit, _)) in METRICS.iter().enumerate() {
         let (s, b) = (&a.start.metrics.values[i], &a.best.metrics.values[i]);
         let r = MetricRow::new(b, s);
-        let mut e = Map::new();
-        e.insert("start".into(), num(s.value));
-        e.insert("start_stderr".into(), num(s.stderr()));
-        e.insert("aligned".into(), num(r.value));
-        e.insert("aligned_stderr".into(), num(r.stderr));
-        e.insert("change".into(), num(r.diff));
-        e.insert("change_stderr".into(), num(r.diff_stderr));
-        metrics_json.insert((*m).to_string(), Value::Object(e));
         mrows.push(vec![
             format!("{m} ({unit})"),
             format!("{:.4e} ± {:.1e}", s.value, s.stderr()),
@@ -269,65 +360,5 @@ pub fn run(args: &AlignArgs) -> Result<()> {
         header: ["metric", "start", "aligned", "change"].map(String::from).to_vec(),
         rows: mrows,
     });
-    let svg = std::fs::read_to_string(out.path("history.svg"))
-        .map_err(|e| crate::Error::read(&out.path("history.svg"), e))?;
-    blocks.push(Block::Svg {
-        caption: "Convergence: the objective at each evaluation (stages trace more rays)".into(),
-        svg,
-    });
-    for (file, d, title) in [
-        ("layout_before.svg", &doc, "before"),
-        ("layout_after.svg", &aligned, "after"),
-    ] {
-        let (block, svg) =
-            super::layout::layout_block(&d.build()?, &format!("{name}, {title} alignment"))?;
-        let path = out.path(file);
-        std::fs::write(&path, &svg).map_err(|e| crate::Error::write(&path, e))?;
-        blocks.push(Block::Heading {
-            level: 2,
-            text: format!("Layout {title}"),
-        });
-        blocks.push(block);
-    }
-    write_page(
-        &out.path("report.html"),
-        &Page {
-            title: format!("spibench align of {name}"),
-            blocks,
-        },
-    )?;
-    let summary = serde_json::json!({
-        "command": "align",
-        "spibench_version": env!("CARGO_PKG_VERSION"),
-        "scene": name,
-        "objective": format!("{:?}", objective),
-        "rays": o.max_rays,
-        "start_rays": o.start_rays,
-        "seed": o.seed,
-        "evaluations": a.history.len(),
-        "free": free.iter().zip(a.start_values.iter().zip(&a.best_values)).map(|(f, (s, b))| {
-            serde_json::json!({"path": f.path, "lo": f.lo, "hi": f.hi, "start": s, "aligned": b})
-        }).collect::<Vec<_>>(),
-        "metrics": Value::Object(metrics_json),
-        "files": files.clone(),
-    });
-    let provenance = super::run::bench_provenance(&name, &doc, &[o.seed])?;
-    super::provenance::write_summary(&out, &summary, &provenance)?;
-    files.sort();
-    let dir = out.commit()?;
-    let imb = a.best.metrics.get("imbalance").map(|m| m.estimate());
-    println!(
-        "aligned: {}; imbalance {}; wrote {}",
-        free.iter()
-            .zip(&a.best_values)
-            .map(|(f, v)| format!("{} = {v:.5}", f.path))
-            .collect::<Vec<_>>()
-            .join(", "),
-        imb.map_or_else(String::new, |e| format!(
-            "{:.3e} ± {:.1e}",
-            e.value, e.stderr
-        )),
-        dir.display()
-    );
-    Ok(())
+    blocks
 }

@@ -2,7 +2,7 @@
 
 use std::path::PathBuf;
 
-use crate::dataset::{Prepared, generate, merge, read_manifest, shard_range};
+use crate::dataset::{Prepared, generate, merge, read_manifest};
 use crate::error::Error;
 use crate::scene::dataset::read_dataset;
 
@@ -13,8 +13,9 @@ pub struct DatasetArgs {
     /// Output folder.
     #[arg(long, default_value = "out/dataset")]
     pub out: PathBuf,
-    /// Make only job I of N (0-based) of the dataset's shards, e.g. `--shard 2/8`.
-    #[arg(long)]
+    /// Make only job I of N (0-based) of the dataset's shards, e.g. `--shard 2/8`: a contiguous
+    /// block of shard folders, from ⌊I·T/N⌋ to ⌊(I+1)·T/N⌋ of the T shards.
+    #[arg(long, value_name = "I/N")]
     pub shard: Option<String>,
     /// Continue an interrupted run in --out from its last committed shard.
     #[arg(long)]
@@ -22,19 +23,6 @@ pub struct DatasetArgs {
     /// Merge these dataset folders (the jobs of a sharded run) into --out.
     #[arg(long, num_args = 1..)]
     pub merge: Vec<PathBuf>,
-}
-
-fn parse_shard(s: &str) -> Result<(u64, u64), Error> {
-    let bad = || Error::field("--shard", format!("expected I/N with 0 ≤ I < N, got {s:?}"));
-    let (i, n) = s.split_once('/').ok_or_else(bad)?;
-    let (i, n): (u64, u64) = (
-        i.trim().parse().map_err(|_| bad())?,
-        n.trim().parse().map_err(|_| bad())?,
-    );
-    if n == 0 || i >= n {
-        return Err(bad());
-    }
-    Ok((i, n))
 }
 
 pub fn run(args: &DatasetArgs) -> anyhow::Result<()> {
@@ -53,10 +41,10 @@ pub fn run(args: &DatasetArgs) -> anyhow::Result<()> {
     let Some(spec_path) = &args.spec else {
         return Err(Error::field("SPEC", "name a dataset spec (or --merge folders)").into());
     };
-    let job = args.shard.as_deref().map(parse_shard).transpose()?;
+    let job = crate::cli::args::Shard::parse_opt(args.shard.as_deref())?;
     let spec = read_dataset(spec_path)?;
     let prep = Prepared::new(spec)?;
-    let range = shard_range(prep.shards_total(), job);
+    let range = job.map_or((0, prep.shards_total()), |j| j.block(prep.shards_total()));
     eprintln!(
         "kernel: {} rays, {} entries, traced in {:.1} s; multi-crossing share {:.2e}",
         prep.kernel.rays,

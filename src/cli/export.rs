@@ -134,7 +134,7 @@ fn export(args: &ExportArgs) -> Result<ExportSummary> {
         substitutions,
         files: files.clone(),
     };
-    let mut provenance = super::provenance::Provenance::new(&[]).file(&args.scene)?;
+    let mut provenance = crate::provenance::Provenance::new(&[]).file(&args.scene)?;
     for f in crate::scene::doc::BenchDoc::read(&args.scene)?.input_files() {
         provenance = provenance.file(&f)?;
     }

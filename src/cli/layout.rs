@@ -12,20 +12,26 @@ use crate::scene::bench::read_bench;
 use crate::trace::fan::{DEFAULT_FAN_RAYS, Fate, ray_fan};
 
 /// Arguments of `spibench layout`.
+///
+/// `--rays` counts the rays of the drawn fan (1 to 10⁶, checked by `trace::fan::ray_fan`),
+/// not of a trace.
 #[derive(Debug, Clone, clap::Args)]
+#[command(
+    mut_arg("rays", |a| a.default_value("400").help(
+        "Lamp rays in the fan (half traced with every pattern unit in state +, half in state −)"
+    )),
+    mut_arg("seed", |a| a.default_value("1").help("Seed of the fan's random streams")),
+    mut_arg("out", |a| a.default_value("out/layout").help("Output directory")),
+)]
 pub struct LayoutArgs {
     /// Bench file (RON).
     pub scene: PathBuf,
-    /// Lamp rays in the fan (half traced with every pattern unit in state +, half in state −).
-    #[arg(long, default_value_t = DEFAULT_FAN_RAYS)]
-    pub rays: usize,
-    /// Seed of the fan's random streams.
-    #[arg(long, default_value_t = 1)]
-    pub seed: u64,
-    /// Output directory.
-    #[arg(long, default_value = "out/layout")]
-    pub out: PathBuf,
+    #[command(flatten)]
+    pub opts: super::args::RunOpts,
 }
+
+// The fan's default as `--help` shows it.
+const _: () = assert!(DEFAULT_FAN_RAYS == 400);
 
 /// Runs `spibench layout`.
 pub fn run(args: &LayoutArgs) -> anyhow::Result<()> {
@@ -35,14 +41,18 @@ pub fn run(args: &LayoutArgs) -> anyhow::Result<()> {
             .in_file(&args.scene)
             .into());
     }
-    let fan = ray_fan(&bench, args.rays, args.seed)?;
+    let rays = args.opts.rays.map_or(DEFAULT_FAN_RAYS, |r| {
+        usize::try_from(r).unwrap_or(usize::MAX)
+    });
+    let out = args.opts.out_or("out/layout");
+    let fan = ray_fan(&bench, rays, args.opts.seed())?;
     let title = args.scene.file_name().map_or_else(
         || args.scene.display().to_string(),
         |n| n.to_string_lossy().into_owned(),
     );
     let svg = layout_svg(&bench, &fan, &title).map_err(|e| e.in_file(&args.scene))?;
     let png = svg_to_png(&svg)?;
-    let dir = OutputDir::create(&args.out)?;
+    let dir = OutputDir::create(&out)?;
     for (name, bytes) in [
         ("layout.svg", svg.as_bytes()),
         ("layout.png", png.as_slice()),
@@ -63,7 +73,7 @@ pub fn run(args: &LayoutArgs) -> anyhow::Result<()> {
         args.scene.display(),
         fan.rays.len(),
         fates.join(", "),
-        args.out.display()
+        out.display()
     );
     Ok(())
 }

@@ -4,6 +4,7 @@
 //! impossible values, a missing file; also clap's usage errors), 1 for anything else.
 
 mod align;
+mod args;
 mod check;
 mod completions;
 mod dataset;
@@ -13,6 +14,7 @@ mod patterns;
 pub(crate) mod progress;
 mod provenance;
 mod reconstruct;
+mod rows;
 mod run;
 mod run_arrays;
 mod run_repeats;

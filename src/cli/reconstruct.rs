@@ -314,7 +314,7 @@ pub fn run(args: &ReconstructArgs) -> Result<()> {
         normalization: truth.as_ref().map(|_| metrics::NORMALIZATION_RULE),
         solver: solver.tval3,
     };
-    let mut provenance = super::provenance::Provenance::new(&[])
+    let mut provenance = crate::provenance::Provenance::new(&[])
         .file(&args.patterns)?
         .file(&args.measurements)?;
     if let Some(t) = &args.truth {

@@ -39,7 +39,6 @@ use clap::Args;
 use crate::pipeline::TraceRequest;
 use crate::pipeline::cache::{CacheKey, TraceCache};
 use crate::report::csv::{ResultRow, write_results};
-use crate::report::json::write_json;
 use crate::report::montage::{Montage, write_montage};
 use crate::report::output::OutputDir;
 use crate::report::plot::{LinePlot, ScopePlot, Series, write_plot, write_scope};
@@ -56,23 +55,20 @@ pub const PAPER_BENCH: &str = include_str!("../../scenes/paper_bench.ron");
 pub const PAPER_BENCH_NAME: &str = "<built-in scenes/paper_bench.ron>";
 
 #[derive(Debug, Clone, Args)]
+#[command(
+    mut_arg("scene", |a| a.help(
+        "A bench file (RON) with optional `electronics` and `run` sections; default: the \
+         paper's bench built into the binary"
+    )),
+    mut_arg("out", |a| a.default_value("out/run")),
+    mut_arg("seed", |a| a.default_value("1").help(
+        "Seed of the trace, the noise and the drift (the patterns' seed is in the scene)"
+    )),
+    mut_arg("rays", |a| a.help("Lamp rays to trace, overriding the scene's `run.rays`")),
+)]
 pub struct RunArgs {
-    /// A bench file (RON) with optional `electronics` and `run` sections; default: the paper's
-    /// bench built into the binary.
-    pub scene: Option<PathBuf>,
-    /// Output folder (created; files of the same name are replaced).
-    #[arg(long, default_value = "out/run")]
-    pub out: PathBuf,
-    /// Seed of the trace, the noise and the drift (the patterns' seed is in the scene).
-    #[arg(long, default_value_t = 1)]
-    pub seed: u64,
-    /// Lamp rays to trace, overriding the scene's `run.rays`.
-    #[arg(long)]
-    pub rays: Option<u64>,
-    /// Set a bench variable before running, e.g. `--set detectors.minus.decenter_mm.x=0.5`
-    /// (repeatable; paths as in `spibench sweep`).
-    #[arg(long = "set", value_name = "PATH=VALUE")]
-    pub set: Vec<String>,
+    #[command(flatten)]
+    pub bench: super::args::BenchArgs,
     /// Keep traces in this folder and reuse them: a later run of the same bench, rays and seed
     /// (whatever its electronics, noise or solver settings) skips the trace.
     #[arg(long, value_name = "DIR")]
@@ -103,16 +99,10 @@ pub fn load_doc(scene: Option<&Path>, set: &[String]) -> crate::Result<(String, 
 /// Loads the scene named by the arguments (or the built-in bench) with the `--set` and
 /// `--rays` overrides.
 pub fn load_scene(args: &RunArgs) -> crate::Result<(String, BenchDoc, RunScene)> {
-    let (name, doc) = load_doc(args.scene.as_deref(), &args.set)?;
+    let (name, doc) = args.bench.load()?;
     let mut scene = doc.run_scene()?;
-    if let Some(r) = args.rays {
-        if r == 0 || r > crate::scene::run::MAX_RAYS {
-            return Err(crate::Error::field(
-                "--rays",
-                format!("must lie between 1 and {}", crate::scene::run::MAX_RAYS),
-            ));
-        }
-        scene.settings.rays = r;
+    if let Some(r) = args.bench.opts.rays {
+        scene.settings.rays = super::args::check_rays(r, 1)?;
     }
     Ok((name, doc, scene))
 }
@@ -120,10 +110,11 @@ pub fn load_scene(args: &RunArgs) -> crate::Result<(String, BenchDoc, RunScene)>
 /// Runs `spibench run`.
 pub fn run(args: &RunArgs) -> Result<()> {
     let (name, doc, scene) = load_scene(args)?;
-    let out = OutputDir::create(&args.out)?;
+    let seed = args.bench.opts.seed();
+    let out = OutputDir::create(&args.bench.opts.out_or("out/run"))?;
     let cache = args.cache.as_deref().map(TraceCache::new);
     let key = match &cache {
-        Some(_) => Some(CacheKey::new(&doc, scene.settings.rays, args.seed)?),
+        Some(_) => Some(CacheKey::new(&doc, scene.settings.rays, seed)?),
         None => None,
     };
     eprintln!(
@@ -134,7 +125,7 @@ pub fn run(args: &RunArgs) -> Result<()> {
         scene.settings.rays,
         scene.settings.schemes.len(),
         scene.settings.sampling_ratios.len(),
-        args.seed
+        seed
     );
     let bars: Mutex<Option<(Stage, indicatif::ProgressBar)>> = Mutex::new(None);
     let progress = |stage: Stage, done: u64, total: u64| {
@@ -165,10 +156,10 @@ pub fn run(args: &RunArgs) -> Result<()> {
     let request = TraceRequest {
         progress: Some(&trace_report),
         cache: cache.as_ref().zip(key.as_ref()),
-        ..TraceRequest::new(scene.settings.rays, args.seed)
+        ..TraceRequest::new(scene.settings.rays, seed)
     };
     let (outcomes, repeats) =
-        crate::run::repeats::run_repeats(&scene, args.seed, &request, args.repeats, &progress)?;
+        crate::run::repeats::run_repeats(&scene, seed, &request, args.repeats, &progress)?;
     let outcome = &outcomes[0];
     if let (Some(c), Some(k)) = (&cache, &key) {
         match &outcome.cache {
@@ -190,7 +181,7 @@ pub fn run(args: &RunArgs) -> Result<()> {
     {
         b.finish_and_clear();
     }
-    let provenance = bench_provenance(&name, &doc, &[args.seed])?;
+    let provenance = bench_provenance(&name, &doc, &[seed])?;
     let settings_ron = super::run_report::effective_ron(&doc, outcome.transport.rays)?;
     let summary_files = write_outputs(
         &name,
@@ -251,8 +242,8 @@ pub(super) fn bench_provenance(
     name: &str,
     doc: &BenchDoc,
     seeds: &[u64],
-) -> crate::Result<super::provenance::Provenance> {
-    let p = super::provenance::Provenance::new(seeds);
+) -> crate::Result<crate::provenance::Provenance> {
+    let p = crate::provenance::Provenance::new(seeds);
     let mut p = if name == PAPER_BENCH_NAME {
         p.text(PAPER_BENCH_NAME, PAPER_BENCH)
     } else {
@@ -269,7 +260,7 @@ fn write_outputs(
     bench: &crate::optics::Bench,
     o: &RunOutcome,
     settings_ron: &str,
-    provenance: &super::provenance::Provenance,
+    provenance: &crate::provenance::Provenance,
     out: &OutputDir,
 ) -> crate::Result<usize> {
     let mut files = Vec::new();
@@ -425,8 +416,7 @@ fn write_outputs(
     // for the same seed whatever the timings file holds.
     let count = files.len() + 1;
     let summary = summarize_run(name, bench, o, files);
-    super::provenance::write_summary(out, &summary, provenance)?;
-    write_json(&out.path("timings.json"), &run_timings(o))?;
+    super::provenance::write_summary_and_timings(out, &summary, provenance, Some(&run_timings(o)))?;
     super::run_report::write_report(name, bench, o, &summary, settings_ron, out)?;
     Ok(count)
 }
@@ -597,11 +587,13 @@ mod tests {
     #[test]
     fn built_in_bench_parses_with_defaults() {
         let args = RunArgs {
-            scene: None,
-            out: PathBuf::from("unused"),
-            seed: 1,
-            rays: Some(1000),
-            set: Vec::new(),
+            bench: crate::cli::args::BenchArgs {
+                opts: crate::cli::args::RunOpts {
+                    rays: Some(1000),
+                    ..Default::default()
+                },
+                ..Default::default()
+            },
             cache: None,
             repeats: 1,
         };
@@ -613,10 +605,8 @@ mod tests {
             scene.settings.sampling_ratios,
             vec![0.05, 0.1, 0.15, 0.2, 0.4, 0.6, 0.8, 1.0]
         );
-        let bad = RunArgs {
-            rays: Some(0),
-            ..args
-        };
+        let mut bad = args;
+        bad.bench.opts.rays = Some(0);
         assert!(load_scene(&bad).unwrap_err().is_user_error());
     }
 }

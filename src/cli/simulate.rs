@@ -11,7 +11,6 @@ use crate::metrics::NORMALIZATION_RULE;
 use crate::reconstruction::ZeroOneHandling;
 use crate::reconstruction::tval3::StopReason;
 use crate::report::csv::{ResultRow, write_csv, write_results};
-use crate::report::json::write_json;
 use crate::report::montage::{Montage, write_montage};
 use crate::report::output::OutputDir;
 use crate::report::plot::{LinePlot, Series, write_plot};
@@ -110,7 +109,7 @@ pub fn run(args: &SimulateArgs) -> Result<()> {
     pb.finish_and_clear();
     let wall = start.elapsed().as_secs_f64();
 
-    let provenance = super::provenance::Provenance::new(&[exp.seed]);
+    let provenance = crate::provenance::Provenance::new(&[exp.seed]);
     let provenance = if std::path::Path::new(&args.experiment).is_file() {
         provenance.file(std::path::Path::new(&args.experiment))?
     } else {
@@ -156,7 +155,7 @@ fn write_outputs(
     res: &SimulationOutput,
     out: &OutputDir,
     wall: f64,
-    provenance: &super::provenance::Provenance,
+    provenance: &crate::provenance::Provenance,
 ) -> Result<()> {
     for (o, truth) in exp.objects.iter().zip(&res.truths) {
         write_gray8(
@@ -282,7 +281,6 @@ fn write_outputs(
         cells: &res.cells,
         curves,
     };
-    super::provenance::write_summary(out, &summary, provenance)?;
     let timings = SimulateTimings {
         wall_time_s: wall,
         cells: res
@@ -296,7 +294,7 @@ fn write_outputs(
             })
             .collect(),
     };
-    write_json(&out.path("timings.json"), &timings)?;
+    super::provenance::write_summary_and_timings(out, &summary, provenance, Some(&timings))?;
     Ok(())
 }
 

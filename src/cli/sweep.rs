@@ -8,12 +8,9 @@
 //! columns), plots (1-D: each metric against the variable with ±1 standard-error bars; 2-D:
 //! heatmaps with a colour bar and the nominal bench marked) and `report.html`.
 
-use std::path::PathBuf;
-
 use anyhow::Result;
 use clap::Args;
 use serde::Serialize;
-use serde_json::{Map, Value};
 
 use crate::report::csv::write_csv;
 use crate::report::heatmap::{Heatmap, write_heatmap};
@@ -21,35 +18,35 @@ use crate::report::html::{Block, Page, write_page};
 use crate::report::output::OutputDir;
 use crate::report::plot::{LinePlot, Series, write_plot};
 use crate::sweep::{Sweep, SweepOptions, SweepPoint, Vary, sweep};
-use crate::transport::metrics::{METRICS, MetricRow};
+use crate::transport::metrics::METRICS;
+
+use super::rows::Row;
 
 /// Arguments of `spibench sweep`.
 #[derive(Debug, Clone, Args)]
+#[command(
+    mut_arg("rays", |a| a.default_value("500000").help("Lamp rays per grid point")),
+    mut_arg("seed", |a| a.default_value("1")
+        .help("Seed of every point's trace (the same for all: common random numbers)")),
+    mut_arg("set", |a| a.help("Set a bench variable of the nominal bench first (repeatable)")),
+    mut_arg("out", |a| a.default_value("out/sweep")),
+)]
 pub struct SweepArgs {
-    /// Bench file (RON); default: the paper's bench built into the binary.
-    pub scene: Option<PathBuf>,
+    #[command(flatten)]
+    pub bench: super::args::BenchArgs,
     /// A variable and its grid, PATH=START:STOP:N (N values, both ends included); once for a
     /// 1-D sweep, twice for a 2-D grid. PATH is a bench variable such as
     /// `detectors.minus.position_mm.x`, `arm_minus_lens.despace_mm` or `dmd.tilt_deg`.
     #[arg(long, value_name = "PATH=START:STOP:N", required = true)]
     pub vary: Vec<String>,
-    /// Lamp rays per grid point.
-    #[arg(long, default_value_t = 500_000)]
-    pub rays: u64,
-    /// Seed of every point's trace (the same for all: common random numbers).
-    #[arg(long, default_value_t = 1)]
-    pub seed: u64,
     /// Run the whole pipeline (detector, the four schemes, reconstruction, scores) on every
     /// point, with the bench's `run` settings.
     #[arg(long)]
     pub quality: bool,
-    /// Set a bench variable of the nominal bench first (repeatable).
-    #[arg(long = "set", value_name = "PATH=VALUE")]
-    pub set: Vec<String>,
-    /// Output folder.
-    #[arg(long, default_value = "out/sweep")]
-    pub out: PathBuf,
 }
+
+/// `sweep`'s default ray count per point (also set on the flag, for `--help`).
+const DEFAULT_RAYS: u64 = 500_000;
 
 /// The metrics plotted, with their axis labels.
 const PLOTTED: [(&str, &str); 6] = [
@@ -71,14 +68,14 @@ struct SweepSummary<'a> {
     seed: u64,
     quality: bool,
     vary: Vec<VarySummary<'a>>,
-    /// Metric names, units and meanings (every row has `NAME`, `NAME_stderr`, `NAME_diff`,
-    /// `NAME_diff_stderr`, and `NAME_diff_stderr_independent`: the standard error the
-    /// difference would have between independent runs). Rows also hold `cmrr_db`, the
+    /// Metric names, units and meanings (every row has the keys of [`Row::metrics`]: `NAME`,
+    /// `NAME_stderr`, `NAME_diff`, `NAME_diff_stderr`, and `NAME_diff_stderr_independent`: the
+    /// standard error the difference would have between independent runs; `cmrr_db`, the
     /// detector's common-mode rejection from the electronics (exact; null when infinite), and
-    /// `arrivals` (lamp rays that reached the pattern area).
+    /// `arrivals` (lamp rays that reached the pattern area)).
     metrics: Vec<MetricDoc>,
-    nominal: Map<String, Value>,
-    rows: Vec<Map<String, Value>>,
+    nominal: Row,
+    rows: Vec<Row>,
     files: Vec<String>,
 }
 
@@ -99,82 +96,41 @@ struct MetricDoc {
     meaning: &'static str,
 }
 
-fn num(v: f64) -> Value {
-    serde_json::Number::from_f64(v).map_or(Value::Null, Value::Number)
-}
-
-/// One row: the varied values, then each metric's value, standard error and difference from
-/// the nominal bench with its paired and independent standard errors.
-fn row(p: &SweepPoint, nominal: &SweepPoint) -> Map<String, Value> {
-    let mut m = Map::new();
-    for (path, v) in &p.settings {
-        m.insert(path.clone(), num(*v));
-    }
-    for (i, (name, _, _)) in METRICS.iter().enumerate() {
-        let (a, b) = (&p.metrics.values[i], &nominal.metrics.values[i]);
-        let r = MetricRow::new(a, b);
-        m.insert((*name).to_string(), num(r.value));
-        m.insert(format!("{name}_stderr"), num(r.stderr));
-        m.insert(format!("{name}_diff"), num(r.diff));
-        m.insert(format!("{name}_diff_stderr"), num(r.diff_stderr));
-        m.insert(
-            format!("{name}_diff_stderr_independent"),
-            num(r.stderr.hypot(b.stderr())),
-        );
-    }
-    m.insert("cmrr_db".into(), p.cmrr_db.map_or(Value::Null, num));
-    m.insert("arrivals".into(), Value::from(p.arrivals));
-    if let Some(q) = &p.quality {
-        for r in q {
-            let key = format!("{}_{}", r.scheme.key(), (r.ratio * 100.0).round() as u32);
-            m.insert(format!("{key}_mssim"), num(r.mssim));
-            m.insert(format!("{key}_psnr_db"), num(r.psnr_db));
-            m.insert(
-                format!("{key}_finest_resolved"),
-                r.finest_resolved.map_or(Value::Null, |e| {
-                    Value::from(format!("{}/{}", e.group, e.element))
-                }),
-            );
-        }
-    }
-    m
+/// One row: the varied values, then the point's metrics against the nominal bench
+/// ([`Row::metrics`]: the keys `tolerance` and `align` write too).
+fn row(p: &SweepPoint, nominal: &SweepPoint) -> Row {
+    Row::metrics(p, nominal).with_settings(&p.settings)
 }
 
 /// Runs `spibench sweep`.
 pub fn run(args: &SweepArgs) -> Result<()> {
-    let (name, doc) = super::run::load_doc(args.scene.as_deref(), &args.set)?;
+    let (name, doc) = args.bench.load()?;
     let vary: Vec<Vary> = args
         .vary
         .iter()
         .map(|v| Vary::parse(v))
         .collect::<crate::Result<_>>()?;
-    if args.rays < 2 * crate::trace::RAYS_PER_BATCH || args.rays > crate::scene::run::MAX_RAYS {
-        return Err(crate::Error::field(
-            "--rays",
-            format!(
-                "must lie between {} (two batches, for standard errors) and {}",
-                2 * crate::trace::RAYS_PER_BATCH,
-                crate::scene::run::MAX_RAYS
-            ),
-        )
-        .into());
-    }
+    let opts = &args.bench.opts;
+    let (rays, seed) = (
+        opts.rays_or(DEFAULT_RAYS, super::args::MIN_RAYS_WITH_STDERR)?,
+        opts.seed(),
+    );
     // Unknown paths fail here, before anything is traced.
     let nominal_values: Vec<f64> = vary
         .iter()
         .map(|v| doc.get(&v.path))
         .collect::<crate::Result<_>>()?;
-    let out = OutputDir::create(&args.out)?;
+    let out = OutputDir::create(&opts.out_or("out/sweep"))?;
     let options = SweepOptions {
-        rays: args.rays,
-        seed: args.seed,
+        rays,
+        seed,
         quality: args.quality,
     };
     let points: usize = vary.iter().map(|v| v.n).product();
     eprintln!(
         "{name}: sweep of {points} point(s) + the nominal bench, {} rays each (seed {}){}",
-        args.rays,
-        args.seed,
+        rays,
+        seed,
         if args.quality { ", full pipeline" } else { "" }
     );
     let bar = super::progress::bar(points as u64 + 1, "points");
@@ -185,7 +141,7 @@ pub fn run(args: &SweepArgs) -> Result<()> {
     bar.finish_and_clear();
     let seconds = start.elapsed().as_secs_f64();
     let bench = doc.build()?;
-    let provenance = super::run::bench_provenance(&name, &doc, &[args.seed])?;
+    let provenance = super::run::bench_provenance(&name, &doc, &[seed])?;
     let files = write_outputs(&name, &bench, &s, &nominal_values, &provenance, &out)?;
     let dir = out.commit()?;
     print_table(&s);
@@ -231,6 +187,16 @@ fn print_table(s: &Sweep) {
     println!("  (k±, b±, b₋ − b₊, powers and leaks with their standard errors: sweep.csv)");
 }
 
+/// The rows as CSV: the columns of the first row, in its order.
+fn write_rows_csv(path: &std::path::Path, rows: &[Row]) -> crate::Result<()> {
+    let header: Vec<String> = rows
+        .first()
+        .map_or_else(Vec::new, |r| r.keys().map(String::from).collect());
+    let cells: Vec<Vec<String>> = rows.iter().map(|r| r.csv_cells(&header)).collect();
+    let header_refs: Vec<&str> = header.iter().map(String::as_str).collect();
+    write_csv(path, &header_refs, &cells)
+}
+
 /// The last two segments of a path, for table headings.
 fn short(path: &str) -> String {
     let segs: Vec<&str> = path.split('.').collect();
@@ -248,7 +214,7 @@ fn write_outputs(
     bench: &crate::optics::Bench,
     s: &Sweep,
     nominal_values: &[f64],
-    provenance: &super::provenance::Provenance,
+    provenance: &crate::provenance::Provenance,
     out: &OutputDir,
 ) -> Result<usize> {
     let mut files = vec![
@@ -256,27 +222,8 @@ fn write_outputs(
         "sweep.csv".to_string(),
         "report.html".to_string(),
     ];
-    let rows: Vec<Map<String, Value>> = s.points.iter().map(|p| row(p, &s.nominal)).collect();
-    // CSV: the columns of the rows, in their order.
-    let header: Vec<String> = rows
-        .first()
-        .map_or_else(Vec::new, |r| r.keys().cloned().collect());
-    let csv_rows: Vec<Vec<String>> = rows
-        .iter()
-        .map(|r| {
-            header
-                .iter()
-                .map(|k| match r.get(k) {
-                    Some(Value::Number(n)) => n.to_string(),
-                    Some(Value::String(t)) => t.clone(),
-                    _ => String::new(),
-                })
-                .collect()
-        })
-        .collect();
-    let header_refs: Vec<&str> = header.iter().map(|h| h.as_str()).collect();
-    write_csv(&out.path("sweep.csv"), &header_refs, &csv_rows)?;
-
+    let rows: Vec<Row> = s.points.iter().map(|p| row(p, &s.nominal)).collect();
+    write_rows_csv(&out.path("sweep.csv"), &rows)?;
     let mut blocks = vec![Block::Paragraph(format!(
         "{} grid point(s) of {name}, each traced with {} rays and seed {} (common random numbers: \
          every point draws the same random numbers, so a difference from the nominal bench is \
@@ -291,143 +238,17 @@ fn write_outputs(
     std::fs::write(&path, &svg).map_err(|e| crate::Error::write(&path, e))?;
     files.push("layout.svg".into());
     blocks.push(layout);
-    let mut figures = Vec::new();
-    match s.vary.as_slice() {
-        [v] => {
-            let xs: Vec<f64> = s.points.iter().map(|p| p.settings[0].1).collect();
-            for (metric, label) in PLOTTED {
-                let Some(i) = METRICS.iter().position(|m| m.0 == metric) else {
-                    continue;
-                };
-                let plot = LinePlot {
-                    title: String::new(),
-                    x_label: v.path.clone(),
-                    y_label: label.to_string(),
-                    series: vec![Series {
-                        label: String::new(),
-                        x: xs.clone(),
-                        y: s.points.iter().map(|p| p.metrics.values[i].value).collect(),
-                        y_err: Some(
-                            s.points
-                                .iter()
-                                .map(|p| {
-                                    let e = p.metrics.values[i].stderr();
-                                    if e.is_finite() { e } else { 0.0 }
-                                })
-                                .collect(),
-                        ),
-                    }],
-                    log_x: false,
-                };
-                let (svg, png) = (format!("{metric}.svg"), format!("{metric}.png"));
-                write_plot(&plot, &out.path(&svg), &out.path(&png))?;
-                figures.push((svg.clone(), label.to_string()));
-                files.extend([svg, png]);
-            }
-            if let Some(q) = s.points.first().and_then(|p| p.quality.as_ref()) {
-                let last_ratio = q.iter().map(|r| r.ratio).fold(0.0, f64::max);
-                let schemes: Vec<_> = q
-                    .iter()
-                    .filter(|r| r.ratio == last_ratio)
-                    .map(|r| r.scheme)
-                    .collect();
-                let series = schemes
-                    .iter()
-                    .map(|&k| Series {
-                        label: k.label().to_string(),
-                        x: xs.clone(),
-                        y: s.points
-                            .iter()
-                            .map(|p| {
-                                p.quality
-                                    .as_ref()
-                                    .and_then(|q| {
-                                        q.iter().find(|r| r.scheme == k && r.ratio == last_ratio)
-                                    })
-                                    .map_or(f64::NAN, |r| r.mssim)
-                            })
-                            .collect(),
-                        y_err: None,
-                    })
-                    .collect();
-                let plot = LinePlot {
-                    title: String::new(),
-                    x_label: v.path.clone(),
-                    y_label: format!("MSSIM at {:.0} % sampling", last_ratio * 100.0),
-                    series,
-                    log_x: false,
-                };
-                write_plot(&plot, &out.path("mssim.svg"), &out.path("mssim.png"))?;
-                figures.push(("mssim.svg".into(), "MSSIM of each scheme".into()));
-                files.extend(["mssim.svg".to_string(), "mssim.png".to_string()]);
-            }
-        }
-        [a, b] => {
-            for (metric, label) in PLOTTED.iter().take(4) {
-                let Some(i) = METRICS.iter().position(|m| m.0 == *metric) else {
-                    continue;
-                };
-                let h = Heatmap {
-                    x_label: a.path.clone(),
-                    y_label: b.path.clone(),
-                    value_label: label.to_string(),
-                    xs: a.values(),
-                    ys: b.values(),
-                    values: s.points.iter().map(|p| p.metrics.values[i].value).collect(),
-                    mark: Some((nominal_values[0], nominal_values[1])),
-                };
-                let (svg, png) = (format!("{metric}.svg"), format!("{metric}.png"));
-                write_heatmap(&h, &out.path(&svg), &out.path(&png))?;
-                figures.push((svg.clone(), format!("{label}; + marks the nominal bench")));
-                files.extend([svg, png]);
-            }
-        }
-        _ => {}
-    }
+    let figures = match s.vary.as_slice() {
+        [v] => line_plots(s, v, out, &mut files)?,
+        [a, b] => heatmaps(s, [a, b], nominal_values, out, &mut files)?,
+        _ => Vec::new(),
+    };
     for (svg, caption) in figures {
         let text = std::fs::read_to_string(out.path(&svg))
             .map_err(|e| crate::Error::read(&out.path(&svg), e))?;
         blocks.push(Block::Svg { caption, svg: text });
     }
-    let mut header_html: Vec<String> = s.vary.iter().map(|v| v.path.clone()).collect();
-    header_html.extend(
-        [
-            "imbalance",
-            "Δ imbalance",
-            "k₊ (A/W)",
-            "k₋ (A/W)",
-            "b₋ − b₊ (A)",
-        ]
-        .map(String::from),
-    );
-    let pm = |m: &crate::transport::Estimate| format!("{:.4e} ± {:.1e}", m.value, m.stderr);
-    let table_rows = s
-        .points
-        .iter()
-        .map(|p| {
-            let mut r: Vec<String> = p.settings.iter().map(|(_, v)| format!("{v}")).collect();
-            let g = |n: &str| p.metrics.get(n).map(|m| m.estimate());
-            let d = |n: &str| match (p.metrics.get(n), s.nominal.metrics.get(n)) {
-                (Some(a), Some(b)) => Some(a.diff(b)),
-                _ => None,
-            };
-            for e in [
-                g("imbalance"),
-                d("imbalance"),
-                g("k_plus"),
-                g("k_minus"),
-                g("b_minus_minus_b_plus"),
-            ] {
-                r.push(e.map_or_else(String::new, |e| pm(&e)));
-            }
-            r
-        })
-        .collect();
-    blocks.push(Block::Table {
-        caption: Some("Grid points (value ± standard error; Δ against the nominal bench ± its paired standard error)".into()),
-        header: header_html,
-        rows: table_rows,
-    });
+    blocks.push(points_table(s));
     write_page(
         &out.path("report.html"),
         &Page {
@@ -469,4 +290,155 @@ fn write_outputs(
     };
     super::provenance::write_summary(out, &summary, provenance)?;
     Ok(files.len())
+}
+
+/// 1-D: each plotted metric against the variable with ±1 standard-error bars, and with the
+/// whole pipeline the MSSIM of each scheme; the figures (file, caption) written.
+fn line_plots(
+    s: &Sweep,
+    v: &Vary,
+    out: &OutputDir,
+    files: &mut Vec<String>,
+) -> crate::Result<Vec<(String, String)>> {
+    let mut figures = Vec::new();
+    let xs: Vec<f64> = s.points.iter().map(|p| p.settings[0].1).collect();
+    for (metric, label) in PLOTTED {
+        let Some(i) = METRICS.iter().position(|m| m.0 == metric) else {
+            continue;
+        };
+        let plot = LinePlot {
+            title: String::new(),
+            x_label: v.path.clone(),
+            y_label: label.to_string(),
+            series: vec![Series {
+                label: String::new(),
+                x: xs.clone(),
+                y: s.points.iter().map(|p| p.metrics.values[i].value).collect(),
+                y_err: Some(
+                    s.points
+                        .iter()
+                        .map(|p| {
+                            let e = p.metrics.values[i].stderr();
+                            if e.is_finite() { e } else { 0.0 }
+                        })
+                        .collect(),
+                ),
+            }],
+            log_x: false,
+        };
+        let (svg, png) = (format!("{metric}.svg"), format!("{metric}.png"));
+        write_plot(&plot, &out.path(&svg), &out.path(&png))?;
+        figures.push((svg.clone(), label.to_string()));
+        files.extend([svg, png]);
+    }
+    if let Some(q) = s.points.first().and_then(|p| p.quality.as_ref()) {
+        let last_ratio = q.iter().map(|r| r.ratio).fold(0.0, f64::max);
+        let schemes: Vec<_> = q
+            .iter()
+            .filter(|r| r.ratio == last_ratio)
+            .map(|r| r.scheme)
+            .collect();
+        let series = schemes
+            .iter()
+            .map(|&k| Series {
+                label: k.label().to_string(),
+                x: xs.clone(),
+                y: s.points
+                    .iter()
+                    .map(|p| {
+                        p.quality
+                            .as_ref()
+                            .and_then(|q| q.iter().find(|r| r.scheme == k && r.ratio == last_ratio))
+                            .map_or(f64::NAN, |r| r.mssim)
+                    })
+                    .collect(),
+                y_err: None,
+            })
+            .collect();
+        let plot = LinePlot {
+            title: String::new(),
+            x_label: v.path.clone(),
+            y_label: format!("MSSIM at {:.0} % sampling", last_ratio * 100.0),
+            series,
+            log_x: false,
+        };
+        write_plot(&plot, &out.path("mssim.svg"), &out.path("mssim.png"))?;
+        figures.push(("mssim.svg".into(), "MSSIM of each scheme".into()));
+        files.extend(["mssim.svg".to_string(), "mssim.png".to_string()]);
+    }
+    Ok(figures)
+}
+
+/// 2-D: heatmaps of the first four plotted metrics with the nominal bench marked.
+fn heatmaps(
+    s: &Sweep,
+    [a, b]: [&Vary; 2],
+    nominal_values: &[f64],
+    out: &OutputDir,
+    files: &mut Vec<String>,
+) -> crate::Result<Vec<(String, String)>> {
+    let mut figures = Vec::new();
+    for (metric, label) in PLOTTED.iter().take(4) {
+        let Some(i) = METRICS.iter().position(|m| m.0 == *metric) else {
+            continue;
+        };
+        let h = Heatmap {
+            x_label: a.path.clone(),
+            y_label: b.path.clone(),
+            value_label: label.to_string(),
+            xs: a.values(),
+            ys: b.values(),
+            values: s.points.iter().map(|p| p.metrics.values[i].value).collect(),
+            mark: Some((nominal_values[0], nominal_values[1])),
+        };
+        let (svg, png) = (format!("{metric}.svg"), format!("{metric}.png"));
+        write_heatmap(&h, &out.path(&svg), &out.path(&png))?;
+        figures.push((svg.clone(), format!("{label}; + marks the nominal bench")));
+        files.extend([svg, png]);
+    }
+    Ok(figures)
+}
+
+/// The report's table of grid points: the variables, the imbalance and its change, k± and
+/// b₋ − b₊, each ± its standard error.
+fn points_table(s: &Sweep) -> Block {
+    let mut header_html: Vec<String> = s.vary.iter().map(|v| v.path.clone()).collect();
+    header_html.extend(
+        [
+            "imbalance",
+            "Δ imbalance",
+            "k₊ (A/W)",
+            "k₋ (A/W)",
+            "b₋ − b₊ (A)",
+        ]
+        .map(String::from),
+    );
+    let pm = |m: &crate::transport::Estimate| format!("{:.4e} ± {:.1e}", m.value, m.stderr);
+    let table_rows = s
+        .points
+        .iter()
+        .map(|p| {
+            let mut r: Vec<String> = p.settings.iter().map(|(_, v)| format!("{v}")).collect();
+            let g = |n: &str| p.metrics.get(n).map(|m| m.estimate());
+            let d = |n: &str| match (p.metrics.get(n), s.nominal.metrics.get(n)) {
+                (Some(a), Some(b)) => Some(a.diff(b)),
+                _ => None,
+            };
+            for e in [
+                g("imbalance"),
+                d("imbalance"),
+                g("k_plus"),
+                g("k_minus"),
+                g("b_minus_minus_b_plus"),
+            ] {
+                r.push(e.map_or_else(String::new, |e| pm(&e)));
+            }
+            r
+        })
+        .collect();
+    Block::Table {
+        caption: Some("Grid points (value ± standard error; Δ against the nominal bench ± its paired standard error)".into()),
+        header: header_html,
+        rows: table_rows,
+    }
 }

@@ -15,33 +15,43 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Result;
 use clap::Args;
-use serde_json::{Map, Value};
+use serde::Serialize;
 
 use crate::report::csv::write_csv;
 use crate::report::html::{Block, Page, write_page};
 use crate::report::output::OutputDir;
 use crate::report::plot::{LinePlot, Series, write_plot};
 use crate::scene::doc::BenchDoc;
-use crate::scene::tolerance::{ShardFile, ToleranceSet, read_shard, shard_to_ron};
+use crate::scene::tolerance::{
+    Compensator, Limit, QualityLimit, SensitivityRecord, ShardFile, Tolerance, ToleranceSet,
+    read_shard, shard_to_ron,
+};
+
+use super::rows::Row;
 use crate::tolerance::{
     Analysis, SENSITIVITY_METRICS, ToleranceOptions, analyse, is_metric, merge, nominal,
-    sensitivity, shard_indices, trial, trial_doc,
+    sensitivity, trial, trial_doc,
 };
 
 /// Arguments of `spibench tolerance`.
 #[derive(Debug, Clone, Args)]
+#[command(
+    mut_arg("rays", |a| a.default_value("200000").help("Lamp rays per traced bench")),
+    mut_arg("seed", |a| a.default_value("1").help(
+        "Seed: of every trace (common random numbers) and, salted, of the tolerance draws"
+    )),
+    mut_arg("set", |a| a.help("Set a bench variable of the nominal bench first (repeatable)")),
+    mut_arg("out", |a| a.default_value("out/tolerance")),
+)]
 pub struct ToleranceArgs {
-    /// Bench file (RON); default: the paper's bench built into the binary.
-    pub scene: Option<PathBuf>,
+    #[command(flatten)]
+    pub bench: super::args::BenchArgs,
     /// Tolerance file (RON; see `scenes/tolerances/paper_bench.ron`).
     #[arg(long, required_unless_present = "merge")]
     pub tolerances: Option<PathBuf>,
     /// Monte Carlo trials (0: the sensitivity table only).
     #[arg(long, default_value_t = 100)]
     pub trials: u64,
-    /// Lamp rays per traced bench.
-    #[arg(long, default_value_t = 200_000)]
-    pub rays: u64,
     /// Resolve every sensitivity row to this paired standard error of its imbalance change
     /// (or 1 % of the change, whichever is larger), tracing each end of the row again with
     /// 2ᵏ× the rays (k predicted from its standard error) until it is, up to --max-rays.
@@ -50,73 +60,44 @@ pub struct ToleranceArgs {
     /// The most rays per trace of a row being resolved (default 64 × --rays).
     #[arg(long, value_name = "N", requires = "resolve")]
     pub max_rays: Option<u64>,
-    /// Seed: of every trace (common random numbers) and, salted, of the tolerance draws.
-    #[arg(long, default_value_t = 1)]
-    pub seed: u64,
     /// Run the whole pipeline on every trial and the nominal bench (image scores per scheme).
     #[arg(long)]
     pub quality: bool,
     /// Write only the bench of trial K (as RON) and stop.
     #[arg(long, value_name = "K")]
     pub trial: Option<u64>,
-    /// Run the trials i ≡ I (mod N) only (shard 0 also runs the sensitivity table).
+    /// Run part I of N of the trials, strided: the trials i ≡ I (mod N) (shard 0 also runs
+    /// the sensitivity table); `--merge` over the N folders gives the unsharded run's outputs.
     #[arg(long, value_name = "I/N")]
     pub shard: Option<String>,
     /// Merge the output folders of the shards of one run into DIR (no tracing).
     #[arg(long, value_name = "DIR", num_args = 1..)]
     pub merge: Vec<PathBuf>,
-    /// Set a bench variable of the nominal bench first (repeatable).
-    #[arg(long = "set", value_name = "PATH=VALUE")]
-    pub set: Vec<String>,
-    /// Output folder.
-    #[arg(long, default_value = "out/tolerance")]
-    pub out: PathBuf,
 }
 
 /// The most trials one run may have.
 const MAX_TRIALS: u64 = 1_000_000;
 
-fn parse_shard(text: &str) -> crate::Result<(u64, u64)> {
-    let bad = || {
-        crate::Error::field(
-            "--shard",
-            format!("`{text}`: expected I/N with 0 ≤ I < N, e.g. 0/4"),
-        )
-    };
-    let (i, n) = text.split_once('/').ok_or_else(bad)?;
-    let (i, n): (u64, u64) = (
-        i.trim().parse().map_err(|_| bad())?,
-        n.trim().parse().map_err(|_| bad())?,
-    );
-    if n == 0 || i >= n {
-        return Err(bad());
-    }
-    Ok((i, n))
-}
+/// `tolerance`'s default ray count per trace (also set on the flag, for `--help`).
+const DEFAULT_RAYS: u64 = 200_000;
 
 /// Runs `spibench tolerance`.
 pub fn run(args: &ToleranceArgs) -> Result<()> {
     if !args.merge.is_empty() {
         return run_merge(args);
     }
-    let (name, doc) = super::run::load_doc(args.scene.as_deref(), &args.set)?;
+    let (name, doc) = args.bench.load()?;
+    let opts = &args.bench.opts;
     let tol_path = args
         .tolerances
         .as_deref()
         .ok_or_else(|| crate::Error::field("--tolerances", "give the tolerance file"))?;
     let tol_text = crate::scene::read_text(tol_path)?;
     let set = ToleranceSet::parse(&tol_text, tol_path, &doc, &is_metric)?;
-    if args.rays < 2 * crate::trace::RAYS_PER_BATCH || args.rays > crate::scene::run::MAX_RAYS {
-        return Err(crate::Error::field(
-            "--rays",
-            format!(
-                "must lie between {} (two batches, for standard errors) and {}",
-                2 * crate::trace::RAYS_PER_BATCH,
-                crate::scene::run::MAX_RAYS
-            ),
-        )
-        .into());
-    }
+    let (rays, seed) = (
+        opts.rays_or(DEFAULT_RAYS, super::args::MIN_RAYS_WITH_STDERR)?,
+        opts.seed(),
+    );
     let resolve = match args.resolve {
         None => None,
         Some(se) => {
@@ -129,12 +110,12 @@ pub fn run(args: &ToleranceArgs) -> Result<()> {
             }
             let max_rays = args
                 .max_rays
-                .unwrap_or(args.rays.saturating_mul(64))
+                .unwrap_or(rays.saturating_mul(64))
                 .min(crate::scene::run::MAX_RAYS);
-            if max_rays < args.rays {
+            if max_rays < rays {
                 return Err(crate::Error::field(
                     "--max-rays",
-                    format!("must be at least --rays ({})", args.rays),
+                    format!("must be at least --rays ({rays})"),
                 )
                 .into());
             }
@@ -148,15 +129,11 @@ pub fn run(args: &ToleranceArgs) -> Result<()> {
     if args.trials > MAX_TRIALS {
         return Err(crate::Error::field("--trials", format!("at most {MAX_TRIALS}")).into());
     }
-    let shard = args
-        .shard
-        .as_deref()
-        .map(parse_shard)
-        .transpose()?
-        .unwrap_or((0, 1));
+    let shard =
+        super::args::Shard::parse_opt(args.shard.as_deref())?.unwrap_or(super::args::Shard::WHOLE);
     let o = ToleranceOptions {
-        rays: args.rays,
-        seed: args.seed,
+        rays,
+        seed,
         quality: args.quality,
     };
     if o.quality {
@@ -164,7 +141,7 @@ pub fn run(args: &ToleranceArgs) -> Result<()> {
         doc.run_scene()?;
     }
     if let Some(k) = args.trial {
-        let out = OutputDir::create(&args.out)?;
+        let out = OutputDir::create(&opts.out_or("out/tolerance"))?;
         let (d, dev, comp) = trial_doc(&doc, &set, &o, k)?;
         d.build()?;
         let file = format!("trial_{k}.ron");
@@ -172,8 +149,8 @@ pub fn run(args: &ToleranceArgs) -> Result<()> {
         text += &format!(
             "Trial {k} of `spibench tolerance {name} --tolerances {} --seed {} --rays {}`.\n",
             tol_path.display(),
-            args.seed,
-            args.rays
+            seed,
+            rays
         );
         for (p, v) in dev.iter().chain(&comp) {
             text += &format!("//   {p}: {v:+.6e}\n");
@@ -185,7 +162,7 @@ pub fn run(args: &ToleranceArgs) -> Result<()> {
         println!("wrote {}", dir.join(file).display());
         return Ok(());
     }
-    let out = OutputDir::create(&args.out)?;
+    let out = OutputDir::create(&opts.out_or("out/tolerance"))?;
     // A trial whose perturbed bench is not valid is not an input error: it is recorded as a
     // failed trial (a built bench that does not work).
     let start = std::time::Instant::now();
@@ -193,12 +170,12 @@ pub fn run(args: &ToleranceArgs) -> Result<()> {
         "{name}: {} tolerance(s), {} compensator(s); {} rays per trace (seed {}){}",
         set.tolerances.len(),
         set.compensators.len(),
-        args.rays,
-        args.seed,
+        rays,
+        seed,
         if args.quality { ", full pipeline" } else { "" }
     );
     let nom = nominal(&doc, &o)?;
-    let sens = if shard.0 == 0 {
+    let sens = if shard.index == 0 {
         let bar = super::progress::bar(2 * set.tolerances.len() as u64, "settings");
         let rows = sensitivity(&doc, &set, &nom, &o, resolve, &|d, _| {
             bar.set_position(d as u64)
@@ -208,7 +185,7 @@ pub fn run(args: &ToleranceArgs) -> Result<()> {
     } else {
         None
     };
-    let indices: Vec<u64> = shard_indices(args.trials, shard).collect();
+    let indices: Vec<u64> = shard.strided(args.trials).collect();
     let bar = super::progress::bar(indices.len() as u64, "trials");
     let mut records = Vec::with_capacity(indices.len());
     let (mut comp_s, mut trace_s) = (0.0, 0.0);
@@ -230,17 +207,17 @@ pub fn run(args: &ToleranceArgs) -> Result<()> {
         bench_ron: doc.to_ron()?,
         tolerances_path: tol_path.display().to_string(),
         tolerances_text: tol_text,
-        rays: args.rays,
-        seed: args.seed,
+        rays,
+        seed,
         trials: args.trials,
         quality: args.quality,
-        shard,
+        shard: shard.pair(),
         nominal: crate::tolerance::values(&nom, &nom),
         sensitivity: sens,
         records,
     };
     let provenance =
-        super::run::bench_provenance(&name, &doc, &[args.seed])?.file(Path::new(tol_path))?;
+        super::run::bench_provenance(&name, &doc, &[seed])?.file(Path::new(tol_path))?;
     let files = write_outputs(&shard_file, &set, &provenance, &out)?;
     let dir = out.commit()?;
     println!(
@@ -268,11 +245,11 @@ fn run_merge(args: &ToleranceArgs) -> Result<()> {
         &doc,
         &is_metric,
     )?;
-    let out = OutputDir::create(&args.out)?;
+    let out = OutputDir::create(&args.bench.opts.out_or("out/tolerance"))?;
     // The merge's provenance is its own command and the shard records it read; the bench and
     // tolerance files are inside those records (docs/outputs.md). Everything but this block
     // equals the unsharded run's summary.
-    let mut provenance = super::provenance::Provenance::new(&[merged.seed]);
+    let mut provenance = crate::provenance::Provenance::new(&[merged.seed]);
     for d in &args.merge {
         provenance = provenance.file(&d.join("trials.ron"))?;
     }
@@ -287,14 +264,6 @@ fn run_merge(args: &ToleranceArgs) -> Result<()> {
     Ok(())
 }
 
-fn num(v: f64) -> Value {
-    serde_json::Number::from_f64(v).map_or(Value::Null, Value::Number)
-}
-
-fn map_of(v: &[(String, f64)]) -> Map<String, Value> {
-    v.iter().map(|(k, x)| (k.clone(), num(*x))).collect()
-}
-
 fn pm(v: f64, se: f64) -> String {
     format!("{v:+.3e} ± {se:.1e}")
 }
@@ -303,7 +272,7 @@ fn pm(v: f64, se: f64) -> String {
 fn write_outputs(
     s: &ShardFile,
     set: &ToleranceSet,
-    provenance: &super::provenance::Provenance,
+    provenance: &crate::provenance::Provenance,
     out: &OutputDir,
 ) -> crate::Result<usize> {
     let analysis = analyse(set, &s.records, s.sensitivity.as_deref());
@@ -312,8 +281,84 @@ fn write_outputs(
         .to_vec();
     let path = out.path("trials.ron");
     std::fs::write(&path, shard_to_ron(s)?).map_err(|e| crate::Error::write(&path, e))?;
+    // Every trial's numbers in the metric rows sweep and align write too.
+    let values: Vec<Row> = s
+        .records
+        .iter()
+        .map(|r| Row::from_values(&r.values, &s.nominal))
+        .collect();
+    write_trials_csv(s, set, &values, out)?;
+    let mut blocks = vec![intro_block(s, set, &analysis)];
+    if let Some(sens) = &s.sensitivity {
+        files.push("sensitivity.csv".into());
+        write_sensitivity_csv(sens, out)?;
+        blocks.extend(sensitivity_blocks(sens));
+    }
+    if !s.records.is_empty() {
+        blocks.extend(monte_carlo_blocks(&analysis));
+        blocks.extend(distribution_plots(s, set, &analysis, out, &mut files)?);
+    }
+    write_page(
+        &out.path("report.html"),
+        &Page {
+            title: format!("spibench tolerance of {}", s.scene),
+            blocks,
+        },
+    )?;
+    let summary = ToleranceSummary {
+        command: "tolerance",
+        spibench_version: env!("CARGO_PKG_VERSION"),
+        scene: &s.scene,
+        tolerances_file: &s.tolerances_path,
+        rays: s.rays,
+        seed: s.seed,
+        trials: s.trials,
+        shard: [s.shard.0, s.shard.1],
+        quality: s.quality,
+        tolerances: &set.tolerances,
+        compensators: &set.compensators,
+        limits: &set.limits,
+        quality_limit: &set.quality,
+        nominal: Row::from_values(&s.nominal, &s.nominal),
+        sensitivity: s
+            .sensitivity
+            .iter()
+            .flatten()
+            .map(|r| SensitivitySummary {
+                path: &r.path,
+                min: r.min,
+                max: r.max,
+                rays: r.rays,
+                at_min: Row(r.at_min.clone()),
+                at_max: Row(r.at_max.clone()),
+            })
+            .collect(),
+        analysis: &analysis,
+        trial_rows: s
+            .records
+            .iter()
+            .zip(values)
+            .map(|(r, values)| TrialSummary {
+                index: r.index,
+                deviations: Row(r.deviations.clone()),
+                compensators: Row(r.compensators.clone()),
+                values,
+                error: r.error.as_deref(),
+            })
+            .collect(),
+        files: &files,
+    };
+    super::provenance::write_summary(out, &summary, provenance)?;
+    Ok(files.len())
+}
 
-    // Trials CSV: index, deviations, compensators, values, error.
+/// `trials.csv`: index, deviations, compensators, each trial's metric row, error.
+fn write_trials_csv(
+    s: &ShardFile,
+    set: &ToleranceSet,
+    values: &[Row],
+    out: &OutputDir,
+) -> crate::Result<()> {
     let mut header: Vec<String> = vec!["index".into()];
     header.extend(set.tolerances.iter().map(|t| t.path.clone()));
     header.extend(
@@ -324,16 +369,16 @@ fn write_outputs(
     let value_names: Vec<String> = s
         .records
         .iter()
-        .find(|r| r.error.is_none())
-        .map_or_else(Vec::new, |r| {
-            r.values.iter().map(|(k, _)| k.clone()).collect()
-        });
+        .zip(values)
+        .find(|(r, _)| r.error.is_none())
+        .map_or_else(Vec::new, |(_, v)| v.keys().map(String::from).collect());
     header.extend(value_names.iter().cloned());
     header.push("error".into());
     let rows: Vec<Vec<String>> = s
         .records
         .iter()
-        .map(|r| {
+        .zip(values)
+        .map(|(r, v)| {
             let mut row = vec![r.index.to_string()];
             row.extend(r.deviations.iter().map(|(_, v)| format!("{v:e}")));
             for c in &set.compensators {
@@ -345,7 +390,7 @@ fn write_outputs(
                 );
             }
             for n in &value_names {
-                row.push(r.value(n).map_or_else(String::new, |v| format!("{v:e}")));
+                row.push(v.get(n).map_or_else(String::new, |v| format!("{v:e}")));
             }
             row.push(r.error.clone().unwrap_or_default());
             row
@@ -353,8 +398,12 @@ fn write_outputs(
         .collect();
     let h: Vec<&str> = header.iter().map(String::as_str).collect();
     write_csv(&out.path("trials.csv"), &h, &rows)?;
+    Ok(())
+}
 
-    let mut blocks = vec![Block::Paragraph(format!(
+/// The report's opening paragraph: what was traced, how often, and how many trials failed.
+fn intro_block(s: &ShardFile, set: &ToleranceSet, analysis: &Analysis) -> Block {
+    Block::Paragraph(format!(
         "{}: {} tolerance(s) from {}, {} compensator(s); every bench traced with {} rays and \
          seed {} (common random numbers: differences from the nominal bench carry paired \
          standard errors); {} Monte Carlo trial(s){}{}.",
@@ -378,359 +427,358 @@ fn write_outputs(
         } else {
             String::new()
         }
-    ))];
+    ))
+}
 
-    // Sensitivity.
-    let mut sens_json = Vec::new();
-    if let Some(sens) = &s.sensitivity {
-        files.push("sensitivity.csv".into());
-        let mut header = vec![
-            "path".to_string(),
-            "min".into(),
-            "max".into(),
-            "rays_at_min".into(),
-            "rays_at_max".into(),
-        ];
-        for end in ["min", "max"] {
-            for m in SENSITIVITY_METRICS {
-                header.push(format!("{m}_diff_at_{end}"));
-                header.push(format!("{m}_diff_stderr_at_{end}"));
-            }
-        }
-        let rows: Vec<Vec<String>> = sens
-            .iter()
-            .map(|r| {
-                let mut row = vec![
-                    r.path.clone(),
-                    format!("{}", r.min),
-                    format!("{}", r.max),
-                    format!("{}", r.rays[0]),
-                    format!("{}", r.rays[1]),
-                ];
-                for high in [false, true] {
-                    for m in SENSITIVITY_METRICS {
-                        row.push(format!("{:e}", r.at(high, &format!("{m}_diff"))));
-                        row.push(format!("{:e}", r.at(high, &format!("{m}_diff_stderr"))));
-                    }
-                }
-                row
-            })
-            .collect();
-        let h: Vec<&str> = header.iter().map(String::as_str).collect();
-        write_csv(&out.path("sensitivity.csv"), &h, &rows)?;
-        blocks.push(Block::Heading {
-            level: 2,
-            text: "Sensitivity".into(),
-        });
-        blocks.push(Block::Table {
-            caption: Some(
-                "Each tolerance alone at its min / max: change from the nominal bench ± its \
-                 paired standard error, sorted by the largest |Δ imbalance|; the rays of the \
-                 row's traces (more than the run's where --resolve asked for them)"
-                    .into(),
-            ),
-            header: [
-                "tolerance",
-                "range",
-                "rays",
-                "Δ imbalance",
-                "Δ k' (A/W)",
-                "Δ(b₋ − b₊) (A)",
-                "Δ leak +",
-                "Δ leak −",
-                "Δ CMRR (dB)",
-            ]
-            .map(String::from)
-            .to_vec(),
-            rows: sens
-                .iter()
-                .flat_map(|r| {
-                    [false, true].map(|high| {
-                        let mut row = vec![
-                            if high { String::new() } else { r.path.clone() },
-                            format!("{}", if high { r.max } else { r.min }),
-                            r.rays[usize::from(high)].to_string(),
-                        ];
-                        for m in SENSITIVITY_METRICS {
-                            row.push(pm(
-                                r.at(high, &format!("{m}_diff")),
-                                r.at(high, &format!("{m}_diff_stderr")),
-                            ));
-                        }
-                        row
-                    })
-                })
-                .collect(),
-        });
-        for r in sens {
-            let mut m = Map::new();
-            m.insert("path".into(), Value::from(r.path.clone()));
-            m.insert("min".into(), num(r.min));
-            m.insert("max".into(), num(r.max));
-            m.insert("rays".into(), Value::from(r.rays.to_vec()));
-            m.insert("at_min".into(), Value::Object(map_of(&r.at_min)));
-            m.insert("at_max".into(), Value::Object(map_of(&r.at_max)));
-            sens_json.push(Value::Object(m));
+/// `sensitivity.csv`: each tolerance alone at its min and max, the change of every
+/// sensitivity metric with its paired standard error.
+fn write_sensitivity_csv(sens: &[SensitivityRecord], out: &OutputDir) -> crate::Result<()> {
+    let mut header = vec![
+        "path".to_string(),
+        "min".into(),
+        "max".into(),
+        "rays_at_min".into(),
+        "rays_at_max".into(),
+    ];
+    for end in ["min", "max"] {
+        for m in SENSITIVITY_METRICS {
+            header.push(format!("{m}_diff_at_{end}"));
+            header.push(format!("{m}_diff_stderr_at_{end}"));
         }
     }
+    let rows: Vec<Vec<String>> = sens
+        .iter()
+        .map(|r| {
+            let mut row = vec![
+                r.path.clone(),
+                format!("{}", r.min),
+                format!("{}", r.max),
+                format!("{}", r.rays[0]),
+                format!("{}", r.rays[1]),
+            ];
+            for high in [false, true] {
+                for m in SENSITIVITY_METRICS {
+                    row.push(format!("{:e}", r.at(high, &format!("{m}_diff"))));
+                    row.push(format!("{:e}", r.at(high, &format!("{m}_diff_stderr"))));
+                }
+            }
+            row
+        })
+        .collect();
+    let h: Vec<&str> = header.iter().map(String::as_str).collect();
+    write_csv(&out.path("sensitivity.csv"), &h, &rows)?;
+    Ok(())
+}
 
-    if !s.records.is_empty() {
-        blocks.push(Block::Heading {
-            level: 2,
-            text: "Monte Carlo".into(),
-        });
+/// The sensitivity table of the report.
+fn sensitivity_blocks(sens: &[SensitivityRecord]) -> Vec<Block> {
+    let mut blocks = Vec::new();
+    blocks.push(Block::Heading {
+        level: 2,
+        text: "Sensitivity".into(),
+    });
+    blocks.push(Block::Table {
+        caption: Some(
+            "Each tolerance alone at its min / max: change from the nominal bench ± its \
+             paired standard error, sorted by the largest |Δ imbalance|; the rays of the \
+             row's traces (more than the run's where --resolve asked for them)"
+                .into(),
+        ),
+        header: [
+            "tolerance",
+            "range",
+            "rays",
+            "Δ imbalance",
+            "Δ k' (A/W)",
+            "Δ(b₋ − b₊) (A)",
+            "Δ leak +",
+            "Δ leak −",
+            "Δ CMRR (dB)",
+        ]
+        .map(String::from)
+        .to_vec(),
+        rows: sens
+            .iter()
+            .flat_map(|r| {
+                [false, true].map(|high| {
+                    let mut row = vec![
+                        if high { String::new() } else { r.path.clone() },
+                        format!("{}", if high { r.max } else { r.min }),
+                        r.rays[usize::from(high)].to_string(),
+                    ];
+                    for m in SENSITIVITY_METRICS {
+                        row.push(pm(
+                            r.at(high, &format!("{m}_diff")),
+                            r.at(high, &format!("{m}_diff_stderr")),
+                        ));
+                    }
+                    row
+                })
+            })
+            .collect(),
+    });
+    blocks
+}
+
+/// The Monte Carlo tables of the report: percentiles, yields, RSS against Monte Carlo.
+fn monte_carlo_blocks(analysis: &Analysis) -> Vec<Block> {
+    let mut blocks = Vec::new();
+    blocks.push(Block::Heading {
+        level: 2,
+        text: "Monte Carlo".into(),
+    });
+    blocks.push(Block::Table {
+        caption: Some(
+            "Distribution over the trials (percentiles of the value and of its magnitude)".into(),
+        ),
+        header: [
+            "metric",
+            "mean",
+            "std dev",
+            "median",
+            "90 %",
+            "97.7 %",
+            "|·| median",
+            "|·| 90 %",
+            "|·| 97.7 %",
+        ]
+        .map(String::from)
+        .to_vec(),
+        rows: analysis
+            .percentiles
+            .iter()
+            .map(|p| {
+                let mut r = vec![p.metric.clone()];
+                r.extend(
+                    [
+                        p.mean,
+                        p.std_dev,
+                        p.p50,
+                        p.p90,
+                        p.p97_7,
+                        p.abs_p50,
+                        p.abs_p90,
+                        p.abs_p97_7,
+                    ]
+                    .map(|v| format!("{v:.4e}")),
+                );
+                r
+            })
+            .collect(),
+    });
+    let mut yrows: Vec<Vec<String>> = analysis
+        .yields
+        .iter()
+        .map(|y| {
+            vec![
+                y.limit.clone(),
+                format!("{}/{}", y.passed, y.trials),
+                format!("{:.1} % ± {:.1} %", 100.0 * y.fraction, 100.0 * y.stderr),
+            ]
+        })
+        .collect();
+    yrows.extend(analysis.quality_yields.iter().map(|(scheme, y)| {
+        vec![
+            format!("{scheme}: {}", y.limit),
+            format!("{}/{}", y.passed, y.trials),
+            format!("{:.1} % ± {:.1} %", 100.0 * y.fraction, 100.0 * y.stderr),
+        ]
+    }));
+    if !yrows.is_empty() {
         blocks.push(Block::Table {
             caption: Some(
-                "Distribution over the trials (percentiles of the value and of its magnitude)"
+                "Yield: the fraction of trials meeting each limit (± binomial standard \
+                 error); image quality per scheme side by side"
+                    .into(),
+            ),
+            header: ["limit", "trials passing", "yield"]
+                .map(String::from)
+                .to_vec(),
+            rows: yrows,
+        });
+    }
+    if !analysis.rss.is_empty() {
+        blocks.push(Block::Table {
+            caption: Some(
+                "Root-sum-square spread from the sensitivity table (linear, independent \
+                 tolerances) against the Monte Carlo spread: a large gap means the \
+                 tolerances interact or act nonlinearly"
                     .into(),
             ),
             header: [
                 "metric",
-                "mean",
-                "std dev",
-                "median",
-                "90 %",
-                "97.7 %",
-                "|·| median",
-                "|·| 90 %",
-                "|·| 97.7 %",
+                "RSS σ",
+                "Monte Carlo σ",
+                "dominant tolerance",
+                "its share",
             ]
             .map(String::from)
             .to_vec(),
             rows: analysis
-                .percentiles
+                .rss
                 .iter()
-                .map(|p| {
-                    let mut r = vec![p.metric.clone()];
-                    r.extend(
-                        [
-                            p.mean,
-                            p.std_dev,
-                            p.p50,
-                            p.p90,
-                            p.p97_7,
-                            p.abs_p50,
-                            p.abs_p90,
-                            p.abs_p97_7,
-                        ]
-                        .map(|v| format!("{v:.4e}")),
-                    );
-                    r
+                .map(|r| {
+                    vec![
+                        r.metric.clone(),
+                        format!("{:.3e}", r.rss_std_dev),
+                        format!("{:.3e}", r.monte_carlo_std_dev),
+                        r.dominant.clone(),
+                        format!("{:.0} %", 100.0 * r.dominant_share),
+                    ]
                 })
                 .collect(),
         });
-        let mut yrows: Vec<Vec<String>> = analysis
-            .yields
-            .iter()
-            .map(|y| {
-                vec![
-                    y.limit.clone(),
-                    format!("{}/{}", y.passed, y.trials),
-                    format!("{:.1} % ± {:.1} %", 100.0 * y.fraction, 100.0 * y.stderr),
-                ]
-            })
-            .collect();
-        yrows.extend(analysis.quality_yields.iter().map(|(scheme, y)| {
-            vec![
-                format!("{scheme}: {}", y.limit),
-                format!("{}/{}", y.passed, y.trials),
-                format!("{:.1} % ± {:.1} %", 100.0 * y.fraction, 100.0 * y.stderr),
-            ]
-        }));
-        if !yrows.is_empty() {
-            blocks.push(Block::Table {
-                caption: Some(
-                    "Yield: the fraction of trials meeting each limit (± binomial standard \
-                     error); image quality per scheme side by side"
-                        .into(),
-                ),
-                header: ["limit", "trials passing", "yield"]
-                    .map(String::from)
-                    .to_vec(),
-                rows: yrows,
-            });
-        }
-        if !analysis.rss.is_empty() {
-            blocks.push(Block::Table {
-                caption: Some(
-                    "Root-sum-square spread from the sensitivity table (linear, independent \
-                     tolerances) against the Monte Carlo spread: a large gap means the \
-                     tolerances interact or act nonlinearly"
-                        .into(),
-                ),
-                header: [
-                    "metric",
-                    "RSS σ",
-                    "Monte Carlo σ",
-                    "dominant tolerance",
-                    "its share",
-                ]
-                .map(String::from)
-                .to_vec(),
-                rows: analysis
-                    .rss
-                    .iter()
-                    .map(|r| {
-                        vec![
-                            r.metric.clone(),
-                            format!("{:.3e}", r.rss_std_dev),
-                            format!("{:.3e}", r.monte_carlo_std_dev),
-                            r.dominant.clone(),
-                            format!("{:.0} %", 100.0 * r.dominant_share),
-                        ]
-                    })
-                    .collect(),
-            });
-        }
-        // Histograms (as steps) and empirical CDFs.
-        let mut plotted: Vec<(String, String)> = [
-            ("imbalance", "imbalance (k₊ − k₋)/(k₊ + k₋)"),
-            ("k_prime", "k' = k₊ + k₋ (A/W)"),
-            ("b_minus_minus_b_plus", "b₋ − b₊ (A)"),
-            ("leak_plus", "off-arm leak, all units +"),
-        ]
-        .map(|(a, b)| (a.to_string(), b.to_string()))
-        .to_vec();
-        for (scheme, _) in &analysis.quality_yields {
-            if let Some(q) = set.quality {
-                plotted.push((
-                    format!("{scheme}_{}_mssim", q.ratio_percent),
-                    format!("MSSIM at {} %, {scheme}", q.ratio_percent),
-                ));
-            }
-        }
-        let mut figs = Vec::new();
-        for (metric, label) in &plotted {
-            let mut v: Vec<f64> = s
-                .records
-                .iter()
-                .filter_map(|r| r.value(metric))
-                .filter(|v| v.is_finite())
-                .collect();
-            if v.len() < 2 {
-                continue;
-            }
-            v.sort_by(f64::total_cmp);
-            let n = v.len();
-            let cdf = LinePlot {
-                title: String::new(),
-                x_label: label.clone(),
-                y_label: "fraction of trials ≤ x".into(),
-                series: vec![Series {
-                    label: String::new(),
-                    x: v.clone(),
-                    y: (0..n).map(|i| (i + 1) as f64 / n as f64).collect(),
-                    y_err: None,
-                }],
-                log_x: false,
-            };
-            let (lo, hi) = (v[0], v[n - 1]);
-            let bins = ((n as f64).sqrt().ceil() as usize).clamp(5, 40);
-            let w = if hi > lo {
-                (hi - lo) / bins as f64
-            } else {
-                1.0
-            };
-            let mut counts = vec![0usize; bins];
-            for x in &v {
-                counts[(((x - lo) / w) as usize).min(bins - 1)] += 1;
-            }
-            let (mut hx, mut hy) = (vec![lo], vec![0.0]);
-            for (b, c) in counts.iter().enumerate() {
-                let (a, z) = (lo + b as f64 * w, lo + (b + 1) as f64 * w);
-                hx.extend([a, z]);
-                hy.extend([*c as f64, *c as f64]);
-            }
-            hx.push(lo + bins as f64 * w);
-            hy.push(0.0);
-            let hist = LinePlot {
-                title: String::new(),
-                x_label: label.clone(),
-                y_label: "trials".into(),
-                series: vec![Series {
-                    label: String::new(),
-                    x: hx,
-                    y: hy,
-                    y_err: None,
-                }],
-                log_x: false,
-            };
-            for (kind, plot) in [("hist", hist), ("cdf", cdf)] {
-                let (svg, png) = (
-                    format!("{kind}_{metric}.svg"),
-                    format!("{kind}_{metric}.png"),
-                );
-                write_plot(&plot, &out.path(&svg), &out.path(&png))?;
-                let text = std::fs::read_to_string(out.path(&svg))
-                    .map_err(|e| crate::Error::read(&out.path(&svg), e))?;
-                figs.push(Block::Svg {
-                    caption: format!(
-                        "{} of {label} over {n} trials",
-                        if kind == "hist" {
-                            "Histogram"
-                        } else {
-                            "Empirical CDF"
-                        }
-                    ),
-                    svg: text,
-                });
-                files.extend([svg, png]);
-            }
-        }
-        blocks.extend(figs);
     }
-    write_page(
-        &out.path("report.html"),
-        &Page {
-            title: format!("spibench tolerance of {}", s.scene),
-            blocks,
-        },
-    )?;
-    let trials: Vec<Value> = s
-        .records
-        .iter()
-        .map(|r| {
-            let mut m = Map::new();
-            m.insert("index".into(), Value::from(r.index));
-            m.insert("deviations".into(), Value::Object(map_of(&r.deviations)));
-            m.insert(
-                "compensators".into(),
-                Value::Object(map_of(&r.compensators)),
-            );
-            m.insert("values".into(), Value::Object(map_of(&r.values)));
-            m.insert(
-                "error".into(),
-                r.error.clone().map_or(Value::Null, Value::from),
-            );
-            Value::Object(m)
-        })
-        .collect();
-    let summary = serde_json::json!({
-        "command": "tolerance",
-        "spibench_version": env!("CARGO_PKG_VERSION"),
-        "scene": s.scene,
-        "tolerances_file": s.tolerances_path,
-        "rays": s.rays,
-        "seed": s.seed,
-        "trials": s.trials,
-        "shard": [s.shard.0, s.shard.1],
-        "quality": s.quality,
-        "tolerances": set.tolerances,
-        "compensators": set.compensators,
-        "limits": set.limits,
-        "quality_limit": set.quality,
-        "nominal": Value::Object(map_of(&s.nominal)),
-        "sensitivity": sens_json,
-        "analysis": analysis_json(&analysis),
-        "trial_rows": trials,
-        "files": files,
-    });
-    super::provenance::write_summary(out, &summary, provenance)?;
-    Ok(files.len())
+    blocks
 }
 
-/// The analysis with NaN written as null.
-fn analysis_json(a: &Analysis) -> Value {
-    let text = crate::report::json::to_json_string(a).unwrap_or_else(|_| "null".into());
-    serde_json::from_str(&text).unwrap_or(Value::Null)
+/// Histograms (as steps) and empirical CDFs of the main metrics over the trials, written as
+/// figures and returned as report blocks.
+fn distribution_plots(
+    s: &ShardFile,
+    set: &ToleranceSet,
+    analysis: &Analysis,
+    out: &OutputDir,
+    files: &mut Vec<String>,
+) -> crate::Result<Vec<Block>> {
+    let mut plotted: Vec<(String, String)> = [
+        ("imbalance", "imbalance (k₊ − k₋)/(k₊ + k₋)"),
+        ("k_prime", "k' = k₊ + k₋ (A/W)"),
+        ("b_minus_minus_b_plus", "b₋ − b₊ (A)"),
+        ("leak_plus", "off-arm leak, all units +"),
+    ]
+    .map(|(a, b)| (a.to_string(), b.to_string()))
+    .to_vec();
+    for (scheme, _) in &analysis.quality_yields {
+        if let Some(q) = set.quality {
+            plotted.push((
+                format!("{scheme}_{}_mssim", q.ratio_percent),
+                format!("MSSIM at {} %, {scheme}", q.ratio_percent),
+            ));
+        }
+    }
+    let mut figs = Vec::new();
+    for (metric, label) in &plotted {
+        let mut v: Vec<f64> = s
+            .records
+            .iter()
+            .filter_map(|r| r.value(metric))
+            .filter(|v| v.is_finite())
+            .collect();
+        if v.len() < 2 {
+            continue;
+        }
+        v.sort_by(f64::total_cmp);
+        let n = v.len();
+        let cdf = LinePlot {
+            title: String::new(),
+            x_label: label.clone(),
+            y_label: "fraction of trials ≤ x".into(),
+            series: vec![Series {
+                label: String::new(),
+                x: v.clone(),
+                y: (0..n).map(|i| (i + 1) as f64 / n as f64).collect(),
+                y_err: None,
+            }],
+            log_x: false,
+        };
+        let (lo, hi) = (v[0], v[n - 1]);
+        let bins = ((n as f64).sqrt().ceil() as usize).clamp(5, 40);
+        let w = if hi > lo {
+            (hi - lo) / bins as f64
+        } else {
+            1.0
+        };
+        let mut counts = vec![0usize; bins];
+        for x in &v {
+            counts[(((x - lo) / w) as usize).min(bins - 1)] += 1;
+        }
+        let (mut hx, mut hy) = (vec![lo], vec![0.0]);
+        for (b, c) in counts.iter().enumerate() {
+            let (a, z) = (lo + b as f64 * w, lo + (b + 1) as f64 * w);
+            hx.extend([a, z]);
+            hy.extend([*c as f64, *c as f64]);
+        }
+        hx.push(lo + bins as f64 * w);
+        hy.push(0.0);
+        let hist = LinePlot {
+            title: String::new(),
+            x_label: label.clone(),
+            y_label: "trials".into(),
+            series: vec![Series {
+                label: String::new(),
+                x: hx,
+                y: hy,
+                y_err: None,
+            }],
+            log_x: false,
+        };
+        for (kind, plot) in [("hist", hist), ("cdf", cdf)] {
+            let (svg, png) = (
+                format!("{kind}_{metric}.svg"),
+                format!("{kind}_{metric}.png"),
+            );
+            write_plot(&plot, &out.path(&svg), &out.path(&png))?;
+            let text = std::fs::read_to_string(out.path(&svg))
+                .map_err(|e| crate::Error::read(&out.path(&svg), e))?;
+            figs.push(Block::Svg {
+                caption: format!(
+                    "{} of {label} over {n} trials",
+                    if kind == "hist" {
+                        "Histogram"
+                    } else {
+                        "Empirical CDF"
+                    }
+                ),
+                svg: text,
+            });
+            files.extend([svg, png]);
+        }
+    }
+    Ok(figs)
+}
+
+/// `summary.json` of `tolerance`.
+#[derive(Serialize)]
+struct ToleranceSummary<'a> {
+    command: &'static str,
+    spibench_version: &'static str,
+    scene: &'a str,
+    tolerances_file: &'a str,
+    rays: u64,
+    seed: u64,
+    trials: u64,
+    /// [I, N] of `--shard I/N` ([0, 1] unsharded).
+    shard: [u64; 2],
+    quality: bool,
+    tolerances: &'a [Tolerance],
+    compensators: &'a [Compensator],
+    limits: &'a [Limit],
+    quality_limit: &'a Option<QualityLimit>,
+    /// The nominal bench's metric row (differences against itself).
+    nominal: Row,
+    sensitivity: Vec<SensitivitySummary<'a>>,
+    /// NaN written as null.
+    analysis: &'a Analysis,
+    trial_rows: Vec<TrialSummary<'a>>,
+    files: &'a [String],
+}
+
+#[derive(Serialize)]
+struct SensitivitySummary<'a> {
+    path: &'a str,
+    min: f64,
+    max: f64,
+    rays: [u64; 2],
+    at_min: Row,
+    at_max: Row,
+}
+
+#[derive(Serialize)]
+struct TrialSummary<'a> {
+    index: u64,
+    deviations: Row,
+    compensators: Row,
+    values: Row,
+    error: Option<&'a str>,
 }

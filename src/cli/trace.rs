@@ -21,19 +21,20 @@ use crate::transport::Transport;
 
 /// Arguments of `spibench trace`.
 #[derive(Debug, Clone, clap::Args)]
+#[command(
+    mut_arg("rays", |a| a.default_value("2000000").help("Number of lamp rays to trace")),
+    mut_arg("seed", |a| a.default_value("1")),
+    mut_arg("out", |a| a.default_value("out/trace")),
+)]
 pub struct TraceArgs {
     /// Bench file (RON, millimetres and degrees; see scenes/paper_bench.ron).
     pub scene: PathBuf,
-    /// Number of lamp rays to trace.
-    #[arg(long, default_value_t = 2_000_000)]
-    pub rays: u64,
-    /// Seed of the random streams (same seed, same output, on any number of threads).
-    #[arg(long, default_value_t = 1)]
-    pub seed: u64,
-    /// Output directory (created; existing files of the same names are replaced).
-    #[arg(long, default_value = "out/trace")]
-    pub out: PathBuf,
+    #[command(flatten)]
+    pub opts: super::args::RunOpts,
 }
+
+/// `trace`'s default ray count (also set on the flag, for `--help`).
+const DEFAULT_RAYS: u64 = 2_000_000;
 
 /// The per-unit maps written to the EXR (channel name, values).
 pub fn maps(t: &Transport) -> Vec<(&'static str, Vec<f64>)> {
@@ -56,27 +57,19 @@ pub fn run(args: &TraceArgs) -> anyhow::Result<()> {
             .in_file(&args.scene)
             .into());
     }
-    let min_rays = 2 * crate::trace::RAYS_PER_BATCH;
-    if args.rays < min_rays || args.rays > crate::scene::run::MAX_RAYS {
-        return Err(Error::field(
-            "--rays",
-            format!(
-                "must lie between {min_rays} (two batches, so that every number has a standard \
-                 error) and {} (about a day on two cores), got {}",
-                crate::scene::run::MAX_RAYS,
-                args.rays
-            ),
-        )
-        .into());
-    }
+    let rays = args
+        .opts
+        .rays_or(DEFAULT_RAYS, super::args::MIN_RAYS_WITH_STDERR)?;
+    let seed = args.opts.seed();
+    let out = args.opts.out_or("out/trace");
     let start = std::time::Instant::now();
-    let bar = super::progress::bar(args.rays, "rays");
+    let bar = super::progress::bar(rays, "rays");
     let report = |done: u64, _: u64| bar.set_position(done);
     let traced = trace_stage(
         &bench,
         &TraceRequest {
             progress: Some(&report),
-            ..TraceRequest::new(args.rays, args.seed)
+            ..TraceRequest::new(rays, seed)
         },
     )?;
     bar.finish_and_clear();
@@ -91,17 +84,17 @@ pub fn run(args: &TraceArgs) -> anyhow::Result<()> {
         &traced.metrics,
         traced.arrivals(),
     );
-    let mut provenance = super::provenance::Provenance::new(&[args.seed]).file(&args.scene)?;
+    let mut provenance = crate::provenance::Provenance::new(&[seed]).file(&args.scene)?;
     for f in crate::scene::doc::BenchDoc::read(&args.scene)?.input_files() {
         provenance = provenance.file(&f)?;
     }
-    write_outputs(&args.out, t, &mut summary, &provenance)?;
+    write_outputs(&out, t, &mut summary, &provenance)?;
     print_table(&summary, seconds);
     // The folder and a count: the file list is in summary.json (`files`), and a line per file
     // would not fit a terminal.
     println!(
         "wrote {} ({} files: summary.json, maps.exr and the per-unit maps x, g±, k± as SVG and PNG)",
-        args.out.display(),
+        out.display(),
         summary.files.len() + 1
     );
     Ok(())
@@ -149,7 +142,7 @@ fn write_outputs(
     out: &Path,
     t: &Transport,
     summary: &mut TraceSummary,
-    provenance: &super::provenance::Provenance,
+    provenance: &crate::provenance::Provenance,
 ) -> Result<()> {
     let dir = OutputDir::create(out)?;
     let mut files = Vec::new();
@@ -209,9 +202,11 @@ mod tests {
         let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/tests/symmetric_arms.ron");
         let args = TraceArgs {
             scene,
-            rays: 20_000,
-            seed: 3,
-            out: out.clone(),
+            opts: super::super::args::RunOpts {
+                rays: Some(20_000),
+                seed: Some(3),
+                out: Some(out.clone()),
+            },
         };
         run(&args).unwrap();
         let text = std::fs::read_to_string(out.join("summary.json")).unwrap();
@@ -332,9 +327,11 @@ mod tests {
         std::fs::write(&scene, text).unwrap();
         let args = TraceArgs {
             scene,
-            rays: 1000,
-            seed: 1,
-            out: out.clone(),
+            opts: super::super::args::RunOpts {
+                rays: Some(1000),
+                seed: Some(1),
+                out: Some(out.clone()),
+            },
         };
         let err = run(&args).unwrap_err();
         let e = err.downcast_ref::<Error>().expect("a library error");

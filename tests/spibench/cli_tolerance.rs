@@ -225,7 +225,7 @@ fn align_writes_its_outputs() {
     }
     crate::outputs_schema::check_file(&out.join("summary.json"), "AlignSummary");
     let s = read_json(&out.join("summary.json"));
-    assert!(s["metrics"]["k_prime"]["change_stderr"].is_number());
+    assert!(s["aligned"]["k_prime_diff_stderr"].is_number());
     let o = spibench(&["check", out.join("aligned.ron").to_str().unwrap()], &[]);
     assert!(o.status.success(), "{}", stderr(&o));
 }

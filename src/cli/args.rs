@@ -1,0 +1,185 @@
+//! The arguments the bench commands share, declared once: the scene, `--set PATH=VALUE`,
+//! `--rays N`, `--seed S`, `--out DIR` ([`BenchArgs`], [`RunOpts`]) and `--shard I/N`
+//! ([`Shard`]), each with one validation.
+//!
+//! Each command keeps its own defaults and ray range: it sets the defaults on its flags with
+//! `mut_arg` (so that `--help` shows them) and checks `--rays` against its own minimum with
+//! [`check_rays`].
+
+use std::path::PathBuf;
+
+use clap::Args;
+
+use crate::scene::doc::BenchDoc;
+use crate::scene::run::MAX_RAYS;
+
+/// `--rays`, `--seed` and `--out`: every command that traces a bench has them.
+#[derive(Debug, Clone, Default, Args)]
+pub struct RunOpts {
+    /// Lamp rays per traced bench (the command's range: its minimum to 10¹¹).
+    #[arg(long, value_name = "N")]
+    pub rays: Option<u64>,
+    /// Seed of the random streams (same seed, same output, on any number of threads).
+    #[arg(long, value_name = "S")]
+    pub seed: Option<u64>,
+    /// Output folder (created; files of the same names are replaced).
+    #[arg(long, value_name = "DIR")]
+    pub out: Option<PathBuf>,
+}
+
+impl RunOpts {
+    /// The seed (1 unless given; every command's default).
+    pub fn seed(&self) -> u64 {
+        self.seed.unwrap_or(1)
+    }
+
+    /// The output folder, `default` unless given.
+    pub fn out_or(&self, default: &str) -> PathBuf {
+        self.out.clone().unwrap_or_else(|| PathBuf::from(default))
+    }
+
+    /// The ray count, `default` unless given, checked against `min` … [`MAX_RAYS`].
+    pub fn rays_or(&self, default: u64, min: u64) -> crate::Result<u64> {
+        check_rays(self.rays.unwrap_or(default), min)
+    }
+}
+
+/// The one check of `--rays`: between the command's `min` and [`MAX_RAYS`]. A minimum of two
+/// batches (`2 · trace::RAYS_PER_BATCH`) is what gives every traced number a standard error.
+pub fn check_rays(rays: u64, min: u64) -> crate::Result<u64> {
+    if rays < min || rays > MAX_RAYS {
+        let why = if min >= 2 * crate::trace::RAYS_PER_BATCH {
+            " (two batches, so that every number has a standard error)"
+        } else {
+            ""
+        };
+        return Err(crate::Error::field(
+            "--rays",
+            format!(
+                "must lie between {min}{why} and {MAX_RAYS} (about a day on two cores), got {rays}"
+            ),
+        ));
+    }
+    Ok(rays)
+}
+
+/// The smallest `--rays` of the commands that report standard errors (sweep, tolerance, align,
+/// trace): two batches.
+pub const MIN_RAYS_WITH_STDERR: u64 = 2 * crate::trace::RAYS_PER_BATCH;
+
+/// The bench, its `--set` edits and [`RunOpts`]: the arguments of `run`, `sweep`,
+/// `tolerance` and `align`.
+#[derive(Debug, Clone, Default, Args)]
+pub struct BenchArgs {
+    /// Bench file (RON); default: the paper's bench built into the binary.
+    pub scene: Option<PathBuf>,
+    /// Set a bench variable first, e.g. `--set detectors.minus.decenter_mm.x=0.5`
+    /// (repeatable; paths as in `spibench sweep`).
+    #[arg(long = "set", value_name = "PATH=VALUE")]
+    pub set: Vec<String>,
+    #[command(flatten)]
+    pub opts: RunOpts,
+}
+
+impl BenchArgs {
+    /// Reads the bench (or the built-in one) and applies `--set`: its name and document.
+    pub fn load(&self) -> crate::Result<(String, BenchDoc)> {
+        super::run::load_doc(self.scene.as_deref(), &self.set)
+    }
+}
+
+/// `--shard I/N`: part I (0-based) of N of a run's work, for running the parts as separate
+/// processes and merging them. The two commands split the work differently, and say so in
+/// their help: `tolerance` takes the trials i ≡ I (mod N) ([`Shard::strided`]: every part
+/// meets early and late trials alike), `dataset` the contiguous block of shards from
+/// ⌊I·T/N⌋ to ⌊(I+1)·T/N⌋ ([`Shard::block`]: each part writes neighbouring folders).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Shard {
+    pub index: u64,
+    pub count: u64,
+}
+
+impl Shard {
+    /// The whole run: part 0 of 1.
+    pub const WHOLE: Shard = Shard { index: 0, count: 1 };
+
+    /// Parses `I/N` with 0 ≤ I < N.
+    pub fn parse(text: &str) -> crate::Result<Shard> {
+        let bad = || {
+            crate::Error::field(
+                "--shard",
+                format!("`{text}`: expected I/N with 0 ≤ I < N, e.g. 0/4"),
+            )
+        };
+        let (i, n) = text.split_once('/').ok_or_else(bad)?;
+        let (index, count): (u64, u64) = (
+            i.trim().parse().map_err(|_| bad())?,
+            n.trim().parse().map_err(|_| bad())?,
+        );
+        if count == 0 || index >= count {
+            return Err(bad());
+        }
+        Ok(Shard { index, count })
+    }
+
+    /// Parses an optional `--shard`.
+    pub fn parse_opt(text: Option<&str>) -> crate::Result<Option<Shard>> {
+        text.map(Shard::parse).transpose()
+    }
+
+    /// (I, N), as the library and the shard records hold it.
+    pub fn pair(self) -> (u64, u64) {
+        (self.index, self.count)
+    }
+
+    /// The items i ≡ I (mod N) of `0..total` (`tolerance`'s trials).
+    pub fn strided(self, total: u64) -> impl Iterator<Item = u64> {
+        crate::tolerance::shard_indices(total, self.pair())
+    }
+
+    /// The contiguous block of `0..total` that is part I of N, as [start, end)
+    /// (`dataset`'s shards).
+    pub fn block(self, total: u64) -> (u64, u64) {
+        crate::dataset::shard_range(total, Some(self.pair()))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn shards_parse_once_and_split_two_ways() {
+        let s = Shard::parse(" 1 / 3").unwrap();
+        assert_eq!(s, Shard { index: 1, count: 3 });
+        assert_eq!(s.strided(8).collect::<Vec<_>>(), [1, 4, 7]);
+        assert_eq!(s.block(9), (3, 6));
+        for bad in ["3/3", "0/0", "1", "a/2", "-1/2"] {
+            let e = Shard::parse(bad).unwrap_err();
+            assert!(
+                e.is_user_error() && e.to_string().contains("--shard"),
+                "{e}"
+            );
+        }
+        // The parts of either split cover the run once.
+        let mut all: Vec<u64> = (0..3)
+            .flat_map(|i| Shard { index: i, count: 3 }.strided(10))
+            .collect();
+        all.sort_unstable();
+        assert_eq!(all, (0..10).collect::<Vec<_>>());
+        let ends: Vec<(u64, u64)> = (0..3)
+            .map(|i| Shard { index: i, count: 3 }.block(10))
+            .collect();
+        assert_eq!(ends, [(0, 3), (3, 6), (6, 10)]);
+    }
+
+    #[test]
+    fn one_rays_check() {
+        let min = MIN_RAYS_WITH_STDERR;
+        assert_eq!(check_rays(min, min).unwrap(), min);
+        let e = check_rays(min - 1, min).unwrap_err();
+        assert!(e.is_user_error() && e.to_string().contains("--rays"), "{e}");
+        assert!(check_rays(MAX_RAYS + 1, 1).is_err());
+        assert!(check_rays(0, 1).is_err());
+    }
+}
