@@ -85,9 +85,6 @@ impl Vary {
 /// through the whole pipeline).
 pub type SweepOptions = EvaluateOptions;
 
-/// One evaluated point of a sweep (the evaluate step's result).
-pub type SweepPoint = Evaluation;
-
 /// A finished sweep.
 #[derive(Debug, Clone)]
 pub struct Sweep {

@@ -12,7 +12,7 @@
 
 use serde::ser::{Serialize, SerializeMap, Serializer};
 
-use crate::sweep::SweepPoint;
+use crate::pipeline::evaluate::Evaluation;
 
 /// Named numbers in their order; serialised as a JSON object (NaN and ±∞ as null).
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -20,7 +20,7 @@ pub struct Row(pub Vec<(String, f64)>);
 
 impl Row {
     /// The metrics of `p` against `reference` (traced with the same seed).
-    pub fn metrics(p: &SweepPoint, reference: &SweepPoint) -> Row {
+    pub fn metrics(p: &Evaluation, reference: &Evaluation) -> Row {
         Row::from_values(
             &crate::tolerance::values(p, reference),
             &crate::tolerance::values(reference, reference),

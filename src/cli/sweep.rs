@@ -12,12 +12,13 @@ use anyhow::Result;
 use clap::Args;
 use serde::Serialize;
 
+use crate::pipeline::evaluate::Evaluation;
 use crate::report::csv::write_csv;
 use crate::report::heatmap::{Heatmap, write_heatmap};
 use crate::report::html::{Block, Page, write_page};
 use crate::report::output::OutputDir;
 use crate::report::plot::{LinePlot, Series, write_plot};
-use crate::sweep::{Sweep, SweepOptions, SweepPoint, Vary, sweep};
+use crate::sweep::{Sweep, SweepOptions, Vary, sweep};
 use crate::transport::metrics::METRICS;
 
 use super::rows::Row;
@@ -98,7 +99,7 @@ struct MetricDoc {
 
 /// One row: the varied values, then the point's metrics against the nominal bench
 /// ([`Row::metrics`]: the keys `tolerance` and `align` write too).
-fn row(p: &SweepPoint, nominal: &SweepPoint) -> Row {
+fn row(p: &Evaluation, nominal: &Evaluation) -> Row {
     Row::metrics(p, nominal).with_settings(&p.settings)
 }
 

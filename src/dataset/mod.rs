@@ -28,7 +28,6 @@ use std::path::{Path, PathBuf};
 
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
-use sha2::{Digest, Sha256};
 
 use crate::acquisition::{PatternSet, Scheme, patterns_for_ratio};
 use crate::error::{Error, Result};
@@ -75,8 +74,13 @@ pub struct ShardEntry {
     pub files: Vec<FileHash>,
 }
 
+/// The `provenance` block of a dataset manifest. Unlike the summaries' block
+/// ([`crate::provenance::Provenance`], write-only), a manifest is read back: `--resume` and
+/// `--merge` compare these inputs (spec, bench, tolerance file by name and SHA-256, hashed
+/// with the one helper [`crate::provenance::sha256_hex`]) before they touch a shard, so it is
+/// owned strings that deserialise, and its keys are the manifest format's.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct Provenance {
+pub struct ManifestProvenance {
     pub spibench_version: String,
     pub command: Vec<String>,
     pub spec_file: String,
@@ -103,7 +107,7 @@ pub struct KernelInfo {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Manifest {
     pub format: String,
-    pub provenance: Provenance,
+    pub provenance: ManifestProvenance,
     pub seed: u64,
     pub samples: u64,
     pub shard_samples: u64,
@@ -810,7 +814,7 @@ impl Prepared {
         let k = &self.spec.file.kernel;
         Manifest {
             format: FORMAT.into(),
-            provenance: Provenance {
+            provenance: ManifestProvenance {
                 spibench_version: env!("CARGO_PKG_VERSION").into(),
                 command: command.to_vec(),
                 spec_file: "spec.ron".into(),
@@ -848,10 +852,7 @@ impl Prepared {
     }
 }
 
-pub fn sha256_hex(bytes: &[u8]) -> String {
-    let d = Sha256::digest(bytes);
-    d.iter().map(|b| format!("{b:02x}")).collect()
-}
+pub use crate::provenance::sha256_hex;
 
 /// `I/N` → the shard range of job I of N (contiguous blocks).
 pub fn shard_range(total: u64, job: Option<(u64, u64)>) -> (u64, u64) {

@@ -16,6 +16,8 @@ use std::path::{Path, PathBuf};
 
 use sha2::{Digest, Sha256};
 
+use crate::provenance::hex;
+
 use crate::error::{Error, Result};
 use crate::scene::bench::{ChartPatternSpec, ElementSpec};
 use crate::scene::doc::BenchDoc;
@@ -60,10 +62,6 @@ impl CacheKey {
     pub fn as_str(&self) -> &str {
         &self.0
     }
-}
-
-fn hex(bytes: &[u8]) -> String {
-    bytes.iter().map(|b| format!("{b:02x}")).collect()
 }
 
 /// What the cache had for a key.
