@@ -66,9 +66,18 @@ impl Row {
     pub fn csv_cells(&self, header: &[String]) -> Vec<String> {
         header
             .iter()
-            .map(|k| self.get(k).map_or_else(String::new, csv_number))
+            .map(|k| match self.get(k) {
+                Some(v) if is_count(k, v) => format!("{}", v as u64),
+                Some(v) => csv_number(v),
+                None => String::new(),
+            })
             .collect()
     }
+}
+
+/// Whether `key` holds a count (written as a whole number, not as a float).
+fn is_count(key: &str, v: f64) -> bool {
+    key == "arrivals" && v >= 0.0 && v.fract() == 0.0 && v < 2f64.powi(53)
 }
 
 /// A number as JSON writes it (shortest round-trip form); empty for NaN and ±∞.
@@ -80,6 +89,10 @@ impl Serialize for Row {
     fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
         let mut m = s.serialize_map(Some(self.0.len()))?;
         for (k, v) in &self.0 {
+            if is_count(k, *v) {
+                m.serialize_entry(k, &(*v as u64))?;
+                continue;
+            }
             match serde_json::Number::from_f64(*v) {
                 Some(n) => m.serialize_entry(k, &n)?,
                 None => m.serialize_entry(k, &Option::<f64>::None)?,

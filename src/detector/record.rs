@@ -518,20 +518,16 @@ pub fn record_frames(
             frames[f][o] = value.clamp(lo, hi);
         }
     }
-    let trace = if trace_frames > 0 && n_frames > 0 {
-        let m = trace_frames.min(n_frames);
-        let head = Illumination {
-            light_a: &light.light_a[..m],
-            ..*light
-        };
-        record(bap, channels, timing, &head, drift, seed, noisy, m).trace
-    } else {
-        SignalTrace {
-            t_s: Vec::new(),
-            v: [Vec::new(), Vec::new(), Vec::new()],
-            frames: 0,
-        }
-    };
+    let trace = head_trace(
+        bap,
+        channels,
+        timing,
+        light,
+        drift,
+        seed,
+        noisy,
+        trace_frames,
+    );
     Record {
         frames,
         clipped,
@@ -543,6 +539,35 @@ pub fn record_frames(
         samples: n_samples,
         trace,
     }
+}
+
+/// The first `trace_frames` frames recorded sample by sample with [`record`] and the same seed
+/// (what the oscilloscope plots show); an empty trace for none.
+#[allow(clippy::too_many_arguments)]
+fn head_trace(
+    bap: &Bap,
+    channels: &[Channel; 3],
+    timing: FrameTiming,
+    light: &Illumination,
+    drift: &DriftPath,
+    seed: u64,
+    noisy: bool,
+    trace_frames: usize,
+) -> SignalTrace {
+    let n_frames = light.light_a.len();
+    if trace_frames == 0 || n_frames == 0 {
+        return SignalTrace {
+            t_s: Vec::new(),
+            v: [Vec::new(), Vec::new(), Vec::new()],
+            frames: 0,
+        };
+    }
+    let m = trace_frames.min(n_frames);
+    let head = Illumination {
+        light_a: &light.light_a[..m],
+        ..*light
+    };
+    record(bap, channels, timing, &head, drift, seed, noisy, m).trace
 }
 
 #[cfg(test)]
