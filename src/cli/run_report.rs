@@ -193,6 +193,16 @@ pub fn effective_ron(doc: &crate::scene::doc::BenchDoc, rays: u64) -> Result<Str
     doc.to_ron()
 }
 
+/// What the sections of `report.html` are drawn from.
+struct ReportInput<'a> {
+    name: &'a str,
+    bench: &'a crate::optics::Bench,
+    o: &'a RunOutcome,
+    summary: &'a RunSummary<'a>,
+    settings_ron: &'a str,
+    out: &'a OutputDir,
+}
+
 /// Writes `report.html` into the staging folder.
 pub fn write_report(
     name: &str,
@@ -202,11 +212,41 @@ pub fn write_report(
     settings_ron: &str,
     out: &OutputDir,
 ) -> Result<()> {
-    let t = &o.transport;
+    let r = ReportInput {
+        name,
+        bench,
+        o,
+        summary,
+        settings_ron,
+        out,
+    };
+    let mut blocks = intro_blocks(&r);
+    bench_section(&mut blocks, &r)?;
+    ledger_section(&mut blocks, &r);
+    signals_section(&mut blocks, &r)?;
+    reconstructions_section(&mut blocks, &r)?;
+    curves_section(&mut blocks, &r)?;
+    settings_section(&mut blocks, &r);
     let s = &o.settings;
+    // The run's title defaults to "spibench run"; the page never says it twice.
+    let title = if s.title.trim().is_empty() || s.title.trim() == "spibench run" {
+        format!("spibench run: {name}")
+    } else if s.title.starts_with("spibench") {
+        s.title.clone()
+    } else {
+        format!("spibench run: {}", s.title)
+    };
+    let page = Page { title, blocks };
+    let path = out.path("report.html");
+    std::fs::write(&path, render(&page)).map_err(|e| Error::write(&path, e))
+}
+
+/// The opening paragraph and any saturation warnings.
+fn intro_blocks(r: &ReportInput<'_>) -> Vec<Block> {
+    let (name, o) = (r.name, r.o);
+    let (t, s) = (&o.transport, &o.settings);
     let (w, h) = (t.units_across, t.units_down);
     let mut blocks = Vec::new();
-
     blocks.push(Block::Paragraph(format!(
         "Scene {name}: {w}×{h} pattern units, {} lamp rays traced (seed {}), {} scheme(s) at {} \
          sampling ratio(s). Every number below is in summary.json beside this page; the traced \
@@ -225,8 +265,15 @@ pub fn write_report(
             blocks.push(Block::Paragraph(format!("SATURATION: {}", sat.message)));
         }
     }
+    blocks
+}
 
-    // ---- The bench.
+/// The bench: the layout, the traced gains and offsets, the per-unit maps and the
+/// double-arm offsets.
+fn bench_section(blocks: &mut Vec<Block>, r: &ReportInput<'_>) -> Result<()> {
+    let (name, bench, o, out) = (r.name, r.bench, r.o, r.out);
+    let t = &o.transport;
+    let (w, h) = (t.units_across, t.units_down);
     blocks.push(Block::Heading {
         level: 2,
         text: "Bench: gains and offsets from the trace".into(),
@@ -291,8 +338,12 @@ pub fn write_report(
     }
     blocks.push(Block::Figures(maps));
     blocks.extend(double_arm_blocks(t, &o.detector));
+    Ok(())
+}
 
-    // ---- The ledger.
+/// The flux ledger: where the emitted light went in each world.
+fn ledger_section(blocks: &mut Vec<Block>, r: &ReportInput<'_>) {
+    let t = &r.o.transport;
     blocks.push(Block::Heading {
         level: 2,
         text: "Flux ledger".into(),
@@ -333,8 +384,11 @@ pub fn write_report(
         header: vec!["".into(), "all units +".into(), "all units −".into()],
         rows,
     });
+}
 
-    // ---- The detector's signals.
+/// The oscilloscope panels of each recorded sequence.
+fn signals_section(blocks: &mut Vec<Block>, r: &ReportInput<'_>) -> Result<()> {
+    let (o, out) = (r.o, r.out);
     blocks.push(Block::Heading {
         level: 2,
         text: "Signals as the oscilloscope sampled them".into(),
@@ -353,8 +407,13 @@ pub fn write_report(
             blocks.push(b);
         }
     }
+    Ok(())
+}
 
-    // ---- Reconstructions.
+/// The reconstructions (the paper's Fig. 6), every scheme at every ratio and the
+/// resolution read-out.
+fn reconstructions_section(blocks: &mut Vec<Block>, r: &ReportInput<'_>) -> Result<()> {
+    let (o, out) = (r.o, r.out);
     blocks.push(Block::Heading {
         level: 2,
         text: "Reconstructions (the paper's Fig. 6)".into(),
@@ -418,8 +477,13 @@ pub fn write_report(
             element_text(c.ideal_finest_resolved)
         )));
     }
+    Ok(())
+}
 
-    // ---- Curves.
+/// Quality against sampling ratio (the paper's Fig. 7) and what it shows.
+fn curves_section(blocks: &mut Vec<Block>, r: &ReportInput<'_>) -> Result<()> {
+    let out = r.out;
+    let summary = r.summary;
     blocks.push(Block::Heading {
         level: 2,
         text: "Quality against sampling ratio (the paper's Fig. 7)".into(),
@@ -454,8 +518,13 @@ pub fn write_report(
     if !text.is_empty() {
         blocks.push(Block::Paragraph(text));
     }
+    Ok(())
+}
 
-    // ---- Settings.
+/// The settings that reproduce the page.
+fn settings_section(blocks: &mut Vec<Block>, r: &ReportInput<'_>) {
+    let o = r.o;
+    let settings_ron = r.settings_ron;
     blocks.push(Block::Heading {
         level: 2,
         text: "Settings that reproduce this page".into(),
@@ -470,17 +539,6 @@ pub fn write_report(
         o.seed
     )));
     blocks.push(Block::Preformatted(settings_ron.to_string()));
-    // The run's title defaults to "spibench run"; the page never says it twice.
-    let title = if s.title.trim().is_empty() || s.title.trim() == "spibench run" {
-        format!("spibench run: {name}")
-    } else if s.title.starts_with("spibench") {
-        s.title.clone()
-    } else {
-        format!("spibench run: {}", s.title)
-    };
-    let page = Page { title, blocks };
-    let path = out.path("report.html");
-    std::fs::write(&path, render(&page)).map_err(|e| Error::write(&path, e))
 }
 
 #[cfg(test)]
