@@ -240,11 +240,26 @@ pub fn check_bench(scene: &str, bench: &Bench, wl: f64) -> Result<CheckReport> {
         _ => None,
     };
 
-    // The diodes' numerical apertures along the arms' chief rays. The geometric NA of the diode
-    // disk seen from the last optic before it is chosen over an NA "seen from the DMD through
-    // the arm": it needs no paraxial model of a folded, tilted arm, and it is the number to set
-    // against the convergence of the beam arriving from that optic (a diode whose NA exceeds
-    // the beam's can catch all of it, whatever the arm does before).
+    let diodes = diode_entries(bench, wl);
+
+    Ok(CheckReport {
+        scene: scene.to_string(),
+        design_wavelength_m: wl,
+        elements,
+        lenses: entries,
+        chart_to_dmd_magnification: chart_to_dmd,
+        pattern_on_dmd_m: pattern_on_dmd,
+        pattern_on_chart_m: pattern_on_chart,
+        diodes,
+    })
+}
+
+/// Each diode's numerical aperture along its arm's chief ray. The geometric NA of the diode
+/// disk seen from the last optic before it is chosen over an NA "seen from the DMD through
+/// the arm": it needs no paraxial model of a folded, tilted arm, and it is the number to set
+/// against the convergence of the beam arriving from that optic (a diode whose NA exceeds
+/// the beam's can catch all of it, whatever the arm does before).
+fn diode_entries(bench: &Bench, wl: f64) -> Vec<DiodeEntry> {
     let mut diodes = Vec::new();
     let axes = dmd_axes(bench, wl).ok();
     for (k, det) in bench.detectors().iter().enumerate() {
@@ -280,17 +295,7 @@ pub fn check_bench(scene: &str, bench: &Bench, wl: f64) -> Result<CheckReport> {
         }
         diodes.push(entry);
     }
-
-    Ok(CheckReport {
-        scene: scene.to_string(),
-        design_wavelength_m: wl,
-        elements,
-        lenses: entries,
-        chart_to_dmd_magnification: chart_to_dmd,
-        pattern_on_dmd_m: pattern_on_dmd,
-        pattern_on_chart_m: pattern_on_chart,
-        diodes,
-    })
+    diodes
 }
 
 fn mm(x: f64) -> String {

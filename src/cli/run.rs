@@ -275,10 +275,30 @@ fn write_outputs(
         files.push(f);
     }
 
+    let rows = result_rows(name, o);
+    write_results(&out.path("results.csv"), &rows)?;
+    files.push("results.csv".to_string());
+
+    write_fig6_montage(o, out, &mut files)?;
+    write_fig7_curves(o, out, &mut files)?;
+    write_signal_traces(o, out, &mut files)?;
+
+    files.push("report.html".to_string());
+    files.push("summary.json".to_string());
+    // timings.json is written beside them but not listed, so that summary.json stays the same
+    // for the same seed whatever the timings file holds.
+    let count = files.len() + 1;
+    let summary = summarize_run(name, bench, o, files);
+    super::provenance::write_summary_and_timings(out, &summary, provenance, Some(&run_timings(o)))?;
+    super::run_report::write_report(name, bench, o, &summary, settings_ron, out)?;
+    Ok(count)
+}
+
+/// The rows of `results.csv`, one per scheme × ratio.
+fn result_rows(name: &str, o: &RunOutcome) -> Vec<ResultRow> {
     let s = &o.settings;
     let t = &o.transport;
-    let rows: Vec<ResultRow> = o
-        .results
+    o.results
         .iter()
         .map(|r| ResultRow {
             command: "run".into(),
@@ -311,11 +331,16 @@ fn write_outputs(
             finest_element: r.finest_resolved.map(|e| u32::from(e.element)),
             finest_lp_per_mm: r.finest_resolved.map(|e| e.lp_per_mm),
         })
-        .collect();
-    write_results(&out.path("results.csv"), &rows)?;
-    files.push("results.csv".to_string());
+        .collect()
+}
 
-    // Fig. 6: one row per scheme, the object x at the head of every row.
+/// Fig. 6: one row per scheme, the object x at the head of every row.
+fn write_fig6_montage(
+    o: &RunOutcome,
+    out: &OutputDir,
+    files: &mut Vec<String>,
+) -> crate::Result<()> {
+    let s = &o.settings;
     let n_ratio = s.sampling_ratios.len();
     let mut tiles = Vec::new();
     let mut captions = Vec::new();
@@ -350,7 +375,17 @@ fn write_outputs(
     write_montage(&montage, 160, &out.path("montage.png"))?;
     files.push("montage.png".to_string());
 
-    // Fig. 7 (MSSIM) and the PSNR twin.
+    Ok(())
+}
+
+/// Fig. 7 (MSSIM against sampling ratio) and its PSNR twin.
+fn write_fig7_curves(
+    o: &RunOutcome,
+    out: &OutputDir,
+    files: &mut Vec<String>,
+) -> crate::Result<()> {
+    let s = &o.settings;
+    let n_ratio = s.sampling_ratios.len();
     for (stem, label, pick) in [
         (
             "mssim_vs_ratio",
@@ -378,10 +413,18 @@ fn write_outputs(
                 .collect(),
             log_x: false,
         };
-        write_plot_pair(&plot, stem, out, &mut files)?;
+        write_plot_pair(&plot, stem, out, files)?;
     }
 
-    // Signal traces: one panel per output on a shared time axis, every sample on the line.
+    Ok(())
+}
+
+/// The signal traces: one panel per output on a shared time axis, every sample on the line.
+fn write_signal_traces(
+    o: &RunOutcome,
+    out: &OutputDir,
+    files: &mut Vec<String>,
+) -> crate::Result<()> {
     for (q, tr) in &o.traces {
         if tr.t_s.is_empty() {
             continue;
@@ -410,15 +453,7 @@ fn write_outputs(
         }
     }
 
-    files.push("report.html".to_string());
-    files.push("summary.json".to_string());
-    // timings.json is written beside them but not listed, so that summary.json stays the same
-    // for the same seed whatever the timings file holds.
-    let count = files.len() + 1;
-    let summary = summarize_run(name, bench, o, files);
-    super::provenance::write_summary_and_timings(out, &summary, provenance, Some(&run_timings(o)))?;
-    super::run_report::write_report(name, bench, o, &summary, settings_ron, out)?;
-    Ok(count)
+    Ok(())
 }
 
 /// timings.json of `run`: the wall-clock times of the stages and each solve's CPU time, the

@@ -432,20 +432,8 @@ pub fn record_frames(
     let mut rng_batch = usize::MAX;
     let mut r = rng::stream(seed, 0);
     for f in 0..n_frames {
-        let (n0, n1) = (start(f), start(f + 1));
-        let settled_from = ((f as f64 * per_frame + settle - BOUNDARY_EPS)
-            .ceil()
-            .max(0.0) as u64)
-            .max(n0);
-        let k = n1.saturating_sub(settled_from) as usize;
-        let k0 = (settled_from.min(n1) - n0) as i32;
-        let n = (n1 - n0) as i32;
+        let (k, k0, n, mid) = settled_window(f, start(f), start(f + 1), per_frame, settle, dt);
         counts[f] = k;
-        let mid = if k > 0 {
-            (settled_from as f64 + 0.5 * (k as f64 - 1.0)) * dt
-        } else {
-            (n0 as f64 + 0.5 * (n as f64 - 1.0).max(0.0)) * dt
-        };
         let i = currents_at(f, mid);
         let x = bap.ideal_outputs_v(i);
         // Noise draws: shot of each diode, each amplifier, the oscilloscope, the ADC.
@@ -539,6 +527,32 @@ pub fn record_frames(
         samples: n_samples,
         trace,
     }
+}
+
+/// The settled window of frame f, whose samples are n0..n1: the number of settled samples k,
+/// the offset k0 of the first from n0, the frame's sample count n, and the time (s) at the
+/// window's centre (the frame's centre when nothing settles), where drift is evaluated.
+fn settled_window(
+    f: usize,
+    n0: u64,
+    n1: u64,
+    per_frame: f64,
+    settle: f64,
+    dt: f64,
+) -> (usize, i32, i32, f64) {
+    let settled_from = ((f as f64 * per_frame + settle - BOUNDARY_EPS)
+        .ceil()
+        .max(0.0) as u64)
+        .max(n0);
+    let k = n1.saturating_sub(settled_from) as usize;
+    let k0 = (settled_from.min(n1) - n0) as i32;
+    let n = (n1 - n0) as i32;
+    let mid = if k > 0 {
+        (settled_from as f64 + 0.5 * (k as f64 - 1.0)) * dt
+    } else {
+        (n0 as f64 + 0.5 * (n as f64 - 1.0).max(0.0)) * dt
+    };
+    (k, k0, n, mid)
 }
 
 /// The first `trace_frames` frames recorded sample by sample with [`record`] and the same seed
