@@ -616,7 +616,7 @@ impl SceneWriter {
                 }
                 self.add_mesh(&el, &face, &conductor(r));
             }
-            Interaction::Detector { index } => self.detector(bench, opts, *index, &el)?,
+            Interaction::Detector { arm } => self.detector(bench, opts, arm.index(), &el)?,
             Interaction::Chart { chart, front, back } => {
                 self.chart(bench, s, *chart, (*front, *back), &el)?
             }

@@ -95,9 +95,9 @@ pub enum Interaction {
     Absorber,
     /// A front-surface mirror, reflective on the normal's side, black behind.
     Mirror { reflectance: Spectrum },
-    /// The active area of photodiode `index` (0 = arm +, 1 = arm −), sensitive on the normal's
-    /// side; its housing behind.
-    Detector { index: usize },
+    /// The active area of the photodiode of arm `arm`, sensitive on the normal's side; its
+    /// housing behind.
+    Detector { arm: super::Arm },
     /// The chrome face of chart plate `chart`: clear glass (an interface) where the mask is
     /// clear, chrome elsewhere. `front` is the medium on the normal's side.
     Chart {

@@ -298,9 +298,9 @@ pub fn chief_ray(
                         ray.end = ChiefEnd::Blocked(s.element);
                         return ray;
                     }
-                    Interaction::Detector { index } => {
+                    Interaction::Detector { arm } => {
                         ray.end = if cos > 0.0 {
-                            ChiefEnd::Detector(*index)
+                            ChiefEnd::Detector(arm.index())
                         } else {
                             ChiefEnd::Blocked(s.element)
                         };

@@ -432,11 +432,11 @@ fn surface<R: Recorder>(
             p.o = hit + SURFACE_OFFSET * n;
             Flow::Go
         }
-        Interaction::Detector { index } => {
+        Interaction::Detector { arm } => {
             if cos_signed <= 0.0 {
                 book(tally, p.world, s.element, p.w);
             } else {
-                detect(ctx, p, Arm::from_index(*index), tally, rec);
+                detect(ctx, p, *arm, tally, rec);
             }
             Flow::End
         }

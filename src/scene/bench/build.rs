@@ -8,6 +8,7 @@ use std::path::Path;
 use glam::DVec3;
 
 use crate::error::{Error, Result};
+use crate::optics::Arm;
 use crate::optics::bench::{
     Assembly, Bench, BenchParts, Coating, GuideRequest, Interaction, Solid,
 };
@@ -325,8 +326,8 @@ impl Builder<'_> {
             None => None,
         };
         let detectors = [
-            self.photodiode(&file.detectors.plus, 0)?,
-            self.photodiode(&file.detectors.minus, 1)?,
+            self.photodiode(&file.detectors.plus, Arm::Plus)?,
+            self.photodiode(&file.detectors.minus, Arm::Minus)?,
         ];
         self.check_overlaps()?;
         let lamp = self.lamp(&file.lamp, band)?;

@@ -4,6 +4,7 @@
 use glam::DVec3;
 
 use crate::error::{Error, Result};
+use crate::optics::Arm;
 use crate::optics::bench::{
     DmdSetup, ElementId, Interaction, Photodiode, Solid, ambient_responsivity,
 };
@@ -151,8 +152,11 @@ impl Builder<'_> {
         })
     }
 
-    pub(super) fn photodiode(&mut self, s: &PhotodiodeSpec, index: usize) -> Result<Photodiode> {
-        let key = if index == 0 { "plus" } else { "minus" };
+    pub(super) fn photodiode(&mut self, s: &PhotodiodeSpec, arm: Arm) -> Result<Photodiode> {
+        let key = match arm {
+            Arm::Plus => "plus",
+            Arm::Minus => "minus",
+        };
         let e = |f: &str, m: String| self.ctx.err_path(&["detectors", key, f], m);
         let normal = s.normal.to_unit().map_err(|m| e("normal", m))?;
         let frame = Frame::new(mm(s.position_mm), normal, None);
@@ -171,7 +175,7 @@ impl Builder<'_> {
                 frame,
                 shape: Shape2D::Disk { radius },
             },
-            Interaction::Detector { index },
+            Interaction::Detector { arm },
             id,
         );
         if let Some(h) = s.housing_diameter_mm {
