@@ -7,6 +7,7 @@ use std::path::PathBuf;
 
 use crate::error::Error;
 use crate::report::layout::{layout_svg, svg_to_png};
+use crate::report::outline::outline_text;
 use crate::report::output::OutputDir;
 use crate::scene::bench::read_bench;
 use crate::trace::fan::{DEFAULT_FAN_RAYS, Fate, ray_fan};
@@ -50,7 +51,9 @@ pub fn run(args: &LayoutArgs) -> anyhow::Result<()> {
         || args.scene.display().to_string(),
         |n| n.to_string_lossy().into_owned(),
     );
-    let svg = layout_svg(&bench, &fan, &title).map_err(|e| e.in_file(&args.scene))?;
+    let svg = layout_svg(&bench, &fan, &title)
+        .and_then(|svg| outline_text(&svg))
+        .map_err(|e| e.in_file(&args.scene))?;
     let png = svg_to_png(&svg)?;
     let dir = OutputDir::create(&out)?;
     for (name, bytes) in [
@@ -85,7 +88,7 @@ pub(super) fn layout_block(
     title: &str,
 ) -> crate::Result<(crate::report::html::Block, String)> {
     let fan = ray_fan(bench, DEFAULT_FAN_RAYS, 1)?;
-    let svg = layout_svg(bench, &fan, title)?;
+    let svg = outline_text(&layout_svg(bench, &fan, title)?)?;
     Ok((
         crate::report::html::Block::Svg {
             caption: format!(

@@ -466,7 +466,7 @@ pub fn unit_map_svg(m: &UnitMap) -> Result<String> {
         );
     }
     let _ = writeln!(out, "</svg>");
-    Ok(out)
+    super::outline::outline_text(&out)
 }
 
 /// Writes a per-unit map as SVG and as its PNG rendering.

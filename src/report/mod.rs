@@ -1,8 +1,8 @@
 //! Output files: JSON summaries, images (PNG, EXR), arrays (.npy), plots and HTML reports.
 //! Together with `scene` and `cli`, the only module that touches files.
 //!
-//! The figure modules (plot, heatmap, montage, svg, font: plotters, resvg, svg2pdf and the
-//! embedded font) are built with the `figures` feature only; the plain writers are always there.
+//! The figure modules (plot, heatmap, montage, svg, outline, font: plotters, resvg, svg2pdf,
+//! ab_glyph and the embedded font) are built with the `figures` feature only; the plain writers are always there.
 
 pub mod csv;
 pub mod exr;
@@ -16,6 +16,8 @@ pub mod layout;
 #[cfg(feature = "figures")]
 pub mod montage;
 pub mod npy;
+#[cfg(feature = "figures")]
+pub mod outline;
 pub mod output;
 #[cfg(feature = "figures")]
 pub mod plot;

@@ -549,7 +549,7 @@ pub fn render_svg(plot: &LinePlot, width: u32, height: u32) -> Result<String> {
         let root = SVGBackend::with_string(&mut svg, (width, height)).into_drawing_area();
         draw_figure(&root, plot, &series, x, y).map_err(Error::Numerical)?;
     }
-    Ok(svg)
+    super::outline::outline_text(&svg)
 }
 
 /// The SVG text and the RGB pixels (row-major, 3 bytes each) of a plot; the pixels are the
@@ -746,7 +746,7 @@ pub fn scope_svg(p: &ScopePlot) -> Result<String> {
         let root = SVGBackend::with_string(&mut svg, (SCOPE_WIDTH_PX, h)).into_drawing_area();
         draw_scope(&root, p).map_err(Error::Numerical)?;
     }
-    Ok(svg)
+    super::outline::outline_text(&svg)
 }
 
 /// Writes an oscilloscope figure as SVG, its PNG rendering, and PDF beside the SVG.
@@ -878,12 +878,11 @@ mod tests {
         );
         let gap = crate::report::svg::tests::widest_inner_gap(&cols) as f64;
         assert!(gap < 0.3 * px, "a {gap} px gap inside {label:?}");
-        // And the same text set directly by resvg, at the same place, gives the same pixels.
-        let texts: Vec<&str> = svg.split("</text>").collect();
-        let axis_text = texts
-            .iter()
-            .find(|t| t.contains(label))
-            .map(|t| format!("{}</text>", &t[t.find("<text").unwrap()..]))
+        // And the same label outlined alone, at the same place, gives the same pixels.
+        let axis_text = svg
+            .split("</path>")
+            .find(|t| t.contains(&format!(r#"aria-label="{label}""#)))
+            .map(|t| format!("{}</path>", &t[t.rfind("<path").unwrap()..]))
             .unwrap();
         let reference = format!(
             r#"<svg xmlns="http://www.w3.org/2000/svg" width="{w}" height="{h}">{axis_text}</svg>"#

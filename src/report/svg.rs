@@ -1,50 +1,19 @@
 //! Every bitmap figure is a rendering of its SVG: plots, heatmaps, per-unit maps and the
-//! bench layout are drawn once as SVG and rasterised here by resvg, with text set in the
-//! embedded DejaVu Sans (`fonts/DejaVuSans.ttf`) by usvg's text layout (HarfBuzz-style shaping
-//! through rustybuzz, with the font's own advances and kerning). The PNG therefore shows the
-//! same glyphs, at the same places, as the SVG does in a browser with that font, and no system
-//! font is ever consulted.
+//! bench layout are drawn once as SVG and rasterised here by resvg, or converted to PDF by
+//! svg2pdf. Text is set before either sees it: `report::outline` replaces each `<text>` with the
+//! outlines of its glyphs in the embedded DejaVu Sans (the font's own advances and kerning), so
+//! the PNG and the PDF show the same glyphs, at the same places, as the SVG file does in any
+//! viewer, no system font is ever consulted, and the build needs no text-shaping stack.
 //!
 //! Why not plotters' bitmap backend: it positions glyphs one by one from rounded pixel boxes,
-//! which breaks words apart ("bal ancing") and lifts the decimal point; resvg lays out text
-//! as a browser does.
-
-use std::sync::{Arc, OnceLock};
+//! which breaks words apart ("bal ancing") and lifts the decimal point.
 
 use crate::error::{Error, Result};
 
-static DEJAVU_SANS: &[u8] = include_bytes!("fonts/DejaVuSans.ttf");
-
-/// The family name the embedded font registers under.
-pub const FONT_FAMILY: &str = "DejaVu Sans";
-
-/// The font database holding only the embedded font, mapped to every generic family, built
-/// once per process.
-fn fontdb() -> Arc<resvg::usvg::fontdb::Database> {
-    static DB: OnceLock<Arc<resvg::usvg::fontdb::Database>> = OnceLock::new();
-    DB.get_or_init(|| {
-        let mut db = resvg::usvg::fontdb::Database::new();
-        db.load_font_data(DEJAVU_SANS.to_vec());
-        db.set_sans_serif_family(FONT_FAMILY);
-        db.set_serif_family(FONT_FAMILY);
-        db.set_monospace_family(FONT_FAMILY);
-        Arc::new(db)
-    })
-    .clone()
-}
-
-/// usvg options that resolve every font family to the embedded DejaVu Sans.
-pub fn options() -> resvg::usvg::Options<'static> {
-    resvg::usvg::Options {
-        font_family: FONT_FAMILY.into(),
-        fontdb: fontdb(),
-        ..Default::default()
-    }
-}
-
-/// Parses SVG text into a usvg tree (text laid out with the embedded font).
+/// Parses SVG text into a usvg tree, its text set as glyph outlines first.
 pub fn parse(svg: &str) -> Result<resvg::usvg::Tree> {
-    resvg::usvg::Tree::from_str(svg, &options())
+    let svg = super::outline::outline_text(svg)?;
+    resvg::usvg::Tree::from_str(&svg, &resvg::usvg::Options::default())
         .map_err(|e| Error::Numerical(format!("cannot parse a figure's SVG: {e}")))
 }
 
@@ -105,39 +74,70 @@ pub fn svg_to_png(svg: &str) -> Result<Vec<u8>> {
     super::png::encode_rgb8(w, h, &rgb)
 }
 
-/// The embedded font in a database of svg2pdf's usvg version (svg2pdf 0.13 parses with usvg
-/// 0.45, resvg here uses 0.49; both trees are built from the same SVG text and font).
-fn pdf_fontdb() -> Arc<svg2pdf::usvg::fontdb::Database> {
-    static DB: OnceLock<Arc<svg2pdf::usvg::fontdb::Database>> = OnceLock::new();
-    DB.get_or_init(|| {
-        let mut db = svg2pdf::usvg::fontdb::Database::new();
-        db.load_font_data(DEJAVU_SANS.to_vec());
-        db.set_sans_serif_family(FONT_FAMILY);
-        db.set_serif_family(FONT_FAMILY);
-        db.set_monospace_family(FONT_FAMILY);
-        Arc::new(db)
-    })
-    .clone()
-}
-
 /// A one-page PDF of SVG text, one PDF point per SVG user unit (so a 960 × 600 figure is
-/// 13.3 × 8.3 in, to be scaled by `\includegraphics[width=…]`). Text stays text: the glyphs
-/// used are embedded as a subset of DejaVu Sans, so it can be searched and copied. The file
-/// holds no date, so the same figure gives the same bytes.
+/// 13.3 × 8.3 in, to be scaled by `\includegraphics[width=…]`). Text is drawn as the glyph
+/// outlines of the SVG ([`parse`]), so the PDF needs no embedded font. The file holds no date,
+/// so the same figure gives the same bytes.
 pub fn svg_to_pdf(svg: &str) -> Result<Vec<u8>> {
-    let opt = svg2pdf::usvg::Options {
-        font_family: FONT_FAMILY.into(),
-        fontdb: pdf_fontdb(),
-        ..Default::default()
-    };
-    let tree = svg2pdf::usvg::Tree::from_str(svg, &opt)
-        .map_err(|e| Error::Numerical(format!("cannot parse a figure's SVG: {e}")))?;
+    // resvg and svg2pdf share one usvg version, so the tree parsed for the PNG serves here.
+    let tree = parse(svg)?;
     svg2pdf::to_pdf(
         &tree,
         svg2pdf::ConversionOptions::default(),
         svg2pdf::PageOptions { dpi: 72.0 },
     )
+    .map(canonical_resource_order)
     .map_err(|e| Error::Numerical(format!("cannot convert a figure to PDF: {e}")))
+}
+
+/// The PDF with the entries of each resource dictionary in name order. svg2pdf keeps a page's
+/// resources in a hash map, so the same figure lists them in a different order on each run;
+/// the order carries no meaning in PDF (a dictionary is unordered, ISO 32000-1 §7.3.7), and
+/// each entry is one line of its own (`/xo12 31 0 R`), so sorting the lines of each run of
+/// entries leaves every byte count, and so every cross-reference offset, as it was. Lines
+/// inside streams are never touched.
+fn canonical_resource_order(pdf: Vec<u8>) -> Vec<u8> {
+    fn entry_key(line: &[u8]) -> Option<(usize, &[u8], u64)> {
+        let indent = line.iter().take_while(|&&b| b == b' ').count();
+        let rest = line[indent..].strip_prefix(b"/")?;
+        let name_end = rest.iter().position(|&b| b == b' ')?;
+        let name = &rest[..name_end];
+        let digits = name.iter().rev().take_while(|b| b.is_ascii_digit()).count();
+        let (prefix, number) = name.split_at(name.len() - digits);
+        let reference = std::str::from_utf8(&rest[name_end + 1..]).ok()?;
+        let mut parts = reference.split(' ');
+        let well_formed = prefix.iter().all(u8::is_ascii_alphabetic)
+            && digits > 0
+            && parts.next()?.bytes().all(|b| b.is_ascii_digit())
+            && parts.next()? == "0"
+            && parts.next()? == "R"
+            && parts.next().is_none();
+        let number: u64 = std::str::from_utf8(number).ok()?.parse().ok()?;
+        well_formed.then_some((indent, prefix, number))
+    }
+    let lines: Vec<&[u8]> = pdf.split(|&b| b == b'\n').collect();
+    let mut out: Vec<&[u8]> = Vec::with_capacity(lines.len());
+    let (mut i, mut in_stream) = (0, false);
+    while i < lines.len() {
+        let line = lines[i];
+        if in_stream {
+            in_stream = line != b"endstream";
+        } else if line == b"stream" {
+            in_stream = true;
+        } else if let Some((indent, prefix, _)) = entry_key(line) {
+            let run_end = (i..lines.len())
+                .find(|&j| entry_key(lines[j]).is_none_or(|(d, p, _)| d != indent || p != prefix))
+                .unwrap_or(lines.len());
+            let mut run = lines[i..run_end].to_vec();
+            run.sort_by_key(|l| entry_key(l).map(|(_, _, n)| n));
+            out.extend(run);
+            i = run_end;
+            continue;
+        }
+        out.push(line);
+        i += 1;
+    }
+    out.join(&b'\n')
 }
 
 #[cfg(test)]
@@ -182,6 +182,38 @@ pub(crate) mod tests {
             best = best.max(run);
         }
         best
+    }
+
+    /// The same figure gives the same PDF bytes, whatever order svg2pdf's hash maps visit its
+    /// resources in (many translucent shapes make many resources).
+    #[test]
+    fn pdf_bytes_are_deterministic() {
+        let mut svg =
+            String::from(r#"<svg xmlns="http://www.w3.org/2000/svg" width="200" height="100">"#);
+        for k in 0..12 {
+            svg.push_str(&format!(
+                r##"<rect x="{}" y="10" width="10" height="50" fill="#1f77b4" opacity="0.{}"/>"##,
+                10 * k,
+                k + 1
+            ));
+        }
+        svg.push_str(r#"<text x="5" y="90" font-size="12">k₊ (A/W)</text></svg>"#);
+        let first = svg_to_pdf(&svg).unwrap();
+        for _ in 0..6 {
+            assert!(svg_to_pdf(&svg).unwrap() == first, "the PDF bytes changed");
+        }
+        assert!(first.starts_with(b"%PDF-"));
+    }
+
+    #[test]
+    fn resource_entries_are_sorted_in_place() {
+        let pdf = b"%PDF-1.7\n  /Resources <<\n      /xo12 31 0 R\n      /xo2 9 0 R\n      /gs1 4 0 R\n      /gs0 3 0 R\n  >>\nstream\n  /b2 1 0 R\n  /b1 1 0 R\nendstream\n".to_vec();
+        let out = canonical_resource_order(pdf.clone());
+        assert_eq!(out.len(), pdf.len());
+        assert_eq!(
+            String::from_utf8(out).unwrap(),
+            "%PDF-1.7\n  /Resources <<\n      /xo2 9 0 R\n      /xo12 31 0 R\n      /gs0 3 0 R\n      /gs1 4 0 R\n  >>\nstream\n  /b2 1 0 R\n  /b1 1 0 R\nendstream\n"
+        );
     }
 
     /// A word set by resvg with the embedded font is as wide as the font's advances say and
