@@ -73,6 +73,7 @@ SchedulerType=sched/backfill
 SelectType=select/cons_tres
 SelectTypeParameters=CR_Core
 MpiDefault=none
+MailProg=/bin/true
 ReturnToService=2
 # Finished jobs stay visible to scontrol for 10 minutes (there is no accounting to ask).
 MinJobAge=600
@@ -103,10 +104,15 @@ start_daemons() {
     die "the node did not come up (state: ${state:-none}); see $DIR/log"
 }
 
-up() {
-    install_packages
-    [ -f "$DIR/run/slurmctld.pid" ] && kill -0 "$(cat "$DIR/run/slurmctld.pid")" 2>/dev/null &&
+not_running() {
+    if [ -f "$DIR/run/slurmctld.pid" ] && kill -0 "$(cat "$DIR/run/slurmctld.pid")" 2>/dev/null; then
         die "a cluster from $DIR is already running (run: $0 down)"
+    fi
+}
+
+up() {
+    not_running
+    install_packages
     write_conf
     start_daemons
     say "up; for sbatch, squeue, sinfo by hand: export SLURM_CONF=$SLURM_CONF"
@@ -148,8 +154,12 @@ up) up ;;
 down) down ;;
 check) check ;;
 all)
+    not_running
+    command -v "${SPIBENCH:-spibench}" >/dev/null ||
+        die "no spibench binary (set SPIBENCH or put spibench on PATH: cargo install --path .)"
+    # On failure the daemons' logs are shown before down removes them.
+    trap 'rc=$?; [ "$rc" = 0 ] || tail -n 20 "$DIR"/log/*.log >&2 || true; down' EXIT
     up
-    trap down EXIT
     check
     ;;
 *) die "usage: $0 [up|check|down|all]" ;;
