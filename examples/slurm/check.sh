@@ -9,10 +9,8 @@
 #   for byte; manifest.json too, less its provenance "command" (the command lines differ);
 # - a tolerance Monte Carlo as a 3-task array numbered from 1 (--array=1-3) and its merge: every
 #   file equals the single-process run's byte for byte (trials, sensitivity table, CSV, SVG, PNG,
-#   HTML report), except summary.json, compared less its provenance "command" and "inputs" (the
-#   merge's inputs are the shards' trials.ron), and the PDF figures, compared as sorted lines:
-#   svg2pdf 0.13 writes a page's resource dictionary in hash-map order, so two runs of the same
-#   command differ in that order alone.
+#   HTML report, PDF figures), except summary.json, compared less its provenance "command" and
+#   "inputs" (the merge's inputs are the shards' trials.ron).
 #
 # The jobs ask for one core each; the binary is $SPIBENCH, else `spibench` on PATH.
 set -euo pipefail
@@ -109,8 +107,6 @@ while read -r f; do
     ./summary.json)
         compare <(drop tolerance-single/"$f" command inputs) <(drop tolerance/"$f" command inputs) \
             "less provenance.command and provenance.inputs" ;;
-    *.pdf)
-        compare <(LC_ALL=C sort tolerance-single/"$f") <(LC_ALL=C sort tolerance/"$f") "sorted lines" ;;
     *) compare tolerance-single/"$f" tolerance/"$f" bytes ;;
     esac
     n=$((n + 1))
