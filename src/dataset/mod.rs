@@ -1046,7 +1046,12 @@ pub fn generate(
         remove_leftovers(dir, &manifest)?;
         manifest.provenance.command = command.to_vec();
     } else {
-        if exists || dir.read_dir().is_ok_and(|mut d| d.next().is_some()) {
+        // The lock file of a folder locked in place (a mount point) is not content.
+        let content = |d: std::fs::ReadDir| {
+            d.flatten()
+                .any(|e| !e.file_name().to_string_lossy().starts_with(".spibench-"))
+        };
+        if exists || dir.read_dir().is_ok_and(content) {
             return Err(Error::input(
                 "the output folder exists and is not empty: choose another, or continue it \
                  with --resume",

@@ -448,12 +448,16 @@ impl FolderLock {
         let d = Destination::of(dir)?;
         let created_parents = create_missing(&d.parent).map_err(|e| Error::write(&d.parent, e))?;
         let sibling = d.parent.join(format!(".{}.spibench-lock", d.name));
-        let lock = match DirLock::acquire(&sibling, dir) {
+        let inside = d.target.join(".spibench-lock");
+        // A mount point is locked inside, where `OutputDir::create` locks it.
+        let mount_point = d.existing.is_some() && is_mount_point(&d.target, &d.parent);
+        let first = if mount_point { &inside } else { &sibling };
+        let lock = match DirLock::acquire(first, dir) {
             Ok(l) => Ok(l),
             // A parent we may not write into, around a folder we may: lock inside, as
             // `OutputDir::create` does.
-            Err(e) if d.existing.is_some() && is_permission(&e) => {
-                DirLock::acquire(&d.target.join(".spibench-lock"), dir)
+            Err(e) if !mount_point && d.existing.is_some() && is_permission(&e) => {
+                DirLock::acquire(&inside, dir)
             }
             Err(e) => Err(e),
         };
