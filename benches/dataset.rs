@@ -47,9 +47,10 @@ fn main() {
     );
     let out = std::env::temp_dir().join(format!("spibench-bench-dataset-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&out);
+    let lock = spibench::report::output::FolderLock::acquire(&out).expect("lock");
     let g = generate(
         &prep,
-        &out,
+        &lock,
         shard_range(prep.shards_total(), None),
         false,
         &["bench".into()],

@@ -6,21 +6,27 @@
     loader = torch.utils.data.DataLoader(ds, batch_size=32, shuffle=True)
 
 Shards are memory-mapped (np.load(..., mmap_mode="r")), so the dataset can be larger than RAM.
+The manifest is read by dataset_numpy.manifest, which refuses shard folders, array names and
+paths that lead out of the dataset folder (as spibench does) before any array is opened.
 """
 import bisect
-import json
 import os
+import sys
 
 import numpy as np
 import torch
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from dataset_numpy import manifest as checked_manifest  # noqa: E402
+
 
 class SpibenchDataset(torch.utils.data.Dataset):
     def __init__(self, root, measurement=None):
-        with open(os.path.join(root, "manifest.json")) as f:
-            self.manifest = json.load(f)
+        self.manifest = checked_manifest(root)
         names = [a["name"] for a in self.manifest["schema"]]
         self.measurement = measurement or next(n for n in names if n.startswith("meas_"))
+        if self.measurement not in names:
+            raise ValueError(f"{self.measurement!r} is not an array of this dataset: {names}")
         shards = sorted(self.manifest["shards"], key=lambda s: s["index"])
         self.y, self.x, self.starts = [], [], []
         n = 0

@@ -4,6 +4,7 @@ use std::path::PathBuf;
 
 use crate::dataset::{Prepared, generate, merge, read_manifest};
 use crate::error::Error;
+use crate::report::output::FolderLock;
 use crate::scene::dataset::read_dataset;
 
 #[derive(Debug, Clone, clap::Args)]
@@ -28,6 +29,22 @@ pub struct DatasetArgs {
 pub fn run(args: &DatasetArgs) -> anyhow::Result<()> {
     let command: Vec<String> = std::env::args().collect();
     if !args.merge.is_empty() {
+        if let Some(spec) = &args.spec {
+            return Err(Error::field(
+                "SPEC",
+                format!(
+                    "--merge makes a dataset from the folders it names, not from a spec: drop \
+                     {} (the folders' manifests name their spec)",
+                    spec.display()
+                ),
+            )
+            .into());
+        }
+        for (flag, given) in [("--shard", args.shard.is_some()), ("--resume", args.resume)] {
+            if given {
+                return Err(Error::field(flag, "is not an option of --merge").into());
+            }
+        }
         let m = merge(&args.merge, &args.out, &command)?;
         println!(
             "merged {} folders: {} shards, {} samples → {}",
@@ -43,9 +60,12 @@ pub fn run(args: &DatasetArgs) -> anyhow::Result<()> {
     };
     let job = crate::cli::args::Shard::parse_opt(args.shard.as_deref())?;
     let spec = read_dataset(spec_path)?;
+    // The folder is locked before the kernel is traced, so that a second run into it (a
+    // `--resume` while the first still writes) stops at once.
+    let lock = FolderLock::acquire(&args.out)?;
     let prep = Prepared::new(spec)?;
     let range = job.map_or((0, prep.shards_total()), |j| j.block(prep.shards_total()));
-    eprintln!(
+    crate::note!(
         "kernel: {} rays, {} entries, traced in {:.1} s; multi-crossing share {:.2e}",
         prep.kernel.rays,
         prep.kernel.entries.len(),
@@ -53,7 +73,7 @@ pub fn run(args: &DatasetArgs) -> anyhow::Result<()> {
         prep.kernel.multi_crossing_current_fraction()
     );
     if let Some(d) = &prep.drawn {
-        eprintln!(
+        crate::note!(
             "benches: drawn from {} ({} tolerance(s), {} compensator(s)), a new one every {} \
              samples, each traced as its own kernel",
             d.set.path.display(),
@@ -64,11 +84,11 @@ pub fn run(args: &DatasetArgs) -> anyhow::Result<()> {
     }
     let g = generate(
         &prep,
-        &args.out,
+        &lock,
         range,
         args.resume,
         &command,
-        &|done, total| eprintln!("shard {done}/{total} committed"),
+        &|done, total| crate::note!("shard {done}/{total} committed"),
     )?;
     let m = read_manifest(&args.out)?;
     let samples: u64 = m.shards.iter().map(|s| s.samples).sum();

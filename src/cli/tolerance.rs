@@ -24,7 +24,7 @@ use crate::report::plot::{LinePlot, Series, write_plot};
 use crate::scene::doc::BenchDoc;
 use crate::scene::tolerance::{
     Compensator, Limit, QualityLimit, SensitivityRecord, ShardFile, Tolerance, ToleranceSet,
-    read_shard, shard_to_ron,
+    shard_to_ron,
 };
 
 use super::rows::Row;
@@ -231,11 +231,77 @@ pub fn run(args: &ToleranceArgs) -> Result<()> {
     Ok(())
 }
 
+/// The shard record's checksum file beside `trials.ron` (`sha256sum` format).
+const CHECKSUM_FILE: &str = "trials.ron.sha256";
+
+/// `trials.ron.sha256`: the SHA-256 of `trials.ron`, as `sha256sum` writes it.
+fn checksum_line(trials_ron: &str) -> String {
+    format!(
+        "{}  trials.ron\n",
+        crate::provenance::sha256_hex(trials_ron.as_bytes())
+    )
+}
+
+/// Reads the shard record of the tolerance output folder `dir` (named on the command line, so
+/// trusted; what it holds is not): `trials.ron` and its checksum file, inside the folder (no
+/// symbolic link out), the record matching its SHA-256. Returns the record's path and text.
+fn read_shard_record(dir: &Path) -> crate::Result<(PathBuf, String)> {
+    use crate::report::untrusted::{Folder, bad_field, is_sha256_hex};
+    let folder = Folder::new(dir)?;
+    let sum_path = dir.join(CHECKSUM_FILE);
+    let (_, sum) = folder.read(Path::new(CHECKSUM_FILE), &sum_path, CHECKSUM_FILE)?;
+    let sum = String::from_utf8_lossy(&sum);
+    let want = match sum.trim_end().split_once("  ") {
+        Some((h, "trials.ron")) if is_sha256_hex(h) => h.to_string(),
+        _ => {
+            return Err(bad_field(
+                &sum_path,
+                "sha256",
+                "not a checksum line `SHA256  trials.ron` (a folder made by an older spibench? \
+                 run the shard again)",
+            ));
+        }
+    };
+    let rec = dir.join("trials.ron");
+    let (_, bytes) = folder.read(Path::new("trials.ron"), &rec, "trials.ron")?;
+    if crate::provenance::sha256_hex(&bytes) != want {
+        return Err(crate::Error::input(format!(
+            "the record was edited or is damaged: its SHA-256 differs from the one in \
+             {CHECKSUM_FILE}; run the shard again"
+        ))
+        .in_file(&rec));
+    }
+    let text = String::from_utf8(bytes)
+        .map_err(|_| crate::Error::input("the record is not UTF-8 text").in_file(&rec))?;
+    Ok((rec, text))
+}
+
 fn run_merge(args: &ToleranceArgs) -> Result<()> {
-    let shards: Vec<ShardFile> = args
+    let out_dir = args.bench.opts.out_or("out/tolerance");
+    for (flag, given) in [
+        ("--tolerances", args.tolerances.is_some()),
+        ("SCENE", args.bench.scene.is_some()),
+        ("--shard", args.shard.is_some()),
+        ("--trial", args.trial.is_some()),
+    ] {
+        if given {
+            return Err(crate::Error::field(
+                flag,
+                "is not an option of --merge (the shard records hold the bench, the \
+                 tolerance file and the run's settings)",
+            )
+            .into());
+        }
+    }
+    crate::report::output::refuse_overlap(&out_dir, &args.merge, "--out")?;
+    let read: Vec<(PathBuf, String)> = args
         .merge
         .iter()
-        .map(|d| read_shard(&d.join("trials.ron")))
+        .map(|d| read_shard_record(d))
+        .collect::<crate::Result<_>>()?;
+    let shards: Vec<ShardFile> = read
+        .iter()
+        .map(|(p, text)| crate::scene::parse_ron(text, p))
         .collect::<crate::Result<_>>()?;
     let merged = merge(&shards)?;
     let doc = BenchDoc::parse(&merged.bench_ron, Path::new(&merged.scene))?;
@@ -245,13 +311,16 @@ fn run_merge(args: &ToleranceArgs) -> Result<()> {
         &doc,
         &is_metric,
     )?;
-    let out = OutputDir::create(&args.bench.opts.out_or("out/tolerance"))?;
+    for ((p, _), s) in read.iter().zip(&shards) {
+        crate::tolerance::check_shard_names(s, &set, p)?;
+    }
+    let out = OutputDir::create(&out_dir)?;
     // The merge's provenance is its own command and the shard records it read; the bench and
     // tolerance files are inside those records (docs/outputs.md). Everything but this block
     // equals the unsharded run's summary.
     let mut provenance = crate::provenance::Provenance::new(&[merged.seed]);
-    for d in &args.merge {
-        provenance = provenance.file(&d.join("trials.ron"))?;
+    for (p, text) in &read {
+        provenance = provenance.text(&p.display().to_string(), text);
     }
     let files = write_outputs(&merged, &set, &provenance, &out)?;
     let dir = out.commit()?;
@@ -276,11 +345,20 @@ fn write_outputs(
     out: &OutputDir,
 ) -> crate::Result<usize> {
     let analysis = analyse(set, &s.records, s.sensitivity.as_deref());
-    let mut files: Vec<String> = ["summary.json", "trials.ron", "trials.csv", "report.html"]
-        .map(String::from)
-        .to_vec();
+    let mut files: Vec<String> = [
+        "summary.json",
+        "trials.ron",
+        CHECKSUM_FILE,
+        "trials.csv",
+        "report.html",
+    ]
+    .map(String::from)
+    .to_vec();
     let path = out.path("trials.ron");
-    std::fs::write(&path, shard_to_ron(s)?).map_err(|e| crate::Error::write(&path, e))?;
+    let record = shard_to_ron(s)?;
+    std::fs::write(&path, &record).map_err(|e| crate::Error::write(&path, e))?;
+    let path = out.path(CHECKSUM_FILE);
+    std::fs::write(&path, checksum_line(&record)).map_err(|e| crate::Error::write(&path, e))?;
     // Every trial's numbers in the metric rows sweep and align write too.
     let values: Vec<Row> = s
         .records

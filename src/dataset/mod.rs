@@ -33,12 +33,15 @@ use crate::acquisition::{PatternSet, Scheme, patterns_for_ratio};
 use crate::error::{Error, Result};
 use crate::pipeline::evaluate;
 use crate::raster::Raster;
+use crate::report::output::FolderLock;
 use crate::rng::{self, uniform};
 use crate::scene::dataset::{BenchesSpec, DatasetSpec, FitRule, ObjectSource};
 use crate::scene::doc::BenchDoc;
 use crate::scene::run::RunScene;
 use crate::trace::kernel::{Kernel, ObjectGrid, trace_kernel};
 use crate::transport::Transport;
+
+mod check;
 
 /// Stream tags of the objects and of the noise.
 const OBJECTS: u64 = 0x0B1E_C750_0000_0001;
@@ -90,6 +93,20 @@ pub struct ManifestProvenance {
     /// The tolerance file of a dataset over drawn benches (copied as `tolerances.ron`).
     pub tolerance_file: Option<String>,
     pub tolerance_sha256: Option<String>,
+    /// For a merged dataset: the folders merged, each with the command that made it.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub merged_from: Vec<MergedInput>,
+}
+
+/// A folder a merged dataset was made from (a folder that was itself merged lists its own
+/// inputs after it).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct MergedInput {
+    /// The folder as the merge's command line named it.
+    pub folder: String,
+    /// The command that made (or last resumed) it.
+    pub command: Vec<String>,
+    pub shard_range: (u64, u64),
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -123,6 +140,9 @@ pub struct Manifest {
     pub ratios: Vec<f64>,
     pub schema: Vec<ArraySchema>,
     pub patterns_file: Option<String>,
+    /// The SHA-256 of `patterns.npy`, when written.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub patterns_sha256: Option<String>,
     pub shards: Vec<ShardEntry>,
 }
 
@@ -810,6 +830,27 @@ impl Prepared {
         Ok(out)
     }
 
+    /// `patterns.npy`: the base patterns, each row packed 8 units to a byte (most
+    /// significant bit first, as `numpy.packbits`).
+    fn packed_patterns(&self) -> Vec<u8> {
+        let bits = self.patterns.base_patterns();
+        let (rows, cols) = (bits.rows(), bits.cols());
+        let mut packed = Vec::with_capacity(rows * cols.div_ceil(8));
+        for i in 0..rows {
+            let mut byte = 0u8;
+            for j in 0..cols {
+                if bits.get(i, j) {
+                    byte |= 0x80 >> (j % 8);
+                }
+                if j % 8 == 7 || j + 1 == cols {
+                    packed.push(byte);
+                    byte = 0;
+                }
+            }
+        }
+        crate::report::npy::encode_u8(&[rows, cols.div_ceil(8)], &packed)
+    }
+
     fn manifest(&self, command: &[String], range: (u64, u64)) -> Manifest {
         let k = &self.spec.file.kernel;
         Manifest {
@@ -823,6 +864,7 @@ impl Prepared {
                 bench_sha256: sha256_hex(self.bench_text.as_bytes()),
                 tolerance_file: self.drawn.as_ref().map(|_| "tolerances.ron".into()),
                 tolerance_sha256: self.drawn.as_ref().map(|d| sha256_hex(d.text.as_bytes())),
+                merged_from: Vec::new(),
             },
             seed: self.spec.file.seed,
             samples: self.spec.file.samples,
@@ -847,6 +889,12 @@ impl Prepared {
             ratios: self.ratios.clone(),
             schema: self.schema(),
             patterns_file: self.spec.file.write.patterns.then(|| "patterns.npy".into()),
+            patterns_sha256: self
+                .spec
+                .file
+                .write
+                .patterns
+                .then(|| sha256_hex(&self.packed_patterns())),
             shards: Vec::new(),
         }
     }
@@ -872,27 +920,85 @@ fn write_manifest(dir: &Path, m: &Manifest) -> Result<()> {
     crate::report::npy::write_atomic(&dir.join("manifest.json"), text.as_bytes())
 }
 
-/// Reads a dataset folder's manifest.
+/// Reads a dataset folder's manifest. It is untrusted (another tool or person may have edited
+/// it): every name in it is checked, and every path it names must stay inside `dir`, before
+/// any file but the manifest is opened (`check`).
 pub fn read_manifest(dir: &Path) -> Result<Manifest> {
+    let folder = crate::report::untrusted::Folder::new(dir)?;
     let p = dir.join("manifest.json");
-    let text = std::fs::read_to_string(&p).map_err(|e| Error::read(&p, e))?;
-    serde_json::from_str(&text)
-        .map_err(|e| Error::input(format!("not a spibench dataset manifest: {e}")).in_file(&p))
+    let (_, bytes) = folder.read(Path::new("manifest.json"), &p, "manifest.json")?;
+    let m: Manifest = serde_json::from_slice(&bytes)
+        .map_err(|e| Error::input(format!("not a spibench dataset manifest: {e}")).in_file(&p))?;
+    check::check_manifest(&m, &p)?;
+    check::check_paths(&folder, &m, &p)?;
+    Ok(m)
 }
 
-/// Checks every file of a committed shard against its checksum.
+/// Reads the file `rel` of dataset folder `dir` (whose manifest [`read_manifest`] checked) and
+/// checks it against its SHA-256 `sha256`; `what` names it in the message.
+fn verified(dir: &Path, rel: &Path, sha256: &str, what: &str) -> Result<Vec<u8>> {
+    let p = dir.join(rel);
+    let bytes = std::fs::read(&p).map_err(|e| Error::read(&p, e))?;
+    if sha256_hex(&bytes) != sha256 {
+        return Err(Error::input(format!(
+            "{what} is corrupted or was edited: the SHA-256 of {} differs from the manifest's; \
+             delete the folder and make the dataset (or this shard's job) again",
+            rel.display()
+        ))
+        .in_file(&p));
+    }
+    Ok(bytes)
+}
+
+/// Checks every file of a committed shard (of a manifest read by [`read_manifest`]) against
+/// its checksum.
 pub fn verify_shard(dir: &Path, shard: &ShardEntry) -> Result<()> {
     for f in &shard.files {
-        let p = dir.join(&shard.dir).join(&f.file);
-        let bytes = std::fs::read(&p).map_err(|e| Error::read(&p, e))?;
-        if sha256_hex(&bytes) != f.sha256 {
-            return Err(Error::input(format!(
-                "shard {} is corrupted: the SHA-256 of {} differs from the manifest's; delete \
-                 the folder and make the dataset (or this shard's job) again",
-                shard.index, f.file
-            ))
-            .in_file(&p));
+        let rel = Path::new(&shard.dir).join(&f.file);
+        verified(dir, &rel, &f.sha256, &format!("shard {}", shard.index))?;
+    }
+    Ok(())
+}
+
+/// Removes what an interrupted run left in a dataset folder: staging folders
+/// (`.shard_NNNNNN.partial`) and shard folders committed after the manifest's last update. Only
+/// entries with exactly these names go; a symbolic link among them is removed itself, never
+/// followed.
+fn remove_leftovers(dir: &Path, manifest: &Manifest) -> Result<()> {
+    let is_shard = |n: &str| {
+        n.strip_prefix("shard_")
+            .is_some_and(|d| d.len() >= 6 && d.bytes().all(|b| b.is_ascii_digit()))
+    };
+    for e in std::fs::read_dir(dir)
+        .map_err(|e| Error::read(dir, e))?
+        .flatten()
+    {
+        let name = e.file_name().to_string_lossy().to_string();
+        let staging = name
+            .strip_prefix('.')
+            .and_then(|n| n.strip_suffix(".partial"))
+            .is_some_and(is_shard);
+        let unlisted = is_shard(&name) && !manifest.shards.iter().any(|s| s.dir == name);
+        // `write_atomic`'s temporary copies of the folder's own files.
+        let temporary = [
+            "manifest.json",
+            "spec.ron",
+            "bench.ron",
+            "tolerances.ron",
+            "patterns.npy",
+        ]
+        .iter()
+        .any(|f| name == format!("{f}.partial"));
+        if !(staging || unlisted || temporary) {
+            continue;
         }
+        let path = e.path();
+        let removed = match e.file_type() {
+            Ok(t) if t.is_dir() => std::fs::remove_dir_all(&path),
+            Ok(_) => std::fs::remove_file(&path),
+            Err(err) => Err(err),
+        };
+        removed.map_err(|err| Error::write(&path, err))?;
     }
     Ok(())
 }
@@ -905,16 +1011,19 @@ pub struct Generated {
     pub seconds: f64,
 }
 
-/// Makes (or, with `resume`, continues) the shards `range` of a dataset in `dir`.
+/// Makes (or, with `resume`, continues) the shards `range` of a dataset in the folder `lock`
+/// holds (the lock every command takes on its output folder, so that no other run writes it
+/// meanwhile).
 pub fn generate(
     prep: &Prepared,
-    dir: &Path,
+    lock: &FolderLock,
     range: (u64, u64),
     resume: bool,
     command: &[String],
     progress: &(dyn Fn(u64, u64) + Sync),
 ) -> Result<Generated> {
     let start = std::time::Instant::now();
+    let dir = lock.dir();
     let mut manifest;
     let exists = dir.join("manifest.json").exists();
     if resume && exists {
@@ -934,22 +1043,15 @@ pub fn generate(
         for s in &manifest.shards {
             verify_shard(dir, s)?;
         }
-        // Leftovers: staging folders, and shards committed after the last manifest update.
-        let listed: Vec<String> = manifest.shards.iter().map(|s| s.dir.clone()).collect();
-        for e in std::fs::read_dir(dir)
-            .map_err(|e| Error::read(dir, e))?
-            .flatten()
-        {
-            let name = e.file_name().to_string_lossy().to_string();
-            let stale = name.ends_with(".partial")
-                || (name.starts_with("shard_") && !listed.contains(&name));
-            if stale && e.path().is_dir() {
-                std::fs::remove_dir_all(e.path()).map_err(|err| Error::write(&e.path(), err))?;
-            }
-        }
+        remove_leftovers(dir, &manifest)?;
         manifest.provenance.command = command.to_vec();
     } else {
-        if exists || dir.read_dir().is_ok_and(|mut d| d.next().is_some()) {
+        // The lock file of a folder locked in place (a mount point) is not content.
+        let content = |d: std::fs::ReadDir| {
+            d.flatten()
+                .any(|e| !e.file_name().to_string_lossy().starts_with(".spibench-"))
+        };
+        if exists || dir.read_dir().is_ok_and(content) {
             return Err(Error::input(
                 "the output folder exists and is not empty: choose another, or continue it \
                  with --resume",
@@ -964,26 +1066,7 @@ pub fn generate(
             crate::report::npy::write_atomic(&dir.join("tolerances.ron"), d.text.as_bytes())?;
         }
         if prep.spec.file.write.patterns {
-            let bits = prep.patterns.base_patterns();
-            let (rows, cols) = (bits.rows(), bits.cols());
-            let mut packed = Vec::with_capacity(rows * cols.div_ceil(8));
-            for i in 0..rows {
-                let mut byte = 0u8;
-                for j in 0..cols {
-                    if bits.get(i, j) {
-                        byte |= 0x80 >> (j % 8);
-                    }
-                    if j % 8 == 7 || j + 1 == cols {
-                        packed.push(byte);
-                        byte = 0;
-                    }
-                }
-            }
-            crate::report::npy::write_u8(
-                &dir.join("patterns.npy"),
-                &[rows, cols.div_ceil(8)],
-                &packed,
-            )?;
+            crate::report::npy::write_atomic(&dir.join("patterns.npy"), &prep.packed_patterns())?;
         }
         write_manifest(dir, &manifest)?;
     }
@@ -998,6 +1081,7 @@ pub fn generate(
         let name = shard_dir_name(b);
         let staging = dir.join(format!(".{name}.partial"));
         let _ = std::fs::remove_dir_all(&staging);
+        lock.staging(Some(&staging));
         std::fs::create_dir_all(&staging).map_err(|e| Error::write(&staging, e))?;
         let mut files = Vec::new();
         for (a, bytes) in &arrays {
@@ -1012,6 +1096,7 @@ pub fn generate(
         }
         let final_dir = dir.join(&name);
         std::fs::rename(&staging, &final_dir).map_err(|e| Error::write(&final_dir, e))?;
+        lock.staging(None);
         let first = b * prep.spec.file.shard_samples;
         manifest.shards.push(ShardEntry {
             index: b,
@@ -1032,11 +1117,16 @@ pub fn generate(
 }
 
 /// Merges dataset folders (each one job's shards) into `out`: the same spec, bench and seed in
-/// every folder, every shard's checksum right, no shard twice and none missing.
+/// every folder, no shard twice and none missing. Every manifest is checked before any other
+/// file is opened ([`read_manifest`]); every file copied (each shard's arrays, the copies of
+/// the inputs) is checked against the SHA-256 of the manifest it came from, in the bytes that
+/// are written; the merged manifest names only what the output holds and keeps each input's
+/// command (`provenance.merged_from`). A merge of one folder is a complete copy of it.
 pub fn merge(inputs: &[PathBuf], out: &Path, command: &[String]) -> Result<Manifest> {
     if inputs.is_empty() {
         return Err(Error::field("--merge", "name the folders to merge"));
     }
+    crate::report::output::refuse_overlap(out, inputs, "--out")?;
     let manifests: Vec<Manifest> = inputs
         .iter()
         .map(|d| read_manifest(d))
@@ -1049,7 +1139,9 @@ pub fn merge(inputs: &[PathBuf], out: &Path, command: &[String]) -> Result<Manif
             && m.seed == m0.seed
             && m.samples == m0.samples
             && m.shard_samples == m0.shard_samples
-            && m.format == m0.format;
+            && m.format == m0.format
+            && m.schema == m0.schema
+            && m.patterns_sha256 == m0.patterns_sha256;
         if !same {
             return Err(Error::input(format!(
                 "cannot merge: {} was made from another spec, bench or seed than {}",
@@ -1059,64 +1151,103 @@ pub fn merge(inputs: &[PathBuf], out: &Path, command: &[String]) -> Result<Manif
             .in_file(d));
         }
     }
-    let mut owner: Vec<Option<usize>> = vec![None; m0.shards_total as usize];
-    for (k, (d, m)) in inputs.iter().zip(&manifests).enumerate() {
-        for s in &m.shards {
-            let i = s.index as usize;
-            if i >= owner.len() {
-                return Err(Error::input(format!("shard {i} lies beyond the dataset")).in_file(d));
-            }
-            if let Some(o) = owner[i] {
-                return Err(Error::input(format!(
-                    "cannot merge: shard {i} (samples {}–{}) is in both {} and {}",
-                    s.first_sample,
-                    s.first_sample + s.samples - 1,
-                    inputs[o].display(),
-                    d.display()
-                )));
-            }
-            verify_shard(d, s)?;
-            owner[i] = Some(k);
-        }
-    }
-    let missing: Vec<usize> = (0..owner.len()).filter(|&i| owner[i].is_none()).collect();
-    if !missing.is_empty() {
-        let first = missing[0] as u64 * m0.shard_samples;
-        return Err(Error::input(format!(
-            "cannot merge: {} shard(s) missing, first shard {} (samples from {first}); the \
-             folders give no sample there (an unfinished job? resume it with --resume)",
-            missing.len(),
-            missing[0]
-        )));
-    }
+    let owner = shard_owners(inputs, &manifests)?;
     let staging = crate::report::output::OutputDir::create(out)?;
     let sdir = staging.staging_dir().to_path_buf();
     let mut merged = m0.clone();
     merged.shards.clear();
     merged.shard_range = (0, m0.shards_total);
     merged.provenance.command = command.to_vec();
-    for f in ["spec.ron", "bench.ron", "tolerances.ron", "patterns.npy"] {
-        let src = inputs[0].join(f);
-        if src.exists() {
-            std::fs::copy(&src, sdir.join(f)).map_err(|e| Error::write(&sdir.join(f), e))?;
-        }
-    }
-    for (i, o) in owner.iter().enumerate() {
-        let k = o.expect("checked");
+    merged.provenance.merged_from = inputs
+        .iter()
+        .zip(&manifests)
+        .flat_map(|(d, m)| {
+            std::iter::once(MergedInput {
+                folder: d.display().to_string(),
+                command: m.provenance.command.clone(),
+                shard_range: m.shard_range,
+            })
+            .chain(m.provenance.merged_from.iter().cloned())
+        })
+        .collect();
+    copy_inputs(inputs, &manifests, &sdir)?;
+    for (&i, &k) in &owner {
         let s = manifests[k]
             .shards
             .iter()
-            .find(|s| s.index == i as u64)
-            .expect("owner");
+            .find(|s| s.index == i)
+            .ok_or_else(|| Error::Numerical(format!("shard {i} lost its entry")))?;
         let dst = sdir.join(&s.dir);
         std::fs::create_dir_all(&dst).map_err(|e| Error::write(&dst, e))?;
         for f in &s.files {
-            let src = inputs[k].join(&s.dir).join(&f.file);
-            std::fs::copy(&src, dst.join(&f.file)).map_err(|e| Error::write(&dst, e))?;
+            let rel = Path::new(&s.dir).join(&f.file);
+            let bytes = verified(&inputs[k], &rel, &f.sha256, &format!("shard {i}"))?;
+            let p = dst.join(&f.file);
+            std::fs::write(&p, bytes).map_err(|e| Error::write(&p, e))?;
         }
         merged.shards.push(s.clone());
     }
     write_manifest(&sdir, &merged)?;
     staging.commit()?;
     Ok(merged)
+}
+
+/// Which input holds each shard of the dataset (shard index → input), refusing a shard held
+/// twice and a shard held by none.
+fn shard_owners(
+    inputs: &[PathBuf],
+    manifests: &[Manifest],
+) -> Result<std::collections::BTreeMap<u64, usize>> {
+    let m0 = &manifests[0];
+    let mut owner: std::collections::BTreeMap<u64, usize> = std::collections::BTreeMap::new();
+    for (k, (d, m)) in inputs.iter().zip(manifests).enumerate() {
+        for s in &m.shards {
+            if let Some(&o) = owner.get(&s.index) {
+                return Err(Error::input(format!(
+                    "cannot merge: shard {} (samples {}–{}) is in both {} and {}",
+                    s.index,
+                    s.first_sample,
+                    s.first_sample + s.samples - 1,
+                    inputs[o].display(),
+                    d.display()
+                )));
+            }
+            owner.insert(s.index, k);
+        }
+    }
+    let listed = owner.len() as u64;
+    if listed < m0.shards_total {
+        // Every index below the count is either listed or the first missing one.
+        let first = (0..=listed).find(|i| !owner.contains_key(i)).unwrap_or(0);
+        return Err(Error::input(format!(
+            "cannot merge: {} shard(s) missing, first shard {first} (samples from {}); the \
+             folders give no sample there (an unfinished job? resume it with --resume)",
+            m0.shards_total - listed,
+            first * m0.shard_samples
+        )));
+    }
+    Ok(owner)
+}
+
+/// Checks every input's copies of the spec, bench, tolerance file and patterns against its
+/// manifest, and writes the first input's into `sdir`.
+fn copy_inputs(inputs: &[PathBuf], manifests: &[Manifest], sdir: &Path) -> Result<()> {
+    for (k, (d, m)) in inputs.iter().zip(manifests).enumerate() {
+        let p = &m.provenance;
+        let files = [
+            (Some(&p.spec_file), Some(&p.spec_sha256)),
+            (Some(&p.bench_file), Some(&p.bench_sha256)),
+            (p.tolerance_file.as_ref(), p.tolerance_sha256.as_ref()),
+            (m.patterns_file.as_ref(), m.patterns_sha256.as_ref()),
+        ];
+        for (name, sum) in files {
+            if let (Some(name), Some(sum)) = (name, sum) {
+                let bytes = verified(d, Path::new(name), sum, name)?;
+                if k == 0 {
+                    crate::report::npy::write_atomic(&sdir.join(name), &bytes)?;
+                }
+            }
+        }
+    }
+    Ok(())
 }

@@ -11,6 +11,12 @@
 //! written under a temporary name and renamed into place, so a reader never sees half a file.
 //! An entry whose header, length or checksum does not match is reported as corrupt and rebuilt,
 //! never trusted.
+//!
+//! **Untrusted folder.** The cache folder is named by the user, but what it holds may have been
+//! put there by anyone (crate::report::untrusted): an entry's name is made here from the key,
+//! never read from the folder, and an entry that is not a plain file (a symbolic link, which
+//! could lead out of the folder, or a folder) is not opened: it is reported as corrupt, and
+//! storing the rebuilt entry replaces the link itself, not what it points to.
 
 use std::path::{Path, PathBuf};
 
@@ -97,6 +103,16 @@ impl TraceCache {
     /// Looks a key up; a damaged entry is reported, never returned.
     pub fn lookup(&self, key: &CacheKey) -> Lookup {
         let path = self.entry(key);
+        match std::fs::symlink_metadata(&path) {
+            Err(_) => return Lookup::Miss,
+            Ok(m) if !m.file_type().is_file() => {
+                return Lookup::Corrupt(format!(
+                    "{}: not a plain file (a symbolic link or a folder), not opened",
+                    path.display()
+                ));
+            }
+            Ok(_) => {}
+        }
         let Ok(bytes) = std::fs::read(&path) else {
             return Lookup::Miss;
         };
@@ -121,7 +137,15 @@ impl TraceCache {
         let tmp = self
             .dir
             .join(format!(".{}.{}.tmp", key.0, std::process::id()));
-        std::fs::write(&tmp, &out).map_err(|e| Error::write(&tmp, e))?;
+        // A fresh file: whatever sits at the temporary name (a link left by anyone) is removed,
+        // never written through.
+        let _ = std::fs::remove_file(&tmp);
+        let written = std::fs::OpenOptions::new()
+            .write(true)
+            .create_new(true)
+            .open(&tmp)
+            .and_then(|mut f| std::io::Write::write_all(&mut f, &out));
+        written.map_err(|e| Error::write(&tmp, e))?;
         std::fs::rename(&tmp, &path).map_err(|e| {
             let _ = std::fs::remove_file(&tmp);
             Error::write(&path, e)
@@ -335,6 +359,27 @@ mod tests {
         // Truncated: caught too.
         std::fs::write(&path, &bytes[..100]).unwrap();
         assert!(matches!(cache.lookup(&key), Lookup::Corrupt(_)));
+        // A link in place of the entry is not followed, even to a good entry elsewhere; the
+        // store replaces the link, and the file it pointed to is left as it was.
+        #[cfg(unix)]
+        {
+            let outside = dir.with_extension("outside");
+            cache.store(&key, &t).unwrap();
+            std::fs::rename(&path, &outside).unwrap();
+            std::os::unix::fs::symlink(&outside, &path).unwrap();
+            assert!(matches!(cache.lookup(&key), Lookup::Corrupt(w) if w.contains("link")));
+            let before = std::fs::read(&outside).unwrap();
+            cache.store(&key, &t).unwrap();
+            assert!(
+                !std::fs::symlink_metadata(&path)
+                    .unwrap()
+                    .file_type()
+                    .is_symlink()
+            );
+            assert_eq!(std::fs::read(&outside).unwrap(), before);
+            assert_eq!(cache.lookup(&key), Lookup::Hit(Box::new(t.clone())));
+            let _ = std::fs::remove_file(&outside);
+        }
         let _ = std::fs::remove_dir_all(&dir);
     }
 }

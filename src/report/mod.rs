@@ -24,6 +24,7 @@ pub mod plot;
 pub mod png;
 #[cfg(feature = "figures")]
 pub mod svg;
+pub mod untrusted;
 
 /// An integer exponent in Unicode superscript digits ("−3" → "⁻³"), for 10ⁿ in labels.
 pub(crate) fn superscript(e: i32) -> String {

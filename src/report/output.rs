@@ -45,7 +45,8 @@ static LIVE: Mutex<Vec<Live>> = Mutex::new(Vec::new());
 #[derive(Debug)]
 struct Live {
     id: u64,
-    staging: PathBuf,
+    /// The staging folder (none for a [`FolderLock`] between two staged shards).
+    staging: Option<PathBuf>,
     lock_file: PathBuf,
 }
 
@@ -74,7 +75,9 @@ pub fn install_signal_cleanup() {
                     if let Some(sig) = signals.forever().next() {
                         let entries = live();
                         for e in entries.iter() {
-                            let _ = std::fs::remove_dir_all(&e.staging);
+                            if let Some(s) = &e.staging {
+                                let _ = std::fs::remove_dir_all(s);
+                            }
                             let _ = std::fs::remove_file(&e.lock_file);
                         }
                         std::process::exit(128 + sig);
@@ -120,37 +123,12 @@ impl OutputDir {
     /// parent directories are created. A destination locked by another run, a file in the way
     /// or a destination that contains the current directory are input errors.
     pub fn create(final_dir: &Path) -> Result<OutputDir> {
-        // `.` or `run/..` have no name of their own: resolve them to the directory they name.
-        let target = match final_dir.file_name() {
-            Some(_) => final_dir.to_path_buf(),
-            None => std::fs::canonicalize(final_dir).unwrap_or_else(|_| final_dir.to_path_buf()),
-        };
-        let name = target
-            .file_name()
-            .and_then(|n| n.to_str())
-            .filter(|n| !n.is_empty())
-            .ok_or_else(|| {
-                Error::input("the output directory needs a name (it cannot be the root `/`)")
-                    .in_file(final_dir)
-            })?
-            .to_string();
-        let existing = std::fs::metadata(&target).ok();
-        if let Some(meta) = &existing
-            && !meta.is_dir()
-        {
-            return Err(Error::input(
-                "the output path exists and is not a directory: remove the file or choose \
-                 another output folder",
-            )
-            .in_file(final_dir));
-        }
-        if existing.is_some() {
-            refuse_current_dir(&target, final_dir)?;
-        }
-        let parent = match target.parent() {
-            Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
-            _ => PathBuf::from("."),
-        };
+        let Destination {
+            target,
+            name,
+            parent,
+            existing,
+        } = Destination::of(final_dir)?;
         let created_parents = create_missing(&parent).map_err(|e| Error::write(&parent, e))?;
         let abandon = |e: Error| {
             remove_empty(&created_parents);
@@ -194,7 +172,7 @@ impl OutputDir {
                 Ok(()) => {
                     live_entries.push(Live {
                         id,
-                        staging: staging.clone(),
+                        staging: Some(staging.clone()),
                         lock_file: lock.path.clone(),
                     });
                     return Ok(OutputDir {
@@ -395,6 +373,203 @@ fn is_mount_point(_dir: &Path, _parent: &Path) -> bool {
     false
 }
 
+/// A destination folder as the locks and staging see it.
+struct Destination {
+    /// The destination with a name of its own (`dir/.` resolved).
+    target: PathBuf,
+    name: String,
+    parent: PathBuf,
+    existing: Option<std::fs::Metadata>,
+}
+
+impl Destination {
+    /// Resolves `final_dir`; a file in the way, the root or a folder holding the current
+    /// directory are input errors.
+    fn of(final_dir: &Path) -> Result<Destination> {
+        // `.` or `run/..` have no name of their own: resolve them to the directory they name.
+        let target = match final_dir.file_name() {
+            Some(_) => final_dir.to_path_buf(),
+            None => std::fs::canonicalize(final_dir).unwrap_or_else(|_| final_dir.to_path_buf()),
+        };
+        let name = target
+            .file_name()
+            .and_then(|n| n.to_str())
+            .filter(|n| !n.is_empty())
+            .ok_or_else(|| {
+                Error::input("the output directory needs a name (it cannot be the root `/`)")
+                    .in_file(final_dir)
+            })?
+            .to_string();
+        let existing = std::fs::metadata(&target).ok();
+        if let Some(meta) = &existing
+            && !meta.is_dir()
+        {
+            return Err(Error::input(
+                "the output path exists and is not a directory: remove the file or choose \
+                 another output folder",
+            )
+            .in_file(final_dir));
+        }
+        if existing.is_some() {
+            refuse_current_dir(&target, final_dir)?;
+        }
+        let parent = match target.parent() {
+            Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+            _ => PathBuf::from("."),
+        };
+        Ok(Destination {
+            target,
+            name,
+            parent,
+            existing,
+        })
+    }
+}
+
+/// The lock of an output folder that a command writes in place rather than staged as a whole
+/// (a dataset, which is resumable shard by shard): the same lock file as
+/// [`OutputDir::create`] takes, so that no two runs of any command write one folder at once.
+/// The folder's parents are created; the folder itself is left to the caller. While a piece
+/// of the folder is staged ([`FolderLock::staging`]), SIGINT and SIGTERM remove that piece
+/// and the lock file; dropping the lock removes the lock file.
+#[derive(Debug)]
+pub struct FolderLock {
+    dir: PathBuf,
+    id: u64,
+    lock: Option<DirLock>,
+    /// Ancestors `acquire` made, deepest first, removed again on release when still empty.
+    created_parents: Vec<PathBuf>,
+}
+
+impl FolderLock {
+    /// Locks `dir` against every other spibench run, or reports the run that holds it (an
+    /// input error about `dir`).
+    pub fn acquire(dir: &Path) -> Result<FolderLock> {
+        let d = Destination::of(dir)?;
+        let created_parents = create_missing(&d.parent).map_err(|e| Error::write(&d.parent, e))?;
+        let sibling = d.parent.join(format!(".{}.spibench-lock", d.name));
+        let inside = d.target.join(".spibench-lock");
+        // A mount point is locked inside, where `OutputDir::create` locks it.
+        let mount_point = d.existing.is_some() && is_mount_point(&d.target, &d.parent);
+        let first = if mount_point { &inside } else { &sibling };
+        let lock = match DirLock::acquire(first, dir) {
+            Ok(l) => Ok(l),
+            // A parent we may not write into, around a folder we may: lock inside, as
+            // `OutputDir::create` does.
+            Err(e) if !mount_point && d.existing.is_some() && is_permission(&e) => {
+                DirLock::acquire(&inside, dir)
+            }
+            Err(e) => Err(e),
+        };
+        let lock = lock.inspect_err(|_| remove_empty(&created_parents))?;
+        let id = COUNTER.fetch_add(1, Ordering::Relaxed);
+        live().push(Live {
+            id,
+            staging: None,
+            lock_file: lock.path.clone(),
+        });
+        Ok(FolderLock {
+            dir: dir.to_path_buf(),
+            id,
+            lock: Some(lock),
+            created_parents,
+        })
+    }
+
+    /// The locked folder.
+    pub fn dir(&self) -> &Path {
+        &self.dir
+    }
+
+    /// Marks `staging` (a folder being filled, to be renamed into place) as the piece a signal
+    /// removes, or none.
+    pub fn staging(&self, staging: Option<&Path>) {
+        for e in live().iter_mut().filter(|e| e.id == self.id) {
+            e.staging = staging.map(Path::to_path_buf);
+        }
+    }
+}
+
+impl Drop for FolderLock {
+    fn drop(&mut self) {
+        let mut entries = live();
+        entries.retain(|e| e.id != self.id);
+        drop(entries);
+        self.lock.take();
+        remove_empty(&self.created_parents);
+    }
+}
+
+/// Refuses an output folder that is one of the `inputs`, lies inside one or holds one (after
+/// resolving `.`, `..` and symbolic links): a merge replaces its output folder as a whole, so
+/// it would destroy the input it reads.
+pub fn refuse_overlap(out: &Path, inputs: &[PathBuf], flag: &str) -> Result<()> {
+    let o = resolved(out);
+    for i in inputs {
+        let r = resolved(i);
+        if o.starts_with(&r) || r.starts_with(&o) {
+            let how = if o == r {
+                "is"
+            } else if o.starts_with(&r) {
+                "lies inside"
+            } else {
+                "holds"
+            };
+            return Err(Error::field(
+                flag,
+                format!(
+                    "the output folder {} {how} the input {}: a merge replaces its output \
+                     folder as a whole, so write it to a folder of its own",
+                    out.display(),
+                    i.display()
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// `p` with symbolic links resolved as far as it exists (relative to the current directory); of
+/// a path that does not exist, `.` and `..` are taken as written and the deepest part that
+/// exists is resolved.
+fn resolved(p: &Path) -> PathBuf {
+    let abs = if p.is_absolute() {
+        p.to_path_buf()
+    } else {
+        std::env::current_dir().unwrap_or_default().join(p)
+    };
+    if let Ok(r) = std::fs::canonicalize(&abs) {
+        return r;
+    }
+    let mut lexical = PathBuf::new();
+    for c in abs.components() {
+        match c {
+            Component::ParentDir => {
+                lexical.pop();
+            }
+            Component::CurDir => {}
+            other => lexical.push(other),
+        }
+    }
+    let mut base = lexical.clone();
+    let mut rest = Vec::new();
+    loop {
+        if let Ok(mut r) = std::fs::canonicalize(&base) {
+            for n in rest.iter().rev() {
+                r.push(n);
+            }
+            return r;
+        }
+        match (base.file_name(), base.parent()) {
+            (Some(n), Some(parent)) => {
+                rest.push(n.to_os_string());
+                base = parent.to_path_buf();
+            }
+            _ => return lexical,
+        }
+    }
+}
+
 /// A run replaces its output folder: refuse a destination that holds the current directory, so
 /// that `--out .` cannot wipe a working tree.
 fn refuse_current_dir(target: &Path, given: &Path) -> Result<()> {
@@ -487,7 +662,7 @@ fn pid_in(name: &str, prefix: &str) -> Option<u32> {
 /// is stale too (left by an earlier process with the same id).
 fn is_dead(pid: u32, path: &Path) -> bool {
     if pid == std::process::id() {
-        return !live().iter().any(|e| e.staging == path);
+        return !live().iter().any(|e| e.staging.as_deref() == Some(path));
     }
     Path::new("/proc/self").exists() && !Path::new("/proc").join(pid.to_string()).exists()
 }
@@ -822,6 +997,65 @@ mod tests {
         assert!(out.try_path("a/b.txt").unwrap().parent().unwrap().is_dir());
         drop(out);
         assert!(entries(&root).is_empty(), "{:?}", entries(&root));
+        let _ = std::fs::remove_dir_all(&root);
+    }
+
+    #[test]
+    fn a_folder_lock_excludes_staged_runs_and_other_locks() {
+        let root = scratch("folder-lock");
+        let fin = root.join("deeper/data");
+        let lock = FolderLock::acquire(&fin).unwrap();
+        assert_eq!(lock.dir(), fin);
+        // The parent is made, the folder is not; the lock file sits beside it.
+        assert_eq!(entries(&root.join("deeper")), vec![".data.spibench-lock"]);
+        let e = FolderLock::acquire(&fin).unwrap_err();
+        assert!(
+            e.is_user_error() && e.to_string().contains("another spibench run"),
+            "{e}"
+        );
+        let e = OutputDir::create(&fin).unwrap_err();
+        assert!(e.to_string().contains("another spibench run"), "{e}");
+        lock.staging(Some(&fin.join(".shard_000000.partial")));
+        assert!(
+            live()
+                .iter()
+                .any(|e| e.staging.is_some() && e.id == lock.id)
+        );
+        lock.staging(None);
+        drop(lock);
+        // The parent it made goes again with the lock file.
+        assert!(!root.join("deeper").exists());
+        let out = OutputDir::create(&fin).unwrap();
+        assert!(FolderLock::acquire(&fin).is_err());
+        drop(out);
+        let _ = std::fs::remove_dir_all(&root);
+    }
+
+    #[test]
+    fn an_output_that_is_an_input_is_refused() {
+        let root = scratch("overlap");
+        let a = root.join("a");
+        std::fs::create_dir_all(a.join("sub")).unwrap();
+        let inputs = vec![a.clone(), root.join("b")];
+        for out in [
+            a.clone(),
+            a.join("."),
+            a.join("sub/.."),
+            a.join("new"),
+            root.clone(),
+            root.join("b"),
+            root.join("missing/../a"),
+        ] {
+            let e = refuse_overlap(&out, &inputs, "--out").unwrap_err();
+            assert!(e.is_user_error() && e.to_string().contains("--out"), "{e}");
+        }
+        #[cfg(unix)]
+        {
+            std::os::unix::fs::symlink(&a, root.join("link")).unwrap();
+            assert!(refuse_overlap(&root.join("link"), &inputs, "--out").is_err());
+        }
+        refuse_overlap(&root.join("c"), &inputs, "--out").unwrap();
+        refuse_overlap(&root.join("ab"), &inputs, "--out").unwrap();
         let _ = std::fs::remove_dir_all(&root);
     }
 

@@ -462,7 +462,9 @@ pub fn analyse(
 }
 
 /// Checks that shards of one run fit together and returns their records in index order:
-/// the same bench, tolerances, rays, seed, trial count and mode, and every trial exactly once.
+/// the same bench, tolerances, rays, seed, trial count and mode, every shard I/N of the run
+/// exactly once (shard 0 with the sensitivity table, the others without), each holding only
+/// its own trials, and every trial exactly once.
 pub fn merge(
     shards: &[crate::scene::tolerance::ShardFile],
 ) -> Result<crate::scene::tolerance::ShardFile> {
@@ -487,6 +489,7 @@ pub fn merge(
             ));
         }
     }
+    check_shard_set(shards)?;
     let mut records: Vec<TrialRecord> = shards.iter().flat_map(|s| s.records.clone()).collect();
     records.sort_by_key(|r| r.index);
     let complete = records.len() as u64 == first.trials
@@ -512,6 +515,151 @@ pub fn merge(
         .find(|s| s.shard.0 == 0)
         .map_or_else(|| first.nominal.clone(), |s| s.nominal.clone());
     Ok(merged)
+}
+
+/// Every shard I/N of the run exactly once; shard 0 (which runs the sensitivity table, so a
+/// run of `--trials 0` still has a shard to merge) with its table, the others without; each
+/// shard's records its own trials i ≡ I (mod N), i < trials.
+fn check_shard_set(shards: &[crate::scene::tolerance::ShardFile]) -> Result<()> {
+    let n = shards[0].shard.1;
+    let mut seen = std::collections::BTreeSet::new();
+    for s in shards {
+        let (i, _) = s.shard;
+        if n == 0 || i >= n || !seen.insert(i) {
+            return Err(Error::field(
+                "--merge",
+                format!(
+                    "shard {i}/{n} is given twice or is not a shard of the run: give every \
+                     shard of the run exactly once"
+                ),
+            ));
+        }
+        if (i == 0) != s.sensitivity.is_some() {
+            return Err(Error::field(
+                "--merge",
+                format!(
+                    "shard {i}/{n} {} the sensitivity table, which shard 0 and only shard 0 \
+                     holds: was its trials.ron edited?",
+                    if i == 0 { "lacks" } else { "holds" }
+                ),
+            ));
+        }
+        if let Some(r) = s
+            .records
+            .iter()
+            .find(|r| r.index >= s.trials || r.index % n != i)
+        {
+            return Err(Error::field(
+                "--merge",
+                format!(
+                    "shard {i}/{n} holds trial {}, which is not one of its trials (i ≡ {i} \
+                     mod {n}, i < {})",
+                    r.index, s.trials
+                ),
+            ));
+        }
+    }
+    if (seen.len() as u64) < n {
+        let missing = (0..n).find(|i| !seen.contains(i)).unwrap_or(0);
+        return Err(Error::field(
+            "--merge",
+            format!(
+                "shard {missing}/{n} of the run is missing{}: give every shard of the run \
+                 exactly once",
+                if missing == 0 {
+                    " (it holds the sensitivity table)"
+                } else {
+                    ""
+                }
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// True for the name of a value a trial records ([`values`]): a metric, its standard error,
+/// its difference from the nominal bench and that difference's standard error; the CMRR; the
+/// arrivals; and with `--quality`, `SCHEME_PERCENT_mssim`, `_psnr_db`, `_finest_lp_per_mm`.
+pub fn is_value_name(name: &str) -> bool {
+    let base = ["_diff_stderr", "_stderr", "_diff"]
+        .iter()
+        .find_map(|s| name.strip_suffix(s))
+        .unwrap_or(name);
+    if METRICS.iter().any(|m| m.0 == base) || base == "cmrr_db" || name == "arrivals" {
+        return true;
+    }
+    ["_mssim", "_psnr_db", "_finest_lp_per_mm"]
+        .iter()
+        .filter_map(|s| name.strip_suffix(s))
+        .filter_map(|key| key.rsplit_once('_'))
+        .any(|(scheme, pct)| {
+            !pct.is_empty()
+                && pct.len() <= 3
+                && pct.bytes().all(|b| b.is_ascii_digit())
+                && crate::acquisition::Scheme::all()
+                    .iter()
+                    .any(|k| k.key() == scheme)
+        })
+}
+
+/// Checks the names a shard record read back from `file` holds (it is untrusted: see
+/// crate::report::untrusted): the deviations of each trial are the tolerance file's, in its
+/// order; its compensators the file's; every recorded value, nominal value and sensitivity
+/// entry a name [`values`] writes; every sensitivity row a tolerance of the file. These names
+/// become columns, figure file names and report text.
+pub fn check_shard_names(
+    s: &crate::scene::tolerance::ShardFile,
+    set: &ToleranceSet,
+    file: &std::path::Path,
+) -> Result<()> {
+    let bad = |field: String, msg: String| Error::input(msg).in_file(file).at_field(field);
+    let values = |v: &[(String, f64)], field: String| -> Result<()> {
+        match v.iter().position(|(k, _)| !is_value_name(k)) {
+            Some(k) => Err(bad(
+                format!("{field}[{k}]"),
+                format!("{:?} is not a value spibench records", v[k].0),
+            )),
+            None => Ok(()),
+        }
+    };
+    values(&s.nominal, "nominal".into())?;
+    for (n, r) in s.records.iter().enumerate() {
+        let at = |f: &str| format!("records[{n}].{f}");
+        let names: Vec<&str> = r.deviations.iter().map(|(p, _)| p.as_str()).collect();
+        let want: Vec<&str> = set.tolerances.iter().map(|t| t.path.as_str()).collect();
+        if names != want {
+            return Err(bad(
+                at("deviations"),
+                format!(
+                    "trial {} deviates {names:?}, not the tolerance file's {want:?}",
+                    r.index
+                ),
+            ));
+        }
+        if let Some((p, _)) = r
+            .compensators
+            .iter()
+            .find(|(p, _)| !set.compensators.iter().any(|c| &c.path == p))
+        {
+            return Err(bad(
+                at("compensators"),
+                format!("{p:?} is not a compensator of the tolerance file"),
+            ));
+        }
+        values(&r.values, at("values"))?;
+    }
+    for (n, row) in s.sensitivity.iter().flatten().enumerate() {
+        let at = |f: &str| format!("sensitivity[{n}].{f}");
+        if !set.tolerances.iter().any(|t| t.path == row.path) {
+            return Err(bad(
+                at("path"),
+                format!("{:?} is not a tolerance of the tolerance file", row.path),
+            ));
+        }
+        values(&row.at_min, at("at_min"))?;
+        values(&row.at_max, at("at_max"))?;
+    }
+    Ok(())
 }
 
 #[cfg(test)]

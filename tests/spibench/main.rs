@@ -16,4 +16,5 @@ mod layering;
 mod output_dirs;
 mod outputs_schema;
 mod paper;
+mod untrusted;
 mod validation;
