@@ -327,7 +327,8 @@ pub fn run(args: &ReconstructArgs) -> Result<()> {
         (None, _) => None,
         (Some(_), Some((lo, hi))) => Some((metrics::DataRange::new(lo, hi)?, "--data-range")),
         (Some(t), None) => Some((
-            metrics::DataRange::of(t).map_err(|e| e.in_file(args.truth.as_deref().unwrap_or(Path::new("truth"))))?,
+            metrics::DataRange::of(t)
+                .map_err(|e| e.in_file(args.truth.as_deref().unwrap_or(Path::new("truth"))))?,
             "truth",
         )),
     };

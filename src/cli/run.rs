@@ -75,7 +75,8 @@ pub struct RunArgs {
     pub cache: Option<PathBuf>,
     /// Repeat every random process after the trace N times (noise, drift, random patterns):
     /// mean ± SD per scheme and ratio, paired differences (`repeats.json`, `repeats.csv`,
-    /// `*_vs_frames` plots). The other outputs are those of repeat 1, the plain run.
+    /// `*_vs_frames` plots; written only for N ≥ 2). The other outputs are those of repeat 1,
+    /// the plain run.
     #[arg(long, default_value_t = 1, value_name = "N")]
     pub repeats: usize,
 }
@@ -190,7 +191,12 @@ pub fn run(args: &RunArgs) -> Result<()> {
         &settings_ron,
         &provenance,
         &out,
-    )? + super::run_repeats::write(&repeats, &scene.settings, &out)?.len();
+    )? + if repeats.repeats > 1 {
+        // Statistics need two repeats or more: a plain run writes none (as documented).
+        super::run_repeats::write(&repeats, &scene.settings, &out)?.len()
+    } else {
+        0
+    };
     super::run_arrays::write_arrays(outcome, &out)?;
     let dir = out.commit()?;
     print_report(&name, outcome);

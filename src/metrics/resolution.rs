@@ -686,7 +686,8 @@ mod tests {
             let noise = blotches.map(|v| 30.0 * v / sd);
             let out = read(&noise.map(|v| 100.0 + v), &chart, &map);
             for e in out.elements.iter().filter(|e| !e.aliased) {
-                if e.contrast_horizontal > DEFAULT_THRESHOLD && e.contrast_vertical > DEFAULT_THRESHOLD
+                if e.contrast_horizontal > DEFAULT_THRESHOLD
+                    && e.contrast_vertical > DEFAULT_THRESHOLD
                 {
                     chance += 1;
                     kept += usize::from(e.resolved);
@@ -703,7 +704,10 @@ mod tests {
                 .count();
             assert!(out.finest_resolved.is_some());
         }
-        assert!(chance >= 8, "only {chance} chance contrasts above the threshold");
+        assert!(
+            chance >= 8,
+            "only {chance} chance contrasts above the threshold"
+        );
         assert!(
             (kept as f64) < 0.1 * chance as f64,
             "{kept} of {chance} noise readings kept as resolved"

@@ -156,7 +156,11 @@ impl Tval3Options {
         for (m, b) in [(positive[0], positive[1]), (positive[2], positive[3])] {
             if !((m.1 / b.1).is_normal() && (b.1 / m.1).is_normal()) {
                 let off = |v: f64, default: f64| (v / default).log10().abs();
-                let name = if off(m.1, 256.0) >= off(b.1, 32.0) { m.0 } else { b.0 };
+                let name = if off(m.1, 256.0) >= off(b.1, 32.0) {
+                    m.0
+                } else {
+                    b.0
+                };
                 return Err(Error::field(
                     name,
                     format!(

@@ -288,7 +288,10 @@ mod tests {
         let h = 1e-7;
         let shifted = Metric::exact(i.value + h, 4);
         let fd = (cmrr_db(&shifted, [1.0, 0.98]).value - c.value) / h;
-        assert!((c.stderr() - fd.abs() * i.stderr()).abs() < 1e-5 * c.stderr(), "{fd}");
+        assert!(
+            (c.stderr() - fd.abs() * i.stderr()).abs() < 1e-5 * c.stderr(),
+            "{fd}"
+        );
     }
 
     #[test]

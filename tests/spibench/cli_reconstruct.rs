@@ -293,7 +293,12 @@ fn reconstruct_scores_on_the_truths_range() {
     let (_, pp, yp, xp) = problem(&dir, false);
     let x = npy::read(&xp).unwrap().to_f64();
     let unit = dir.join("x01.npy");
-    npy::write_f64(&unit, &[32, 32], &x.iter().map(|v| v / 255.0).collect::<Vec<_>>()).unwrap();
+    npy::write_f64(
+        &unit,
+        &[32, 32],
+        &x.iter().map(|v| v / 255.0).collect::<Vec<_>>(),
+    )
+    .unwrap();
     let run = |truth: &std::path::Path, name: &str, extra: &[&str]| {
         let out = dir.join(name);
         let mut a = vec![
@@ -318,7 +323,10 @@ fn reconstruct_scores_on_the_truths_range() {
     };
     let (a, oa) = run(&xp, "a", &[]);
     let (b, _) = run(&unit, "b", &[]);
-    let (pa, pb) = (a["psnr_db"].as_f64().unwrap(), b["psnr_db"].as_f64().unwrap());
+    let (pa, pb) = (
+        a["psnr_db"].as_f64().unwrap(),
+        b["psnr_db"].as_f64().unwrap(),
+    );
     assert!((pa - pb).abs() < 1e-6, "{pa} dB vs {pb} dB");
     let (ma, mb) = (a["mssim"].as_f64().unwrap(), b["mssim"].as_f64().unwrap());
     assert!((ma - mb).abs() < 1e-6, "{ma} vs {mb}");
@@ -334,8 +342,16 @@ fn reconstruct_scores_on_the_truths_range() {
     assert_eq!(c["data_range_from"], "--data-range");
     // A [0, 1] truth against a declared 0:255 range is flagged.
     let (_, od) = run(&unit, "d", &["--data-range", "255"]);
-    assert!(stderr(&od).contains("under a quarter of the data range"), "{}", stderr(&od));
-    assert!(!stderr(&oc).contains("warning: the truth spans ["), "{}", stderr(&oc));
+    assert!(
+        stderr(&od).contains("under a quarter of the data range"),
+        "{}",
+        stderr(&od)
+    );
+    assert!(
+        !stderr(&oc).contains("warning: the truth spans ["),
+        "{}",
+        stderr(&oc)
+    );
 }
 
 /// A truth whose shape is not the image's is an input error even when it holds W·H values.
