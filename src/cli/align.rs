@@ -318,21 +318,20 @@ pub fn run(args: &AlignArgs) -> Result<()> {
     for w in &a.warnings {
         eprintln!("warning: {w}");
     }
+    // One line per variable, so that the output fits a terminal whatever the paths.
+    println!("aligned; the search stopped because {}", a.stop.describe());
+    for f in free_summaries(&free, &a, &args.bench.set)? {
+        println!(
+            "  {} = {:.5}{} (start {:.5}; counted from the bench file)",
+            f.path,
+            f.aligned_from_file,
+            f.half_width
+                .map_or(" (flat)".to_string(), |h| format!(" ± {h:.2e}")),
+            f.start_from_file
+        );
+    }
     println!(
-        "aligned ({}): {}; imbalance {}; wrote {}",
-        a.stop.describe(),
-        free_summaries(&free, &a, &args.bench.set)?
-            .iter()
-            .map(|f| format!(
-                "{} = {:.5}{} (start {:.5}, from the bench file)",
-                f.path,
-                f.aligned_from_file,
-                f.half_width
-                    .map_or(" (flat)".to_string(), |h| format!(" ± {h:.2e}")),
-                f.start_from_file
-            ))
-            .collect::<Vec<_>>()
-            .join(", "),
+        "imbalance {}; wrote {}",
         imb.map_or_else(String::new, |e| format!(
             "{:.3e} ± {:.1e}",
             e.value, e.stderr

@@ -542,12 +542,14 @@ fn print_report(name: &str, o: &RunOutcome) {
     );
     let ch = &o.channels;
     println!(
-        "  detector: RF {:.0} V/A (±{} V), monitors {:.0}/{:.0} V/A; CMRR of the bench {:.1} dB \
-         (with the arms' k±), of the electronics alone {:.1} dB",
+        "  detector: RF {:.0} V/A (±{} V), monitors {:.0}/{:.0} V/A",
         o.detector.rf.gain_v_per_a,
         o.detector.rf.swing_v,
         o.detector.monitors[0].gain_v_per_a,
         o.detector.monitors[1].gain_v_per_a,
+    );
+    println!(
+        "  CMRR: bench {:.1} dB (with the arms' k±), electronics alone {:.1} dB",
         o.cmrr().value,
         o.detector.cmrr_db(),
     );
