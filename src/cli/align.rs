@@ -24,7 +24,8 @@ use super::rows::Row;
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum ObjectiveArg {
-    /// Minimise |imbalance| and |b₋ − b₊| with k± held at --min-fraction of their best.
+    /// Minimise |imbalance| (plus --offset-weight × |b₋ − b₊|/(b₊ + b₋) when given) with k±
+    /// held at --min-fraction of their best.
     Balance,
     /// Maximise k₊ + k₋.
     Power,
@@ -53,13 +54,18 @@ pub struct AlignArgs {
     /// For `balance`: the fraction of their best that k₊ and k₋ must keep.
     #[arg(long, default_value_t = 0.9)]
     pub min_fraction: f64,
+    /// For `balance`: the weight of the offset term |b₋ − b₊|/(b₊ + b₋) (default 0: balance
+    /// is the imbalance alone; the offset is usually out of reach of the arm knobs).
+    #[arg(long, default_value_t = 0.0, value_name = "W")]
+    pub offset_weight: f64,
     /// For `weighted`: METRIC=W (repeatable), e.g. `imbalance=1`, `k_prime=-1`.
     #[arg(long, value_name = "METRIC=W")]
     pub weight: Vec<String>,
     /// Lamp rays of the first stage (default: --rays / 16).
     #[arg(long)]
     pub start_rays: Option<u64>,
-    /// The most traced evaluations.
+    /// The most traced evaluations of the search (at least the free variables + 2; the final
+    /// comparison and the uncertainty probes add up to 4 + 2 × free variables).
     #[arg(long, default_value_t = 200)]
     pub max_evaluations: usize,
 }
@@ -75,6 +81,18 @@ struct AlignSummary<'a> {
     scene: &'a str,
     /// `Balance`, `Power` or the weighted sum, as Rust's `Debug` writes it.
     objective: String,
+    /// The objective's terms at the aligned bench (standard errors paired with the start).
+    objective_terms: &'a [crate::pipeline::optimise::Term],
+    /// Why the search's last stage ended (`NoiseFloor`, `SimplexSize`, `Budget`) and in words.
+    stop: crate::pipeline::optimise::SearchStop,
+    stop_reason: &'static str,
+    /// The final paired comparison: its rays and seed, and each candidate (the returned point
+    /// first) with its objective and paired difference from the returned point.
+    compare_rays: u64,
+    compare_seed: u64,
+    candidates: &'a [crate::align::Candidate],
+    /// The result on a bound, an objective flat within its noise.
+    warnings: &'a [String],
     rays: u64,
     start_rays: u64,
     seed: u64,
@@ -95,6 +113,71 @@ struct FreeSummary<'a> {
     hi: f64,
     start: f64,
     aligned: f64,
+    /// The start and the result counted from the bench file: a rigid-body move includes the
+    /// `--set` moves of the same path (for a field, the same as `start`, `aligned`).
+    start_from_file: f64,
+    aligned_from_file: f64,
+    /// ± this much raises the objective by its paired standard error (null: flat).
+    half_width: Option<f64>,
+    /// The objective's rises at the probes − and + (null where not probed).
+    rise_minus: Option<f64>,
+    rise_plus: Option<f64>,
+    at_bound: bool,
+}
+
+/// Whether `path` names a rigid-body move (src/scene/variables.rs: `ELEMENT.decenter_mm.x|y`,
+/// `ELEMENT.despace_mm`, `ELEMENT.tilt_deg.x|y`), whose value counts from the starting bench.
+fn is_move(path: &str) -> bool {
+    let parts: Vec<&str> = path.split('.').collect();
+    match parts.as_slice() {
+        [.., "despace_mm"] => parts.len() >= 2,
+        [.., "decenter_mm" | "tilt_deg", "x" | "y"] => parts.len() >= 3 && parts[0] != "dmd",
+        _ => false,
+    }
+}
+
+/// The value of a free variable at the start counted from the bench file: for a rigid-body
+/// move, the `--set` moves of the same path (applied in order, they add up along one axis).
+fn from_file(path: &str, start: f64, set: &[String]) -> crate::Result<f64> {
+    if !is_move(path) {
+        return Ok(start);
+    }
+    let mut total = start;
+    for text in set {
+        let (p, v) = super::parse_assignment(text, "--set")?;
+        if p == path {
+            total += v;
+        }
+    }
+    Ok(total)
+}
+
+/// The first stage's rays (`--start-rays`, default --rays / 16 but at least two batches),
+/// with `--start-rays` and `--max-evaluations` checked: a value the search cannot use is an
+/// input error, not silently changed.
+fn check_counts(args: &AlignArgs, free: usize, rays: u64) -> crate::Result<u64> {
+    let min_rays = 2 * crate::trace::RAYS_PER_BATCH;
+    if args.max_evaluations < free + 2 {
+        return Err(crate::Error::field(
+            "--max-evaluations",
+            format!(
+                "{} is too few: a simplex of {free} free variable(s) and one step need at least {}",
+                args.max_evaluations,
+                free + 2
+            ),
+        ));
+    }
+    match args.start_rays {
+        Some(r) if r < min_rays || r > rays => Err(crate::Error::field(
+            "--start-rays",
+            format!(
+                "{r} must lie between {min_rays} (two batches, for a standard error) and --rays \
+                 ({rays})"
+            ),
+        )),
+        Some(r) => Ok(r),
+        None => Ok((rays / 16).clamp(min_rays.min(rays), rays)),
+    }
 }
 
 /// Runs `spibench align`.
@@ -111,6 +194,7 @@ pub fn run(args: &AlignArgs) -> Result<()> {
     let objective = match args.objective {
         ObjectiveArg::Balance => Objective::Balance {
             min_fraction: args.min_fraction,
+            offset_weight: args.offset_weight,
         },
         ObjectiveArg::Power => Objective::Power,
         ObjectiveArg::Weighted => Objective::Weighted(
@@ -123,13 +207,15 @@ pub fn run(args: &AlignArgs) -> Result<()> {
     crate::align::check_objective(&objective)?;
     let opts = &args.bench.opts;
     let rays = opts.rays_or(DEFAULT_RAYS, super::args::MIN_RAYS_WITH_STDERR)?;
-    let out = OutputDir::create(&opts.out_or("out/align"))?;
     let o = AlignOptions {
-        start_rays: args.start_rays.unwrap_or(rays / 16).min(rays),
+        start_rays: check_counts(args, free.len(), rays)?,
         max_rays: rays,
         seed: opts.seed(),
-        max_evaluations: args.max_evaluations.max(free.len() + 2),
+        max_evaluations: args.max_evaluations,
     };
+    // Bounds, start and starting bench checked before the output folder or any trace.
+    crate::align::check_start(&doc, &free, true)?;
+    let out = OutputDir::create(&opts.out_or("out/align"))?;
     let bar = super::progress::bar(o.max_evaluations as u64, "evals");
     let t0 = std::time::Instant::now();
     let a = align(&doc, &free, &objective, &o, &|n| bar.set_position(n as u64))?;
@@ -155,17 +241,26 @@ pub fn run(args: &AlignArgs) -> Result<()> {
     // Layouts.
     let mut blocks = vec![Block::Paragraph(format!(
         "{name}: {} free variable(s), objective {:?}; {} evaluations in {:.1} s (Nelder–Mead on \
-         common-random-number traces, {} → {} rays). The start and the aligned bench are traced \
-         with {} rays and seed {}; their difference carries a paired standard error.",
+         common-random-number traces, {} → {} rays), stopped because {}. The returned point is \
+         the best of {} candidates traced again with {} rays on a fresh seed ({}). The start \
+         and the aligned bench are traced with {} rays and seed {}; their difference carries a \
+         paired standard error.",
         free.len(),
         args.objective,
         a.history.len(),
         t0.elapsed().as_secs_f64(),
         o.start_rays,
         o.max_rays,
+        a.stop.describe(),
+        a.candidates.len(),
+        a.compare_rays,
+        a.compare_seed,
         o.max_rays,
         o.seed
     ))];
+    for w in &a.warnings {
+        blocks.push(Block::Paragraph(format!("Warning: {w}.")));
+    }
     blocks.extend(tables(&free, &a));
     let svg = std::fs::read_to_string(out.path("history.svg"))
         .map_err(|e| crate::Error::read(&out.path("history.svg"), e))?;
@@ -199,21 +294,18 @@ pub fn run(args: &AlignArgs) -> Result<()> {
         spibench_version: env!("CARGO_PKG_VERSION"),
         scene: &name,
         objective: format!("{objective:?}"),
+        objective_terms: &a.terms,
+        stop: a.stop,
+        stop_reason: a.stop.describe(),
+        compare_rays: a.compare_rays,
+        compare_seed: a.compare_seed,
+        candidates: &a.candidates,
+        warnings: &a.warnings,
         rays: o.max_rays,
         start_rays: o.start_rays,
         seed: o.seed,
         evaluations: a.history.len(),
-        free: free
-            .iter()
-            .zip(a.start_values.iter().zip(&a.best_values))
-            .map(|(f, (&start, &aligned))| FreeSummary {
-                path: &f.path,
-                lo: f.lo,
-                hi: f.hi,
-                start,
-                aligned,
-            })
-            .collect(),
+        free: free_summaries(&free, &a, &args.bench.set)?,
         start: Row::metrics(&a.start, &a.start),
         aligned: Row::metrics(&a.best, &a.start),
         files: &files,
@@ -223,13 +315,23 @@ pub fn run(args: &AlignArgs) -> Result<()> {
     files.sort();
     let dir = out.commit()?;
     let imb = a.best.metrics.get("imbalance").map(|m| m.estimate());
+    for w in &a.warnings {
+        eprintln!("warning: {w}");
+    }
+    // One line per variable, so that the output fits a terminal whatever the paths.
+    println!("aligned; the search stopped because {}", a.stop.describe());
+    for f in free_summaries(&free, &a, &args.bench.set)? {
+        println!(
+            "  {} = {:.5}{} (start {:.5}; counted from the bench file)",
+            f.path,
+            f.aligned_from_file,
+            f.half_width
+                .map_or(" (flat)".to_string(), |h| format!(" ± {h:.2e}")),
+            f.start_from_file
+        );
+    }
     println!(
-        "aligned: {}; imbalance {}; wrote {}",
-        free.iter()
-            .zip(&a.best_values)
-            .map(|(f, v)| format!("{} = {v:.5}", f.path))
-            .collect::<Vec<_>>()
-            .join(", "),
+        "imbalance {}; wrote {}",
         imb.map_or_else(String::new, |e| format!(
             "{:.3e} ± {:.1e}",
             e.value, e.stderr
@@ -237,6 +339,37 @@ pub fn run(args: &AlignArgs) -> Result<()> {
         dir.display()
     );
     Ok(())
+}
+
+/// The free variables' summaries: bounds, start and result (also counted from the file) and
+/// their uncertainty.
+fn free_summaries<'a>(
+    free: &'a [Free],
+    a: &Alignment,
+    set: &[String],
+) -> crate::Result<Vec<FreeSummary<'a>>> {
+    let finite = |v: f64| v.is_finite().then_some(v);
+    free.iter()
+        .enumerate()
+        .map(|(i, f)| {
+            let (start, aligned) = (a.start_values[i], a.best_values[i]);
+            let start_from_file = from_file(&f.path, start, set)?;
+            let u = &a.uncertainty[i];
+            Ok(FreeSummary {
+                path: &f.path,
+                lo: f.lo,
+                hi: f.hi,
+                start,
+                aligned,
+                start_from_file,
+                aligned_from_file: start_from_file + (aligned - start),
+                half_width: finite(u.half_width),
+                rise_minus: finite(u.rise_minus),
+                rise_plus: finite(u.rise_plus),
+                at_bound: u.at_bound,
+            })
+        })
+        .collect()
 }
 
 /// `history.csv` and the convergence plot `history.svg`/`.png`: every evaluation's stage,
@@ -328,21 +461,69 @@ fn tables(free: &[Free], a: &Alignment) -> Vec<Block> {
     let var_rows: Vec<Vec<String>> = free
         .iter()
         .zip(a.start_values.iter().zip(&a.best_values))
-        .map(|(f, (s, b))| {
+        .zip(&a.uncertainty)
+        .map(|((f, (s, b)), u)| {
             vec![
                 f.path.clone(),
                 format!("{} … {}", f.lo, f.hi),
                 format!("{s:.6}"),
                 format!("{b:.6}"),
+                if u.half_width.is_finite() {
+                    format!("{:.2e}", u.half_width)
+                } else {
+                    "flat within the noise".into()
+                },
             ]
         })
         .collect();
     blocks.push(Block::Table {
-        caption: Some("Free variables".into()),
-        header: ["variable", "bounds", "start", "aligned"]
+        caption: Some(
+            "Free variables (values on the starting bench; ± where the objective rises by its \
+             paired standard error, from its curvature)"
+                .into(),
+        ),
+        header: ["variable", "bounds", "start", "aligned", "±"]
             .map(String::from)
             .to_vec(),
         rows: var_rows,
+    });
+    blocks.push(Block::Table {
+        caption: Some(
+            "The objective's terms at the aligned bench (± paired standard error against the \
+             start)"
+                .into(),
+        ),
+        header: ["term", "value"].map(String::from).to_vec(),
+        rows: a
+            .terms
+            .iter()
+            .map(|t| {
+                vec![
+                    t.name.clone(),
+                    format!("{:.4e} ± {:.1e}", t.value, t.stderr),
+                ]
+            })
+            .collect(),
+    });
+    blocks.push(Block::Table {
+        caption: Some(format!(
+            "The final comparison ({} rays, seed {}): the returned point first",
+            a.compare_rays, a.compare_seed
+        )),
+        header: ["values", "objective", "difference from the returned point"]
+            .map(String::from)
+            .to_vec(),
+        rows: a
+            .candidates
+            .iter()
+            .map(|c| {
+                vec![
+                    format!("{:?}", c.values),
+                    format!("{:.4e}", c.objective),
+                    format!("{:+.3e} ± {:.1e}", c.diff, c.diff_stderr),
+                ]
+            })
+            .collect(),
     });
     let mut mrows = Vec::new();
     for (i, (m, unit, _)) in METRICS.iter().enumerate() {
@@ -361,4 +542,31 @@ fn tables(free: &[Free], a: &Alignment) -> Vec<Block> {
         rows: mrows,
     });
     blocks
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn moves_count_from_the_file_after_set() {
+        assert!(is_move("detectors.minus.decenter_mm.x"));
+        assert!(is_move("arm_minus_lens.despace_mm"));
+        assert!(is_move("arm_minus_lens.tilt_deg.y"));
+        assert!(!is_move("arm_minus_lens.tilt_deg.0"));
+        assert!(!is_move("dmd.tilt_deg"));
+        assert!(!is_move("detectors.minus.diameter_mm"));
+        let set = [
+            "detectors.minus.decenter_mm.x=1.0".to_string(),
+            "detectors.minus.decenter_mm.y=0.5".to_string(),
+        ];
+        assert_eq!(
+            from_file("detectors.minus.decenter_mm.x", 0.0, &set).unwrap(),
+            1.0
+        );
+        assert_eq!(
+            from_file("detectors.minus.diameter_mm", 5.0, &set).unwrap(),
+            5.0
+        );
+    }
 }

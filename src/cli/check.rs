@@ -47,8 +47,13 @@ pub struct CheckArgs {
 pub struct ElementEntry {
     pub name: String,
     pub kind: String,
-    /// Centre of its outline (m, bench frame).
+    /// Centre of its outline (m, bench frame): the mean of the outline's points, which for a
+    /// lens or a tilted part is not where the file places it.
     pub centre_m: [f64; 3],
+    /// Its position as the bench file gives it (m, bench frame: a lens's first vertex, a
+    /// mirror's or a diode's centre, the lamp's filament centre); null for the DMD, which
+    /// defines the frame.
+    pub position_m: Option<[f64; 3]>,
 }
 
 /// A lens's paraxial numbers at the design wavelength.
@@ -144,6 +149,7 @@ pub fn check_bench(scene: &str, bench: &Bench, wl: f64) -> Result<CheckReport> {
                 name: o.name,
                 kind: o.kind.name().into(),
                 centre_m: c.to_array(),
+                position_m: None,
             }
         })
         .collect();
@@ -306,6 +312,37 @@ fn opt_mm(x: Option<f64>) -> String {
     x.map_or("—".into(), mm)
 }
 
+/// Every part's position as the file writes it (mm → m), by the name the outlines use: the
+/// elements by their names, `lamp`, and the detectors as `pd_plus` and `pd_minus`. Read from
+/// the file's serialised form, so every element kind with a `position_mm` is covered.
+fn file_positions(file: &crate::scene::bench::BenchFile) -> Vec<(String, [f64; 3])> {
+    let Ok(v) = serde_json::to_value(file) else {
+        return Vec::new();
+    };
+    let pos = |o: &serde_json::Value| -> Option<[f64; 3]> {
+        let p = o.get("position_mm")?;
+        let c: Vec<f64> = p.as_array()?.iter().filter_map(|x| x.as_f64()).collect();
+        (c.len() == 3).then(|| [c[0] / 1e3, c[1] / 1e3, c[2] / 1e3])
+    };
+    let mut out = Vec::new();
+    for e in v["elements"].as_array().into_iter().flatten() {
+        // Externally tagged: {"Lens": {...}}.
+        let inner = e.as_object().and_then(|o| o.values().next()).unwrap_or(e);
+        if let (Some(name), Some(p)) = (inner.get("name").and_then(|n| n.as_str()), pos(inner)) {
+            out.push((name.to_string(), p));
+        }
+    }
+    for (key, name) in [("plus", "pd_plus"), ("minus", "pd_minus")] {
+        if let Some(p) = pos(&v["detectors"][key]) {
+            out.push((name.to_string(), p));
+        }
+    }
+    if let Some(p) = pos(&v["lamp"]) {
+        out.push(("lamp".to_string(), p));
+    }
+    out
+}
+
 fn print_report(r: &CheckReport) {
     println!(
         "{}: valid bench; paraxial numbers at {:.1} nm",
@@ -314,13 +351,18 @@ fn print_report(r: &CheckReport) {
     );
     println!("elements:");
     for e in &r.elements {
+        // The pose from the file where it gives one (the outline's centroid is not the pose).
+        let (what, p) = match e.position_m {
+            Some(p) => ("position", p),
+            None => ("outline centre", e.centre_m),
+        };
         println!(
-            "  {:<22} {:<11} centre ({}, {}, {}) mm",
+            "  {:<22} {:<11} {what} ({}, {}, {}) mm",
             e.name,
             e.kind,
-            mm(e.centre_m[0]),
-            mm(e.centre_m[1]),
-            mm(e.centre_m[2])
+            mm(p[0]),
+            mm(p[1]),
+            mm(p[2])
         );
     }
     println!("lenses (distances along each lens axis, from/to its principal planes):");
@@ -382,11 +424,17 @@ fn print_report(r: &CheckReport) {
 /// Runs `spibench check`.
 pub fn run(args: &CheckArgs) -> anyhow::Result<()> {
     let bench = read_bench(&args.scene)?;
-    let report = check_bench(
+    let mut report = check_bench(
         &args.scene.display().to_string(),
         &bench,
         args.wavelength_nm * 1e-9,
     )?;
+    let text = crate::scene::read_text(&args.scene)?;
+    let file: crate::scene::bench::BenchFile = crate::scene::parse_ron(&text, &args.scene)?;
+    let poses = file_positions(&file);
+    for e in &mut report.elements {
+        e.position_m = poses.iter().find(|(n, _)| *n == e.name).map(|p| p.1);
+    }
     if let Some(out) = &args.out {
         let dir = OutputDir::create(out)?;
         let json = serde_json::to_string_pretty(&report)

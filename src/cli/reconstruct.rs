@@ -42,9 +42,15 @@ pub struct ReconstructArgs {
     /// With --form 01: how the 0/1 system is solved.
     #[arg(long, value_enum, default_value = "zero-mean")]
     pub zero_one: super::ZeroOneArg,
-    /// Ground truth (float64, H×W or N values) to score PSNR and MSSIM against.
+    /// Ground truth (an H×W array, or N values) to score PSNR and MSSIM against, on the truth's
+    /// own range [min, max] unless --data-range is given.
     #[arg(long)]
     pub truth: Option<PathBuf>,
+    /// With --truth: the range the truth's values are meant to span, LO:HI (for example 0:255
+    /// or 0:1), or HI alone for 0:HI. The normalised image is clipped to it; it is PSNR's peak
+    /// (HI − LO) and SSIM's dynamic range.
+    #[arg(long, value_parser = parse_data_range, requires = "truth")]
+    pub data_range: Option<(f64, f64)>,
     /// Output folder. Default: out/reconstruct.
     #[arg(long)]
     pub out: Option<PathBuf>,
@@ -83,6 +89,20 @@ fn parse_size(s: &str) -> std::result::Result<(usize, usize), String> {
     Ok((w, h))
 }
 
+fn parse_data_range(s: &str) -> std::result::Result<(f64, f64), String> {
+    let num = |t: &str| -> std::result::Result<f64, String> {
+        t.trim()
+            .parse::<f64>()
+            .map_err(|_| format!("'{t}' in --data-range '{s}' is not a number"))
+    };
+    let (lo, hi) = match s.split_once(':') {
+        Some((a, b)) => (num(a)?, num(b)?),
+        None => (0.0, num(s)?),
+    };
+    metrics::DataRange::new(lo, hi).map_err(|e| e.to_string())?;
+    Ok((lo, hi))
+}
+
 /// summary.json of `reconstruct`.
 #[derive(Serialize)]
 struct Summary {
@@ -110,13 +130,19 @@ struct Summary {
     relative_residual: f64,
     /// Solver CPU time, s.
     time_s: f64,
-    /// Only with --truth: scores after the normalisation rule.
+    /// Only with --truth: scores after the normalisation rule, on `data_range`.
     #[serde(skip_serializing_if = "Option::is_none")]
     psnr_db: Option<f64>,
+    /// Only with --truth: [lo, hi], the clip, PSNR's peak (hi − lo) and SSIM's L.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    data_range: Option<metrics::DataRange>,
+    /// "truth" (its own min and max) or "--data-range".
+    #[serde(skip_serializing_if = "Option::is_none")]
+    data_range_from: Option<&'static str>,
     #[serde(skip_serializing_if = "Option::is_none")]
     mssim: Option<f64>,
     #[serde(skip_serializing_if = "Option::is_none")]
-    normalization: Option<&'static str>,
+    normalization: Option<String>,
     solver: Tval3Options,
 }
 
@@ -158,6 +184,57 @@ fn load_patterns(path: &Path, n: usize) -> crate::Result<(BitMatrix, &'static st
             n.div_ceil(8)
         )))
     }
+}
+
+/// The truth: an H×W array, or the N = W·H values as a vector (one row or column). Any other
+/// shape is an input error even when it holds N values: a (4, 8, 8) stack or an 8 × 32 array
+/// for a 16 × 16 image is not that image.
+fn load_truth(path: &Path, w: usize, h: usize) -> crate::Result<Raster> {
+    let shape = npy::read(path)?.shape;
+    let n = w * h;
+    let fits = match shape.as_slice() {
+        [k] => *k == n,
+        [a, b] => (*a, *b) == (h, w) || (*a, *b) == (1, n) || (*a, *b) == (n, 1),
+        _ => false,
+    };
+    if !fits {
+        return Err(Error::input(format!(
+            "the truth has shape {shape:?}; an image of --size {w}x{h} needs shape [{h}, {w}] \
+             (rows, columns) or [{n}]"
+        ))
+        .in_file(path));
+    }
+    Raster::new(w, h, load_vector(path, "truth", false)?)
+}
+
+/// Warnings when the truth's range looks unlike the scale it is scored on or the image's.
+fn range_warnings(truth: &Raster, image: &Raster, range: metrics::DataRange) -> Vec<String> {
+    let (lo, hi) = (truth.min(), truth.max());
+    let mut w = Vec::new();
+    if lo < range.lo || hi > range.hi {
+        w.push(format!(
+            "the truth's values [{lo:.4e}, {hi:.4e}] leave the data range [{}, {}]: the scores \
+             compare a clipped image with values it cannot reach",
+            range.lo, range.hi
+        ));
+    } else if hi - lo < 0.25 * range.span() {
+        w.push(format!(
+            "the truth spans [{lo:.4e}, {hi:.4e}], under a quarter of the data range [{}, {}]: \
+             PSNR and MSSIM will look better than the image's structure is",
+            range.lo, range.hi
+        ));
+    }
+    let (ilo, ihi) = (image.min(), image.max());
+    let (ts, is) = (hi - lo, ihi - ilo);
+    if ts > 0.0 && is > 0.0 && (ts / is > 100.0 || is / ts > 100.0) {
+        w.push(format!(
+            "the truth spans {ts:.4e} and the reconstruction {is:.4e} (a factor {:.0}): the \
+             reconstruction is mapped onto the truth by a fitted gain and offset before scoring, \
+             so check that the truth is the object these measurements saw",
+            (ts / is).max(is / ts)
+        ));
+    }
+    w
 }
 
 fn load_vector(path: &Path, what: &str, one_d: bool) -> crate::Result<Vec<f64>> {
@@ -215,6 +292,19 @@ pub fn form_hint(y: &[f64], form: PatternForm) -> Option<String> {
     }
 }
 
+/// The normalisation rule as applied on `r`.
+fn range_rule(r: metrics::DataRange) -> String {
+    format!(
+        "least-squares gain and offset mapping the reconstruction onto the ground truth, then \
+         clipping to the data range [{}, {}]; PSNR with peak {} (the range's span), MSSIM as \
+         Wang et al. 2004 with L = {}",
+        r.lo,
+        r.hi,
+        r.span(),
+        r.span()
+    )
+}
+
 pub fn run(args: &ReconstructArgs) -> Result<()> {
     let (w, h) = args.size;
     let n = w * h;
@@ -231,18 +321,16 @@ pub fn run(args: &ReconstructArgs) -> Result<()> {
     }
     let truth = match &args.truth {
         None => None,
-        Some(p) => {
-            let t = load_vector(p, "truth", false)?;
-            if t.len() != n {
-                return Err(Error::input(format!(
-                    "the truth has {} values, the image {w}x{h} has {n}",
-                    t.len()
-                ))
-                .in_file(p)
-                .into());
-            }
-            Some(Raster::new(w, h, t)?)
-        }
+        Some(p) => Some(load_truth(p, w, h)?),
+    };
+    let range = match (&truth, args.data_range) {
+        (None, _) => None,
+        (Some(_), Some((lo, hi))) => Some((metrics::DataRange::new(lo, hi)?, "--data-range")),
+        (Some(t), None) => Some((
+            metrics::DataRange::of(t)
+                .map_err(|e| e.in_file(args.truth.as_deref().unwrap_or(Path::new("truth"))))?,
+            "truth",
+        )),
     };
 
     let mut opts = Tval3Options::reference();
@@ -268,16 +356,19 @@ pub fn run(args: &ReconstructArgs) -> Result<()> {
     let op = PackedOperator::new(patterns, form);
     let sol = solver.solve(&op, &y, w, h, form)?;
 
-    let (psnr_db, mssim) = match &truth {
-        Some(t) => {
-            let norm = metrics::normalize_to_truth(&sol.image, t)?;
-            (
-                Some(metrics::psnr(t, &norm.image, metrics::PEAK_255)),
-                Some(metrics::mssim(t, &norm.image)?),
-            )
+    let scores = match (&truth, range) {
+        (Some(t), Some((r, _))) => {
+            for warning in range_warnings(t, &sol.image, r) {
+                eprintln!("warning: {warning}");
+            }
+            Some(metrics::score_in(t, &sol.image, r)?)
         }
-        None => (None, None),
+        _ => None,
     };
+    let (psnr_db, mssim) = (
+        scores.as_ref().map(|s| s.psnr_db),
+        scores.as_ref().map(|s| s.mssim),
+    );
 
     // The image as computed (float64), and as pictures scaled over its own range.
     let img = &sol.image;
@@ -310,9 +401,11 @@ pub fn run(args: &ReconstructArgs) -> Result<()> {
         relative_residual: sol.relative_residual,
         time_s: sol.cpu_time_s,
         psnr_db,
+        data_range: range.map(|r| r.0),
+        data_range_from: range.map(|r| r.1),
         mssim,
-        normalization: truth.as_ref().map(|_| metrics::NORMALIZATION_RULE),
-        solver: solver.tval3,
+        normalization: range.map(|(r, _)| range_rule(r)),
+        solver: solver.tval3.clone(),
     };
     let mut provenance = crate::provenance::Provenance::new(&[])
         .file(&args.patterns)?
@@ -323,20 +416,24 @@ pub fn run(args: &ReconstructArgs) -> Result<()> {
     super::provenance::write_summary(&out, &summary, &provenance)?;
     let dir = out.commit()?;
     println!(
-        "reconstructed {w}x{h} from {} measurements: {} iterations, {} + {} operator applications, {:.2} s{}",
+        "reconstructed {w}x{h} from {} measurements: {} iterations, {} + {} operator applications, {:.2} s; stopped because {}",
         y.len(),
         sol.iterations,
         sol.forward_applications,
         sol.adjoint_applications,
         sol.cpu_time_s,
-        match sol.stop {
-            StopReason::Tolerance => " (converged: tolerance met)",
-            StopReason::MaxOuter => " (stopped after the last inner loop, tolerance not met)",
-            StopReason::MaxIterations => " (stopped at the iteration cap, tolerance not met)",
-        }
+        sol.stop.describe(&solver.tval3)
     );
-    if let (Some(p), Some(s)) = (psnr_db, mssim) {
-        println!("PSNR {p:.2} dB, MSSIM {s:.4} (after normalisation)");
+    if let (Some(p), Some(s), Some((r, from))) = (psnr_db, mssim, range) {
+        let from = if from == "truth" {
+            "the truth's own min and max"
+        } else {
+            "--data-range"
+        };
+        println!(
+            "PSNR {p:.2} dB, MSSIM {s:.4} (after normalisation; data range [{}, {}] from {from})",
+            r.lo, r.hi
+        );
     }
     println!("wrote {}", dir.display());
     Ok(())

@@ -5,8 +5,8 @@
 //! For each metric M of `transport::metrics::METRICS` (unit in the metric's table): `M`,
 //! `M_stderr`, `M_diff` (against the reference bench: the nominal bench, or align's start),
 //! `M_diff_stderr` (paired: common random numbers) and `M_diff_stderr_independent` (what two
-//! independent traces would give); then `cmrr_db`, `cmrr_db_diff`, `cmrr_db_diff_stderr`,
-//! `arrivals` and, with the whole pipeline, `SCHEME_PCT_mssim`, `SCHEME_PCT_psnr_db` and
+//! independent traces would give); then the same five for `cmrr_db` (the bench's, with the
+//! optics), `cmrr_electronics_db`, `arrivals` and, with the whole pipeline, `SCHEME_PCT_mssim`, `SCHEME_PCT_psnr_db` and
 //! `SCHEME_PCT_finest_lp_per_mm`. The numbers are those of `crate::tolerance::values` (which
 //! the tolerance records store), so every command computes them one way.
 

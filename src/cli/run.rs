@@ -75,7 +75,8 @@ pub struct RunArgs {
     pub cache: Option<PathBuf>,
     /// Repeat every random process after the trace N times (noise, drift, random patterns):
     /// mean ± SD per scheme and ratio, paired differences (`repeats.json`, `repeats.csv`,
-    /// `*_vs_frames` plots). The other outputs are those of repeat 1, the plain run.
+    /// `*_vs_frames` plots; written only for N ≥ 2). The other outputs are those of repeat 1,
+    /// the plain run.
     #[arg(long, default_value_t = 1, value_name = "N")]
     pub repeats: usize,
 }
@@ -190,7 +191,12 @@ pub fn run(args: &RunArgs) -> Result<()> {
         &settings_ron,
         &provenance,
         &out,
-    )? + super::run_repeats::write(&repeats, &scene.settings, &out)?.len();
+    )? + if repeats.repeats > 1 {
+        // Statistics need two repeats or more: a plain run writes none (as documented).
+        super::run_repeats::write(&repeats, &scene.settings, &out)?.len()
+    } else {
+        0
+    };
     super::run_arrays::write_arrays(outcome, &out)?;
     let dir = out.commit()?;
     print_report(&name, outcome);
@@ -536,11 +542,15 @@ fn print_report(name: &str, o: &RunOutcome) {
     );
     let ch = &o.channels;
     println!(
-        "  detector: RF {:.0} V/A (±{} V), monitors {:.0}/{:.0} V/A, CMRR {:.1} dB",
+        "  detector: RF {:.0} V/A (±{} V), monitors {:.0}/{:.0} V/A",
         o.detector.rf.gain_v_per_a,
         o.detector.rf.swing_v,
         o.detector.monitors[0].gain_v_per_a,
         o.detector.monitors[1].gain_v_per_a,
+    );
+    println!(
+        "  CMRR: bench {:.1} dB (with the arms' k±), electronics alone {:.1} dB",
+        o.cmrr().value,
         o.detector.cmrr_db(),
     );
     println!(

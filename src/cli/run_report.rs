@@ -282,7 +282,15 @@ fn bench_section(blocks: &mut Vec<Block>, r: &ReportInput<'_>) -> Result<()> {
     let path = out.path("layout.svg");
     std::fs::write(&path, &svg).map_err(|e| crate::Error::write(&path, e))?;
     blocks.push(layout);
-    let cmrr = o.detector.cmrr_db();
+    let cmrr = o.cmrr();
+    let electronics_only = o.detector.cmrr_db();
+    let db = |v: f64| {
+        if v.is_finite() {
+            format!("{v:.1} dB")
+        } else {
+            "infinite (matched)".into()
+        }
+    };
     blocks.push(Block::KeyValues(vec![
         ("k₊ (arm +)".into(), sci(t.k[0].value, t.k[0].stderr, "A/W")),
         ("k₋ (arm −)".into(), sci(t.k[1].value, t.k[1].stderr, "A/W")),
@@ -308,12 +316,16 @@ fn bench_section(blocks: &mut Vec<Block>, r: &ReportInput<'_>) -> Result<()> {
             ),
         ),
         (
-            "CMRR from the diodes' mismatch".into(),
-            if cmrr.is_finite() {
-                format!("{cmrr:.1} dB")
+            "CMRR of the bench (arms' k± and diodes)".into(),
+            if cmrr.value.is_finite() {
+                format!("{:.1} ± {:.1} dB", cmrr.value, cmrr.stderr())
             } else {
-                "infinite (matched diodes)".into()
+                db(cmrr.value)
             },
+        ),
+        (
+            "CMRR of the electronics alone (diodes' mismatch)".into(),
+            db(electronics_only),
         ),
     ]));
     let mut maps = Vec::new();
@@ -437,7 +449,7 @@ fn reconstructions_section(blocks: &mut Vec<Block>, r: &ReportInput<'_>) -> Resu
         "PSNR (dB)",
         "MSSIM",
         "finest resolved",
-        "iterations",
+        "iterations (stop)",
         "saturated",
     ];
     let rows = o
@@ -453,11 +465,7 @@ fn reconstructions_section(blocks: &mut Vec<Block>, r: &ReportInput<'_>) -> Resu
                 format!("{:.2}", r.psnr_db),
                 format!("{:.4}", r.mssim),
                 element_text(r.finest_resolved),
-                format!(
-                    "{}{}",
-                    r.iterations,
-                    if r.converged { "" } else { " (cap)" }
-                ),
+                iterations_cell(r),
                 if r.saturated { "yes" } else { "no" }.to_string(),
             ]
         })
@@ -467,6 +475,7 @@ fn reconstructions_section(blocks: &mut Vec<Block>, r: &ReportInput<'_>) -> Resu
         header: header.iter().map(|h| h.to_string()).collect(),
         rows,
     });
+    blocks.push(Block::Paragraph(stop_note(o)));
     if let Some(c) = &o.resolution {
         blocks.push(Block::Paragraph(format!(
             "Resolution read-out: {}. Threshold {:.2}. The chart was registered against x \
@@ -478,6 +487,37 @@ fn reconstructions_section(blocks: &mut Vec<Block>, r: &ReportInput<'_>) -> Resu
         )));
     }
     Ok(())
+}
+
+/// A solve's iteration count and the test that stopped it (TVAL3's stop reason, not a
+/// converged flag: the reference runs end on `maxcnt` inner loops, which is neither the
+/// iteration cap nor convergence).
+fn iterations_cell(r: &crate::pipeline::SchemeResult) -> String {
+    format!("{} ({})", r.iterations, r.stop.short())
+}
+
+/// What each stop reason of the table means, with the solver's settings, and how many solves
+/// ended on each.
+fn stop_note(o: &RunOutcome) -> String {
+    use crate::reconstruction::StopReason;
+    let solver = &o.settings.solver;
+    let mut parts = Vec::new();
+    for reason in [
+        StopReason::Tolerance,
+        StopReason::MaxOuter,
+        StopReason::MaxIterations,
+    ] {
+        let n = o.results.iter().filter(|r| r.stop == reason).count();
+        if n > 0 {
+            parts.push(format!(
+                "{n} of {} solves stopped on \"{}\": {}",
+                o.results.len(),
+                reason.short(),
+                reason.describe(solver)
+            ));
+        }
+    }
+    format!("TVAL3's stops: {}.", parts.join("; "))
 }
 
 /// Quality against sampling ratio (the paper's Fig. 7) and what it shows.

@@ -72,7 +72,8 @@ struct SweepSummary<'a> {
     /// Metric names, units and meanings (every row has the keys of [`Row::metrics`]: `NAME`,
     /// `NAME_stderr`, `NAME_diff`, `NAME_diff_stderr`, and `NAME_diff_stderr_independent`: the
     /// standard error the difference would have between independent runs; `cmrr_db`, the
-    /// detector's common-mode rejection from the electronics (exact; null when infinite), and
+    /// bench's common-mode rejection with the arms' k± in it (the same five keys),
+    /// `cmrr_electronics_db`, the detector's alone (exact; null when infinite), and
     /// `arrivals` (lamp rays that reached the pattern area)).
     metrics: Vec<MetricDoc>,
     nominal: Row,

@@ -221,12 +221,10 @@ pub fn run(args: &ToleranceArgs) -> Result<()> {
     let files = write_outputs(&shard_file, &set, &provenance, &out)?;
     let dir = out.commit()?;
     println!(
-        "wrote {} ({} files, {:.1} s: compensators {:.1} s, trial traces {:.1} s)",
+        "wrote {} ({files} files, {:.1} s: {})",
         dir.display(),
-        files,
         start.elapsed().as_secs_f64(),
-        comp_s,
-        trace_s
+        time_split(set.compensators.len(), comp_s, trace_s)
     );
     Ok(())
 }
@@ -428,6 +426,15 @@ fn write_outputs(
     };
     super::provenance::write_summary(out, &summary, provenance)?;
     Ok(files.len())
+}
+
+/// Where a run's time went; the compensators' share only for a file that has some.
+fn time_split(compensators: usize, comp_s: f64, trace_s: f64) -> String {
+    if compensators == 0 {
+        format!("trial traces {trace_s:.1} s")
+    } else {
+        format!("compensators {comp_s:.1} s, trial traces {trace_s:.1} s")
+    }
 }
 
 /// `trials.csv`: index, deviations, compensators, each trial's metric row, error.
@@ -859,4 +866,15 @@ struct TrialSummary<'a> {
     compensators: Row,
     values: Row,
     error: Option<&'a str>,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn time_split_names_compensators_only_when_there_are_some() {
+        assert_eq!(time_split(0, 2.3, 4.0), "trial traces 4.0 s");
+        assert!(time_split(1, 2.3, 4.0).starts_with("compensators 2.3 s"));
+    }
 }

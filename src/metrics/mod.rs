@@ -15,6 +15,13 @@
 //! (var(x̃) = 0) gets g = 0 and o = mean(x). PSNR (peak 255) and MSSIM are then computed between
 //! the ground truth and the clipped image ([`score`]).
 //!
+//! A truth made elsewhere (`reconstruct --truth`) is scored on its own range instead
+//! ([`DataRange`], [`score_in`]): the clip is to [min, max] of the truth (or a range the user
+//! gives), PSNR's peak and SSIM's L are max − min. PSNR's peak is the range of the data, not
+//! a fixed 255, and SSIM's C1 = (K1·L)², C2 = (K2·L)² are defined for L = "the dynamic range
+//! of the pixel values" (Wang et al. 2004, eq. 7); scikit-image's `data_range` is the same
+//! number.
+//!
 //! Why this rule: it removes exactly the two unknowns that the measurement model leaves free
 //! (gain and offset), whatever the scheme, so the scores compare image structure rather than
 //! calibration. It uses the truth, so it is the best any affine calibration could do (an
@@ -38,8 +45,8 @@ pub mod registration;
 pub mod resolution;
 pub mod ssim;
 
-pub use normalize::{Normalized, normalize_to_truth};
-pub use ssim::{mssim, ssim_map};
+pub use normalize::{Normalized, normalize_to_truth, normalize_to_truth_in};
+pub use ssim::{mssim, mssim_in, ssim_map, ssim_map_in};
 
 use crate::error::{Error, Result};
 use crate::raster::Raster;
@@ -49,6 +56,47 @@ pub const NORMALIZATION_RULE: &str = "least-squares gain and offset mapping the 
 
 /// The peak value of objects and normalised reconstructions (the paper's 255²/MSE).
 pub const PEAK_255: f64 = 255.0;
+
+/// The range [lo, hi] a truth's values are meant to span: the clip of the normalisation, the
+/// peak hi − lo of PSNR and the dynamic range L of SSIM. The simulated objects are on
+/// [0, 255]; an image made elsewhere may be on [0, 1] or any other scale, and scoring it with
+/// peak 255 would add 20·log₁₀(255) ≈ 48 dB to its PSNR and push its MSSIM towards 1.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct DataRange {
+    pub lo: f64,
+    pub hi: f64,
+}
+
+impl DataRange {
+    /// The 8-bit scale of the simulated objects.
+    pub const EIGHT_BIT: DataRange = DataRange { lo: 0.0, hi: 255.0 };
+
+    /// A range with finite ends and hi > lo (an input error otherwise).
+    pub fn new(lo: f64, hi: f64) -> Result<DataRange> {
+        if !(lo.is_finite() && hi.is_finite() && hi > lo) {
+            return Err(Error::input(format!(
+                "a data range needs finite ends with high above low, got [{lo}, {hi}]"
+            )));
+        }
+        Ok(DataRange { lo, hi })
+    }
+
+    /// The truth's own range [min, max]; an input error for a constant truth (no scale).
+    pub fn of(truth: &Raster) -> Result<DataRange> {
+        let (lo, hi) = (truth.min(), truth.max());
+        if lo.is_nan() || hi.is_nan() || hi <= lo {
+            return Err(Error::input(format!(
+                "the truth is constant ({lo}): it has no range to score against; give one with --data-range"
+            )));
+        }
+        DataRange::new(lo, hi)
+    }
+
+    /// hi − lo: PSNR's peak and SSIM's L.
+    pub fn span(&self) -> f64 {
+        self.hi - self.lo
+    }
+}
 
 /// An input error unless the two images have the same size.
 pub fn check_same_size(truth: &Raster, test: &Raster) -> Result<()> {
@@ -119,10 +167,16 @@ pub struct Scores {
 /// Normalises `recon` to `truth` (module rule) and scores it: PSNR (peak 255) and MSSIM. The
 /// normalised image is returned with the scores, so no caller re-implements the rule.
 pub fn score(truth: &Raster, recon: &Raster) -> Result<Scores> {
-    let n = normalize_to_truth(recon, truth)?;
+    score_in(truth, recon, DataRange::EIGHT_BIT)
+}
+
+/// As [`score`] for a truth on `range`: the mapped image is clipped to it, PSNR's peak and
+/// SSIM's L are its span.
+pub fn score_in(truth: &Raster, recon: &Raster, range: DataRange) -> Result<Scores> {
+    let n = normalize_to_truth_in(recon, truth, range)?;
     Ok(Scores {
-        psnr_db: psnr(truth, &n.image, PEAK_255),
-        mssim: mssim(truth, &n.image)?,
+        psnr_db: psnr(truth, &n.image, range.span()),
+        mssim: mssim_in(truth, &n.image, range.span())?,
         gain: n.gain,
         offset: n.offset,
         image: n.image,

@@ -1,5 +1,5 @@
 //! The least-squares gain and offset that map a reconstruction onto the ground truth, then a
-//! clip to [0, 255] (the rule stated in the `metrics` module documentation).
+//! clip to the truth's data range, [0, 255] for the simulated objects (the rule stated in the `metrics` module documentation).
 
 use crate::error::{Error, Result};
 use crate::raster::Raster;
@@ -22,6 +22,15 @@ pub struct Normalized {
 /// Errors: different sizes ([`Error::Input`]); non-finite values in either image
 /// ([`Error::Numerical`], e.g. a diverged solver).
 pub fn normalize_to_truth(recon: &Raster, truth: &Raster) -> Result<Normalized> {
+    normalize_to_truth_in(recon, truth, super::DataRange::EIGHT_BIT)
+}
+
+/// As [`normalize_to_truth`], clipping to `range` instead of [0, 255].
+pub fn normalize_to_truth_in(
+    recon: &Raster,
+    truth: &Raster,
+    range: super::DataRange,
+) -> Result<Normalized> {
     super::check_same_size(truth, recon)?;
     if recon.data.is_empty() {
         return Err(Error::input("cannot normalise an empty image"));
@@ -47,7 +56,7 @@ pub fn normalize_to_truth(recon: &Raster, truth: &Raster) -> Result<Normalized> 
         let gain = srt / srr;
         (gain, mean_t - gain * mean_r)
     };
-    let image = recon.map(|v| (gain * v + offset).clamp(0.0, 255.0));
+    let image = recon.map(|v| (gain * v + offset).clamp(range.lo, range.hi));
     Ok(Normalized {
         image,
         gain,

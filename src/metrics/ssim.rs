@@ -87,7 +87,20 @@ fn check(truth: &Raster, test: &Raster) -> Result<()> {
 /// Errors: different sizes or a side below 11 pixels ([`Error::Input`]); non-finite values
 /// ([`Error::Numerical`]).
 pub fn ssim_map(truth: &Raster, test: &Raster) -> Result<Raster> {
+    ssim_map_in(truth, test, DYNAMIC_RANGE)
+}
+
+/// The SSIM map for images whose dynamic range is `range` (L of C1 = (K1·L)², C2 = (K2·L)²;
+/// 255 for 8-bit images, 1 for images on [0, 1]): Wang et al.'s constants scale with the
+/// range, so an image on [0, 1] scored with L = 255 gets C1, C2 that swamp every local
+/// statistic and an MSSIM near 1 whatever its structure.
+pub fn ssim_map_in(truth: &Raster, test: &Raster, range: f64) -> Result<Raster> {
     check(truth, test)?;
+    if !(range.is_finite() && range > 0.0) {
+        return Err(Error::input(format!(
+            "SSIM needs a positive finite dynamic range, got {range}"
+        )));
+    }
     let (w, h) = (truth.width, truth.height);
     let g = gaussian_window_1d();
     let x = &truth.data;
@@ -100,8 +113,8 @@ pub fn ssim_map(truth: &Raster, test: &Raster) -> Result<Raster> {
     let e_xx = filter_valid(&xx, w, h, &g);
     let e_yy = filter_valid(&yy, w, h, &g);
     let e_xy = filter_valid(&xy, w, h, &g);
-    let c1 = (K1 * DYNAMIC_RANGE) * (K1 * DYNAMIC_RANGE);
-    let c2 = (K2 * DYNAMIC_RANGE) * (K2 * DYNAMIC_RANGE);
+    let c1 = (K1 * range) * (K1 * range);
+    let c2 = (K2 * range) * (K2 * range);
     let map: Vec<f64> = (0..mu_x.len())
         .map(|i| {
             let (mx, my) = (mu_x[i], mu_y[i]);
@@ -117,6 +130,11 @@ pub fn ssim_map(truth: &Raster, test: &Raster) -> Result<Raster> {
 
 /// MSSIM: the mean of the SSIM map (summed in index order, deterministic).
 pub fn mssim(truth: &Raster, test: &Raster) -> Result<f64> {
-    let map = ssim_map(truth, test)?;
+    mssim_in(truth, test, DYNAMIC_RANGE)
+}
+
+/// MSSIM for images of dynamic range `range` (see [`ssim_map_in`]).
+pub fn mssim_in(truth: &Raster, test: &Raster, range: f64) -> Result<f64> {
+    let map = ssim_map_in(truth, test, range)?;
     Ok(map.data.iter().sum::<f64>() / map.data.len() as f64)
 }

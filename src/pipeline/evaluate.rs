@@ -5,7 +5,7 @@
 //! `dataset` (every sample) — so the stages of [`crate::pipeline`] are chained in one place.
 //!
 //! - [`evaluate`]: a bench document → [`Evaluation`] (metrics with standard errors, the
-//!   detector's CMRR, arrivals; with `quality`, every scheme × ratio of the bench's `run:`
+//!   bench's CMRR with the optics and the detector's alone, arrivals; with `quality`, every scheme × ratio of the bench's `run:`
 //!   settings recorded, solved and scored);
 //! - [`evaluate_traced`]: a traced bench of a [`RunScene`] → [`RunOutcome`], everything a run
 //!   reports (records, solutions, scores, the USAF read-out);
@@ -27,7 +27,7 @@ use crate::reconstruction::{Solver, ZeroOneHandling};
 use crate::scene::doc::BenchDoc;
 use crate::scene::run::{RunScene, RunSettings};
 use crate::transport::Transport;
-use crate::transport::metrics::{BenchMetrics, METRICS, MetricRow};
+use crate::transport::metrics::{BenchMetrics, METRICS, Metric, MetricRow};
 
 pub use crate::acquisition::Sequence;
 
@@ -54,9 +54,13 @@ pub struct Evaluation {
     /// The variables set on the nominal bench (empty for the nominal bench itself).
     pub settings: Vec<(String, f64)>,
     pub metrics: BenchMetrics,
-    /// The balanced detector's common-mode rejection (dB) from its electronics section (not
-    /// traced; infinite for matched diodes); None when the electronics are invalid.
-    pub cmrr_db: Option<f64>,
+    /// The bench's common-mode rejection (dB) with the arms' k± in it
+    /// ([`crate::transport::metrics::cmrr_db`]), with its Monte Carlo influence; None when the
+    /// electronics are invalid.
+    pub cmrr: Option<Metric>,
+    /// The detector's common-mode rejection from its electronics alone (dB, not traced;
+    /// infinite for matched diodes); None when the electronics are invalid.
+    pub cmrr_electronics_db: Option<f64>,
     pub arrivals: u64,
     /// With `quality`: every scheme × ratio of the bench's `run` settings.
     pub quality: Option<Vec<SchemeResult>>,
@@ -70,10 +74,8 @@ pub fn evaluate(
     o: &EvaluateOptions,
 ) -> Result<Evaluation> {
     let req = TraceRequest::new(o.rays, o.seed);
-    // The electronics alone (no bench build): the detector's CMRR is not traced.
-    let cmrr_db = crate::scene::run::detector_si(&doc.file.electronics.detector)
-        .ok()
-        .map(|d| d.cmrr_db());
+    // The electronics alone (no bench build): the diodes' responsivity scales.
+    let detector = crate::scene::run::detector_si(&doc.file.electronics.detector).ok();
     let quiet: Progress = &|_, _, _| {};
     let (traced, quality) = if o.quality {
         let scene = doc.run_scene()?;
@@ -85,9 +87,17 @@ pub fn evaluate(
         let bench = doc.build()?;
         (pipeline::trace_stage(&bench, &req)?, None)
     };
+    let cmrr = detector.as_ref().and_then(|d| {
+        let imbalance = traced.metrics.get("imbalance")?;
+        Some(crate::transport::metrics::cmrr_db(
+            imbalance,
+            d.responsivity_scale,
+        ))
+    });
     Ok(Evaluation {
         settings,
-        cmrr_db,
+        cmrr,
+        cmrr_electronics_db: detector.map(|d| d.cmrr_db()),
         arrivals: traced.arrivals(),
         metrics: traced.metrics,
         quality,
@@ -99,6 +109,7 @@ pub fn evaluate(
 pub fn is_metric(name: &str) -> bool {
     METRICS.iter().any(|m| m.0 == name)
         || name == "cmrr_db"
+        || name == "cmrr_electronics_db"
         || name.ends_with("_mssim")
         || name.ends_with("_psnr_db")
         || name.ends_with("_finest_lp_per_mm")
@@ -122,14 +133,36 @@ pub fn values(p: &Evaluation, nominal: &Evaluation) -> Vec<(String, f64)> {
         v.push((format!("{name}_diff"), r.diff));
         v.push((format!("{name}_diff_stderr"), r.diff_stderr));
     }
-    let cmrr = p.cmrr_db.unwrap_or(f64::NAN);
-    v.push(("cmrr_db".into(), cmrr));
-    let c0 = nominal.cmrr_db.unwrap_or(f64::NAN);
+    let nan = MetricRow {
+        value: f64::NAN,
+        stderr: f64::NAN,
+        diff: f64::NAN,
+        diff_stderr: f64::NAN,
+    };
+    let c = match (&p.cmrr, &nominal.cmrr) {
+        (Some(c), Some(c0)) => {
+            let mut r = MetricRow::new(c, c0);
+            if c.value == c0.value {
+                // Both infinite (matched arms and diodes) or the same bench: no change.
+                (r.diff, r.diff_stderr) = (0.0, 0.0);
+            }
+            r
+        }
+        (Some(c), None) => MetricRow {
+            value: c.value,
+            stderr: c.stderr(),
+            ..nan
+        },
+        _ => nan,
+    };
+    v.push(("cmrr_db".into(), c.value));
+    v.push(("cmrr_db_stderr".into(), c.stderr));
+    v.push(("cmrr_db_diff".into(), c.diff));
+    v.push(("cmrr_db_diff_stderr".into(), c.diff_stderr));
     v.push((
-        "cmrr_db_diff".into(),
-        if cmrr == c0 { 0.0 } else { cmrr - c0 },
+        "cmrr_electronics_db".into(),
+        p.cmrr_electronics_db.unwrap_or(f64::NAN),
     ));
-    v.push(("cmrr_db_diff_stderr".into(), 0.0));
     v.push(("arrivals".into(), p.arrivals as f64));
     if let Some(q) = &p.quality {
         for r in q {
@@ -212,6 +245,17 @@ pub struct RunOutcome {
 }
 
 impl RunOutcome {
+    /// The bench's common-mode rejection with the arms' k± in it (dB, with its influence):
+    /// [`crate::transport::metrics::cmrr_db`] of the traced imbalance and the diodes' mismatch.
+    pub fn cmrr(&self) -> Metric {
+        let imbalance = self
+            .metrics
+            .get("imbalance")
+            .cloned()
+            .unwrap_or_else(|| Metric::exact(f64::NAN, 0));
+        crate::transport::metrics::cmrr_db(&imbalance, self.detector.responsivity_scale)
+    }
+
     /// The result of `scheme` at ratio index `r`.
     pub fn result(&self, scheme: Scheme, r: usize) -> Option<&SchemeResult> {
         let s = self.settings.schemes.iter().position(|&x| x == scheme)?;

@@ -109,7 +109,7 @@ pub fn trial_doc(
             .map(|c| d.get(&c.path))
             .collect::<Result<_>>()?;
         let obj = match objective {
-            CompensatorObjective::Balance => Objective::Balance { min_fraction: 0.9 },
+            CompensatorObjective::Balance => Objective::BALANCE,
             CompensatorObjective::Power => Objective::Power,
         };
         // The search alone: its best values are what the trial needs (the `align` job's final

@@ -138,6 +138,39 @@ impl Tval3Options {
                 ));
             }
         }
+        // The solver divides one weight by the other (mu/beta in the step and the w-update,
+        // beta/mu in the multipliers): a subnormal weight, or a pair whose ratio overflows,
+        // makes the iterates non-finite (a beta of 5e-324 beside mu = 256 did). Name the weight
+        // farther from its default in orders of magnitude.
+        for (name, v) in positive.iter().take(4) {
+            if !v.is_normal() {
+                return Err(Error::field(
+                    *name,
+                    format!(
+                        "{v:e} is below the smallest normal number {:e}: TVAL3 divides by it",
+                        f64::MIN_POSITIVE
+                    ),
+                ));
+            }
+        }
+        for (m, b) in [(positive[0], positive[1]), (positive[2], positive[3])] {
+            if !((m.1 / b.1).is_normal() && (b.1 / m.1).is_normal()) {
+                let off = |v: f64, default: f64| (v / default).log10().abs();
+                let name = if off(m.1, 256.0) >= off(b.1, 32.0) {
+                    m.0
+                } else {
+                    b.0
+                };
+                return Err(Error::field(
+                    name,
+                    format!(
+                        "{} = {:e} and {} = {:e} differ by more than f64 can hold: TVAL3 uses \
+                         their ratio (typical weights are 2^4 to 2^13)",
+                        m.0, m.1, b.0, b.1
+                    ),
+                ));
+            }
+        }
         if !(self.rate_ctn.is_finite() && self.rate_ctn > 1.0) {
             return Err(Error::field(
                 "rate_ctn",
@@ -175,6 +208,40 @@ pub enum StopReason {
     MaxOuter,
     /// `maxit` iterations ran out before either of the above.
     MaxIterations,
+}
+
+impl StopReason {
+    /// The test that ended the solve, in a few words, for a table cell.
+    pub fn short(&self) -> &'static str {
+        match self {
+            StopReason::Tolerance => "outer tol met",
+            StopReason::MaxOuter => "maxcnt loops",
+            StopReason::MaxIterations => "maxit cap",
+        }
+    }
+
+    /// What ended the solve, with the settings of `o` that decided it. `MaxOuter` is the
+    /// usual end of TVAL3's reference runs: every inner loop ended on its own tolerance
+    /// `tol_inn` and the multipliers were updated `maxcnt` times, but the change between
+    /// outer loops stayed above `tol`; it is neither the iteration cap nor convergence.
+    pub fn describe(&self, o: &Tval3Options) -> String {
+        match self {
+            StopReason::Tolerance => format!("the outer tolerance tol = {:e} was met", o.tol),
+            StopReason::MaxOuter => format!(
+                "{} inner loops ended on the inner tolerance tol_inn = {:e} (maxcnt = {}); the \
+                 outer tolerance tol = {:e} was not met",
+                o.maxcnt + 1,
+                o.tol_inn,
+                o.maxcnt,
+                o.tol
+            ),
+            StopReason::MaxIterations => format!(
+                "the iteration cap maxit = {} was reached before either tolerance test ended \
+                 the solve",
+                o.maxit
+            ),
+        }
+    }
 }
 
 /// A reconstruction and how it was reached.
@@ -253,9 +320,19 @@ pub fn tval3(
     let mut solver = Solver::new(op, width, height, opts);
     let (u, stop) = solver.run(b);
     if u.iter().any(|v| !v.is_finite()) {
-        return Err(Error::Numerical(
-            "TVAL3 produced non-finite values (is the operator zero or the data inconsistent?)"
-                .into(),
+        // The data and the options were checked finite above; what is left to overflow are
+        // the weights, so this is the input's fault (exit status 2), named as such.
+        return Err(Error::field(
+            "solver",
+            format!(
+                "TVAL3 produced non-finite values with mu = {:e}, beta = {:e} (mu0 = {:e}, \
+                 beta0 = {:e}): the weights are outside the range the solver can use; TVAL3's \
+                 defaults are mu = 2^8, beta = 2^5",
+                opts.mu,
+                opts.beta,
+                opts.mu0.unwrap_or(opts.mu),
+                opts.beta0.unwrap_or(opts.beta)
+            ),
         ));
     }
     let cpu_time_s = match (cpu0, process_cpu_seconds()) {
@@ -1102,6 +1179,35 @@ fn process_cpu_seconds() -> Option<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A weight TVAL3 cannot divide by, or a pair whose ratio overflows, is the input's fault
+    /// with the field named (before, beta = 5e-324 beside mu = 256 ran and ended in a
+    /// "non-finite values" numerical error, exit status 1).
+    #[test]
+    fn weights_the_solver_cannot_use_are_input_errors() {
+        for (mu, beta, field) in [
+            (256.0, 5e-324, "beta"),
+            (5e-324, 32.0, "mu"),
+            (1e300, 1e-300, "beta"),
+            (1e-300, 1e300, "mu"),
+        ] {
+            let o = Tval3Options {
+                mu,
+                beta,
+                ..Tval3Options::reference()
+            };
+            let e = o.validate().expect_err("weights out of range");
+            assert!(e.is_user_error(), "{e}");
+            assert!(e.to_string().contains(&format!("field `{field}`")), "{e}");
+        }
+        // Far from the defaults but usable: accepted.
+        let o = Tval3Options {
+            mu: 1e-30,
+            beta: 1e-30,
+            ..Tval3Options::reference()
+        };
+        assert!(o.validate().is_ok());
+    }
     use crate::reconstruction::{BitMatrix, HadamardOperator, PackedOperator, PatternForm};
     use crate::rng::SplitMix64;
     use std::path::Path;

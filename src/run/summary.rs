@@ -62,8 +62,14 @@ pub struct RunSummary<'a> {
 #[derive(Serialize)]
 pub struct ElectronicsSummary<'a> {
     pub detector: &'a Bap,
-    /// CMRR from the diodes' flat responsivity mismatch (dB; null when infinite).
+    /// The bench's common-mode rejection with the arms' k± in it (dB; null when infinite):
+    /// crate::transport::metrics::cmrr_db of the traced imbalance and the diodes' mismatch.
     pub cmrr_db: Option<f64>,
+    /// Its Monte Carlo standard error (dB).
+    pub cmrr_db_stderr: Option<f64>,
+    /// The detector's CMRR from the diodes' flat responsivity mismatch alone (dB; null when
+    /// infinite): what the bench would reject with perfectly matched arms.
+    pub cmrr_electronics_db: Option<f64>,
     /// Optical power difference that drives the RF output to its swing at 0.65 A/W (W).
     pub rf_saturation_power_w_at_0_65_a_per_w: f64,
     pub oscilloscope: &'a Scope,
@@ -146,7 +152,8 @@ pub fn summarize_run<'a>(
     transport.files = Vec::new();
     let mean_i = mean_currents(o);
     let noise = o.detector.output_noise_v_rms(mean_i);
-    let cmrr = o.detector.cmrr_db();
+    let cmrr = o.cmrr();
+    let electronics_only = o.detector.cmrr_db();
     RunSummary {
         command: "run",
         spibench_version: env!("CARGO_PKG_VERSION"),
@@ -158,7 +165,9 @@ pub fn summarize_run<'a>(
         transport,
         electronics: ElectronicsSummary {
             detector: &o.detector,
-            cmrr_db: cmrr.is_finite().then_some(cmrr),
+            cmrr_db: cmrr.value.is_finite().then_some(cmrr.value),
+            cmrr_db_stderr: cmrr.stderr().is_finite().then_some(cmrr.stderr()),
+            cmrr_electronics_db: electronics_only.is_finite().then_some(electronics_only),
             rf_saturation_power_w_at_0_65_a_per_w: o.detector.rf_saturation_power_w(0.65),
             oscilloscope: &o.scope,
             channels: ChannelsSummary {

@@ -60,6 +60,16 @@ impl Metric {
         Metric { value: r, psi }
     }
 
+    /// f(self) by the delta method: value f(v), influence f'(v)·ψ, so standard errors and
+    /// paired differences carry over to any smooth function of a metric.
+    pub fn map(&self, f: impl Fn(f64) -> f64, df: impl Fn(f64) -> f64) -> Metric {
+        let slope = df(self.value);
+        Metric {
+            value: f(self.value),
+            psi: self.psi.iter().map(|p| slope * p).collect(),
+        }
+    }
+
     /// This metric plus a constant.
     pub fn plus(mut self, c: f64) -> Metric {
         self.value += c;
@@ -141,6 +151,31 @@ pub const METRICS: [(&str, &str, &str); 12] = [
     ),
     ("x_total_w", "W", "Σ_j x_j, power on the pattern area"),
 ];
+
+/// The bench's common-mode rejection (dB) from the traced imbalance ι = (k₊ − k₋)/(k₊ + k₋)
+/// and the diodes' responsivity scales s± (the electronics): the RF output's response to light
+/// sent into one arm divided by its response to the same light sent into each arm, the
+/// Thorlabs definition of a balanced detector's CMRR (docs/bench-facts.md §1.2) with the arms'
+/// gains k± in front of the diodes.
+///
+/// Light W per arm gives the currents s₊k₊W and s₋k₋W; the RF output amplifies their
+/// difference. With a = s₊k₊, b = s₋k₋, CMRR = 20·log₁₀(½(a + b)/|a − b|) =
+/// −20·log₁₀(2|ι'|), ι' = (a − b)/(a + b): the effective imbalance, which is ι for matched
+/// diodes and (s₊ − s₋)/(s₊ + s₋) for matched arms (then this is
+/// [`crate::detector::Bap::cmrr_db`], the electronics alone). With r = s₊/s₋,
+/// ι' = (r(1 + ι) − (1 − ι))/(r(1 + ι) + (1 − ι)) and dι'/dι = 4r/(r(1 + ι) + (1 − ι))², so
+/// the standard errors follow from ι's by the delta method ([`Metric::map`]). +∞ (with a NaN
+/// standard error) where ι' = 0.
+pub fn cmrr_db(imbalance: &Metric, responsivity_scale: [f64; 2]) -> Metric {
+    let r = responsivity_scale[0] / responsivity_scale[1];
+    let effective = move |i: f64| (r * (1.0 + i) - (1.0 - i)) / (r * (1.0 + i) + (1.0 - i));
+    let cmrr = move |i: f64| -20.0 * (2.0 * effective(i).abs()).log10();
+    let slope = move |i: f64| {
+        let denom = r * (1.0 + i) + (1.0 - i);
+        -20.0 / std::f64::consts::LN_10 * (4.0 * r / (denom * denom)) / effective(i)
+    };
+    imbalance.map(cmrr, slope)
+}
 
 /// The traced metrics of one bench (the order of [`METRICS`]).
 #[derive(Debug, Clone, PartialEq)]
@@ -234,6 +269,29 @@ mod tests {
         let e = ratio_estimate(&a.iter().copied().zip(s).collect::<Vec<_>>());
         assert_eq!(r.value, e.value);
         assert!((r.stderr() - e.stderr).abs() < 1e-14);
+    }
+
+    #[test]
+    fn cmrr_includes_the_arms_and_reduces_to_the_electronics() {
+        let n = [10u64; 4];
+        let (a, d) = ([1.0, 1.1, 0.9, 1.0], [1.05, 1.0, 1.1, 0.95]);
+        // Matched arms: the electronics' CMRR, 20·log₁₀(s̄/|s₊ − s₋|).
+        let zero = Metric::total(&n, &[0.0; 4]);
+        let bap_like = 20.0 * (0.5 * (1.0 + 0.97) / 0.03f64).log10();
+        assert!((cmrr_db(&zero, [1.0, 0.97]).value - bap_like).abs() < 1e-9);
+        // An arm that is blind (ι → 1) leaves no rejection: about −6 dB, whatever the diodes.
+        let blind = Metric::ratio(&[0.9996; 4], &[1.0; 4]);
+        assert!((cmrr_db(&blind, [1.0, 1.0]).value + 6.02).abs() < 0.01);
+        // The delta-method slope matches a finite difference.
+        let i = Metric::ratio(&a, &d);
+        let c = cmrr_db(&i, [1.0, 0.98]);
+        let h = 1e-7;
+        let shifted = Metric::exact(i.value + h, 4);
+        let fd = (cmrr_db(&shifted, [1.0, 0.98]).value - c.value) / h;
+        assert!(
+            (c.stderr() - fd.abs() * i.stderr()).abs() < 1e-5 * c.stderr(),
+            "{fd}"
+        );
     }
 
     #[test]

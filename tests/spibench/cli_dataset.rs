@@ -340,7 +340,49 @@ fn patterns_exports_packed_rows_and_mirror_frames() {
     assert_eq!(f0.get_pixel(1, 1).0[0], 0);
     assert_eq!(f0.get_pixel(2, 9).0[0], 0);
     assert_eq!(f1.get_pixel(5, 5).0[0], 0);
-    assert_eq!(std::fs::read_dir(&out).unwrap().count(), 17);
+    // 16 frames, patterns.npy and patterns.json.
+    assert_eq!(std::fs::read_dir(&out).unwrap().count(), 18);
+    let meta = read_json(&out.join("patterns.json"));
+    assert_eq!(meta["family"], "hadamard");
+    assert_eq!(meta["ordering"], "natural");
+    assert_eq!(meta["frames"], 16);
+    assert_eq!(meta["mirrors_per_unit"], 2);
+    assert_eq!(meta["pattern_origin_mirror"], serde_json::json!([2, 1]));
+    assert!(meta["frame_order"].as_str().unwrap().contains("complement"));
+}
+
+/// Without --dmd the frames are the size of the bench's DMD (the built-in bench: 1024 × 768,
+/// the DLP7000 class), and patterns.json says where the size came from.
+#[test]
+fn patterns_default_to_the_benchs_dmd() {
+    let t = TempDir::new("patterns-dmd");
+    let out = t.join("p");
+    ok(&spibench(
+        &[
+            "patterns",
+            "--family",
+            "random",
+            "--units",
+            "4x4",
+            "--ratio",
+            "0.25",
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        &[],
+    ));
+    let f = image::open(out.join("frame_00000.png")).unwrap().to_luma8();
+    assert_eq!(f.dimensions(), (1024, 768));
+    let meta = read_json(&out.join("patterns.json"));
+    assert_eq!(
+        (meta["dmd_columns"].clone(), meta["dmd_rows"].clone()),
+        (1024.into(), 768.into())
+    );
+    assert!(
+        meta["dmd_from"].as_str().unwrap().contains("dmd.columns"),
+        "{meta}"
+    );
+    assert_eq!(meta["seed"], 1);
 }
 
 /// One array of a dataset folder, every shard's rows in sample order.

@@ -158,6 +158,24 @@ fn check_of_the_paper_bench() {
     for d in v["diodes"].as_array().unwrap() {
         assert!(d["numerical_aperture"].as_f64().unwrap() > 0.0, "{d}");
     }
+    // The pose is the file's (the collimator's vertex at (0, 0, 520) mm), not the mean of its
+    // outline points (which sat at x = 0.272, z = 517.34 mm).
+    let c = v["elements"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|e| e["name"] == "collimator")
+        .unwrap();
+    assert_eq!(c["position_m"], serde_json::json!([0.0, 0.0, 0.52]), "{c}");
+    let line = stdout(&o)
+        .lines()
+        .find(|l| l.trim_start().starts_with("collimator"))
+        .unwrap()
+        .to_string();
+    assert!(
+        line.contains("position (0.000, 0.000, 520.000) mm"),
+        "{line}"
+    );
     // Without --out: the same report, no files.
     let before: Vec<_> = std::fs::read_dir(&tmp.0).unwrap().flatten().collect();
     let o = spibench(&["check", scene.to_str().unwrap()], &[]);

@@ -282,3 +282,104 @@ fn reconstruct_zero_one_handlings() {
         psnr[0]
     );
 }
+
+/// A truth is scored on its own range: the same object on [0, 1] and on its 8-bit scale gets
+/// the same PSNR and MSSIM (before, the [0, 1] truth was scored with peak 255: about 48 dB
+/// more), the summary and the output say which range was used, `--data-range` overrides it,
+/// and a truth far narrower than the declared range draws a warning.
+#[test]
+fn reconstruct_scores_on_the_truths_range() {
+    let dir = TempDir::new("rec-range");
+    let (_, pp, yp, xp) = problem(&dir, false);
+    let x = npy::read(&xp).unwrap().to_f64();
+    let unit = dir.join("x01.npy");
+    npy::write_f64(
+        &unit,
+        &[32, 32],
+        &x.iter().map(|v| v / 255.0).collect::<Vec<_>>(),
+    )
+    .unwrap();
+    let run = |truth: &std::path::Path, name: &str, extra: &[&str]| {
+        let out = dir.join(name);
+        let mut a = vec![
+            "reconstruct",
+            "--patterns",
+            pp.to_str().unwrap(),
+            "--measurements",
+            yp.to_str().unwrap(),
+            "--size",
+            "32x32",
+            "--maxit",
+            "40",
+            "--truth",
+            truth.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ];
+        a.extend_from_slice(extra);
+        let o = spibench(&a, &[]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        (read_json(&out.join("summary.json")), o)
+    };
+    let (a, oa) = run(&xp, "a", &[]);
+    let (b, _) = run(&unit, "b", &[]);
+    let (pa, pb) = (
+        a["psnr_db"].as_f64().unwrap(),
+        b["psnr_db"].as_f64().unwrap(),
+    );
+    assert!((pa - pb).abs() < 1e-6, "{pa} dB vs {pb} dB");
+    let (ma, mb) = (a["mssim"].as_f64().unwrap(), b["mssim"].as_f64().unwrap());
+    assert!((ma - mb).abs() < 1e-6, "{ma} vs {mb}");
+    assert_eq!(b["data_range_from"], "truth");
+    assert!((b["data_range"]["hi"].as_f64().unwrap() - 200.0 / 255.0).abs() < 1e-12);
+    assert!(stdout(&oa).contains("data range [20, 200] from the truth's own min and max"));
+    // The old scale, now asked for explicitly: peak 255 on a truth spanning 180.
+    let (c, oc) = run(&xp, "c", &["--data-range", "0:255"]);
+    let pc = c["psnr_db"].as_f64().unwrap();
+    // 20·log₁₀(255/180) = 3.03 dB from the peak, less what the wider clip lets through.
+    let gain = 20.0 * (255.0f64 / 180.0).log10();
+    assert!(pc - pa > 1.0 && pc - pa < gain + 1e-6, "{pc} vs {pa}");
+    assert_eq!(c["data_range_from"], "--data-range");
+    // A [0, 1] truth against a declared 0:255 range is flagged.
+    let (_, od) = run(&unit, "d", &["--data-range", "255"]);
+    assert!(
+        stderr(&od).contains("under a quarter of the data range"),
+        "{}",
+        stderr(&od)
+    );
+    assert!(
+        !stderr(&oc).contains("warning: the truth spans ["),
+        "{}",
+        stderr(&oc)
+    );
+}
+
+/// A truth whose shape is not the image's is an input error even when it holds W·H values.
+#[test]
+fn reconstruct_rejects_a_truth_of_another_shape() {
+    let dir = TempDir::new("rec-shape");
+    let (_, pp, yp, xp) = problem(&dir, false);
+    let x = npy::read(&xp).unwrap().to_f64();
+    let out = dir.join("out");
+    for (name, shape) in [("stack.npy", vec![4, 16, 16]), ("wide.npy", vec![16, 64])] {
+        let t = dir.join(name);
+        npy::write_f64(&t, &shape, &x).unwrap();
+        let o = spibench(
+            &[
+                "reconstruct",
+                "--patterns",
+                pp.to_str().unwrap(),
+                "--measurements",
+                yp.to_str().unwrap(),
+                "--size",
+                "32x32",
+                "--truth",
+                t.to_str().unwrap(),
+                "--out",
+                out.to_str().unwrap(),
+            ],
+            &[],
+        );
+        assert_input_error(&o, &[name, "shape", "[32, 32]"], &out);
+    }
+}

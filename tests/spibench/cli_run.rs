@@ -107,6 +107,10 @@ fn run_writes_every_output_identically_on_one_and_two_threads() {
     for f in &files {
         assert!(a.join(f).is_file(), "missing {f}");
     }
+    // Without --repeats, no repeat statistics (one repeat has no spread).
+    for f in ["repeats.json", "repeats.csv", "mssim_vs_frames.svg"] {
+        assert!(!a.join(f).exists(), "{f} written without --repeats");
+    }
     // report.html: one self-contained page whose images are all embedded.
     let html = std::fs::read_to_string(a.join("report.html")).expect("report.html");
     assert!(
@@ -123,6 +127,18 @@ fn run_writes_every_output_identically_on_one_and_two_threads() {
     for section in ["Flux ledger", "Signals", "Reconstructions", "Settings"] {
         assert!(html.contains(section), "report.html lacks {section}");
     }
+    // Each solve says what stopped it (not a bare "(cap)" after fewer iterations than the cap),
+    // and the bench's CMRR with the arms stands beside the electronics' alone.
+    assert!(!html.contains("(cap)"), "report.html still says (cap)");
+    assert!(html.contains("TVAL3&#39;s stops:"));
+    assert!(html.contains("CMRR of the bench") && html.contains("CMRR of the electronics alone"));
+    let summary = read_json(&a.join("summary.json"));
+    let e = &summary["electronics"];
+    assert!(
+        e["cmrr_db"].is_number() && e["cmrr_electronics_db"].is_number(),
+        "{e}"
+    );
+    assert_ne!(e["cmrr_db"], e["cmrr_electronics_db"], "{e}");
     let sa = read_json(&a.join("summary.json"));
     let sb = read_json(&b.join("summary.json"));
     assert_eq!(without_timings(sa.clone()), without_timings(sb));

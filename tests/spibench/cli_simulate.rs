@@ -155,6 +155,22 @@ fn sampling_ratio_out_of_range_is_rejected() {
     }
 }
 
+/// A regularisation weight TVAL3 cannot use is an input error naming the field (before, a
+/// beta of 5e-324 ran to non-finite iterates and exited 1).
+#[test]
+fn a_weight_the_solver_cannot_use_is_an_input_error() {
+    let dir = TempDir::new("sim-weight");
+    let file = dir.join("bad.ron");
+    std::fs::write(
+        &file,
+        SMALL.replace("solver: (tol: 1e-4,", "solver: (beta: 5e-324, tol: 1e-4,"),
+    )
+    .unwrap();
+    let out = dir.join("out");
+    let o = simulate(&file, &out, &[]);
+    assert_input_error(&o, &["bad.ron", "solver.beta", "5e-324"], &out);
+}
+
 #[test]
 fn missing_experiment_and_missing_object_file() {
     let dir = TempDir::new("sim-missing");

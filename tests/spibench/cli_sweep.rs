@@ -146,6 +146,9 @@ fn two_dimensional_sweeps_and_bad_paths() {
 /// again when the two baselines joined the default schemes (the paper's four results were
 /// checked identical to the previous pin; only `settings.schemes` and `sequences` grew), and
 /// when the offset-aware double-arm joined them (the first 48 results identical; 8 appended).
+/// Edited (two values) when `electronics.cmrr_db` came to include the arms' k± (30.33 dB, the
+/// electronics alone, now `cmrr_electronics_db`; 30.58 dB with the arms) and the resolution
+/// criterion to require significance against the noise (every read-out unchanged).
 #[test]
 fn run_summary_of_the_default_bench_is_pinned() {
     let dir = TempDir::new("run-pin");

@@ -187,6 +187,41 @@ fn bad_tolerance_input_is_located() {
     assert_input_error(&o, &["decenter_mm.q"], &out);
 }
 
+/// `align` checks its counts, both bounds of every free variable and the start before the
+/// first trace, naming the flag or the field (before, `--max-evaluations 0` ran 4
+/// evaluations, `--start-rays 0` became 4096 and a bound outside a field's range was found
+/// only if the simplex visited it).
+#[test]
+fn align_checks_its_arguments_before_tracing() {
+    let dir = TempDir::new("align-args");
+    let bench = scene("tests/symmetric_arms.ron");
+    let out = dir.join("out");
+    let align = |extra: &[&str]| {
+        let mut a = vec!["align", bench.as_str(), "--rays", "4096"];
+        a.extend_from_slice(extra);
+        a.extend_from_slice(&["--out", out.to_str().unwrap()]);
+        spibench(&a, &[])
+    };
+    let x = "detectors.minus.decenter_mm.x=-2:2";
+    let o = align(&["--free", x, "--max-evaluations", "0"]);
+    assert_input_error(&o, &["--max-evaluations", "at least 3"], &out);
+    let o = align(&["--free", x, "--start-rays", "0"]);
+    assert_input_error(&o, &["--start-rays", "2048"], &out);
+    let o = align(&["--free", x, "--start-rays", "8192"]);
+    assert_input_error(&o, &["--start-rays", "4096"], &out);
+    // A bound the bench refuses, at either end (the fill factor lies in (0, 1]).
+    for (free, end) in [
+        ("dmd.fill_factor=-0.5:0.95", "LO bound"),
+        ("dmd.fill_factor=0.5:1.5", "HI bound"),
+    ] {
+        let o = align(&["--free", free]);
+        assert_input_error(&o, &["dmd.fill_factor", end], &out);
+    }
+    // A start outside the bounds.
+    let o = align(&["--free", "detectors.minus.diameter_mm=6:8"]);
+    assert_input_error(&o, &["--free", "outside the bounds 6:8"], &out);
+}
+
 /// `align` writes the aligned bench (readable by `check`), the history and the report.
 #[test]
 fn align_writes_its_outputs() {
@@ -226,6 +261,14 @@ fn align_writes_its_outputs() {
     crate::outputs_schema::check_file(&out.join("summary.json"), "AlignSummary");
     let s = read_json(&out.join("summary.json"));
     assert!(s["aligned"]["k_prime_diff_stderr"].is_number());
+    // The start after --set counted from the file, the stop reason, the comparison.
+    let f = &s["free"][0];
+    assert_eq!(f["start_from_file"], 1.0, "{f}");
+    assert!(
+        s["stop_reason"].is_string() && s["candidates"][0]["diff"] == 0.0,
+        "{s}"
+    );
+    assert_eq!(s["objective_terms"][0]["name"], "−k'/k'_start");
     let o = spibench(&["check", out.join("aligned.ron").to_str().unwrap()], &[]);
     assert!(o.status.success(), "{}", stderr(&o));
 }
