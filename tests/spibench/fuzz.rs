@@ -377,7 +377,7 @@ fn mutants_through_the_cli_exit_0_or_2_with_finite_summaries() {
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
 
-/// 300 mutants of the shipped tolerance file (checked against the paper bench) and 150 of the
+/// 1000 mutants of the shipped tolerance file (checked against the paper bench) and 600 of the
 /// shipped dataset spec, in-process: no panic, every error an input error naming the file, and
 /// every accepted file holding finite, ordered values only.
 #[test]
@@ -390,7 +390,8 @@ fn mutants_of_tolerance_files_and_dataset_specs_end_in_input_errors() {
     let rel = "scenes/tolerances/paper_bench.ron";
     let (text, path) = (shipped(rel), root.join(rel));
     let is_metric = spibench::pipeline::evaluate::is_metric;
-    for i in 0..300u64 {
+    let mut accepted = [0usize; 2];
+    for i in 0..1000u64 {
         let m = mutant(&text, 200, i);
         let r = catch_unwind(AssertUnwindSafe(|| {
             ToleranceSet::parse(&m, &path, &doc, &is_metric)
@@ -402,6 +403,7 @@ fn mutants_of_tolerance_files_and_dataset_specs_end_in_input_errors() {
             }
             Ok(Err(_)) => {}
             Ok(Ok(set)) => {
+                accepted[0] += 1;
                 let ranges_ok = set.tolerances.iter().all(|t| {
                     t.min.is_finite()
                         && t.max.is_finite()
@@ -426,7 +428,7 @@ fn mutants_of_tolerance_files_and_dataset_specs_end_in_input_errors() {
     }
     let rel = "scenes/dataset_example.ron";
     let (text, path) = (shipped(rel), root.join(rel));
-    for i in 0..150u64 {
+    for i in 0..600u64 {
         let m = mutant(&text, 300, i);
         let r = catch_unwind(AssertUnwindSafe(|| parse_dataset(&m, &path)));
         match r {
@@ -436,6 +438,7 @@ fn mutants_of_tolerance_files_and_dataset_specs_end_in_input_errors() {
             }
             Ok(Err(_)) => {}
             Ok(Ok(spec)) => {
+                accepted[1] += 1;
                 let f = &spec.file;
                 let ok = f.samples >= 1
                     && f.shard_samples >= 1
@@ -453,6 +456,13 @@ fn mutants_of_tolerance_files_and_dataset_specs_end_in_input_errors() {
             }
         }
     }
+    eprintln!(
+        "fuzz: {} of 1000 tolerance files and {} of 600 dataset specs accepted",
+        accepted[0], accepted[1]
+    );
+    // Some mutants (a changed comment, a valid new number) must get through, or the test checks
+    // nothing but the parser.
+    assert!(accepted[0] > 0 && accepted[1] > 0, "{accepted:?}");
     assert!(
         failures.is_empty(),
         "{} of the mutants broke the rules:\n{}",
@@ -482,7 +492,7 @@ const ARG_VALUES: [&str; 15] = [
     "dmd.tilt_deg=0:1:18446744073709551615",
 ];
 
-/// Every command's arguments mutated one at a time through the binary (four mutants of each
+/// Every command's arguments mutated one at a time through the binary (six mutants of each
 /// value-taking argument of a cheap valid command line): exit 0 or 2 only, never a panic or
 /// an abort, an exit-2 message that names an argument or a file, nothing left behind after
 /// exit 2, and no NaN in a summary after exit 0.
@@ -594,10 +604,11 @@ fn mutated_command_line_arguments_exit_0_or_2() {
     ];
     let mut failures = Vec::new();
     let mut n = 0;
+    let mut exits = [0usize; 2];
     for (c, (line, slots)) in commands.iter().enumerate() {
         for &slot in slots {
             let mut rng = Mix::new(400 + c as u64, slot as u64);
-            for _ in 0..4 {
+            for _ in 0..6 {
                 let value = ARG_VALUES[rng.below(ARG_VALUES.len())];
                 let mut args = line.clone();
                 args[slot] = value;
@@ -608,6 +619,9 @@ fn mutated_command_line_arguments_exit_0_or_2() {
                 let o = spibench(&a, &[("RAYON_NUM_THREADS", "1")]);
                 let err = String::from_utf8_lossy(&o.stderr).into_owned();
                 let what = format!("`spibench {}`", args.join(" "));
+                if let Some(c @ (0 | 2)) = o.status.code() {
+                    exits[c as usize / 2] += 1;
+                }
                 match o.status.code() {
                     Some(0) => {
                         let s =
@@ -635,5 +649,10 @@ fn mutated_command_line_arguments_exit_0_or_2() {
             failures.push(format!("{name} left behind"));
         }
     }
+    eprintln!(
+        "fuzz: {n} command lines, {} exit 0, {} exit 2",
+        exits[0], exits[1]
+    );
+    assert!(exits[0] > 0 && exits[1] > 0, "{exits:?}");
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
