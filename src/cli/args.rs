@@ -139,7 +139,8 @@ impl WorkArgs {
             (work.bytes, MAX_WORK_BYTES, "bytes written", ""),
         ]
         .into_iter()
-        .find(|(v, max, _, _)| !(*v <= *max));
+        // NaN counts as over the limit.
+        .find(|(v, max, _, _)| v.partial_cmp(max) != Some(std::cmp::Ordering::Less) && v != max);
         match over {
             None => Ok(()),
             Some((v, max, unit, note)) => Err(crate::Error::field(

@@ -594,13 +594,13 @@ fn validate(f: ExperimentFile, base_dir: &Path) -> Result<Experiment> {
             ));
         }
     }
-    if let Some(m) = &f.montage {
-        if m.rows == m.columns {
-            return Err(Error::field(
-                "montage.columns",
-                "montage rows and columns must be different axes",
-            ));
-        }
+    if let Some(m) = &f.montage
+        && m.rows == m.columns
+    {
+        return Err(Error::field(
+            "montage.columns",
+            "montage rows and columns must be different axes",
+        ));
     }
     for (i, c) in f.curves.iter().enumerate() {
         let ok = !c.name.is_empty()
