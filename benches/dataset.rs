@@ -16,7 +16,7 @@ use std::time::Instant;
 use rayon::prelude::*;
 use spibench::dataset::{Prepared, generate, shard_range};
 use spibench::detector::RecordModel;
-use spibench::scene::bench::{ChartPatternSpec, ElementSpec, LengthMm, SpectrumSpec};
+use spibench::scene::bench::{ChartPatternSpec, ElementSpec, Finite, LengthMm, SpectrumSpec};
 use spibench::scene::dataset::parse_dataset;
 use spibench::scene::doc::BenchDoc;
 use spibench::trace::{TraceOptions, trace};
@@ -112,8 +112,8 @@ fn main() {
                     height_mm: LengthMm(7.88),
                 };
                 *center_on = None;
-                *chrome_od = SpectrumSpec::Constant(10.0);
-                *chrome_reflectance = SpectrumSpec::Constant(0.0);
+                *chrome_od = SpectrumSpec::Constant(Finite(10.0));
+                *chrome_reflectance = SpectrumSpec::Constant(Finite(0.0));
             }
         }
         let bench = d.build().unwrap();

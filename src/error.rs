@@ -71,6 +71,15 @@ impl Error {
         Error::input(message).at_field(field)
     }
 
+    /// The message alone, without its location (another error's text when this one is not an
+    /// input error): for an error that a caller relocates to a field of its own.
+    pub fn message(&self) -> String {
+        match self {
+            Error::Input { message, .. } => message.clone(),
+            other => other.to_string(),
+        }
+    }
+
     pub fn in_file(mut self, path: &Path) -> Self {
         if let Error::Input { location, .. } = &mut self
             && location.file.is_none()

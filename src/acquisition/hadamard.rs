@@ -102,20 +102,22 @@ impl HadamardOrdering {
     }
 }
 
-/// Checks that `side` has a Sylvester basis and returns m = log2(side).
+/// Checks that `side` has a Sylvester basis and returns m = log2(side). Errors name the field
+/// `patterns` (the pattern family the user chose), not the side, which no file or flag spells
+/// so; a caller whose grid comes from a flag renames it (`--units`).
 pub fn check_side(side: usize) -> Result<u32> {
     if side == 0 {
         return Err(Error::field(
-            "side",
-            "a Hadamard pattern set needs at least 1×1 units, got side 0",
+            "patterns",
+            "a Hadamard pattern set needs at least 1×1 units, got a grid side of 0",
         ));
     }
     if !side.is_power_of_two() {
         return Err(Error::field(
-            "side",
+            "patterns",
             format!(
                 "Hadamard patterns exist only for power-of-two sides (Sylvester construction), \
-                 got {side}; sizes such as 48 and 96 have no Sylvester Hadamard basis, so use \
+                 got a {side}×{side} unit grid; sizes such as 48 and 96 have no Sylvester Hadamard basis, so use \
                  random patterns for them or pick a side such as {} or {}",
                 side.next_power_of_two() / 2,
                 side.next_power_of_two()
@@ -125,7 +127,7 @@ pub fn check_side(side: usize) -> Result<u32> {
     match side.checked_mul(side) {
         Some(n) if n <= MAX_UNITS => Ok(side.trailing_zeros()),
         _ => Err(Error::field(
-            "side",
+            "patterns",
             format!(
                 "a {side}×{side} Hadamard pattern set is absurdly large (more than {MAX_UNITS} \
                  units); the largest supported side is {}",
@@ -454,7 +456,7 @@ mod tests {
             let e = hadamard_order(side, HadamardOrdering::Walsh).unwrap_err();
             assert!(e.is_user_error());
             let s = e.to_string();
-            assert!(s.contains("field `side`"), "{s}");
+            assert!(s.contains("field `patterns`"), "{s}");
             if side != 0 {
                 assert!(s.contains("power-of-two") && s.contains("random"), "{s}");
             }

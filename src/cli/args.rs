@@ -1,6 +1,7 @@
 //! The arguments the bench commands share, declared once: the scene, `--set PATH=VALUE`,
 //! `--rays N`, `--seed S`, `--out DIR` ([`BenchArgs`], [`RunOpts`]) and `--shard I/N`
-//! ([`Shard`]), each with one validation.
+//! ([`Shard`]), each with one validation, and `--allow-large` ([`WorkArgs`]): the one switch over
+//! the limits on a command's total work ([`Work`]).
 //!
 //! Each command keeps its own defaults and ray range: it sets the defaults on its flags with
 //! `mut_arg` (so that `--help` shows them) and checks `--rays` against its own minimum with
@@ -88,6 +89,72 @@ impl BenchArgs {
     }
 }
 
+/// The most work a command starts without `--allow-large`: traced lamp rays in all (10¹⁰, about
+/// a day on two cores, as one trace's own cap [`MAX_RAYS`]).
+pub const MAX_WORK_RAYS: f64 = 1e10;
+/// The most dataset samples one run makes without `--allow-large` (10⁷: about three hours at the
+/// 1 000 samples/s of `cargo bench --bench dataset`).
+pub const MAX_WORK_SAMPLES: f64 = 1e7;
+/// The most bytes one run writes without `--allow-large` (100 GB, a dataset's own default
+/// `max_disk_gb`).
+pub const MAX_WORK_BYTES: f64 = 1e11;
+
+/// `--allow-large`: the one switch that lifts the limits on a command's total work. Each
+/// count of a command has its own cap, but their product (trials × traces × rays, grid points ×
+/// rays, samples, bytes) is what takes the time: the commands that multiply counts estimate
+/// it with [`Work`] before they start and refuse above the limits unless this flag is given.
+#[derive(Debug, Clone, Copy, Default, Args)]
+pub struct WorkArgs {
+    /// Start even when the estimated work exceeds the limits (10¹⁰ traced rays in all, 10⁷
+    /// dataset samples, 10¹¹ bytes written); without it such a run is refused with its estimate.
+    #[arg(long)]
+    pub allow_large: bool,
+}
+
+/// A command's estimated total work, as the product of the counts that make it (`what`, for
+/// the message: "1000000 trials × up to 31 traces × 200000 rays").
+#[derive(Debug, Clone, Default)]
+pub struct Work {
+    pub rays: f64,
+    pub samples: f64,
+    pub bytes: f64,
+    pub what: String,
+}
+
+impl WorkArgs {
+    /// Refuses `work` above the limits (an input error naming the estimate, the limit and
+    /// `--allow-large`), unless `--allow-large` was given.
+    pub fn check(&self, work: &Work) -> crate::Result<()> {
+        if self.allow_large {
+            return Ok(());
+        }
+        let over = [
+            (
+                work.rays,
+                MAX_WORK_RAYS,
+                "traced rays",
+                " (about a day on two cores)",
+            ),
+            (work.samples, MAX_WORK_SAMPLES, "samples", ""),
+            (work.bytes, MAX_WORK_BYTES, "bytes written", ""),
+        ]
+        .into_iter()
+        // NaN counts as over the limit.
+        .find(|(v, max, _, _)| v.partial_cmp(max) != Some(std::cmp::Ordering::Less) && v != max);
+        match over {
+            None => Ok(()),
+            Some((v, max, unit, note)) => Err(crate::Error::field(
+                "--allow-large",
+                format!(
+                    "this run would make about {v:.2e} {unit} ({}), above the limit of {max:.0e} \
+                     {unit}{note}: lower the counts, or pass --allow-large to start it anyway",
+                    work.what
+                ),
+            )),
+        }
+    }
+}
+
 /// `--shard I/N`: part I (0-based) of N of a run's work, for running the parts as separate
 /// processes and merging them. The two commands split the work differently, and say so in
 /// their help: `tolerance` takes the trials i ≡ I (mod N) ([`Shard::strided`]: every part
@@ -171,6 +238,39 @@ mod tests {
             .map(|i| Shard { index: i, count: 3 }.block(10))
             .collect();
         assert_eq!(ends, [(0, 3), (3, 6), (6, 10)]);
+    }
+
+    #[test]
+    fn work_above_a_limit_is_refused_with_its_estimate() {
+        let small = Work {
+            rays: 1e9,
+            what: "10 points × 1e8 rays".into(),
+            ..Work::default()
+        };
+        assert!(WorkArgs::default().check(&small).is_ok());
+        let big = Work {
+            rays: 2e14,
+            what: "100 × 100 points × 1e10 rays".into(),
+            ..Work::default()
+        };
+        let e = WorkArgs::default().check(&big).unwrap_err();
+        let m = e.to_string();
+        assert!(e.is_user_error(), "{m}");
+        for f in [
+            "2.00e14 traced rays",
+            "100 × 100 points",
+            "--allow-large",
+            "1e10",
+        ] {
+            assert!(m.contains(f), "{m} lacks {f}");
+        }
+        let nan = Work {
+            bytes: f64::NAN,
+            ..Work::default()
+        };
+        assert!(WorkArgs::default().check(&nan).is_err());
+        let allowed = WorkArgs { allow_large: true };
+        assert!(allowed.check(&big).is_ok());
     }
 
     #[test]

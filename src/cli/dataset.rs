@@ -24,6 +24,36 @@ pub struct DatasetArgs {
     /// Merge these dataset folders (the jobs of a sharded run) into --out.
     #[arg(long, num_args = 1..)]
     pub merge: Vec<PathBuf>,
+    #[command(flatten)]
+    pub work: crate::cli::args::WorkArgs,
+}
+
+/// The work of this job of the dataset: its samples, and the kernels it traces (one for a
+/// nominal dataset; one per drawn bench of its samples, besides their compensators' traces).
+fn work(
+    spec: &crate::scene::dataset::DatasetSpec,
+    job: Option<crate::cli::args::Shard>,
+) -> crate::cli::args::Work {
+    let f = &spec.file;
+    let shards = f.samples.div_ceil(f.shard_samples);
+    let (a, b) = job.map_or((0, shards), |j| j.block(shards));
+    let (first, end) = (a * f.shard_samples, (b * f.shard_samples).min(f.samples));
+    let samples = end.saturating_sub(first);
+    let kernels = match &f.benches {
+        crate::scene::dataset::BenchesSpec::Tolerance {
+            samples_per_bench, ..
+        } if samples > 0 => (end - 1) / samples_per_bench - first / samples_per_bench + 1,
+        _ => 1,
+    };
+    crate::cli::args::Work {
+        rays: kernels as f64 * f.kernel.rays as f64,
+        samples: samples as f64,
+        bytes: 0.0,
+        what: format!(
+            "{samples} samples through {kernels} kernel(s) of {} rays",
+            f.kernel.rays
+        ),
+    }
 }
 
 pub fn run(args: &DatasetArgs) -> anyhow::Result<()> {
@@ -60,6 +90,9 @@ pub fn run(args: &DatasetArgs) -> anyhow::Result<()> {
     };
     let job = crate::cli::args::Shard::parse_opt(args.shard.as_deref())?;
     let spec = read_dataset(spec_path)?;
+    // Above the limits, refused before the kernel is traced (the disk a dataset needs is
+    // checked against its spec's `max_disk_gb` when it is prepared).
+    args.work.check(&work(&spec, job))?;
     // The folder is locked before the kernel is traced, so that a second run into it (a
     // `--resume` while the first still writes) stops at once.
     let lock = FolderLock::acquire(&args.out)?;

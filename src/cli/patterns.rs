@@ -3,7 +3,7 @@
 //! the DMD of the bench, 1024 × 768 for the built-in one), and `patterns.json`, which says
 //! what they are (family, ordering, units, ratio, mirrors per unit, frame order).
 
-use std::io::BufWriter;
+use std::io::{BufWriter, Write};
 use std::path::PathBuf;
 
 use anyhow::Context;
@@ -57,6 +57,8 @@ pub struct PatternsArgs {
     pub scene: Option<PathBuf>,
     #[arg(long, default_value = "out/patterns")]
     pub out: PathBuf,
+    #[command(flatten)]
+    pub work: crate::cli::args::WorkArgs,
 }
 
 fn size(s: &str, what: &str) -> Result<(usize, usize), Error> {
@@ -70,21 +72,38 @@ fn size(s: &str, what: &str) -> Result<(usize, usize), Error> {
     Ok((w, h))
 }
 
-/// Rows packed as `numpy.packbits(P, axis=1)` does (most significant bit first).
-fn pack(rows: &[Vec<bool>]) -> Vec<u8> {
-    let mut out = Vec::new();
-    for r in rows {
-        for chunk in r.chunks(8) {
-            let mut b = 0u8;
-            for (k, &v) in chunk.iter().enumerate() {
-                if v {
-                    b |= 0x80 >> k;
-                }
+/// One packed row, MSB first, as `numpy.packbits` writes it: bit j of `len` from `bit(j)`.
+fn pack_row(len: usize, bit: impl Fn(usize) -> bool, out: &mut Vec<u8>) {
+    for start in (0..len).step_by(8) {
+        let mut b = 0u8;
+        for k in 0..8.min(len - start) {
+            if bit(start + k) {
+                b |= 0x80 >> k;
             }
-            out.push(b);
         }
+        out.push(b);
     }
-    out
+}
+
+/// The sizes of a pattern set on a DMD, checked before anything is allocated: units of
+/// `k` × `k` mirrors (the products checked, so that a huge `--mirrors-per-unit` cannot wrap)
+/// that fit the DMD, at most the pattern module's `MAX_UNITS` units.
+fn check_sizes(w: usize, h: usize, k: usize, dw: usize, dh: usize) -> Result<(), Error> {
+    let fits = |units: usize, mirrors: usize| units.checked_mul(k).is_some_and(|m| m <= mirrors);
+    if k == 0 || !fits(w, dw) || !fits(h, dh) {
+        return Err(Error::field(
+            "--mirrors-per-unit",
+            format!("{w}×{h} units of {k}×{k} mirrors do not fit on a {dw}×{dh} DMD"),
+        ));
+    }
+    let max = crate::acquisition::patterns::MAX_UNITS;
+    if w.checked_mul(h).is_none_or(|n| n > max) {
+        return Err(Error::field(
+            "--units",
+            format!("{w}×{h} units is more than the {max} units a pattern set may have"),
+        ));
+    }
+    Ok(())
 }
 
 /// `patterns.json`: what the frames are, for whoever loads them into a DMD controller.
@@ -142,15 +161,11 @@ pub fn run(args: &PatternsArgs) -> anyhow::Result<()> {
     let (w, h) = size(&args.units, "--units")?;
     let ((dw, dh), dmd_from) = dmd_size(args)?;
     let k = args.mirrors_per_unit;
-    if k == 0 || w * k > dw || h * k > dh {
-        return Err(Error::field(
-            "--mirrors-per-unit",
-            format!("{w}×{h} units of {k}×{k} mirrors do not fit on a {dw}×{dh} DMD"),
-        )
-        .into());
-    }
+    check_sizes(w, h, k, dw, dh)?;
     if !(args.ratio > 0.0 && args.ratio <= 1.0) {
-        return Err(Error::field("--ratio", "must lie in (0, 1]").into());
+        return Err(
+            Error::field("--ratio", format!("must lie in (0, 1], got {}", args.ratio)).into(),
+        );
     }
     let family = match args.family {
         FamilyArg::Random => PatternFamily::Random { seed: args.seed },
@@ -163,22 +178,36 @@ pub fn run(args: &PatternsArgs) -> anyhow::Result<()> {
             },
         },
     };
-    let m = patterns_for_ratio(args.ratio, w * h);
-    let set = family.build(w, h, m)?;
+    let units = w * h;
+    let m = patterns_for_ratio(args.ratio, units);
+    let frames = if args.complement { 2 * m } else { m };
+    // The bytes written: the packed array, and every frame at one bit per mirror (before the
+    // PNG's compression), estimated before the patterns are built.
+    let row_bytes = units.div_ceil(8);
+    args.work.check(&crate::cli::args::Work {
+        bytes: frames as f64 * (row_bytes as f64 + dw.div_ceil(8) as f64 * dh as f64),
+        what: format!("{frames} frames of {dw}×{dh} mirrors, and their packed array"),
+        ..Default::default()
+    })?;
+    let set = family.build(w, h, m).map_err(|e| match e {
+        Error::Input { .. } => Error::field("--units", e.message()),
+        other => other,
+    })?;
     let bits = set.base_patterns();
-    let mut frames: Vec<Vec<bool>> = Vec::new();
-    for i in 0..m {
-        let p: Vec<bool> = (0..w * h).map(|j| bits.get(i, j)).collect();
+    // Frame f shows base pattern f (or f/2, complemented when f is odd, with --complement).
+    let frame_bit = |f: usize, j: usize| {
         if args.complement {
-            let c = p.iter().map(|v| !v).collect();
-            frames.push(p);
-            frames.push(c);
+            bits.get(f / 2, j) != (f % 2 == 1)
         } else {
-            frames.push(p);
+            bits.get(f, j)
         }
-    }
+    };
     let out = OutputDir::create(&args.out)?;
-    let npy = crate::report::npy::encode_u8(&[frames.len(), (w * h).div_ceil(8)], &pack(&frames));
+    let mut packed = Vec::with_capacity(frames * row_bytes);
+    for f in 0..frames {
+        pack_row(units, |j| frame_bit(f, j), &mut packed);
+    }
+    let npy = crate::report::npy::encode_u8(&[frames, row_bytes], &packed);
     std::fs::write(out.path("patterns.npy"), npy).context("writing patterns.npy")?;
     let (x0, y0) = ((dw - w * k) / 2, (dh - h * k) / 2);
     let meta = PatternsMeta {
@@ -203,7 +232,7 @@ pub fn run(args: &PatternsArgs) -> anyhow::Result<()> {
         unit_order: "row-major: unit j = row · units_across + column, row 0 at the top",
         ratio: args.ratio,
         base_patterns: m,
-        frames: frames.len(),
+        frames,
         frame_order: if args.complement {
             "base pattern i, then its complement, for i = 0, 1, …"
         } else {
@@ -219,42 +248,44 @@ pub fn run(args: &PatternsArgs) -> anyhow::Result<()> {
             "patterns.npy".into(),
             format!(
                 "frame_00000.png … frame_{:05}.png",
-                frames.len().saturating_sub(1)
+                frames.saturating_sub(1)
             ),
         ],
     };
     let json = serde_json::to_string_pretty(&meta)
         .map_err(|e| Error::Numerical(format!("cannot encode patterns.json: {e}")))?;
     std::fs::write(out.path("patterns.json"), json + "\n").context("writing patterns.json")?;
-    for (f, p) in frames.iter().enumerate() {
-        // Unit j = row·w + col covers mirrors [x0 + col·k, +k) × [y0 + row·k, +k).
-        let rows: Vec<Vec<bool>> = (0..dh)
-            .map(|y| {
-                (0..dw)
-                    .map(|x| {
-                        x >= x0
-                            && x < x0 + w * k
-                            && y >= y0
-                            && y < y0 + h * k
-                            && p[((y - y0) / k) * w + (x - x0) / k]
-                    })
-                    .collect()
-            })
-            .collect();
+    let mut row = Vec::with_capacity(dw.div_ceil(8));
+    for f in 0..frames {
         let path = out.path(&format!("frame_{f:05}.png"));
         let file = std::fs::File::create(&path).with_context(|| format!("{}", path.display()))?;
         let mut enc = png::Encoder::new(BufWriter::new(file), dw as u32, dh as u32);
         enc.set_color(png::ColorType::Grayscale);
         enc.set_depth(png::BitDepth::One);
         let mut writer = enc.write_header().context("PNG header")?;
-        writer.write_image_data(&pack(&rows)).context("PNG data")?;
-        writer.finish().context("PNG end")?;
+        // Row by row, so that a frame of any size needs one row of memory. Unit j = row·w + col
+        // covers mirrors [x0 + col·k, +k) × [y0 + row·k, +k).
+        let mut stream = writer.stream_writer().context("PNG data")?;
+        for y in 0..dh {
+            row.clear();
+            let inside_y = y >= y0 && y < y0 + h * k;
+            pack_row(
+                dw,
+                |x| {
+                    inside_y
+                        && x >= x0
+                        && x < x0 + w * k
+                        && frame_bit(f, ((y - y0) / k) * w + (x - x0) / k)
+                },
+                &mut row,
+            );
+            stream.write_all(&row).context("PNG data")?;
+        }
+        stream.finish().context("PNG end")?;
     }
     let dir = out.commit()?;
     println!(
-        "{} frames ({} base patterns, {}) of {w}×{h} units at {dw}×{dh} mirrors → {}",
-        frames.len(),
-        m,
+        "{frames} frames ({m} base patterns, {}) of {w}×{h} units at {dw}×{dh} mirrors → {}",
         family.label(),
         dir.display()
     );

@@ -44,6 +44,8 @@ pub struct SweepArgs {
     /// point, with the bench's `run` settings.
     #[arg(long)]
     pub quality: bool,
+    #[command(flatten)]
+    pub work: super::args::WorkArgs,
 }
 
 /// `sweep`'s default ray count per point (also set on the flag, for `--help`).
@@ -122,6 +124,16 @@ pub fn run(args: &SweepArgs) -> Result<()> {
         .iter()
         .map(|v| doc.get(&v.path))
         .collect::<crate::Result<_>>()?;
+    let grid: Vec<String> = vary.iter().map(|v| v.n.to_string()).collect();
+    let traces = vary.iter().map(|v| v.n as f64).product::<f64>() + 1.0;
+    args.work.check(&super::args::Work {
+        rays: traces * rays as f64,
+        what: format!(
+            "{} points and the nominal bench × {rays} rays",
+            grid.join(" × ")
+        ),
+        ..Default::default()
+    })?;
     let out = OutputDir::create(&opts.out_or("out/sweep"))?;
     let options = SweepOptions {
         rays,

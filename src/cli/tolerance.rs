@@ -73,6 +73,8 @@ pub struct ToleranceArgs {
     /// Merge the output folders of the shards of one run into DIR (no tracing).
     #[arg(long, value_name = "DIR", num_args = 1..)]
     pub merge: Vec<PathBuf>,
+    #[command(flatten)]
+    pub work: super::args::WorkArgs,
 }
 
 /// The most trials one run may have.
@@ -137,8 +139,31 @@ pub fn run(args: &ToleranceArgs) -> Result<()> {
         quality: args.quality,
     };
     if o.quality {
-        // The run settings must be valid before the first trace.
-        doc.run_scene()?;
+        // The run settings must be valid before the first trace, and the file's quality limits
+        // must name scores this run records (else their yields would be empty).
+        let settings = doc.run_scene()?.settings;
+        let percents: Vec<u32> = settings
+            .sampling_ratios
+            .iter()
+            .map(|r| (r * 100.0).round() as u32)
+            .collect();
+        let keys: Vec<String> = settings
+            .schemes
+            .iter()
+            .flat_map(|s| {
+                settings
+                    .sampling_ratios
+                    .iter()
+                    .map(|r| crate::pipeline::evaluate::quality_key(s.key(), *r))
+            })
+            .collect();
+        let is_score = |m: &str| {
+            keys.iter().any(|k| {
+                m.strip_prefix(k.as_str())
+                    .is_some_and(|rest| ["_mssim", "_psnr_db", "_finest_lp_per_mm"].contains(&rest))
+            })
+        };
+        set.check_quality(&tol_text, &percents, &is_score)?;
     }
     if let Some(k) = args.trial {
         let out = OutputDir::create(&opts.out_or("out/tolerance"))?;
@@ -162,6 +187,8 @@ pub fn run(args: &ToleranceArgs) -> Result<()> {
         println!("wrote {}", dir.join(file).display());
         return Ok(());
     }
+    args.work
+        .check(&work(&set, args.trials, shard, rays, resolve.as_ref()))?;
     let out = OutputDir::create(&opts.out_or("out/tolerance"))?;
     // A trial whose perturbed bench is not valid is not an input error: it is recorded as a
     // failed trial (a built bench that does not work).
@@ -272,6 +299,50 @@ fn read_shard_record(dir: &Path) -> crate::Result<(PathBuf, String)> {
     let text = String::from_utf8(bytes)
         .map_err(|_| crate::Error::input("the record is not UTF-8 text").in_file(&rec))?;
     Ok((rec, text))
+}
+
+/// The rays a tolerance run may trace at most: the nominal bench; on shard 0 the sensitivity
+/// table (each tolerance at both ends, and with `--resolve` each end and the nominal bench again
+/// at up to `--max-rays`); and each trial of this shard, once and through its compensators
+/// (each objective's group adjusted by at most 60 evaluations at up to a quarter of the rays:
+/// `pipeline::perturb`).
+fn work(
+    set: &ToleranceSet,
+    trials: u64,
+    shard: super::args::Shard,
+    rays: u64,
+    resolve: Option<&crate::tolerance::Resolve>,
+) -> super::args::Work {
+    let r = rays as f64;
+    let ends = 2.0 * set.tolerances.len() as f64;
+    let sensitivity = if shard.index == 0 {
+        ends * r + resolve.map_or(0.0, |v| 2.0 * ends * v.max_rays as f64)
+    } else {
+        0.0
+    };
+    let groups = [
+        crate::scene::tolerance::CompensatorObjective::Balance,
+        crate::scene::tolerance::CompensatorObjective::Power,
+    ]
+    .iter()
+    .filter(|o| set.compensators.iter().any(|c| c.objective == **o))
+    .count() as f64;
+    let per_trial = 1.0 + 15.0 * groups;
+    // The trials i ≡ I (mod N) below `trials`.
+    let mine = trials.saturating_sub(shard.index).div_ceil(shard.count) as f64;
+    super::args::Work {
+        rays: r + sensitivity + mine * per_trial * r,
+        what: format!(
+            "{mine} trials × up to {per_trial} traces × {rays} rays, and {ends} sensitivity \
+             traces{}",
+            if resolve.is_some() {
+                " with --resolve"
+            } else {
+                ""
+            }
+        ),
+        ..Default::default()
+    }
 }
 
 fn run_merge(args: &ToleranceArgs) -> Result<()> {

@@ -307,7 +307,7 @@ impl Prepared {
             .patterns
             .build(w, h, patterns_for_ratio(r_max, units))
             .map_err(|e| match spec.patterns() {
-                Some(_) => spec.error("patterns", e.to_string()),
+                Some(_) => spec.error("patterns", e.message()),
                 None => e,
             })?;
         let disk_gb = spec.file.max_disk_gb.unwrap_or(100.0);

@@ -31,11 +31,39 @@ use crate::acquisition::Scheme;
 use crate::error::{Error, Result};
 use crate::raster::Raster;
 use crate::scene::locate;
+use crate::scene::numbers::{Count, Positive, Ratio, checked, via};
 
 /// The largest object grid side (pixels).
 pub const MAX_GRID_SIDE: usize = 1024;
 /// The largest kernel trace (rays).
 pub const MAX_KERNEL_RAYS: u64 = 10_000_000_000;
+/// The smallest kernel trace (rays): two batches of the trace (`trace::RAYS_PER_BATCH` = 1024
+/// rays each), so that every kernel entry has a standard error. With one batch the standard
+/// errors are 0/0: a kernel of 1 ray wrote NaN into its manifest.
+pub const MIN_KERNEL_RAYS: u64 = 2048;
+
+/// The kernel trace's rays, as read.
+pub type KernelRays = Count<MIN_KERNEL_RAYS, MAX_KERNEL_RAYS>;
+/// A sample count (of a dataset, a shard or a bench), as read: at most 10⁹.
+pub type SampleCount = Count<1, 1_000_000_000>;
+/// An object grid side (pixels), as read.
+pub type GridSide = Count<1, { MAX_GRID_SIDE as u64 }>;
+
+checked!(
+    /// The chart field (mm) a kernel grid covers, one side: in (0, 1000] mm.
+    FieldMm,
+    above 0.0,
+    at_most 1000.0,
+    |v| format!("the field needs a positive size of at most 1000 mm, got {v:e}")
+);
+
+checked!(
+    /// A USAF field width (mm) of random USAF objects: in (0, 100] mm.
+    UsafFieldMm,
+    above 0.0,
+    at_most 100.0,
+    |v| format!("a USAF field must lie in (0, 100] mm, got {v:e}")
+);
 
 /// A dataset spec as written.
 #[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
@@ -54,15 +82,17 @@ pub struct DatasetFile {
     pub acquisition: Option<AcquisitionSpec>,
     /// Seed of the objects and the noise: sample s depends on (seed, s) alone.
     pub seed: u64,
+    #[serde(deserialize_with = "via::<SampleCount, _, _>")]
     pub samples: u64,
     /// Samples per shard (a shard's arrays are `.npy` files of this many rows).
+    #[serde(deserialize_with = "via::<SampleCount, _, _>")]
     pub shard_samples: u64,
     /// What is written besides the measurements, objects, k± and b±.
     #[serde(default)]
     pub write: WriteSpec,
     /// The most the dataset may occupy on disk (GB, default 100): a larger request is an input
     /// error before anything is written.
-    #[serde(default)]
+    #[serde(default, deserialize_with = "via::<Option<Positive>, _, _>")]
     pub max_disk_gb: Option<f64>,
     /// How the detector outputs are recorded (default `Frames`).
     #[serde(default)]
@@ -109,6 +139,7 @@ pub enum BenchesSpec {
     /// its own.
     Tolerance {
         file: String,
+        #[serde(deserialize_with = "via::<SampleCount, _, _>")]
         samples_per_bench: u64,
     },
 }
@@ -117,11 +148,14 @@ pub enum BenchesSpec {
 #[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct KernelSpec {
+    #[serde(deserialize_with = "via::<KernelRays, _, _>")]
     pub rays: u64,
     pub seed: u64,
     /// Object grid (pixels across, down): may be finer than the DMD units.
+    #[serde(deserialize_with = "via::<(GridSide, GridSide), _, _>")]
     pub grid_px: (usize, usize),
     /// The chart field the grid covers (mm), centred on the chart's `position_mm`.
+    #[serde(deserialize_with = "via::<(FieldMm, FieldMm), _, _>")]
     pub field_mm: (f64, f64),
     /// The chart element (default: the bench's only chart).
     #[serde(default)]
@@ -149,19 +183,25 @@ pub enum ObjectsSpec {
     /// The 1951 USAF chart at a random scale (field widths from `min_field_mm` to
     /// `max_field_mm`) and a random offset (up to half the field).
     Usaf {
+        #[serde(deserialize_with = "via::<UsafFieldMm, _, _>")]
         min_field_mm: f64,
+        #[serde(deserialize_with = "via::<UsafFieldMm, _, _>")]
         max_field_mm: f64,
     },
     /// The modified Shepp–Logan phantom.
     Phantom,
     /// 1 to `max_count` random rectangles of random transmittance on black.
-    Rectangles { max_count: usize },
+    Rectangles {
+        #[serde(deserialize_with = "via::<Count<1, 1000>, _, _>")]
+        max_count: usize,
+    },
 }
 
 #[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct AcquisitionSpec {
     pub schemes: Vec<Scheme>,
+    #[serde(deserialize_with = "via::<Vec<Ratio>, _, _>")]
     pub ratios: Vec<f64>,
     /// The pattern family and ordering, `Random(seed: S)` or `Hadamard(ordering: O)` (default:
     /// the bench's `run:` section).
@@ -177,7 +217,10 @@ pub struct WriteSpec {
     pub patterns: bool,
     /// Also write, per sample, the oscilloscope's record of the first `scope_frames` frames of
     /// each sequence, sample by sample (at most 100 frames).
-    #[serde(default)]
+    #[serde(
+        default,
+        deserialize_with = "via::<Count<0, { MAX_SCOPE_FRAMES as u64 }>, _, _>"
+    )]
     pub scope_frames: usize,
     /// Also reconstruct every (scheme, ratio) with the bench's TVAL3 settings, and write the
     /// reconstructions, the object's image on the DMD units they are scored against, and their
@@ -236,33 +279,12 @@ pub fn parse_dataset(text: &str, path: &Path) -> Result<DatasetSpec> {
         locate::at(e, text, locate::first_key(text, field))
     };
     let base = path.parent().unwrap_or(Path::new("."));
-    if file.samples == 0 {
-        return Err(err("samples", "a dataset needs at least one sample".into()));
-    }
-    if file.shard_samples == 0 {
-        return Err(err(
-            "shard_samples",
-            "a shard needs at least one sample".into(),
-        ));
-    }
-    if file.samples > 1_000_000_000 {
-        return Err(err("samples", "more than 10⁹ samples is absurd".into()));
-    }
     if let Some(e) = &file.electronics {
         crate::scene::run::electronics_si(e, Some(text), path)?;
     }
     let tolerance_path = match &file.benches {
         BenchesSpec::Nominal => None,
-        BenchesSpec::Tolerance {
-            file: tol,
-            samples_per_bench,
-        } => {
-            if *samples_per_bench == 0 {
-                return Err(err(
-                    "samples_per_bench",
-                    "a bench serves at least one sample".into(),
-                ));
-            }
+        BenchesSpec::Tolerance { file: tol, .. } => {
             let p = base.join(tol);
             if !p.is_file() {
                 return Err(err(
@@ -273,51 +295,14 @@ pub fn parse_dataset(text: &str, path: &Path) -> Result<DatasetSpec> {
             Some(p)
         }
     };
-    let k = &file.kernel;
-    if k.rays == 0 || k.rays > MAX_KERNEL_RAYS {
-        return Err(err(
-            "rays",
-            format!("the kernel trace needs 1 to {MAX_KERNEL_RAYS} rays"),
-        ));
-    }
-    let (gw, gh) = k.grid_px;
-    if gw == 0 || gh == 0 || gw > MAX_GRID_SIDE || gh > MAX_GRID_SIDE {
-        return Err(err(
-            "grid_px",
-            format!("the object grid needs 1 to {MAX_GRID_SIDE} pixels a side, got {gw}×{gh}"),
-        ));
-    }
-    let (fw, fh) = k.field_mm;
-    if !(fw.is_finite() && fh.is_finite() && fw > 0.0 && fh > 0.0 && fw <= 1000.0 && fh <= 1000.0) {
-        return Err(err(
-            "field_mm",
-            "the field needs a positive size of at most 1000 mm".into(),
-        ));
-    }
+    let (gw, gh) = file.kernel.grid_px;
     if let Some(a) = &file.acquisition {
         if a.schemes.is_empty() {
             return Err(err("schemes", "name at least one scheme".into()));
         }
-        if a.ratios.is_empty() || a.ratios.iter().any(|r| !(*r > 0.0 && *r <= 1.0)) {
-            return Err(err(
-                "ratios",
-                "sampling ratios must be in (0, 1], at least one".into(),
-            ));
+        if a.ratios.is_empty() {
+            return Err(err("ratios", "name at least one sampling ratio".into()));
         }
-    }
-    if file.write.scope_frames > MAX_SCOPE_FRAMES {
-        return Err(err(
-            "scope_frames",
-            format!(
-                "at most {MAX_SCOPE_FRAMES} frames of oscilloscope record per sample, got {}",
-                file.write.scope_frames
-            ),
-        ));
-    }
-    if let Some(gb) = file.max_disk_gb
-        && !(gb.is_finite() && gb > 0.0)
-    {
-        return Err(err("max_disk_gb", "must be a positive number of GB".into()));
     }
     let fit = |img: &Raster, name: &str, rule: FitRule| -> Result<()> {
         if rule == FitRule::RandomCrop && (img.width < gw || img.height < gh) {
@@ -404,10 +389,10 @@ pub fn parse_dataset(text: &str, path: &Path) -> Result<DatasetSpec> {
             min_field_mm,
             max_field_mm,
         } => {
-            if !(*min_field_mm > 0.0 && max_field_mm >= min_field_mm && *max_field_mm <= 100.0) {
+            if max_field_mm < min_field_mm {
                 return Err(err(
                     "min_field_mm",
-                    "USAF fields need 0 < min_field_mm ≤ max_field_mm ≤ 100".into(),
+                    "USAF fields need min_field_mm ≤ max_field_mm".into(),
                 ));
             }
             ObjectSource::Usaf {
@@ -416,14 +401,9 @@ pub fn parse_dataset(text: &str, path: &Path) -> Result<DatasetSpec> {
             }
         }
         ObjectsSpec::Phantom => ObjectSource::Phantom,
-        ObjectsSpec::Rectangles { max_count } => {
-            if *max_count == 0 || *max_count > 1000 {
-                return Err(err("max_count", "between 1 and 1000 rectangles".into()));
-            }
-            ObjectSource::Rectangles {
-                max_count: *max_count,
-            }
-        }
+        ObjectsSpec::Rectangles { max_count } => ObjectSource::Rectangles {
+            max_count: *max_count,
+        },
     };
     Ok(DatasetSpec {
         bench_path: base.join(&file.bench),

@@ -28,6 +28,33 @@ use crate::objects::ObjectSpec;
 use crate::reconstruction::ZeroOneHandling;
 use crate::reconstruction::tval3::Tval3Options;
 use crate::scene::locate;
+use crate::scene::numbers::{Count, Positive, checked, via};
+
+/// An image side in pattern units (the product of the two is checked against [`MAX_UNITS`]).
+pub type Side = Count<1, { MAX_UNITS as u64 }>;
+
+checked!(
+    /// A DMD pattern rate (Hz): positive and at most [`MAX_DMD_RATE_HZ`].
+    DmdRateHz,
+    above 0.0,
+    at_most MAX_DMD_RATE_HZ,
+    |v| format!("the DMD rate must be positive and at most {MAX_DMD_RATE_HZ:e} Hz, got {v:e}")
+);
+
+checked!(
+    /// An arm gain k± (dimensionless): positive and at most [`MAX_ARM_GAIN`].
+    ArmGain,
+    above 0.0,
+    at_most MAX_ARM_GAIN,
+    |v| format!("an arm gain must be finite, > 0 and at most {MAX_ARM_GAIN:e}, got {v:e}")
+);
+
+checked!(
+    /// An arm offset b± (grey levels summed over units): within ±[`MAX_ARM_OFFSET`].
+    ArmOffset,
+    |v| v.abs() <= MAX_ARM_OFFSET,
+    |v| format!("an arm offset must lie within ±{MAX_ARM_OFFSET:e} grey levels, got {v:e}")
+);
 
 /// The largest image an experiment may ask for, in pattern units (a 1024×1024 grid: the whole
 /// DMD at one mirror per unit). Larger grids are almost certainly a typing error.
@@ -53,8 +80,10 @@ pub struct ExperimentFile {
     /// Shown on plots and montages.
     pub title: String,
     /// Image width in pattern units (pixels of the reconstruction).
+    #[serde(deserialize_with = "via::<Side, _, _>")]
     pub width: usize,
     /// Image height in pattern units.
+    #[serde(deserialize_with = "via::<Side, _, _>")]
     pub height: usize,
     /// The objects, each with a short name used in file names.
     pub objects: Vec<ObjectEntry>,
@@ -74,7 +103,10 @@ pub struct ExperimentFile {
     #[serde(default)]
     pub zero_one: ZeroOneHandling,
     /// DMD binary pattern rate used for acquisition times, Hz (22 727 Hz = 44 µs frames).
-    #[serde(default = "default_dmd_rate")]
+    #[serde(
+        default = "default_dmd_rate",
+        deserialize_with = "via::<DmdRateHz, _, _>"
+    )]
     pub dmd_rate_hz: f64,
     /// Seed of the noise streams (one stream per cell).
     #[serde(default)]
@@ -155,9 +187,13 @@ pub struct ArmsSpec(pub ScalarArms);
 #[derive(Debug, Clone, Copy, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct ArmsFields {
+    #[serde(deserialize_with = "via::<ArmGain, _, _>")]
     pub k_plus: f64,
+    #[serde(deserialize_with = "via::<ArmGain, _, _>")]
     pub k_minus: f64,
+    #[serde(deserialize_with = "via::<ArmOffset, _, _>")]
     pub b_plus: f64,
+    #[serde(deserialize_with = "via::<ArmOffset, _, _>")]
     pub b_minus: f64,
 }
 
@@ -244,7 +280,10 @@ pub struct MontageSpec {
     pub rows: Axis,
     pub columns: Axis,
     /// Side of one tile in screen pixels.
-    #[serde(default = "default_tile_px")]
+    #[serde(
+        default = "default_tile_px",
+        deserialize_with = "via::<Count<1, 1024>, _, _>"
+    )]
     pub tile_px: u32,
 }
 
@@ -275,9 +314,9 @@ pub struct CurveSpec {
     pub name: String,
     pub x: CurveX,
     pub metric: Metric,
-    #[serde(default)]
+    #[serde(default, deserialize_with = "via::<Option<Ratio>, _, _>")]
     pub at_ratio: Option<f64>,
-    #[serde(default)]
+    #[serde(default, deserialize_with = "via::<Option<Positive>, _, _>")]
     pub at_k_prime: Option<f64>,
     /// Plot x on a logarithmic axis.
     #[serde(default)]
@@ -406,13 +445,64 @@ fn locate(e: Error, text: &str, path: &Path) -> Error {
     e
 }
 
-fn validate(f: ExperimentFile, base_dir: &Path) -> Result<Experiment> {
-    if f.width == 0 || f.height == 0 {
+/// A curve's `at_ratio` must be one of the sampling ratios and its `at_k_prime` the k' of a case
+/// (as `simulation::curve` matches them): otherwise the curve has no point, and the plot failed
+/// after the whole simulation, naming a file of the output folder.
+fn check_curves(f: &ExperimentFile) -> Result<()> {
+    const MATCH: f64 = 1e-9;
+    for (i, c) in f.curves.iter().enumerate() {
+        if let Some(r) = c.at_ratio
+            && !f.sampling_ratios.iter().any(|s| (s.0 - r).abs() < MATCH)
+        {
+            return Err(Error::field(
+                format!("curves[{i}].at_ratio"),
+                format!("{r} is not one of the sampling ratios: the curve would have no point"),
+            ));
+        }
+        if let Some(k) = c.at_k_prime
+            && !f
+                .cases
+                .iter()
+                .any(|cs| (cs.arms.0.k_plus + cs.arms.0.k_minus - k).abs() < MATCH)
+        {
+            return Err(Error::field(
+                format!("curves[{i}].at_k_prime"),
+                format!("{k} is not the k' = k₊ + k₋ of any case: the curve would have no point"),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Random patterns for the highest sampling ratio must fit the pattern store
+/// (`acquisition::patterns::MAX_RANDOM_BITS`). Checked here, so that the error names the
+/// ratios and the image size the user wrote, not a field `measurements` that no file has (it
+/// was located at line 1).
+fn check_pattern_sizes(f: &ExperimentFile) -> Result<()> {
+    use crate::acquisition::patterns::{MAX_RANDOM_BITS, patterns_for_ratio};
+    if !matches!(f.patterns, PatternsSpec::Random { .. }) {
+        return Ok(());
+    }
+    let n = f.width * f.height;
+    let r = f.sampling_ratios.iter().map(|r| r.0).fold(0.0, f64::max);
+    let m = patterns_for_ratio(r, n);
+    if m.saturating_mul(n) > MAX_RANDOM_BITS {
         return Err(Error::field(
-            if f.width == 0 { "width" } else { "height" },
-            format!("the image must have pixels, got {}×{}", f.width, f.height),
+            "sampling_ratios",
+            format!(
+                "{m} random patterns of {}×{} units (ratio {r}) would take {:.1} GiB of bits \
+                 (limit {} GiB): lower the ratio or the image size",
+                f.width,
+                f.height,
+                m as f64 * n as f64 / 8.0 / (1u64 << 30) as f64,
+                MAX_RANDOM_BITS >> 33
+            ),
         ));
     }
+    Ok(())
+}
+
+fn validate(f: ExperimentFile, base_dir: &Path) -> Result<Experiment> {
     if f.width.saturating_mul(f.height) > MAX_UNITS {
         return Err(Error::field(
             "width",
@@ -470,15 +560,6 @@ fn validate(f: ExperimentFile, base_dir: &Path) -> Result<Experiment> {
             noise: c.noise.map(|n| n.0),
         });
     }
-    if !(f.dmd_rate_hz.is_finite() && f.dmd_rate_hz > 0.0 && f.dmd_rate_hz <= MAX_DMD_RATE_HZ) {
-        return Err(Error::field(
-            "dmd_rate_hz",
-            format!(
-                "the DMD rate must be positive and at most {MAX_DMD_RATE_HZ:e} Hz, got {}",
-                f.dmd_rate_hz
-            ),
-        ));
-    }
     f.solver.validate().map_err(|e| e.within("solver"))?;
     for (name, n) in [("maxit", f.solver.maxit), ("maxcnt", f.solver.maxcnt)] {
         if n > MAX_SOLVER_ITERATIONS {
@@ -488,14 +569,15 @@ fn validate(f: ExperimentFile, base_dir: &Path) -> Result<Experiment> {
             ));
         }
     }
-    for (i, c) in f.curves.iter().enumerate() {
-        for (name, v) in [("at_ratio", c.at_ratio), ("at_k_prime", c.at_k_prime)] {
-            if let Some(v) = v
-                && !v.is_finite()
-            {
+    check_curves(&f)?;
+    check_pattern_sizes(&f)?;
+    for (i, o) in f.objects.iter().enumerate() {
+        if let ObjectSpec::File { path } = &o.object {
+            let full = base_dir.join(path);
+            if !full.is_file() {
                 return Err(Error::field(
-                    format!("curves[{i}].{name}"),
-                    format!("must be a finite number, got {v}"),
+                    format!("objects[{i}].object"),
+                    format!("no image file {}", full.display()),
                 ));
             }
         }
@@ -512,19 +594,13 @@ fn validate(f: ExperimentFile, base_dir: &Path) -> Result<Experiment> {
             ));
         }
     }
-    if let Some(m) = &f.montage {
-        if m.rows == m.columns {
-            return Err(Error::field(
-                "montage.columns",
-                "montage rows and columns must be different axes",
-            ));
-        }
-        if m.tile_px == 0 || m.tile_px > 1024 {
-            return Err(Error::field(
-                "montage.tile_px",
-                format!("tile_px must be 1..=1024, got {}", m.tile_px),
-            ));
-        }
+    if let Some(m) = &f.montage
+        && m.rows == m.columns
+    {
+        return Err(Error::field(
+            "montage.columns",
+            "montage rows and columns must be different axes",
+        ));
     }
     for (i, c) in f.curves.iter().enumerate() {
         let ok = !c.name.is_empty()

@@ -225,6 +225,141 @@ mod tests {
         assert!(find_path(text, "cases[2].label").is_none());
     }
 
+    /// Every number of every input file is read through a checked type: a field of a
+    /// `Deserialize` type in `scene` may not hold a bare `f64` or integer unless it is read
+    /// `via` a checked type (`deserialize_with = "via::<…>"`), is a seed (any value is valid), or
+    /// its whole type is built by `try_from` a checked form. The records spibench writes for its
+    /// own merges (tolerance shards) hold results, not input, and are listed here by name.
+    #[test]
+    fn input_files_hold_no_bare_numbers() {
+        const RECORDS: [&str; 3] = ["ShardFile", "TrialRecord", "SensitivityRecord"];
+        const BARE: [&str; 14] = [
+            "f32", "f64", "u8", "u16", "u32", "u64", "u128", "usize", "i8", "i16", "i32", "i64",
+            "i128", "isize",
+        ];
+        let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("src/scene");
+        let mut files = Vec::new();
+        let mut dirs = vec![root];
+        while let Some(d) = dirs.pop() {
+            for e in std::fs::read_dir(&d).unwrap().flatten() {
+                let p = e.path();
+                if p.is_dir() {
+                    dirs.push(p);
+                } else if p.extension().is_some_and(|x| x == "rs") {
+                    files.push(p);
+                }
+            }
+        }
+        files.sort();
+        let mut bad = Vec::new();
+        let mut scanned = 0;
+        for f in &files {
+            let text = std::fs::read_to_string(f).unwrap();
+            // Unit tests below `#[cfg(test)]` declare types of their own.
+            let lines: Vec<&str> = text
+                .lines()
+                .take_while(|l| l.trim() != "#[cfg(test)]")
+                .collect();
+            let mut i = 0;
+            while i < lines.len() {
+                let l = lines[i].trim();
+                if !(l.starts_with("#[derive(") && l.contains("Deserialize")) {
+                    i += 1;
+                    continue;
+                }
+                // The item's attributes, then its head line.
+                let mut whole_checked = false;
+                i += 1;
+                while i < lines.len()
+                    && !lines[i].contains("struct ")
+                    && !lines[i].contains("enum ")
+                {
+                    whole_checked |= lines[i].contains("try_from");
+                    i += 1;
+                }
+                let Some(head) = lines.get(i) else { break };
+                let name = head
+                    .split_whitespace()
+                    .skip_while(|w| *w != "struct" && *w != "enum")
+                    .nth(1)
+                    .unwrap_or("")
+                    .trim_end_matches(['{', '(', ';'])
+                    .split('<')
+                    .next()
+                    .unwrap_or("")
+                    .to_string();
+                if whole_checked || RECORDS.contains(&name.as_str()) || !head.contains('{') {
+                    i += 1;
+                    continue;
+                }
+                scanned += 1;
+                // The body: up to the brace that closes the head's.
+                let mut depth = 0i32;
+                let mut attrs = String::new();
+                loop {
+                    let line = lines[i];
+                    let code = line.split("//").next().unwrap_or("");
+                    let body_line = depth > 0 || !code.contains('{');
+                    let t = code.trim();
+                    if body_line && depth == 1 {
+                        if t.starts_with("#[") || (!attrs.is_empty() && !attrs.ends_with(']')) {
+                            attrs.push_str(t);
+                        } else if !t.is_empty() {
+                            // A field `name: Type,` or a tuple variant `Name(Type, …),`.
+                            let (field, ty) = match t.split_once(':') {
+                                Some((n, ty)) if !n.contains('(') => (n.trim(), ty),
+                                _ => (t.split('(').next().unwrap_or(t), t),
+                            };
+                            // Const-generic bounds (`{ MAX as u64 }`) are not field types.
+                            let mut ty_clean = String::new();
+                            let mut braces = 0;
+                            for c in ty.chars() {
+                                match c {
+                                    '{' => braces += 1,
+                                    '}' => braces -= 1,
+                                    _ if braces == 0 => ty_clean.push(c),
+                                    _ => {}
+                                }
+                            }
+                            let holds_bare = ty_clean
+                                .split(|c: char| !(c.is_ascii_alphanumeric() || c == '_'))
+                                .any(|w| BARE.contains(&w));
+                            // `Variant { name: Type }` on one line: the field is the last word.
+                            let field = field.rsplit(['{', ' ']).next().unwrap_or(field).trim();
+                            let ok = !holds_bare
+                                || attrs.contains("deserialize_with = \"via::<")
+                                || field == "seed";
+                            if !ok {
+                                let rel = f.strip_prefix(env!("CARGO_MANIFEST_DIR")).unwrap();
+                                bad.push(format!(
+                                    "{}:{}: `{name}.{field}` holds a bare number ({})",
+                                    rel.display(),
+                                    i + 1,
+                                    ty.trim()
+                                ));
+                            }
+                            attrs.clear();
+                        }
+                    }
+                    depth += code.matches('{').count() as i32 - code.matches('}').count() as i32;
+                    i += 1;
+                    if depth <= 0 || i >= lines.len() {
+                        break;
+                    }
+                }
+            }
+        }
+        assert!(
+            scanned > 30,
+            "only {scanned} input types found: is the scan broken?"
+        );
+        assert!(
+            bad.is_empty(),
+            "read these through a checked type of scene::numbers (or `via` one):\n{}",
+            bad.join("\n")
+        );
+    }
+
     #[test]
     fn missing_file_is_a_read_error() {
         let e = read_ron::<Lens>(Path::new("/nonexistent/x.ron")).unwrap_err();

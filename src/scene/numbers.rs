@@ -2,7 +2,11 @@
 //! out of range is refused where it is written and the error carries its line and column.
 //!
 //! Every bounded scalar is declared through [`checked!`], so that a new field of that kind
-//! cannot forget its check; the two checked tuples ([`Mm3`], [`TableNm`]) are written by hand.
+//! cannot forget its check; whole numbers are [`Count`] and [`Whole`], whose bounds are part of
+//! the type (`Count<1, 100_000>`); the two checked tuples ([`Mm3`], [`TableNm`]) are written by
+//! hand. No field of an input file holds a bare `f64` or integer: the test
+//! `input_files_hold_no_bare_numbers` (in `scene`) reads the sources and fails on one, so a new
+//! field cannot skip validation by accident.
 
 use serde::{Deserialize, Serialize};
 
@@ -37,18 +41,27 @@ macro_rules! checked {
     ($(#[$m:meta])* $name:ident, above $lo:expr, at_most $hi:expr, |$v:ident| $msg:expr) => {
         checked!(@type $(#[$m])* $name, |v| v > $lo && v <= $hi, |$v| $msg);
     };
+    ($(#[$m:meta])* $name:ident, |$a:ident| $ok:expr, |$v:ident| $msg:expr) => {
+        checked!(@type $(#[$m])* $name, |$a| $ok, |$v| $msg);
+    };
     ($(#[$m:meta])* $name:ident, from $lo:expr, at_most $hi:expr, |$v:ident| $msg:expr) => {
         checked!(@type $(#[$m])* $name, |v| ($lo..=$hi).contains(&v), |$v| $msg);
     };
     (@type $(#[$m:meta])* $name:ident, |$a:ident| $ok:expr, |$v:ident| $msg:expr) => {
         $(#[$m])*
-        #[derive(Debug, Clone, Copy, PartialEq, Deserialize, Serialize)]
+        #[derive(Debug, Clone, Copy, PartialEq, ::serde::Deserialize, ::serde::Serialize)]
         #[serde(try_from = "f64", into = "f64")]
         pub struct $name(pub f64);
 
         impl From<$name> for f64 {
             fn from(v: $name) -> f64 {
                 v.0
+            }
+        }
+
+        impl $crate::scene::numbers::Plain<f64> for $name {
+            fn plain(self) -> f64 {
+                self.0
             }
         }
 
@@ -65,6 +78,44 @@ macro_rules! checked {
         }
     };
 }
+
+/// A checked value's plain form: the field type a struct keeps when code outside `scene` reads
+/// it as a plain number, while the file is read through the checked type ([`via`]).
+pub trait Plain<T> {
+    fn plain(self) -> T;
+}
+
+impl<A: Plain<X>, B: Plain<Y>, X, Y> Plain<(X, Y)> for (A, B) {
+    fn plain(self) -> (X, Y) {
+        (self.0.plain(), self.1.plain())
+    }
+}
+
+impl<A: Plain<X>, X> Plain<Vec<X>> for Vec<A> {
+    fn plain(self) -> Vec<X> {
+        self.into_iter().map(Plain::plain).collect()
+    }
+}
+
+impl<A: Plain<X>, X> Plain<Option<X>> for Option<A> {
+    fn plain(self) -> Option<X> {
+        self.map(Plain::plain)
+    }
+}
+
+/// Reads a field through its checked type `C` and keeps its plain form `T`:
+/// `#[serde(deserialize_with = "via::<Count<1, 1000>, _, _>")] max_count: usize`. The check
+/// runs while the file is read, so its error carries the line and column like any other.
+pub fn via<'de, C, T, D>(d: D) -> std::result::Result<T, D::Error>
+where
+    C: Deserialize<'de> + Plain<T>,
+    D: serde::Deserializer<'de>,
+{
+    C::deserialize(d).map(Plain::plain)
+}
+
+/// Other modules of `scene` declare their own checked scalars with it (`scene::dataset`).
+pub(crate) use checked;
 
 checked!(
     /// A finite number > 0.
@@ -139,6 +190,212 @@ checked!(
     at_most 2000.0,
     |v| format!("an ambient irradiance must lie in [0, 2000] W/m², got {v}")
 );
+
+checked!(
+    /// A finite number of at most [`MAX_SCALAR`] in magnitude, either sign (a constant of a
+    /// spectrum, a deviation, a limit): the bound keeps every product of such numbers finite.
+    Finite,
+    |v| v.abs() <= MAX_SCALAR,
+    |v| format!("must be a finite number within ±{MAX_SCALAR:e}, got {v:e}")
+);
+
+checked!(
+    /// An angle (degrees) that is an orientation (a polar or azimuth angle, a hinge angle):
+    /// finite and within ±360°.
+    DirectionDeg,
+    |v| v.abs() <= 360.0,
+    |v| format!("must be a finite angle within ±360 degrees, got {v:e}")
+);
+
+checked!(
+    /// An alignment tilt (degrees) of a part about one of its own axes: below 90° in magnitude
+    /// (at 90° the part would lie along its own axis).
+    TiltDeg,
+    |v| v.abs() < 90.0,
+    |v| format!("a tilt must be finite and below 90 degrees in magnitude, got {v:e}")
+);
+
+checked!(
+    /// A signed radius of curvature (mm): non-zero and at most [`MAX_POSITION_MM`] in
+    /// magnitude (a longer radius is flat for any bench: omit it). A radius of 1e308 mm made
+    /// every sag overflow.
+    RadiusMm,
+    |v| v != 0.0 && v.abs() <= MAX_POSITION_MM,
+    |v| format!(
+        "a radius of curvature must be non-zero and at most {MAX_POSITION_MM} mm in magnitude \
+         (omit it for a flat surface), got {v:e}"
+    )
+);
+
+checked!(
+    /// A signed coordinate (mm) within ±[`MAX_POSITION_MM`] (a point on a chart).
+    CoordMm,
+    |v| v.abs() <= MAX_POSITION_MM,
+    |v| format!("must be a finite coordinate within ±{MAX_POSITION_MM} mm, got {v:e}")
+);
+
+checked!(
+    /// An optical density in [0, [`MAX_OD`]]. NaN fails here: it passed a range check on the
+    /// built spectrum (whose minimum and maximum skip NaN) and absorbed every ray.
+    OpticalDensity,
+    from 0.0,
+    at_most MAX_OD,
+    |v| format!("an optical density must lie in [0, {MAX_OD}], got {v:e}")
+);
+
+checked!(
+    /// A wavelength (nm) of the traced band: above 100 nm and at most 20 000 nm.
+    WavelengthNm,
+    above 100.0,
+    at_most 20_000.0,
+    |v| format!("a wavelength must lie in (100, 20000] nm, got {v:e}")
+);
+
+checked!(
+    /// The design wavelength (nm) of a quarter-wave AR coating: in (100, 5000) nm.
+    DesignNm,
+    |v| v > 100.0 && v < 5000.0,
+    |v| format!("the AR design wavelength must be in (100, 5000) nm, got {v:e}")
+);
+
+checked!(
+    /// A probability that leaves some rays to the other strategy: in [0, 1).
+    Probability,
+    |v| (0.0..1.0).contains(&v),
+    |v| format!("must lie in [0, 1), got {v}")
+);
+
+checked!(
+    /// A voltage offset (V) of an output or an oscilloscope channel: within ±1 kV, far beyond
+    /// any amplifier or scope input.
+    OffsetV,
+    |v| v.abs() <= 1e3,
+    |v| format!("offset_v must be a finite number within ±1000 V, got {v:e}")
+);
+
+checked!(
+    /// A number of standard deviations at which a range ends: in (0, 10].
+    Sigmas,
+    above 0.0,
+    at_most 10.0,
+    |v| format!("sigmas (the range's ends in standard deviations) must lie in (0, 10], got {v}")
+);
+
+checked!(
+    /// An MSSIM threshold: in [−1, 1], the range of the index (Wang et al. 2004).
+    Mssim,
+    from -1.0,
+    at_most 1.0,
+    |v| format!("an MSSIM lies in [-1, 1], got {v}")
+);
+
+/// A whole number in `LO ..= HI` (a count, an index, a size), checked while reading like the
+/// scalars above. The bounds are in the type, so a field states its range where it is declared
+/// (`Count<1, 100_000>`), and no count can skip its check or wrap in a product later.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Deserialize, Serialize)]
+#[serde(try_from = "u64", into = "u64")]
+pub struct Count<const LO: u64, const HI: u64>(u64);
+
+impl<const LO: u64, const HI: u64> Count<LO, HI> {
+    /// The largest value the type holds.
+    pub const MAX: u64 = HI;
+
+    /// `v` when it is in range (for defaults and values made in code).
+    pub const fn new(v: u64) -> Self {
+        assert!(v >= LO && v <= HI, "a count out of its type's range");
+        Count(v)
+    }
+
+    pub fn get(self) -> u64 {
+        self.0
+    }
+
+    /// The value as an index or size (every bound here is far below `usize::MAX` on 64-bit).
+    pub fn usize(self) -> usize {
+        self.0 as usize
+    }
+}
+
+impl<const LO: u64, const HI: u64> Plain<u64> for Count<LO, HI> {
+    fn plain(self) -> u64 {
+        self.0
+    }
+}
+
+impl<const LO: u64, const HI: u64> Plain<usize> for Count<LO, HI> {
+    fn plain(self) -> usize {
+        self.usize()
+    }
+}
+
+impl<const LO: u64, const HI: u64> Plain<u32> for Count<LO, HI> {
+    fn plain(self) -> u32 {
+        const {
+            assert!(
+                HI <= u32::MAX as u64,
+                "a Count read as u32 needs bounds within u32"
+            )
+        };
+        self.0 as u32
+    }
+}
+
+impl<const LO: u64, const HI: u64> From<Count<LO, HI>> for u64 {
+    fn from(v: Count<LO, HI>) -> u64 {
+        v.0
+    }
+}
+
+impl<const LO: u64, const HI: u64> TryFrom<u64> for Count<LO, HI> {
+    type Error = String;
+    fn try_from(v: u64) -> std::result::Result<Self, String> {
+        if (LO..=HI).contains(&v) {
+            Ok(Count(v))
+        } else {
+            Err(format!("must be a whole number from {LO} to {HI}, got {v}"))
+        }
+    }
+}
+
+/// A signed whole number in `LO ..= HI` (a USAF group), checked while reading.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Deserialize, Serialize)]
+#[serde(try_from = "i64", into = "i64")]
+pub struct Whole<const LO: i64, const HI: i64>(i64);
+
+impl<const LO: i64, const HI: i64> Whole<LO, HI> {
+    pub fn get(self) -> i64 {
+        self.0
+    }
+}
+
+impl<const LO: i64, const HI: i64> Plain<i32> for Whole<LO, HI> {
+    fn plain(self) -> i32 {
+        const {
+            assert!(
+                LO >= i32::MIN as i64 && HI <= i32::MAX as i64,
+                "a Whole read as i32 needs bounds within i32"
+            )
+        };
+        self.0 as i32
+    }
+}
+
+impl<const LO: i64, const HI: i64> From<Whole<LO, HI>> for i64 {
+    fn from(v: Whole<LO, HI>) -> i64 {
+        v.0
+    }
+}
+
+impl<const LO: i64, const HI: i64> TryFrom<i64> for Whole<LO, HI> {
+    type Error = String;
+    fn try_from(v: i64) -> std::result::Result<Self, String> {
+        if (LO..=HI).contains(&v) {
+            Ok(Whole(v))
+        } else {
+            Err(format!("must be a whole number from {LO} to {HI}, got {v}"))
+        }
+    }
+}
 
 /// A table of (wavelength_nm, value) pairs with strictly increasing wavelengths.
 #[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]

@@ -36,6 +36,7 @@ use crate::reconstruction::tval3::Tval3Options;
 use crate::scene::bench::{BenchFile, NonNegative, Positive, build_bench};
 use crate::scene::experiment::{NoiseSpec, PatternsSpec, Ratio};
 use crate::scene::locate;
+use crate::scene::numbers::{Count, OffsetV, via};
 
 /// Everything `spibench run` needs, validated and in SI.
 #[derive(Debug, Clone)]
@@ -194,6 +195,7 @@ pub struct RfSpec {
     /// Output swing ±V into 50 Ω. Default 3.6 V (docs/bench-facts.md §1.1, L).
     pub swing_50_ohm_v: Positive,
     /// Output offset with no light (V). Default 2 mV ("< ± a few mV", docs/bench-facts.md §1.1, L).
+    #[serde(deserialize_with = "via::<OffsetV, _, _>")]
     pub offset_v: f64,
     /// Default `OnePole(bandwidth_hz: 1e6)`: DC–1 MHz (docs/bench-facts.md §1.1, M).
     pub bandwidth: BandwidthSpec,
@@ -235,6 +237,7 @@ pub struct MonitorSpec {
     /// Output swing ±V into 50 Ω. Default 1.5 V (PDB44x monitor, docs/bench-facts.md §1.2, L here).
     pub swing_50_ohm_v: Positive,
     /// Output offset with no light (V). Default 1 mV (L).
+    #[serde(deserialize_with = "via::<OffsetV, _, _>")]
     pub offset_v: f64,
     /// Default `OnePole(bandwidth_hz: 1e6)`: the PDB4xx fast monitors are DC–1 MHz
     /// (docs/bench-facts.md §1.2, L for the PDB210A).
@@ -272,6 +275,7 @@ pub enum ChannelSpec {
     /// 10 divisions of `volts_per_div` centred on `offset_v`.
     Fixed {
         volts_per_div: Positive,
+        #[serde(deserialize_with = "via::<OffsetV, _, _>")]
         offset_v: f64,
     },
 }
@@ -287,6 +291,7 @@ pub struct ScopeSpec {
     pub sample_rate_hz: Positive,
     /// ADC bits of the recorded samples. Default 16: High Res at ≤ 625 MS/s (docs/bench-facts.md §8,
     /// M/L).
+    #[serde(deserialize_with = "via::<Count<1, 24>, _, _>")]
     pub bits: u32,
     /// Analog bandwidth (Hz). Default 4 GHz (option 6-BW-4000, docs/bench-facts.md §8, M).
     pub analog_bandwidth_hz: Positive,
@@ -335,6 +340,7 @@ pub struct RunSpec {
     pub title: String,
     /// Lamp rays to trace for the transport. Default 2 × 10⁶ (about 7 s on two cores for the
     /// paper bench, which gives k± to about 0.09 % relative standard error).
+    #[serde(deserialize_with = "via::<Count<1, MAX_RAYS>, _, _>")]
     pub rays: u64,
     /// Sampling ratios M/N, each in (0, 1]. Default the paper's Fig. 6: 5, 10, 15, 20, 40, 60,
     /// 80 and 100 %.
@@ -365,6 +371,7 @@ pub struct RunSpec {
     /// TVAL3's own defaults.
     pub solver: Option<Tval3Options>,
     /// Frames of each output kept as sampled signal traces (for plots). Default 6.
+    #[serde(deserialize_with = "via::<Count<0, 1000>, _, _>")]
     pub signal_trace_frames: usize,
 }
 
@@ -501,28 +508,19 @@ fn stage(
     offset_v: f64,
     bandwidth: BandwidthSpec,
     noise: AmplifierNoiseSpec,
-    name: &'static str,
-) -> FieldResult<OutputStage> {
-    if !(offset_v.is_finite() && offset_v.abs() <= MAX_OFFSET_V) {
-        return Err((
-            name,
-            Error::input(format!(
-                "offset_v must be a finite number within ±{MAX_OFFSET_V} V, got {offset_v:e}"
-            )),
-        ));
-    }
+) -> OutputStage {
     let (gain, swing) = match load {
         LoadSpec::HighImpedance => (gains.0, swings.0),
         LoadSpec::FiftyOhm => (gains.1, swings.1),
     };
     let BandwidthSpec::OnePole { bandwidth_hz } = bandwidth;
-    Ok(OutputStage {
+    OutputStage {
         gain_v_per_a: gain,
         swing_v: swing,
         offset_v,
         bandwidth_hz: bandwidth_hz.0,
         input_noise_a_per_rthz: noise.a_per_rthz(),
-    })
+    }
 }
 
 /// The detector section in SI.
@@ -534,9 +532,8 @@ pub fn detector_si(d: &DetectorSpec) -> FieldResult<Bap> {
         d.rf.offset_v,
         d.rf.bandwidth,
         d.rf.noise,
-        "rf",
-    )?;
-    let mon = |m: &MonitorSpec, name: &'static str| {
+    );
+    let mon = |m: &MonitorSpec| {
         stage(
             d.load,
             (m.gain_high_z_v_per_a.0, m.gain_50_ohm_v_per_a.0),
@@ -544,13 +541,9 @@ pub fn detector_si(d: &DetectorSpec) -> FieldResult<Bap> {
             m.offset_v,
             m.bandwidth,
             m.noise,
-            name,
         )
     };
-    let monitors = [
-        mon(&d.monitor_plus, "monitor_plus")?,
-        mon(&d.monitor_minus, "monitor_minus")?,
-    ];
+    let monitors = [mon(&d.monitor_plus), mon(&d.monitor_minus)];
     for (v, f) in [
         (d.responsivity_scale_plus.0, "responsivity_scale_plus"),
         (d.responsivity_scale_minus.0, "responsivity_scale_minus"),
@@ -578,36 +571,15 @@ pub fn detector_si(d: &DetectorSpec) -> FieldResult<Bap> {
 
 /// The oscilloscope section in SI.
 pub fn scope_si(s: &ScopeSpec) -> FieldResult<Scope> {
-    if !(1..=24).contains(&s.bits) {
-        return Err((
-            "bits",
-            Error::input(format!(
-                "an oscilloscope records 1 to 24 bits per sample, got {}",
-                s.bits
-            )),
-        ));
-    }
-    let channel = |c: ChannelSpec, name: &'static str| -> FieldResult<ChannelRange> {
-        match c {
-            ChannelSpec::Auto => Ok(ChannelRange::Auto),
-            ChannelSpec::Fixed {
-                volts_per_div,
-                offset_v,
-            } => {
-                if !(offset_v.is_finite() && offset_v.abs() <= MAX_OFFSET_V) {
-                    return Err((
-                        name,
-                        Error::input(format!(
-                            "offset_v must be a finite number within ±{MAX_OFFSET_V} V"
-                        )),
-                    ));
-                }
-                Ok(ChannelRange::Fixed {
-                    volts_per_div: volts_per_div.0,
-                    offset_v,
-                })
-            }
-        }
+    let channel = |c: ChannelSpec| match c {
+        ChannelSpec::Auto => ChannelRange::Auto,
+        ChannelSpec::Fixed {
+            volts_per_div,
+            offset_v,
+        } => ChannelRange::Fixed {
+            volts_per_div: volts_per_div.0,
+            offset_v,
+        },
     };
     Ok(Scope {
         sample_rate_hz: s.sample_rate_hz.0,
@@ -619,24 +591,15 @@ pub fn scope_si(s: &ScopeSpec) -> FieldResult<Scope> {
             high_res: s.high_res,
         },
         channels: [
-            channel(s.rf, "rf")?,
-            channel(s.monitor_plus, "monitor_plus")?,
-            channel(s.monitor_minus, "monitor_minus")?,
+            channel(s.rf),
+            channel(s.monitor_plus),
+            channel(s.monitor_minus),
         ],
     })
 }
 
 /// The run section in SI.
 pub fn settings_si(r: &RunSpec) -> FieldResult<RunSettings> {
-    if r.rays == 0 || r.rays > MAX_RAYS {
-        return Err((
-            "rays",
-            Error::input(format!(
-                "rays must lie between 1 and {MAX_RAYS}, got {}",
-                r.rays
-            )),
-        ));
-    }
     if r.sampling_ratios.is_empty() {
         return Err((
             "sampling_ratios",
@@ -660,15 +623,6 @@ pub fn settings_si(r: &RunSpec) -> FieldResult<RunSettings> {
         ..Tval3Options::reference()
     });
     solver.validate().map_err(|e| ("solver", e))?;
-    if r.signal_trace_frames > 1000 {
-        return Err((
-            "signal_trace_frames",
-            Error::input(format!(
-                "{} frames of signal traces is too many to plot (at most 1000)",
-                r.signal_trace_frames
-            )),
-        ));
-    }
     let d = &r.drift;
     Ok(RunSettings {
         title: r.title.clone(),

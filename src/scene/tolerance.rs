@@ -33,14 +33,15 @@ use serde::{Deserialize, Serialize};
 
 use crate::error::{Error, Result};
 use crate::scene::doc::BenchDoc;
+use crate::scene::numbers::{Count, Finite, Mssim, NonNegative, Sigmas, via};
 
 /// A range of deviations as written in a file.
 #[derive(Debug, Clone, Copy, PartialEq, Deserialize, Serialize)]
 pub enum RangeSpec {
     /// −h … +h.
-    PlusMinus(f64),
+    PlusMinus(NonNegative),
     /// min … max.
-    Between(f64, f64),
+    Between(Finite, Finite),
 }
 
 /// How a tolerance is distributed over its range.
@@ -50,9 +51,15 @@ pub enum Distribution {
     #[default]
     Uniform,
     /// Normal, centred on the middle of the range, the range's ends at ±`sigmas`·σ.
-    Normal { sigmas: f64 },
+    Normal {
+        #[serde(deserialize_with = "via::<Sigmas, _, _>")]
+        sigmas: f64,
+    },
     /// The same normal, truncated to the range.
-    TruncatedNormal { sigmas: f64 },
+    TruncatedNormal {
+        #[serde(deserialize_with = "via::<Sigmas, _, _>")]
+        sigmas: f64,
+    },
 }
 
 impl Distribution {
@@ -120,12 +127,12 @@ pub struct Limit {
     /// A metric name of the trial rows (`imbalance`, `k_prime`, `leak_plus`, …, or with
     /// `--quality` `SCHEME_RATIO_mssim` such as `scb_40_mssim`).
     pub metric: String,
-    #[serde(default)]
+    #[serde(default, deserialize_with = "via::<Option<Finite>, _, _>")]
     pub min: Option<f64>,
-    #[serde(default)]
+    #[serde(default, deserialize_with = "via::<Option<Finite>, _, _>")]
     pub max: Option<f64>,
     /// |value| ≤ abs_max.
-    #[serde(default)]
+    #[serde(default, deserialize_with = "via::<Option<NonNegative>, _, _>")]
     pub abs_max: Option<f64>,
 }
 
@@ -159,7 +166,9 @@ impl Limit {
 #[serde(deny_unknown_fields)]
 pub struct QualityLimit {
     /// The sampling ratio (%) it applies at; one of the bench's `run` ratios.
+    #[serde(deserialize_with = "via::<Count<1, 100>, _, _>")]
     pub ratio_percent: u32,
+    #[serde(deserialize_with = "via::<Mssim, _, _>")]
     pub min_mssim: f64,
 }
 
@@ -241,16 +250,9 @@ impl ToleranceSet {
         }
         let range = |p: &str, r: RangeSpec| -> Result<(f64, f64)> {
             let (lo, hi) = match r {
-                RangeSpec::PlusMinus(h) => (-h, h),
-                RangeSpec::Between(a, b) => (a, b),
+                RangeSpec::PlusMinus(h) => (-h.0, h.0),
+                RangeSpec::Between(a, b) => (a.0, b.0),
             };
-            if !(lo.is_finite() && hi.is_finite()) {
-                return Err(locate(
-                    p,
-                    "range",
-                    format!("`{p}`: the range must be finite"),
-                ));
-            }
             if lo > hi {
                 return Err(locate(
                     p,
@@ -283,20 +285,6 @@ impl ToleranceSet {
                     &t.path,
                     "path",
                     format!("`{}` is listed twice among the tolerances", t.path),
-                ));
-            }
-            if let Distribution::Normal { sigmas } | Distribution::TruncatedNormal { sigmas } =
-                t.distribution
-                && !(sigmas > 0.0 && sigmas <= 10.0)
-            {
-                return Err(locate(
-                    &t.path,
-                    "sigmas",
-                    format!(
-                        "`{}`: sigmas (the range's ends in standard deviations) must lie in \
-                         (0, 10], got {sigmas}",
-                        t.path
-                    ),
                 ));
             }
             let (min, max) = range(&t.path, t.range)?;
@@ -352,26 +340,18 @@ impl ToleranceSet {
                     format!("the limit on `{}` sets none of min, max, abs_max", l.metric),
                 ));
             }
-            if [l.min, l.max, l.abs_max]
-                .iter()
-                .flatten()
-                .any(|v| !v.is_finite())
+            if let (Some(lo), Some(hi)) = (l.min, l.max)
+                && lo > hi
             {
                 return Err(locate(
                     &l.metric,
                     "limits",
-                    format!("the limit on `{}` must be finite", l.metric),
+                    format!(
+                        "the limit on `{}` has min {lo} > max {hi}: no value can meet it",
+                        l.metric
+                    ),
                 ));
             }
-        }
-        if let Some(q) = spec.quality
-            && !(q.ratio_percent > 0 && q.ratio_percent <= 100 && q.min_mssim.is_finite())
-        {
-            return Err(Error::field(
-                "quality",
-                "ratio_percent must lie in 1..=100 and min_mssim must be finite",
-            )
-            .in_file(path));
         }
         Ok(ToleranceSet {
             path: path.to_path_buf(),
@@ -380,6 +360,59 @@ impl ToleranceSet {
             limits: spec.limits,
             quality: spec.quality,
         })
+    }
+
+    /// Checks the file's image-quality limits against the run that will score them (`--quality`):
+    /// `quality.ratio_percent` must be one of the run's sampling ratios (in per cent), and a limit
+    /// on an image score (`SCHEME_PERCENT_mssim`, `…_psnr_db`, `…_finest_lp_per_mm`) must name a
+    /// score the run records (`is_score`). Either mistake gave an empty yield. `text` is the
+    /// file's text, for the line of the error.
+    pub fn check_quality(
+        &self,
+        text: &str,
+        ratios_percent: &[u32],
+        is_score: &dyn Fn(&str) -> bool,
+    ) -> Result<()> {
+        use crate::scene::locate;
+        if let Some(q) = self.quality
+            && !ratios_percent.contains(&q.ratio_percent)
+        {
+            let list: Vec<String> = ratios_percent.iter().map(|r| r.to_string()).collect();
+            let e = Error::field(
+                "quality.ratio_percent",
+                format!(
+                    "{} % is not one of the run's sampling ratios ({} %, the bench's \
+                     `run.sampling_ratios`): no trial would be scored there",
+                    q.ratio_percent,
+                    list.join(", ")
+                ),
+            )
+            .in_file(&self.path);
+            return Err(locate::at(
+                e,
+                text,
+                locate::first_key(text, "ratio_percent"),
+            ));
+        }
+        let scored = ["_mssim", "_psnr_db", "_finest_lp_per_mm"];
+        for l in &self.limits {
+            if scored.iter().any(|s| l.metric.ends_with(s)) && !is_score(&l.metric) {
+                let example = ratios_percent.first().map_or(String::new(), |r| {
+                    format!(", e.g. `secondary_complementary_balancing_{r}_mssim`")
+                });
+                let e = Error::field(
+                    "limits.metric",
+                    format!(
+                        "`{}` is not an image score this run records (SCHEME_PERCENT_mssim with \
+                         one of the run's schemes and sampling ratios{example})",
+                        l.metric
+                    ),
+                )
+                .in_file(&self.path);
+                return Err(locate::at(e, text, locate::string_literal(text, &l.metric)));
+            }
+        }
+        Ok(())
     }
 
     /// A set with every tolerance range scaled by `factor` (0 gives the nominal bench).

@@ -613,7 +613,7 @@ mod tests {
         assert_eq!(f.dmd.as_ref().unwrap().tilt_deg.0, 11.0);
         // An integer field takes whole numbers only.
         set(&mut f, "dmd.pattern.units_across", 32.0).unwrap();
-        assert_eq!(f.dmd.as_ref().unwrap().pattern.units_across, 32);
+        assert_eq!(f.dmd.as_ref().unwrap().pattern.units_across.get(), 32);
         assert!(set(&mut f, "dmd.pattern.units_across", 32.5).is_err());
     }
 

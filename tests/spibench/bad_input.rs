@@ -128,8 +128,8 @@ fn lengths_temperatures_and_kinds_are_refused_at_their_own_field() {
         "wrapping",
         "mirrors_per_unit: 8",
         "mirrors_per_unit: 4611686018427387904",
-        "pattern: (origin",
-        "dmd.pattern",
+        "4611686018427387904",
+        "dmd.pattern.mirrors_per_unit",
     );
 }
 
@@ -164,6 +164,15 @@ fn simulate_errors_name_file_line_and_the_full_field_path() {
         "width: 5000,\n    height: 5000,",
         "width: 5000",
         "width",
+    );
+    // Too many random pattern bits: named at the ratios, not at line 1 as a field
+    // `measurements` that no file has.
+    experiment_case(
+        "pattern-bits",
+        "width: 128,\n    height: 128,",
+        "width: 1024,\n    height: 1024,",
+        "sampling_ratios",
+        "sampling_ratios",
     );
 }
 
@@ -251,4 +260,275 @@ fn a_two_column_measurement_array_is_not_read_as_one_vector() {
         &[],
     );
     assert_input_error(&o, &["y.npy", "1-D", "[64, 2]"], &out);
+}
+
+// The classes of bad input to the newer commands (sweep, tolerance, dataset, patterns, check,
+// simulate): each case asserts exit 2, the file and line or the argument named, and that no
+// output folder, staging folder or lock is left.
+
+const PAPER: &str = "scenes/paper_bench.ron";
+
+/// `spibench ARGS… --out DIR/out` for a case: the output must not appear.
+fn run_case(dir: &TempDir, args: &[&str], fragments: &[&str]) {
+    let out = dir.join("out");
+    let mut a: Vec<&str> = args.to_vec();
+    a.extend(["--out", out.to_str().unwrap()]);
+    let o = spibench(&a, &[("RAYON_NUM_THREADS", "1")]);
+    assert_input_error(&o, fragments, &out);
+}
+
+/// A bench file edited once, through `spibench trace`, naming the file, the line and a part of
+/// the field's path.
+fn traced_edit(tag: &str, rel: &str, from: &str, to: &str, marker: &str, field: &str) {
+    let dir = TempDir::new(&format!("bad-new-{tag}"));
+    let (scene, line) = edited(&dir, rel, from, to, marker);
+    let name = Path::new(rel).file_name().unwrap().to_str().unwrap();
+    run_case(
+        &dir,
+        &["trace", scene.to_str().unwrap(), "--rays", "2048"],
+        &[name, &format!("line {line},"), field],
+    );
+}
+
+/// A dataset spec of a few phantom samples through `bench` (a file name in `dir`).
+fn small_spec(dir: &TempDir, bench: &str, kernel_rays: &str, samples: &str) -> PathBuf {
+    let text = format!(
+        "Dataset(\n    bench: \"{bench}\",\n    kernel: (rays: {kernel_rays}, seed: 1, grid_px: (8, 8), \
+         field_mm: (7.88, 7.88)),\n    objects: Phantom,\n    seed: 7,\n    samples: {samples},\n    \
+         shard_samples: 4,\n)\n"
+    );
+    let p = dir.join("spec.ron");
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+#[test]
+fn panics_of_the_newer_inputs_are_located_input_errors() {
+    // An azimuth checked like its polar angle.
+    for (tag, bad) in [("phi-nan", "NaN"), ("phi-inf", "-inf")] {
+        traced_edit(
+            tag,
+            BENCH,
+            "theta_deg: 24.0, phi_deg: -45.0",
+            &format!("theta_deg: 24.0, phi_deg: {bad}"),
+            &format!("phi_deg: {bad}"),
+            "phi_deg`",
+        );
+    }
+    traced_edit(
+        "radius",
+        BENCH,
+        "-45.0),\n            front_radius_mm: 25.75,",
+        "-45.0),\n            front_radius_mm: 1e308,",
+        "1e308",
+        "front_radius_mm`",
+    );
+    // A NaN optical density in the bench a dataset spec names.
+    let dir = TempDir::new("bad-new-dataset-od");
+    let (_, line) = edited(&dir, PAPER, "od: NgGlass(2.0)", "od: NgGlass(NaN)", "NaN");
+    let spec = small_spec(&dir, "paper_bench.ron", "4096", "4");
+    run_case(
+        &dir,
+        &["dataset", spec.to_str().unwrap()],
+        &["paper_bench.ron", &format!("line {line},"), ".od`"],
+    );
+}
+
+#[test]
+fn bad_input_that_was_accepted_is_refused() {
+    // `check` and `trace` refused a NaN optical density nowhere.
+    let dir = TempDir::new("bad-new-od-check");
+    let (bench, line) = edited(&dir, PAPER, "od: NgGlass(1.0)", "od: NgGlass(NaN)", "NaN");
+    run_case(
+        &dir,
+        &["check", bench.to_str().unwrap()],
+        &[
+            "paper_bench.ron",
+            &format!("line {line},"),
+            ".od`",
+            "optical density",
+        ],
+    );
+    // A mirror count whose product with the units wrapped.
+    let dir = TempDir::new("bad-new-mirrors");
+    run_case(
+        &dir,
+        &[
+            "patterns",
+            "--family",
+            "random",
+            "--units",
+            "48x48",
+            "--ratio",
+            "0.1",
+            "--mirrors-per-unit",
+            "9223372036854775808",
+        ],
+        &["--mirrors-per-unit", "do not fit"],
+    );
+    // A limit no value can meet, and a quality ratio the run does not score.
+    let dir = TempDir::new("bad-new-limits");
+    let bench = Path::new(env!("CARGO_MANIFEST_DIR")).join(PAPER);
+    let tol = dir.join("tol.ron");
+    std::fs::write(
+        &tol,
+        "(\n    tolerances: [(path: \"chart.despace_mm\", range: PlusMinus(0.1))],\n    limits: [\n        \
+         (metric: \"imbalance\", min: 0.1, max: -0.1),\n    ],\n)\n",
+    )
+    .unwrap();
+    run_case(
+        &dir,
+        &[
+            "tolerance",
+            bench.to_str().unwrap(),
+            "--tolerances",
+            tol.to_str().unwrap(),
+            "--trials",
+            "0",
+        ],
+        &["tol.ron", "line 4,", "field `limits`", "min 0.1 > max -0.1"],
+    );
+    std::fs::write(
+        &tol,
+        "(\n    tolerances: [(path: \"chart.despace_mm\", range: PlusMinus(0.1))],\n    \
+         quality: (ratio_percent: 33, min_mssim: 0.9),\n)\n",
+    )
+    .unwrap();
+    run_case(
+        &dir,
+        &[
+            "tolerance",
+            bench.to_str().unwrap(),
+            "--tolerances",
+            tol.to_str().unwrap(),
+            "--trials",
+            "0",
+            "--quality",
+        ],
+        &["tol.ron", "line 3,", "quality.ratio_percent", "33 %"],
+    );
+}
+
+#[test]
+fn errors_point_at_the_field_that_is_wrong() {
+    // A NaN optical density is the filter's, not `--rays`' or the swept variable's.
+    let dir = TempDir::new("bad-new-od-sweep");
+    let (bench, line) = edited(&dir, PAPER, "od: NgGlass(2.0)", "od: NgGlass(NaN)", "NaN");
+    let located = format!("line {line},");
+    run_case(
+        &dir,
+        &["trace", bench.to_str().unwrap(), "--rays", "2048"],
+        &["paper_bench.ron", &located, ".od`"],
+    );
+    run_case(
+        &dir,
+        &[
+            "sweep",
+            bench.to_str().unwrap(),
+            "--vary",
+            "dmd.tilt_deg=11:12:2",
+            "--rays",
+            "2048",
+        ],
+        &["paper_bench.ron", &located, ".od`"],
+    );
+    // A Hadamard size error names the flag that set the size.
+    let dir = TempDir::new("bad-new-hadamard");
+    run_case(
+        &dir,
+        &[
+            "patterns",
+            "--family",
+            "hadamard",
+            "--units",
+            "48x48",
+            "--ratio",
+            "0.1",
+            "--mirrors-per-unit",
+            "4",
+        ],
+        &["--units", "power-of-two"],
+    );
+    // A kernel of one ray is refused where it is written (it gave NaN standard errors).
+    let dir = TempDir::new("bad-new-kernel");
+    std::fs::copy(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join(PAPER),
+        dir.join("paper_bench.ron"),
+    )
+    .unwrap();
+    let spec = small_spec(&dir, "paper_bench.ron", "1", "4");
+    run_case(
+        &dir,
+        &["dataset", spec.to_str().unwrap()],
+        &["spec.ron", "line 3,", "kernel.rays`", "2048"],
+    );
+    assert_eq!(
+        spibench::scene::dataset::MIN_KERNEL_RAYS,
+        2 * spibench::trace::RAYS_PER_BATCH,
+        "a kernel's minimum is two batches"
+    );
+}
+
+#[test]
+fn sizes_are_checked_before_anything_is_allocated() {
+    // 65 536 × 65 536 mirrors: refused with its size, not aborted with a staging folder left.
+    let dir = TempDir::new("bad-new-huge-dmd");
+    run_case(
+        &dir,
+        &[
+            "patterns",
+            "--family",
+            "random",
+            "--units",
+            "4096x4096",
+            "--ratio",
+            "0.01",
+            "--mirrors-per-unit",
+            "16",
+            "--dmd",
+            "65536x65536",
+        ],
+        &["bytes written", "--allow-large"],
+    );
+}
+
+#[test]
+fn total_work_above_the_limits_is_refused_with_its_estimate() {
+    let dir = TempDir::new("bad-new-work");
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let bench = root.join(PAPER);
+    let tol = root.join("scenes/tolerances/paper_bench.ron");
+    run_case(
+        &dir,
+        &[
+            "tolerance",
+            bench.to_str().unwrap(),
+            "--tolerances",
+            tol.to_str().unwrap(),
+            "--trials",
+            "1000000",
+        ],
+        &["1000000 trials", "traced rays", "--allow-large"],
+    );
+    run_case(
+        &dir,
+        &[
+            "sweep",
+            bench.to_str().unwrap(),
+            "--vary",
+            "dmd.tilt_deg=11:13:100",
+            "--vary",
+            "chart.despace_mm=-1:1:100",
+            "--rays",
+            "10000000000",
+        ],
+        &["100 × 100 points", "traced rays", "--allow-large"],
+    );
+    std::fs::copy(&bench, dir.join("paper_bench.ron")).unwrap();
+    let spec = small_spec(&dir, "paper_bench.ron", "4096", "100000000");
+    run_case(
+        &dir,
+        &["dataset", spec.to_str().unwrap()],
+        &["100000000 samples", "--allow-large"],
+    );
 }

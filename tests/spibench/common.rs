@@ -47,7 +47,7 @@ pub fn read_json(p: &Path) -> serde_json::Value {
 }
 
 /// Asserts a failed run: exit status 2, one message on stderr containing every fragment, and no
-/// output folder left behind.
+/// output folder, staging folder or lock file left behind.
 pub fn assert_input_error(o: &Output, fragments: &[&str], out: &Path) {
     let err = stderr(o);
     assert_eq!(o.status.code(), Some(2), "exit status; stderr: {err}");
@@ -68,6 +68,10 @@ pub fn assert_input_error(o: &Output, fragments: &[&str], out: &Path) {
             assert!(
                 !name.contains("partial"),
                 "staging folder {name} was left behind"
+            );
+            assert!(
+                !name.contains("spibench-lock"),
+                "lock file {name} was left behind"
             );
         }
     }

@@ -376,3 +376,283 @@ fn mutants_through_the_cli_exit_0_or_2_with_finite_summaries() {
     }
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
+
+/// 1000 mutants of the shipped tolerance file (checked against the paper bench) and 600 of the
+/// shipped dataset spec, in-process: no panic, every error an input error naming the file, and
+/// every accepted file holding finite, ordered values only.
+#[test]
+fn mutants_of_tolerance_files_and_dataset_specs_end_in_input_errors() {
+    use spibench::scene::dataset::parse_dataset;
+    use spibench::scene::tolerance::ToleranceSet;
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let doc = BenchDoc::read(&root.join("scenes/paper_bench.ron")).unwrap();
+    let mut failures = Vec::new();
+    let rel = "scenes/tolerances/paper_bench.ron";
+    let (text, path) = (shipped(rel), root.join(rel));
+    let is_metric = spibench::pipeline::evaluate::is_metric;
+    let mut accepted = [0usize; 2];
+    for i in 0..1000u64 {
+        let m = mutant(&text, 200, i);
+        let r = catch_unwind(AssertUnwindSafe(|| {
+            ToleranceSet::parse(&m, &path, &doc, &is_metric)
+        }));
+        match r {
+            Err(_) => failures.push(format!("{rel} mutant {i}: panicked")),
+            Ok(Err(e)) if !e.is_user_error() || !e.to_string().contains(rel) => {
+                failures.push(format!("{rel} mutant {i}: {e}"))
+            }
+            Ok(Err(_)) => {}
+            Ok(Ok(set)) => {
+                accepted[0] += 1;
+                let ranges_ok = set.tolerances.iter().all(|t| {
+                    t.min.is_finite()
+                        && t.max.is_finite()
+                        && t.min <= t.max
+                        && t.nominal.is_finite()
+                });
+                let limits_ok = set.limits.iter().all(|l| {
+                    [l.min, l.max, l.abs_max]
+                        .iter()
+                        .flatten()
+                        .all(|v| v.is_finite())
+                        && !matches!((l.min, l.max), (Some(a), Some(b)) if a > b)
+                });
+                let quality_ok = set.quality.is_none_or(|q| {
+                    (1..=100).contains(&q.ratio_percent) && q.min_mssim.is_finite()
+                });
+                if !(ranges_ok && limits_ok && quality_ok) {
+                    failures.push(format!("{rel} mutant {i}: accepted a bad value: {set:?}"));
+                }
+            }
+        }
+    }
+    let rel = "scenes/dataset_example.ron";
+    let (text, path) = (shipped(rel), root.join(rel));
+    for i in 0..600u64 {
+        let m = mutant(&text, 300, i);
+        let r = catch_unwind(AssertUnwindSafe(|| parse_dataset(&m, &path)));
+        match r {
+            Err(_) => failures.push(format!("{rel} mutant {i}: panicked")),
+            Ok(Err(e)) if !e.is_user_error() || !e.to_string().contains(rel) => {
+                failures.push(format!("{rel} mutant {i}: {e}"))
+            }
+            Ok(Err(_)) => {}
+            Ok(Ok(spec)) => {
+                accepted[1] += 1;
+                let f = &spec.file;
+                let ok = f.samples >= 1
+                    && f.shard_samples >= 1
+                    && f.kernel.rays >= spibench::scene::dataset::MIN_KERNEL_RAYS
+                    && [f.kernel.field_mm.0, f.kernel.field_mm.1]
+                        .iter()
+                        .all(|v| v.is_finite() && *v > 0.0)
+                    && f.acquisition.as_ref().is_none_or(|a| {
+                        a.ratios.iter().all(|r| *r > 0.0 && *r <= 1.0) && !a.ratios.is_empty()
+                    })
+                    && f.max_disk_gb.is_none_or(|g| g.is_finite() && g > 0.0);
+                if !ok {
+                    failures.push(format!("{rel} mutant {i}: accepted a bad value: {f:?}"));
+                }
+            }
+        }
+    }
+    eprintln!(
+        "fuzz: {} of 1000 tolerance files and {} of 600 dataset specs accepted",
+        accepted[0], accepted[1]
+    );
+    // Some mutants (a changed comment, a valid new number) must get through, or the test checks
+    // nothing but the parser.
+    assert!(accepted[0] > 0 && accepted[1] > 0, "{accepted:?}");
+    assert!(
+        failures.is_empty(),
+        "{} of the mutants broke the rules:\n{}",
+        failures.len(),
+        failures.join("\n")
+    );
+}
+
+/// Values tried in place of a command-line argument: non-numbers, non-finite and huge numbers,
+/// integers at 2⁶³ and past 2⁶⁴, zero and negatives, and malformed sizes and ranges. (Valid but
+/// slow values, such as 4·10⁹ rays for `trace`, are left out: the test must stay short.)
+const ARG_VALUES: [&str; 15] = [
+    "NaN",
+    "inf",
+    "-1",
+    "0",
+    "1e308",
+    "9223372036854775808",
+    "18446744073709551616",
+    "",
+    "abc",
+    "0x0",
+    "1x4294967297",
+    "-0.5",
+    "0/0",
+    "dmd.tilt_deg=NaN:1:2",
+    "dmd.tilt_deg=0:1:18446744073709551615",
+];
+
+/// Every command's arguments mutated one at a time through the binary (six mutants of each
+/// value-taking argument of a cheap valid command line): exit 0 or 2 only, never a panic or
+/// an abort, an exit-2 message that names an argument or a file, nothing left behind after
+/// exit 2, and no NaN in a summary after exit 0.
+#[test]
+fn mutated_command_line_arguments_exit_0_or_2() {
+    let dir = TempDir::new("fuzz-args");
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let sym = root.join("scenes/tests/symmetric_arms.ron");
+    let sym = sym.to_str().unwrap();
+    let paper = root.join("scenes/paper_bench.ron");
+    std::fs::copy(&paper, dir.join("paper_bench.ron")).unwrap();
+    let tol = dir.join("tol.ron");
+    std::fs::write(
+        &tol,
+        "(tolerances: [(path: \"dmd.tilt_deg\", range: PlusMinus(0.5))])",
+    )
+    .unwrap();
+    let spec = dir.join("spec.ron");
+    std::fs::write(
+        &spec,
+        "Dataset(bench: \"paper_bench.ron\", kernel: (rays: 4096, seed: 1, grid_px: (8, 8), \
+         field_mm: (7.88, 7.88)), objects: Phantom, seed: 7, samples: 2, shard_samples: 2)",
+    )
+    .unwrap();
+    let (pp, yp) = (dir.join("p.npy"), dir.join("y.npy"));
+    spibench::report::npy::write_u8(&pp, &[8, 16], &[1u8; 128]).unwrap();
+    spibench::report::npy::write_f64(&yp, &[8], &[1.0; 8]).unwrap();
+    let (tol, spec, pp, yp) = (
+        tol.to_str().unwrap(),
+        spec.to_str().unwrap(),
+        pp.to_str().unwrap(),
+        yp.to_str().unwrap(),
+    );
+    // Each command line with the indices of the values that are mutated.
+    let commands: Vec<(Vec<&str>, Vec<usize>)> = vec![
+        (
+            vec!["trace", sym, "--rays", "2048", "--seed", "3"],
+            vec![3, 5],
+        ),
+        (
+            vec!["run", sym, "--rays", "2048", "--repeats", "1"],
+            vec![3, 5],
+        ),
+        (
+            vec![
+                "sweep",
+                sym,
+                "--vary",
+                "dmd.tilt_deg=11:12:2",
+                "--rays",
+                "2048",
+            ],
+            vec![3, 5],
+        ),
+        (
+            vec![
+                "tolerance",
+                sym,
+                "--tolerances",
+                tol,
+                "--trials",
+                "1",
+                "--rays",
+                "2048",
+                "--shard",
+                "0/1",
+            ],
+            vec![5, 7, 9],
+        ),
+        (
+            vec![
+                "patterns",
+                "--family",
+                "random",
+                "--units",
+                "8x8",
+                "--ratio",
+                "0.5",
+                "--mirrors-per-unit",
+                "2",
+                "--dmd",
+                "64x64",
+            ],
+            vec![4, 6, 8, 10],
+        ),
+        (vec!["check", sym, "--wavelength-nm", "850"], vec![3]),
+        (
+            vec!["layout", sym, "--rays", "40", "--seed", "2"],
+            vec![3, 5],
+        ),
+        (
+            vec!["export-mitsuba", sym, "--wavelength-nm", "850"],
+            vec![3],
+        ),
+        (vec!["dataset", spec, "--shard", "0/1"], vec![3]),
+        (
+            vec![
+                "reconstruct",
+                "--patterns",
+                pp,
+                "--measurements",
+                yp,
+                "--size",
+                "4x4",
+            ],
+            vec![6],
+        ),
+        (vec!["--threads", "1", "check", sym], vec![1]),
+    ];
+    let mut failures = Vec::new();
+    let mut n = 0;
+    let mut exits = [0usize; 2];
+    for (c, (line, slots)) in commands.iter().enumerate() {
+        for &slot in slots {
+            let mut rng = Mix::new(400 + c as u64, slot as u64);
+            for _ in 0..6 {
+                let value = ARG_VALUES[rng.below(ARG_VALUES.len())];
+                let mut args = line.clone();
+                args[slot] = value;
+                let out = dir.join(&format!("out{n}"));
+                n += 1;
+                let mut a = args.clone();
+                a.extend(["--out", out.to_str().unwrap()]);
+                let o = spibench(&a, &[("RAYON_NUM_THREADS", "1")]);
+                let err = String::from_utf8_lossy(&o.stderr).into_owned();
+                let what = format!("`spibench {}`", args.join(" "));
+                if let Some(c @ (0 | 2)) = o.status.code() {
+                    exits[c as usize / 2] += 1;
+                }
+                match o.status.code() {
+                    Some(0) => {
+                        let s =
+                            std::fs::read_to_string(out.join("summary.json")).unwrap_or_default();
+                        if s.contains("NaN") {
+                            failures.push(format!("{what}: NaN in summary.json"));
+                        }
+                    }
+                    Some(2) => {
+                        if err.contains("panicked") || err.trim().is_empty() {
+                            failures.push(format!("{what}: exit 2 with {err:?}"));
+                        }
+                        if out.exists() {
+                            failures.push(format!("{what}: output left after exit 2"));
+                        }
+                    }
+                    other => failures.push(format!("{what}: exit {other:?}: {err}")),
+                }
+            }
+        }
+    }
+    for e in std::fs::read_dir(&dir.0).unwrap().flatten() {
+        let name = e.file_name().to_string_lossy().into_owned();
+        if name.contains("partial") || name.contains("spibench-lock") {
+            failures.push(format!("{name} left behind"));
+        }
+    }
+    eprintln!(
+        "fuzz: {n} command lines, {} exit 0, {} exit 2",
+        exits[0], exits[1]
+    );
+    assert!(exits[0] > 0 && exits[1] > 0, "{exits:?}");
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}

@@ -24,55 +24,25 @@ use super::schema::{
 impl Builder<'_> {
     pub(super) fn dmd(&mut self, d: &DmdSpec) -> Result<DmdSetup> {
         let e = |f: &str, m: String| self.ctx.err_path(&["dmd", f], m);
-        if d.columns == 0 || d.rows == 0 || d.columns > 100_000 || d.rows > 100_000 {
-            return Err(e(
-                "columns",
-                "the array needs 1 to 100000 columns and rows".into(),
-            ));
-        }
         if d.tilt_deg.0 >= 45.0 {
             return Err(e("tilt_deg", "the tilt must be below 45°".into()));
         }
-        if !(d.tilt_axis_deg.is_finite() && d.tilt_axis_deg.abs() <= 360.0) {
-            return Err(e(
-                "tilt_axis_deg",
-                format!(
-                    "the hinge angle must be finite and within ±360°, got {}",
-                    d.tilt_axis_deg
-                ),
-            ));
-        }
         let p = d.pattern;
-        if p.mirrors_per_unit == 0 || p.units_across == 0 || p.units_down == 0 {
-            return Err(self.ctx.err_path(
-                &["dmd", "pattern"],
-                "units_across, units_down and mirrors_per_unit must be at least 1",
-            ));
-        }
-        // Checked arithmetic: a huge count must be refused, never wrap around.
-        let end = |origin: usize, units: usize| {
-            units
-                .checked_mul(p.mirrors_per_unit)
-                .and_then(|m| m.checked_add(origin))
-        };
-        let (Some(end_c), Some(end_r)) = (
-            end(p.origin.0, p.units_across),
-            end(p.origin.1, p.units_down),
-        ) else {
-            return Err(self.ctx.err_path(
-                &["dmd", "pattern"],
-                format!(
-                    "the pattern area is larger than any DMD (at most {} × {} mirrors here)",
-                    d.columns, d.rows
-                ),
-            ));
-        };
-        if end_c > d.columns || end_r > d.rows {
+        let (columns, rows) = (d.columns.usize(), d.rows.usize());
+        let (col0, row0) = (p.origin.0.usize(), p.origin.1.usize());
+        let (across, down, per_unit) = (
+            p.units_across.usize(),
+            p.units_down.usize(),
+            p.mirrors_per_unit.usize(),
+        );
+        // Each count is at most 10⁵ (its type), so these products cannot wrap.
+        let (end_c, end_r) = (col0 + across * per_unit, row0 + down * per_unit);
+        if end_c > columns || end_r > rows {
             return Err(self.ctx.err_path(
                 &["dmd", "pattern"],
                 format!(
                     "the pattern area (mirrors {}..{} × {}..{}) does not fit the {}×{} array",
-                    p.origin.0, end_c, p.origin.1, end_r, d.columns, d.rows
+                    col0, end_c, row0, end_r, columns, rows
                 ),
             ));
         }
@@ -85,18 +55,18 @@ impl Builder<'_> {
             StateSpec::Flat => MirrorState::Flat,
         };
         let dmd = Dmd::new(
-            d.columns,
-            d.rows,
+            columns,
+            rows,
             d.pitch_um.0 * 1e-6,
             d.fill_factor.0,
             d.tilt_deg.0.to_radians(),
-            d.tilt_axis_deg.to_radians(),
+            d.tilt_axis_deg.0.to_radians(),
             PatternArea {
-                col0: p.origin.0,
-                row0: p.origin.1,
-                units_across: p.units_across,
-                units_down: p.units_down,
-                mirrors_per_unit: p.mirrors_per_unit,
+                col0,
+                row0,
+                units_across: across,
+                units_down: down,
+                mirrors_per_unit: per_unit,
             },
             state,
             refl,
@@ -311,7 +281,7 @@ impl Builder<'_> {
                     half_v: 0.5e-3 * height_mm.0,
                 },
             },
-            probability: f.probability,
+            probability: f.probability.0,
         });
         let lamp = Lamp {
             frame,

@@ -59,8 +59,8 @@ impl Builder<'_> {
         let coating = self.ctx.coating(coating, |m| e("coating", m))?;
         let radius = 0.5e-3 * diameter_mm.0;
         let clear = clear_diameter_mm.map_or(radius, |c| 0.5e-3 * c.0);
-        let r1 = front_radius_mm.map(|r| r * 1e-3);
-        let r2 = back_radius_mm.map(|r| r * 1e-3);
+        let r1 = front_radius_mm.map(|r| r.0 * 1e-3);
+        let r2 = back_radius_mm.map(|r| r.0 * 1e-3);
         let t = thickness_mm.0 * 1e-3;
         self.parts
             .lens(id, &frame, r1, r2, t, radius, clear, glass, coating)
@@ -211,9 +211,6 @@ impl Builder<'_> {
         };
         let n = name.as_str();
         let e = |f: &str, m: String| self.ctx.err_el(n, f, m);
-        if !(8..=4096).contains(segments) {
-            return Err(e("segments", "use 8 to 4096 segments".into()));
-        }
         if hole_diameter_mm.0 >= width_mm.0.min(height_mm.0) {
             return Err(e(
                 "hole_diameter_mm",
@@ -226,7 +223,7 @@ impl Builder<'_> {
             0.5e-3 * width_mm.0,
             0.5e-3 * height_mm.0,
             0.5e-3 * hole_diameter_mm.0,
-            *segments,
+            segments.usize(),
         );
         self.parts.meshes.push((mesh, id));
         Ok(())
@@ -385,15 +382,16 @@ fn chart_mask(
             max_group,
             positive,
         } => {
-            if min_group > max_group || *min_group < -2 || *max_group > 9 {
+            if min_group > max_group {
                 return Err(e(
                     "pattern",
-                    "USAF groups must satisfy −2 ≤ min_group ≤ max_group ≤ 9".into(),
+                    "USAF groups must satisfy min_group ≤ max_group".into(),
                 ));
             }
+            // The type bounds the groups to −2 … 9, well within i32.
             ChartMask::Usaf(crate::objects::usaf::UsafChart {
-                min_group: *min_group,
-                max_group: *max_group,
+                min_group: min_group.get() as i32,
+                max_group: max_group.get() as i32,
                 polarity: if *positive {
                     crate::objects::usaf::Polarity::Positive
                 } else {
@@ -425,7 +423,7 @@ fn chart_center(
 ) -> Result<(f64, f64)> {
     Ok(match center_on {
         None => (0.0, 0.0),
-        Some(CenterOnSpec::Point(p)) => *p,
+        Some(CenterOnSpec::Point((x, y))) => (x.0, y.0),
         Some(CenterOnSpec::Elements { group, first, last }) => {
             let ChartMask::Usaf(chart) = mask else {
                 return Err(e(
@@ -442,8 +440,9 @@ fn chart_center(
                 f64::NEG_INFINITY,
                 f64::NEG_INFINITY,
             );
-            for el in *first..=*last {
-                let r = chart.element_region(*group, el).ok_or_else(|| {
+            let group = group.get() as i32;
+            for el in first.get() as u8..=last.get() as u8 {
+                let r = chart.element_region(group, el).ok_or_else(|| {
                     e(
                         "center_on",
                         format!("the chart has no group {group} element {el}"),

@@ -38,14 +38,16 @@ use crate::scene::locate::Locator;
 use build::{Builder, Ctx};
 
 pub use crate::scene::numbers::{
-    AngleDeg, Irradiance, LengthMm, MAX_OD, MAX_POSITION_MM, MAX_SCALAR, Mm3, NonNegative,
-    Positive, PowerW, TableNm, Temperature, UnitFraction,
+    AngleDeg, CoordMm, Count, DesignNm, DirectionDeg, Finite, Irradiance, LengthMm, MAX_OD,
+    MAX_POSITION_MM, MAX_SCALAR, Mm3, NonNegative, OpticalDensity, Positive, PowerW, Probability,
+    RadiusMm, TableNm, Temperature, TiltDeg, UnitFraction, WavelengthNm, Whole,
 };
 pub use schema::{
     BenchFile, CenterOnSpec, ChartGuidedSpec, ChartPatternSpec, CoatingSpec, DetectorsSpec,
     Direction, DmdSpec, ElementSpec, EmissionSpec, FieldSamplingSpec, FilamentSpec, GlassSpec,
-    LampPowerSpec, LampSpec, LampSpectrumSpec, Outline, PatternSpec, PhotodiodeSpec, SpectrumSpec,
-    StateSpec, WindowSpec,
+    Interactions, LampPowerSpec, LampSpec, LampSpectrumSpec, MirrorCount, MirrorIndex, Outline,
+    PatternSpec, PhotodiodeSpec, Segments, SpectrumSpec, StateSpec, UsafElement, UsafGroup,
+    WindowSpec,
 };
 
 // Conversion.

@@ -8,9 +8,29 @@ use serde::{Deserialize, Serialize};
 use crate::optics::geometry::Shape2D;
 use crate::optics::spectrum::{self, Spectrum, Table};
 use crate::scene::numbers::{
-    AngleDeg, Irradiance, LengthMm, Mm3, NonNegative, Positive, PowerW, TableNm, Temperature,
-    UnitFraction,
+    AngleDeg, CoordMm, Count, DesignNm, DirectionDeg, Finite, Irradiance, LengthMm, Mm3,
+    NonNegative, OpticalDensity, Positive, PowerW, Probability, RadiusMm, TableNm, Temperature,
+    TiltDeg, UnitFraction, WavelengthNm, Whole,
 };
+
+/// Mirrors along one side of a DMD, or pattern units along one side of its pattern area (the
+/// largest DMDs have a few thousand mirrors a side).
+pub type MirrorCount = Count<1, 100_000>;
+
+/// A mirror index (column or row) of the pattern area's origin.
+pub type MirrorIndex = Count<0, 100_000>;
+
+/// The most surface interactions a path may have before it is abandoned.
+pub type Interactions = Count<1, 100_000>;
+
+/// Sides of a baffle hole's polygon.
+pub type Segments = Count<8, 4096>;
+
+/// A group of the 1951 USAF chart (−2 … 9 are printed on the charts spibench draws).
+pub type UsafGroup = Whole<-2, 9>;
+
+/// An element (1 … 6) of a USAF group.
+pub type UsafElement = Count<1, 6>;
 
 /// A direction in the bench frame (see the module notes).
 #[derive(Debug, Clone, Copy, PartialEq, Deserialize, Serialize)]
@@ -19,7 +39,10 @@ pub enum Direction {
     /// Components (x, y, z), any non-zero length.
     Vector(Mm3),
     /// Polar angle `theta_deg` from +z and azimuth `phi_deg` from +x toward +y (degrees).
-    Polar { theta_deg: f64, phi_deg: f64 },
+    Polar {
+        theta_deg: DirectionDeg,
+        phi_deg: DirectionDeg,
+    },
 }
 
 impl Direction {
@@ -27,7 +50,7 @@ impl Direction {
         let v = match self {
             Direction::Vector(Mm3(x, y, z)) => DVec3::new(x, y, z),
             Direction::Polar { theta_deg, phi_deg } => {
-                let (t, p) = (theta_deg.to_radians(), phi_deg.to_radians());
+                let (t, p) = (theta_deg.0.to_radians(), phi_deg.0.to_radians());
                 DVec3::new(t.sin() * p.cos(), t.sin() * p.sin(), t.cos())
             }
         };
@@ -49,7 +72,7 @@ impl Direction {
 #[serde(deny_unknown_fields)]
 pub enum SpectrumSpec {
     /// The same value at every wavelength.
-    Constant(f64),
+    Constant(Finite),
     /// (wavelength_nm, value) pairs, strictly increasing in wavelength, interpolated linearly and
     /// held constant beyond the ends.
     Table(TableNm),
@@ -62,7 +85,7 @@ pub enum SpectrumSpec {
     /// Optical density of Schott NG absorptive glass with the given OD at 546 nm: the nominal
     /// value times the NG spectral shape (flat 450–650 nm, falling to ~0.6× at 1000 nm;
     /// docs/bench-facts.md §4, confidence L).
-    NgGlass(f64),
+    NgGlass(OpticalDensity),
     /// Per-surface reflectance of a visible-AR DMD window (≤ 0.5 % in 420–680 nm, rising in the
     /// NIR; docs/bench-facts.md §2.2, estimate).
     DmdWindowVisibleAr,
@@ -71,7 +94,7 @@ pub enum SpectrumSpec {
 impl SpectrumSpec {
     pub(crate) fn build(&self) -> Spectrum {
         match self {
-            SpectrumSpec::Constant(v) => Spectrum::Constant(*v),
+            SpectrumSpec::Constant(v) => Spectrum::Constant(v.0),
             SpectrumSpec::Table(t) => {
                 Spectrum::Table(Table::from_nm(&t.0).expect("validated while reading"))
             }
@@ -81,7 +104,7 @@ impl SpectrumSpec {
             }
             SpectrumSpec::SiliconPin => Spectrum::from_static(&spectrum::SILICON_PIN_RESPONSIVITY),
             SpectrumSpec::NgGlass(od) => {
-                Spectrum::from_static(&spectrum::NG_GLASS_RELATIVE_OD).scaled(*od)
+                Spectrum::from_static(&spectrum::NG_GLASS_RELATIVE_OD).scaled(od.0)
             }
             SpectrumSpec::DmdWindowVisibleAr => {
                 Spectrum::from_static(&spectrum::DMD_WINDOW_VIS_AR_REFLECTANCE)
@@ -99,7 +122,7 @@ pub enum CoatingSpec {
     Uncoated,
     /// A single quarter-wave MgF2 layer for `design_nm` (thickness λ₀/(4 n_MgF2(λ₀))), its
     /// reflectance computed by the thin-film formula at every wavelength and angle.
-    MgF2 { design_nm: f64 },
+    MgF2 { design_nm: DesignNm },
     /// A fixed per-surface reflectance R(λ) at any angle (T = 1 − R), e.g. a vendor AR curve.
     Reflectance(SpectrumSpec),
 }
@@ -141,11 +164,11 @@ pub struct BenchFile {
     /// Traced wavelength band [min, max] in nm. Default (350, 1150): the silicon-sensitive band;
     /// x_j and every power in the ledger are powers within this band.
     #[serde(default = "default_band")]
-    pub band_nm: (f64, f64),
+    pub band_nm: (WavelengthNm, WavelengthNm),
     /// Surface interactions after which a path is abandoned and booked as "path cap" (default
     /// 200; a real path here has fewer than 30).
     #[serde(default = "default_max_interactions")]
-    pub max_interactions: u32,
+    pub max_interactions: Interactions,
     /// Glasses given by their Sellmeier coefficients, usable by name in any element's `glass`
     /// field beside the built-in catalogue (docs/glasses.md).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
@@ -183,12 +206,12 @@ pub struct GlassSpec {
     pub sellmeier_c_um2: (NonNegative, NonNegative, NonNegative),
 }
 
-fn default_band() -> (f64, f64) {
-    (350.0, 1150.0)
+fn default_band() -> (WavelengthNm, WavelengthNm) {
+    (WavelengthNm(350.0), WavelengthNm(1150.0))
 }
 
-fn default_max_interactions() -> u32 {
-    200
+fn default_max_interactions() -> Interactions {
+    Interactions::new(200)
 }
 
 /// The lamp: a flat Lambertian filament and its spectrum and power.
@@ -287,7 +310,7 @@ pub struct FieldSamplingSpec {
     /// The target's outline; a rectangle's width runs along the lamp's `x_axis`.
     pub outline: Outline,
     /// Fraction of rays aimed at the target, in [0, 1).
-    pub probability: f64,
+    pub probability: Probability,
     /// Optional: aim a share of those rays at the clear areas of a chart instead of uniformly
     /// over the target. The map from the target to the chart is fitted to design rays traced
     /// through the bench's optics (src/optics/guide.rs); unbiased for any share, it pays when
@@ -328,11 +351,11 @@ pub enum ElementSpec {
         /// Front surface radius (mm): positive when its centre of curvature lies after it along
         /// `axis`; omitted or None = flat.
         #[serde(default)]
-        front_radius_mm: Option<f64>,
+        front_radius_mm: Option<RadiusMm>,
         /// Back surface radius (mm), same sign rule (a plano-convex lens used curved side first
         /// has front +R and a flat back; used flat side first, a flat front and back −R).
         #[serde(default)]
-        back_radius_mm: Option<f64>,
+        back_radius_mm: Option<RadiusMm>,
         /// Centre thickness (mm).
         thickness_mm: LengthMm,
         /// Mechanical diameter (mm).
@@ -350,7 +373,7 @@ pub enum ElementSpec {
         /// Alignment error: rotations (degrees) about the lens's local x then y axes, about
         /// `position_mm`.
         #[serde(default)]
-        tilt_deg: Option<(f64, f64)>,
+        tilt_deg: Option<(TiltDeg, TiltDeg)>,
     },
     /// A plane-parallel absorptive filter (ND glass).
     Filter {
@@ -381,7 +404,7 @@ pub enum ElementSpec {
         coating: CoatingSpec,
         /// Alignment tilt (degrees) about local x then y.
         #[serde(default)]
-        tilt_deg: Option<(f64, f64)>,
+        tilt_deg: Option<(TiltDeg, TiltDeg)>,
     },
     /// A black annular aperture (iris) in a plane.
     Aperture {
@@ -428,7 +451,7 @@ pub enum ElementSpec {
         hole_diameter_mm: LengthMm,
         /// Sides of the hole's polygon (default 64).
         #[serde(default = "default_segments")]
-        segments: usize,
+        segments: Segments,
     },
     /// A flat front-surface mirror (black behind).
     Mirror {
@@ -453,7 +476,7 @@ pub enum ElementSpec {
         thickness_mm: LengthMm,
         /// Alignment tilt (degrees) about local x then y.
         #[serde(default)]
-        tilt_deg: Option<(f64, f64)>,
+        tilt_deg: Option<(TiltDeg, TiltDeg)>,
     },
     /// A chart plate: chrome pattern on a glass substrate.
     Chart {
@@ -488,7 +511,7 @@ pub enum ElementSpec {
         chrome_reflectance: SpectrumSpec,
         /// Alignment tilt (degrees) about local x then y.
         #[serde(default)]
-        tilt_deg: Option<(f64, f64)>,
+        tilt_deg: Option<(TiltDeg, TiltDeg)>,
     },
 }
 
@@ -507,8 +530,8 @@ impl ElementSpec {
     }
 }
 
-fn default_segments() -> usize {
-    64
+fn default_segments() -> Segments {
+    Segments::new(64)
 }
 
 fn default_mirror_thickness() -> LengthMm {
@@ -516,11 +539,11 @@ fn default_mirror_thickness() -> LengthMm {
 }
 
 fn default_chrome_od() -> SpectrumSpec {
-    SpectrumSpec::Constant(3.0)
+    SpectrumSpec::Constant(Finite(3.0))
 }
 
 fn default_chrome_reflectance() -> SpectrumSpec {
-    SpectrumSpec::Constant(0.1)
+    SpectrumSpec::Constant(Finite(0.1))
 }
 
 /// What is printed on a chart.
@@ -530,8 +553,8 @@ pub enum ChartPatternSpec {
     /// The 1951 USAF chart of groups `min_group..=max_group` (crate::objects::usaf), negative
     /// (clear bars in chrome, as the paper's Thorlabs R3L3S1N) unless `positive` is true.
     Usaf {
-        min_group: i32,
-        max_group: i32,
+        min_group: UsafGroup,
+        max_group: UsafGroup,
         #[serde(default)]
         positive: bool,
     },
@@ -550,12 +573,12 @@ pub enum ChartPatternSpec {
 #[derive(Debug, Clone, Copy, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub enum CenterOnSpec {
-    Point((f64, f64)),
+    Point((CoordMm, CoordMm)),
     /// The centre of the bounding box of USAF elements `first..=last` of `group`.
     Elements {
-        group: i32,
-        first: u8,
-        last: u8,
+        group: UsafGroup,
+        first: UsafElement,
+        last: UsafElement,
     },
 }
 
@@ -564,9 +587,9 @@ pub enum CenterOnSpec {
 #[serde(deny_unknown_fields)]
 pub struct DmdSpec {
     /// Mirror columns (along +x).
-    pub columns: usize,
+    pub columns: MirrorCount,
     /// Mirror rows (along −y).
-    pub rows: usize,
+    pub rows: MirrorCount,
     /// Mirror pitch (µm).
     pub pitch_um: Positive,
     /// Mirror area / cell area (mirror side = pitch·√fill).
@@ -575,7 +598,7 @@ pub struct DmdSpec {
     pub tilt_deg: AngleDeg,
     /// Hinge axis angle from +x toward +y (degrees); 45 = the mirror diagonal.
     #[serde(default = "default_hinge")]
-    pub tilt_axis_deg: f64,
+    pub tilt_axis_deg: DirectionDeg,
     /// Mirror reflectance (default aluminium).
     #[serde(default = "default_dmd_reflectance")]
     pub mirror_reflectance: SpectrumSpec,
@@ -590,8 +613,8 @@ pub struct DmdSpec {
     pub package_mm: (Positive, Positive),
 }
 
-fn default_hinge() -> f64 {
-    45.0
+fn default_hinge() -> DirectionDeg {
+    DirectionDeg(45.0)
 }
 
 fn default_dmd_reflectance() -> SpectrumSpec {
@@ -620,12 +643,12 @@ pub struct WindowSpec {
 #[serde(deny_unknown_fields)]
 pub struct PatternSpec {
     /// First mirror (column, row) of the area.
-    pub origin: (usize, usize),
+    pub origin: (MirrorIndex, MirrorIndex),
     /// Units across (columns) and down (rows).
-    pub units_across: usize,
-    pub units_down: usize,
+    pub units_across: MirrorCount,
+    pub units_down: MirrorCount,
     /// Mirrors per unit side (a unit is n × n mirrors).
-    pub mirrors_per_unit: usize,
+    pub mirrors_per_unit: MirrorCount,
 }
 
 /// A mirror state.

@@ -198,9 +198,19 @@ fn non_finite_huge_and_wrapping_numbers_are_refused_where_written() {
         "mirrors_per_unit: 46",
     );
     assert!(
-        msg.contains("pattern") && msg.contains("larger than any DMD"),
+        msg.contains("mirrors_per_unit") && msg.contains("from 1 to 100000"),
         "{msg}"
     );
+    // The angles of a polar direction are checked alike (φ was not, while θ was).
+    for bad in ["NaN", "-inf", "1e308"] {
+        expect(
+            "theta_deg: 24.0, phi_deg: -45.0",
+            &format!("theta_deg: 24.0, phi_deg: {bad}"),
+            &format!("phi_deg: {bad}"),
+            "phi_deg",
+            "360",
+        );
+    }
 }
 
 #[test]
@@ -214,14 +224,17 @@ fn the_test_benches_and_the_paper_bench_parse() {
     let file: BenchFile = crate::scene::read_ron(&p).unwrap();
     assert_eq!(file.elements.len(), 13);
     let d = file.dmd.as_ref().unwrap();
-    assert_eq!(d.pattern.units_across * d.pattern.mirrors_per_unit, 576);
+    assert_eq!(
+        d.pattern.units_across.get() * d.pattern.mirrors_per_unit.get(),
+        576
+    );
 }
 
 #[test]
 fn directions() {
     let v = Direction::Polar {
-        theta_deg: 24.0,
-        phi_deg: -45.0,
+        theta_deg: crate::scene::numbers::DirectionDeg(24.0),
+        phi_deg: crate::scene::numbers::DirectionDeg(-45.0),
     }
     .to_unit()
     .unwrap();
