@@ -6,7 +6,9 @@
 //! `substitutions.txt`. `--as-is` exports the bench unchanged and fails, naming the element, if
 //! Mitsuba cannot represent it. Output (DIR): `scene.xml`, `meshes/*.ply`, `charts/*.pfm`,
 //! `manifest.json`, `substitutions.txt` and `summary.json`, written into a staging directory and
-//! moved into place only when everything succeeded.
+//! moved into place only when everything succeeded. Mitsuba cannot model the DMD's diffraction:
+//! a bench with `model: Diffractive` is exported with geometric mirrors and a note saying so
+//! (`--as-is` refuses it).
 
 use std::path::PathBuf;
 
@@ -73,8 +75,22 @@ pub fn run(args: &ExportArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// What the export says of a bench whose DMD diffracts (docs/dmd_diffraction.md).
+const DIFFRACTION_NOTE: &str = "dmd: Mitsuba cannot model the DMD's diffraction (a ray tracer \
+     has no grating orders): the scene's mirrors reflect geometrically, as with `model: \
+     Geometric`; compare Mitsuba with spibench's geometric model only";
+
 fn export(args: &ExportArgs) -> Result<ExportSummary> {
     let bench = read_bench(&args.scene)?;
+    let diffractive = bench.dmd().is_some_and(|s| s.dmd.diffraction().is_some());
+    if diffractive && args.as_is {
+        return Err(Error::field(
+            "dmd.model",
+            "Mitsuba cannot model the DMD's diffraction: export without --as-is (the scene's \
+             mirrors then reflect geometrically) or set `model: Geometric`",
+        )
+        .in_file(&args.scene));
+    }
     let spec = PatternSpec::parse(&args.pattern).map_err(|e| e.at_field("--pattern"))?;
     let base = std::env::current_dir().unwrap_or_default();
     let bits = spec.bits(bench.units(), &base)?;
@@ -114,6 +130,9 @@ fn export(args: &ExportArgs) -> Result<ExportSummary> {
     )
     .map_err(|e| e.in_file(&args.scene))?;
     let mut substitutions = notes;
+    if diffractive {
+        substitutions.insert(0, DIFFRACTION_NOTE.to_string());
+    }
     substitutions.extend(scene.notes.iter().cloned());
     let dir = OutputDir::create(&args.out)?;
     let mut files = Vec::new();

@@ -43,7 +43,7 @@ pub use crate::scene::numbers::{
 };
 pub use schema::{
     BenchFile, CenterOnSpec, ChartGuidedSpec, ChartPatternSpec, CoatingSpec, DetectorsSpec,
-    Direction, DmdSpec, ElementSpec, EmissionSpec, FieldSamplingSpec, FilamentSpec, GlassSpec,
+    Direction, DmdModelSpec, DmdSpec, ElementSpec, EmissionSpec, FieldSamplingSpec, FilamentSpec, GlassSpec,
     LampPowerSpec, LampSpec, LampSpectrumSpec, Outline, PatternSpec, PhotodiodeSpec, SpectrumSpec,
     StateSpec, WindowSpec,
 };
