@@ -182,6 +182,38 @@ mod tests {
         }
     }
 
+    /// Mitsuba cannot model the DMD's diffraction: the export says so, and `--as-is` refuses.
+    #[test]
+    fn diffractive_benches_are_exported_geometric_with_a_note() {
+        let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+        let text = std::fs::read_to_string(root.join("scenes/tests/symmetric_arms.ron"))
+            .unwrap()
+            .replace(
+                "package_mm: (10.0, 10.0),",
+                "package_mm: (10.0, 10.0),\n        model: Diffractive(),",
+            );
+        let dir = tmp("diffractive");
+        std::fs::create_dir_all(&dir).unwrap();
+        let scene = dir.join("bench.ron");
+        std::fs::write(&scene, text).unwrap();
+        let out = dir.join("out");
+        let s = export(&args(scene.clone(), out.clone(), "all-plus")).unwrap();
+        assert!(
+            s.substitutions[0].contains("Mitsuba cannot model the DMD's diffraction"),
+            "{:?}",
+            s.substitutions
+        );
+        let mut a = args(scene, dir.join("as-is"), "all-plus");
+        a.as_is = true;
+        let e = export(&a).unwrap_err();
+        assert!(
+            e.is_user_error() && e.to_string().contains("dmd.model"),
+            "{e}"
+        );
+        assert!(!dir.join("as-is").exists());
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
     #[test]
     fn exports_a_bench_and_refuses_bad_input_without_output() {
         let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));

@@ -15,16 +15,14 @@ use std::path::{Path, PathBuf};
 
 use crate::error::{Error, Result};
 use crate::optics::{Arm, Bench};
-use crate::pipeline::summary::{
-    CollectionShares, DiffractionSummary, TraceSummary, summarize,
-};
-use crate::report::plot::{LinePlot, Series, write_plot};
-use crate::trace::collection::{Collection, collection};
+use crate::pipeline::summary::{CollectionShares, DiffractionSummary, TraceSummary, summarize};
 use crate::pipeline::{TraceRequest, trace_stage};
 use crate::report::exr::write_channels;
 use crate::report::heatmap::{UnitMap, write_unit_map};
 use crate::report::output::OutputDir;
+use crate::report::plot::{LinePlot, Series, write_plot};
 use crate::scene::bench::read_bench;
+use crate::trace::collection::{Collection, collection};
 use crate::transport::Transport;
 
 /// Arguments of `spibench trace`.
@@ -104,7 +102,14 @@ pub fn run(args: &TraceArgs) -> anyhow::Result<()> {
         }
         None => None,
     };
-    write_outputs(&out, t, &mut summary, &provenance, collections.as_ref(), &bench)?;
+    write_outputs(
+        &out,
+        t,
+        &mut summary,
+        &provenance,
+        collections.as_ref(),
+        &bench,
+    )?;
     print_table(&summary, seconds);
     if let Some(d) = &summary.dmd_diffraction {
         print_diffraction(d);
@@ -188,7 +193,11 @@ fn print_diffraction(d: &DiffractionSummary) {
         ("diode + from state +", g.plus_from_plus, f.plus_from_plus),
         ("diode − from state +", g.minus_from_plus, f.minus_from_plus),
         ("diode + from state −", g.plus_from_minus, f.plus_from_minus),
-        ("diode − from state −", g.minus_from_minus, f.minus_from_minus),
+        (
+            "diode − from state −",
+            g.minus_from_minus,
+            f.minus_from_minus,
+        ),
     ] {
         println!("  {label:<22} {a:>12.4} {b:>12.4}");
     }
@@ -313,6 +322,49 @@ mod tests {
         let d = std::env::temp_dir().join(format!("spibench-trace-{}-{name}", std::process::id()));
         let _ = std::fs::remove_dir_all(&d);
         d
+    }
+
+    /// A bench with the diffractive DMD model: `summary.json` gains `dmd_diffraction` (shares
+    /// in [0, 1], each arm collecting most of its own light with geometric mirrors) and the
+    /// collection figure is written.
+    #[test]
+    fn diffractive_bench_reports_the_collection() {
+        let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/tests/symmetric_arms.ron");
+        let text = std::fs::read_to_string(&src).unwrap().replace(
+            "package_mm: (10.0, 10.0),",
+            "package_mm: (10.0, 10.0),\n        model: Diffractive(),",
+        );
+        let dir = tmp("diffractive");
+        std::fs::create_dir_all(&dir).unwrap();
+        let scene = dir.join("bench.ron");
+        std::fs::write(&scene, text).unwrap();
+        let out = dir.join("out");
+        let args = TraceArgs {
+            scene,
+            opts: super::super::args::RunOpts {
+                rays: Some(20_000),
+                seed: Some(3),
+                out: Some(out.clone()),
+            },
+        };
+        run(&args).unwrap();
+        let text = std::fs::read_to_string(out.join("summary.json")).unwrap();
+        let v: serde_json::Value = serde_json::from_str(&text).unwrap();
+        let d = &v["dmd_diffraction"];
+        for model in ["geometric", "diffractive"] {
+            for key in [
+                "plus_from_plus",
+                "minus_from_plus",
+                "plus_from_minus",
+                "minus_from_minus",
+            ] {
+                let s = d[model][key].as_f64().unwrap();
+                assert!((0.0..=1.0).contains(&s), "{model} {key}: {s}");
+            }
+        }
+        assert!(d["geometric"]["plus_from_plus"].as_f64().unwrap() > 0.5);
+        assert!(out.join("collection.png").is_file() && out.join("collection.svg").is_file());
+        let _ = std::fs::remove_dir_all(&dir);
     }
 
     #[test]

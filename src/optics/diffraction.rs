@@ -110,7 +110,10 @@ impl Envelope {
         // The edges carried along u_s down to z = 0.
         let shear = |e: DVec3| (e.x - e.z * us.x / us.z, e.y - e.z * us.y / us.z);
         let (e1, e2) = (shear(facet.e1), shear(facet.e2));
-        let (e1, e2) = ((g.side * e1.0, g.side * e1.1), (g.side * e2.0, g.side * e2.1));
+        let (e1, e2) = (
+            (g.side * e1.0, g.side * e1.1),
+            (g.side * e2.0, g.side * e2.1),
+        );
         let det = (e1.0 * e2.1 - e1.1 * e2.0).abs();
         // The peak in order units: c = (u_s,xy − d_xy)·p/λ.
         let cx = (us.x - d.x) * g.pitch / wl;
@@ -182,9 +185,9 @@ impl Forms {
     fn new(f: &[f64; 3]) -> Forms {
         let mut rows = [(0.0, 0.0); CORE_SIDE];
         let mut cols = [(0.0, 0.0); CORE_SIDE];
-        for k in 0..CORE_SIDE {
+        for (k, row) in rows.iter_mut().enumerate() {
             let o = k as f64 - CORE_RADIUS as f64;
-            rows[k] = (f[0] + o * f[1]).sin_cos();
+            *row = (f[0] + o * f[1]).sin_cos();
         }
         for k in 0..=CORE_RADIUS as usize {
             let o = k as f64;
@@ -234,6 +237,9 @@ pub struct Diffraction {
     /// tails[bin][state]: None for a state no mirror of the bench takes.
     tails: Vec<[Option<Vec<TailEntry>>; 3]>,
 }
+
+/// The orders a ray can reach, (m, n, probability), and the share that leaves nowhere.
+pub type Distribution = (Vec<(i32, i32, f64)>, f64);
 
 /// Where a drawn order sends a ray.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -345,22 +351,21 @@ impl Diffraction {
     /// every order it can reach, with its probability, and the share that goes nowhere
     /// (evanescent orders, orders below the facet, the remainder beyond the table). The
     /// probabilities and that share sum to 1. None when the reflection is geometric (grazing).
-    pub fn distribution(
-        &self,
-        state: usize,
-        d: DVec3,
-        wl: f64,
-    ) -> Option<(Vec<(i32, i32, f64)>, f64)> {
+    pub fn distribution(&self, state: usize, d: DVec3, wl: f64) -> Option<Distribution> {
         let facet = &self.facets[state];
         let env = Envelope::new(self.grating, facet, d, wl)?;
         let (core, core_sum) = env.core();
         let mut orders = Vec::new();
         let mut lost = 0.0;
-        let mut put = |i: i32, j: i32, p: f64, lost: &mut f64| {
-            match self.order(facet, d, wl, env.m0 + i, env.n0 + j) {
-                Order::Propagating { m, n, .. } => orders.push((m, n, p)),
-                _ => *lost += p,
-            }
+        let mut put = |i: i32, j: i32, p: f64, lost: &mut f64| match self.order(
+            facet,
+            d,
+            wl,
+            env.m0 + i,
+            env.n0 + j,
+        ) {
+            Order::Propagating { m, n, .. } => orders.push((m, n, p)),
+            _ => *lost += p,
         };
         for (k, p) in core.iter().enumerate() {
             let (i, j) = (

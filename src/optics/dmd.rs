@@ -223,9 +223,7 @@ impl Dmd {
             pitch: self.pitch,
             side: self.side,
         };
-        self.diffraction = Some(Arc::new(Diffraction::new(
-            grating, facets, band, bin, used,
-        )));
+        self.diffraction = Some(Arc::new(Diffraction::new(grating, facets, band, bin, used)));
         self
     }
 

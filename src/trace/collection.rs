@@ -104,7 +104,10 @@ pub fn collection(bench: &Bench, rays: u64, seed: u64, bins: usize) -> Result<Co
         ));
     }
     let Some(dmd) = bench.dmd() else {
-        return Err(Error::field("dmd", "the collection needs a bench with a DMD"));
+        return Err(Error::field(
+            "dmd",
+            "the collection needs a bench with a DMD",
+        ));
     };
     let band = bench.band();
     let n_batches = rays.div_ceil(RAYS_PER_BATCH);
@@ -130,11 +133,13 @@ pub fn collection(bench: &Bench, rays: u64, seed: u64, bins: usize) -> Result<Co
             })
             .collect();
         for rec in &chunk {
-            for k in 0..bins {
-                incident[k] += rec.incident[k];
-                for d in 0..2 {
-                    for s in 0..2 {
-                        detected[k][d][s] += rec.detected[k][d][s];
+            for (sum, v) in incident.iter_mut().zip(&rec.incident) {
+                *sum += v;
+            }
+            for (sum, v) in detected.iter_mut().zip(&rec.detected) {
+                for (row, vrow) in sum.iter_mut().zip(v) {
+                    for (x, y) in row.iter_mut().zip(vrow) {
+                        *x += y;
                     }
                 }
             }

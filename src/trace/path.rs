@@ -620,8 +620,8 @@ fn meet_dmd<R: Recorder>(
         // slightly different facets (they differ only at the edges), so each books half of what
         // it meets: x_j is the mean over the two states.
         p.x_pending = false;
-        if let DmdOutcome::Reflected { unit: Some(_), .. } | DmdOutcome::Evanescent { unit: Some(_) } =
-            outcome
+        if let DmdOutcome::Reflected { unit: Some(_), .. }
+        | DmdOutcome::Evanescent { unit: Some(_) } = outcome
         {
             let share = if p.world == COMMON { 1.0 } else { 0.5 };
             tally.x[p.unit] += share * p.w;

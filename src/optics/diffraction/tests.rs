@@ -178,7 +178,10 @@ fn fft_reference_agrees() {
         }
         let rel = (p / reference - 1.0).abs();
         worst = worst.max(rel);
-        assert!(rel < 0.01, "{inc} {wl} {state} ({m}, {n}): {p} vs {reference}");
+        assert!(
+            rel < 0.01,
+            "{inc} {wl} {state} ({m}, {n}): {p} vs {reference}"
+        );
         checked += 1;
     }
     assert!(checked >= 40, "only {checked} orders above 1 %");
@@ -206,7 +209,9 @@ fn blaze_condition() {
         assert_eq!((env.m0, env.n0), (m, -m));
         let p = env.probability(0, 0);
         assert!((p - env.scale).abs() < 1e-12);
-        assert!((env.scale - 0.92 * 12f64.to_radians().cos() / 24f64.to_radians().cos()).abs() < 1e-9);
+        assert!(
+            (env.scale - 0.92 * 12f64.to_radians().cos() / 24f64.to_radians().cos()).abs() < 1e-9
+        );
         let dir = DVec3::new(
             d.x + m as f64 * wl / PITCH,
             d.y - m as f64 * wl / PITCH,
@@ -243,10 +248,7 @@ fn large_pitch_tends_to_geometric_reflection() {
         let (mut inside, mut mean) = (0.0, DVec3::ZERO);
         for i in -r..=r {
             for j in -r..=r {
-                let (a, b) = (
-                    d.x + (env.m0 + i) as f64 * q,
-                    d.y + (env.n0 + j) as f64 * q,
-                );
+                let (a, b) = (d.x + (env.m0 + i) as f64 * q, d.y + (env.n0 + j) as f64 * q);
                 let u = DVec3::new(a, b, (1.0 - a * a - b * b).sqrt());
                 if u.angle_between(env.specular) <= cone {
                     let p = env.probability(i, j);

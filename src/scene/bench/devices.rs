@@ -17,8 +17,8 @@ use crate::optics::spectrum::{Spectrum, Table};
 
 use super::build::{Builder, mm, solid_outline};
 use super::schema::{
-    DmdModelSpec, DmdSpec, EmissionSpec, FilamentSpec, LampPowerSpec, LampSpec, LampSpectrumSpec, Outline,
-    PhotodiodeSpec, StateSpec, WindowSpec,
+    DmdModelSpec, DmdSpec, EmissionSpec, FilamentSpec, LampPowerSpec, LampSpec, LampSpectrumSpec,
+    Outline, PhotodiodeSpec, StateSpec, WindowSpec,
 };
 
 impl Builder<'_> {

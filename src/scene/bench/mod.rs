@@ -43,9 +43,9 @@ pub use crate::scene::numbers::{
 };
 pub use schema::{
     BenchFile, CenterOnSpec, ChartGuidedSpec, ChartPatternSpec, CoatingSpec, DetectorsSpec,
-    Direction, DmdModelSpec, DmdSpec, ElementSpec, EmissionSpec, FieldSamplingSpec, FilamentSpec, GlassSpec,
-    LampPowerSpec, LampSpec, LampSpectrumSpec, Outline, PatternSpec, PhotodiodeSpec, SpectrumSpec,
-    StateSpec, WindowSpec,
+    Direction, DmdModelSpec, DmdSpec, ElementSpec, EmissionSpec, FieldSamplingSpec, FilamentSpec,
+    GlassSpec, LampPowerSpec, LampSpec, LampSpectrumSpec, Outline, PatternSpec, PhotodiodeSpec,
+    SpectrumSpec, StateSpec, WindowSpec,
 };
 
 // Conversion.
