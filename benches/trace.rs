@@ -5,7 +5,9 @@
 //! - the relative standard errors of k₊ and k₋, the number of rays and the time needed for
 //!   0.1 % (extrapolated with SE ∝ 1/√N from a pilot run, then confirmed by one run at that N),
 //! - the same for two baselines in the same run: the field target without the chart guidance,
-//!   and the bench without any field importance sampling (rays over the whole emission cone).
+//!   and the bench without any field importance sampling (rays over the whole emission cone),
+//! - the throughput of the diffractive DMD model against the geometric one (same rays, same
+//!   run, three alternating pilot runs each).
 //!
 //! Timings are wall-clock and depend on what else the machine is doing; the ratio to the
 //! baseline, measured in the same run, is the meaningful comparison.
@@ -96,6 +98,36 @@ fn main() {
     println!(
         "confirmed at {n} rays: {:.1} s, rel. SE k+ {:.2e}, k- {:.2e}",
         confirm.seconds, confirm.rel_se[0], confirm.rel_se[1]
+    );
+
+    // The diffractive DMD model against the geometric one (docs/dmd_diffraction.md), same run,
+    // same rays, alternating to spread the machine's drift over both: throughput ratio.
+    let mut file = doc.file.clone();
+    let geometric = build(file.clone());
+    if let Some(d) = file.dmd.as_mut() {
+        d.model = spibench::scene::bench::DmdModelSpec::Diffractive {
+            tail_bin_nm: spibench::scene::numbers::Positive(10.0),
+        };
+    }
+    let build_start = Instant::now();
+    let diffractive = build(file);
+    let build_s = build_start.elapsed().as_secs_f64();
+    let (mut tg, mut td) = (0.0, 0.0);
+    let mut kd = [0.0; 2];
+    for _ in 0..3 {
+        tg += run(&geometric, pilot_rays, 1, 2).seconds;
+        let r = run(&diffractive, pilot_rays, 1, 2);
+        td += r.seconds;
+        kd = r.k;
+    }
+    println!(
+        "DMD model: geometric {:.0} rays/s, diffractive {:.0} rays/s on 2 threads \
+         ({:+.1} % time; tables built in {build_s:.2} s); diffractive k+ = {:.5}, k- = {:.5}",
+        3.0 * pilot_rays as f64 / tg,
+        3.0 * pilot_rays as f64 / td,
+        100.0 * (td / tg - 1.0),
+        kd[0],
+        kd[1]
     );
 
     // Comparisons in the same run: the field target without the chart guidance, and no field

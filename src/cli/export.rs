@@ -6,7 +6,9 @@
 //! `substitutions.txt`. `--as-is` exports the bench unchanged and fails, naming the element, if
 //! Mitsuba cannot represent it. Output (DIR): `scene.xml`, `meshes/*.ply`, `charts/*.pfm`,
 //! `manifest.json`, `substitutions.txt` and `summary.json`, written into a staging directory and
-//! moved into place only when everything succeeded.
+//! moved into place only when everything succeeded. Mitsuba cannot model the DMD's diffraction:
+//! a bench with `model: Diffractive` is exported with geometric mirrors and a note saying so
+//! (`--as-is` refuses it).
 
 use std::path::PathBuf;
 
@@ -73,8 +75,22 @@ pub fn run(args: &ExportArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// What the export says of a bench whose DMD diffracts (docs/dmd_diffraction.md).
+const DIFFRACTION_NOTE: &str = "dmd: Mitsuba cannot model the DMD's diffraction (a ray tracer \
+     has no grating orders): the scene's mirrors reflect geometrically, as with `model: \
+     Geometric`; compare Mitsuba with spibench's geometric model only";
+
 fn export(args: &ExportArgs) -> Result<ExportSummary> {
     let bench = read_bench(&args.scene)?;
+    let diffractive = bench.dmd().is_some_and(|s| s.dmd.diffraction().is_some());
+    if diffractive && args.as_is {
+        return Err(Error::field(
+            "dmd.model",
+            "Mitsuba cannot model the DMD's diffraction: export without --as-is (the scene's \
+             mirrors then reflect geometrically) or set `model: Geometric`",
+        )
+        .in_file(&args.scene));
+    }
     let spec = PatternSpec::parse(&args.pattern).map_err(|e| e.at_field("--pattern"))?;
     let base = std::env::current_dir().unwrap_or_default();
     let bits = spec.bits(bench.units(), &base)?;
@@ -114,6 +130,9 @@ fn export(args: &ExportArgs) -> Result<ExportSummary> {
     )
     .map_err(|e| e.in_file(&args.scene))?;
     let mut substitutions = notes;
+    if diffractive {
+        substitutions.insert(0, DIFFRACTION_NOTE.to_string());
+    }
     substitutions.extend(scene.notes.iter().cloned());
     let dir = OutputDir::create(&args.out)?;
     let mut files = Vec::new();
@@ -161,6 +180,38 @@ mod tests {
             spectral: false,
             sensor_samples: 1000,
         }
+    }
+
+    /// Mitsuba cannot model the DMD's diffraction: the export says so, and `--as-is` refuses.
+    #[test]
+    fn diffractive_benches_are_exported_geometric_with_a_note() {
+        let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+        let text = std::fs::read_to_string(root.join("scenes/tests/symmetric_arms.ron"))
+            .unwrap()
+            .replace(
+                "package_mm: (10.0, 10.0),",
+                "package_mm: (10.0, 10.0),\n        model: Diffractive(),",
+            );
+        let dir = tmp("diffractive");
+        std::fs::create_dir_all(&dir).unwrap();
+        let scene = dir.join("bench.ron");
+        std::fs::write(&scene, text).unwrap();
+        let out = dir.join("out");
+        let s = export(&args(scene.clone(), out.clone(), "all-plus")).unwrap();
+        assert!(
+            s.substitutions[0].contains("Mitsuba cannot model the DMD's diffraction"),
+            "{:?}",
+            s.substitutions
+        );
+        let mut a = args(scene, dir.join("as-is"), "all-plus");
+        a.as_is = true;
+        let e = export(&a).unwrap_err();
+        assert!(
+            e.is_user_error() && e.to_string().contains("dmd.model"),
+            "{e}"
+        );
+        assert!(!dir.join("as-is").exists());
+        let _ = std::fs::remove_dir_all(&dir);
     }
 
     #[test]

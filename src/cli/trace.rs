@@ -4,19 +4,25 @@
 //! Output (DIR): `summary.json` (keys documented on [`TraceSummary`]), `maps.exr` (one
 //! multi-channel EXR of the per-unit maps, f32, row-major, row 0 = the top row of the pattern
 //! area) and one figure per map (`NAME.svg` and its rendering `NAME.png`: one square per unit,
-//! a colour bar in the map's unit, dark units hatched, `report::heatmap::UnitMap`). Everything is computed in memory and written into a staging
+//! a colour bar in the map's unit, dark units hatched, `report::heatmap::UnitMap`). With the
+//! diffractive DMD model (docs/dmd_diffraction.md) it also traces the collection of the DMD's
+//! reflected light with and without diffraction: `summary.json` gains `dmd_diffraction`, and
+//! `collection.svg`/`.png` plot each arm's collection against wavelength. Everything is computed in memory and written into a staging
 //! directory that is renamed into place at the end, so bad input or a failed write leaves no
 //! partial output.
 
 use std::path::{Path, PathBuf};
 
 use crate::error::{Error, Result};
-use crate::pipeline::summary::{TraceSummary, summarize};
+use crate::optics::{Arm, Bench};
+use crate::pipeline::summary::{CollectionShares, DiffractionSummary, TraceSummary, summarize};
 use crate::pipeline::{TraceRequest, trace_stage};
 use crate::report::exr::write_channels;
 use crate::report::heatmap::{UnitMap, write_unit_map};
 use crate::report::output::OutputDir;
+use crate::report::plot::{LinePlot, Series, write_plot};
 use crate::scene::bench::read_bench;
+use crate::trace::collection::{Collection, collection};
 use crate::transport::Transport;
 
 /// Arguments of `spibench trace`.
@@ -88,8 +94,26 @@ pub fn run(args: &TraceArgs) -> anyhow::Result<()> {
     for f in crate::scene::doc::BenchDoc::read(&args.scene)?.input_files() {
         provenance = provenance.file(&f)?;
     }
-    write_outputs(&out, t, &mut summary, &provenance)?;
+    let collections = match bench.dmd().and_then(|s| s.dmd.diffraction()) {
+        Some(_) => {
+            let (shares, c) = diffraction_comparison(&bench, rays, seed)?;
+            summary.dmd_diffraction = Some(shares);
+            Some(c)
+        }
+        None => None,
+    };
+    write_outputs(
+        &out,
+        t,
+        &mut summary,
+        &provenance,
+        collections.as_ref(),
+        &bench,
+    )?;
     print_table(&summary, seconds);
+    if let Some(d) = &summary.dmd_diffraction {
+        print_diffraction(d);
+    }
     // The folder and a count: the file list is in summary.json (`files`), and a line per file
     // would not fit a terminal.
     println!(
@@ -136,6 +160,98 @@ fn print_table(s: &TraceSummary, seconds: f64) {
     );
 }
 
+/// Wavelength bins of the collection figure (20 nm over the default band).
+const COLLECTION_BINS: usize = 40;
+
+/// The collection of the bench's reflected light with geometric mirrors and with its diffractive
+/// model ([`crate::trace::collection`]), each from a quarter of the trace's rays (at least
+/// 50 000): the shares are ratios of powers on the same rays, well resolved by fewer rays.
+fn diffraction_comparison(
+    bench: &Bench,
+    rays: u64,
+    seed: u64,
+) -> Result<(DiffractionSummary, [Collection; 2])> {
+    let n = (rays / 4).max(50_000);
+    let geometric = collection(&bench.with_geometric_dmd(), n, seed, COLLECTION_BINS)?;
+    let diffractive = collection(bench, n, seed, COLLECTION_BINS)?;
+    let summary = DiffractionSummary {
+        rays: n,
+        geometric: CollectionShares::of(&geometric),
+        diffractive: CollectionShares::of(&diffractive),
+    };
+    Ok((summary, [geometric, diffractive]))
+}
+
+fn print_diffraction(d: &DiffractionSummary) {
+    println!(
+        "  DMD diffraction: share of the pattern mirrors' reflected power on each diode ({} rays per model)",
+        d.rays
+    );
+    println!("  {:<22} {:>12} {:>12}", "", "geometric", "diffractive");
+    let (g, f) = (&d.geometric, &d.diffractive);
+    for (label, a, b) in [
+        ("diode + from state +", g.plus_from_plus, f.plus_from_plus),
+        ("diode − from state +", g.minus_from_plus, f.minus_from_plus),
+        ("diode + from state −", g.plus_from_minus, f.plus_from_minus),
+        (
+            "diode − from state −",
+            g.minus_from_minus,
+            f.minus_from_minus,
+        ),
+    ] {
+        println!("  {label:<22} {a:>12.4} {b:>12.4}");
+    }
+}
+
+/// The figure of each arm's collection against wavelength, both models, with the spectrum of
+/// the light on the pattern and each diode's responsivity (each scaled to a peak of 1) drawn
+/// as lines for reference.
+fn collection_plot(c: &[Collection; 2], bench: &Bench) -> LinePlot {
+    let [geometric, diffractive] = c;
+    let x: Vec<f64> = (0..geometric.bins)
+        .map(|b| geometric.wavelength_m(b) * 1e9)
+        .collect();
+    let mut series = Vec::new();
+    for arm in Arm::ALL {
+        for (name, col) in [("geometric", geometric), ("diffractive", diffractive)] {
+            series.push(Series {
+                label: format!("arm {} ({name})", arm.label()),
+                x: x.clone(),
+                y: (0..col.bins).map(|b| col.share_in(b, arm, arm)).collect(),
+                y_err: None,
+            });
+        }
+    }
+    let scaled = |v: Vec<f64>| {
+        let peak = v.iter().cloned().fold(0.0, f64::max);
+        v.into_iter()
+            .map(|y| if peak > 0.0 { y / peak } else { 0.0 })
+            .collect::<Vec<f64>>()
+    };
+    series.push(Series {
+        label: "light on the pattern (relative)".into(),
+        x: x.clone(),
+        y: scaled(diffractive.incident_w.clone()),
+        y_err: None,
+    });
+    for arm in Arm::ALL {
+        let r = &bench.detectors()[arm].responsivity;
+        series.push(Series {
+            label: format!("diode {} responsivity (relative)", arm.label()),
+            x: x.clone(),
+            y: scaled(x.iter().map(|nm| r.at(nm * 1e-9)).collect()),
+            y_err: None,
+        });
+    }
+    LinePlot {
+        title: "Each arm's collection of the DMD-reflected light against wavelength".into(),
+        x_label: "wavelength (nm)".into(),
+        y_label: "share of the reflected power on the arm's diode".into(),
+        series,
+        log_x: false,
+    }
+}
+
 /// Writes every output into a staging directory beside `out` ([`OutputDir`]) and moves it into
 /// place only when everything has been written, so a failure leaves no partial output.
 fn write_outputs(
@@ -143,6 +259,8 @@ fn write_outputs(
     t: &Transport,
     summary: &mut TraceSummary,
     provenance: &crate::provenance::Provenance,
+    collections: Option<&[Collection; 2]>,
+    bench: &Bench,
 ) -> Result<()> {
     let dir = OutputDir::create(out)?;
     let mut files = Vec::new();
@@ -180,6 +298,16 @@ fn write_outputs(
         files.push(svg);
         files.push(png);
     }
+    if let Some(c) = collections {
+        let plot = collection_plot(c, bench);
+        write_plot(
+            &plot,
+            &dir.path("collection.svg"),
+            &dir.path("collection.png"),
+        )?;
+        files.push("collection.svg".to_string());
+        files.push("collection.png".to_string());
+    }
     summary.files = files;
     super::provenance::write_summary(&dir, &*summary, provenance)?;
     dir.commit()?;
@@ -194,6 +322,49 @@ mod tests {
         let d = std::env::temp_dir().join(format!("spibench-trace-{}-{name}", std::process::id()));
         let _ = std::fs::remove_dir_all(&d);
         d
+    }
+
+    /// A bench with the diffractive DMD model: `summary.json` gains `dmd_diffraction` (shares
+    /// in [0, 1], each arm collecting most of its own light with geometric mirrors) and the
+    /// collection figure is written.
+    #[test]
+    fn diffractive_bench_reports_the_collection() {
+        let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/tests/symmetric_arms.ron");
+        let text = std::fs::read_to_string(&src).unwrap().replace(
+            "package_mm: (10.0, 10.0),",
+            "package_mm: (10.0, 10.0),\n        model: Diffractive(),",
+        );
+        let dir = tmp("diffractive");
+        std::fs::create_dir_all(&dir).unwrap();
+        let scene = dir.join("bench.ron");
+        std::fs::write(&scene, text).unwrap();
+        let out = dir.join("out");
+        let args = TraceArgs {
+            scene,
+            opts: super::super::args::RunOpts {
+                rays: Some(20_000),
+                seed: Some(3),
+                out: Some(out.clone()),
+            },
+        };
+        run(&args).unwrap();
+        let text = std::fs::read_to_string(out.join("summary.json")).unwrap();
+        let v: serde_json::Value = serde_json::from_str(&text).unwrap();
+        let d = &v["dmd_diffraction"];
+        for model in ["geometric", "diffractive"] {
+            for key in [
+                "plus_from_plus",
+                "minus_from_plus",
+                "plus_from_minus",
+                "minus_from_minus",
+            ] {
+                let s = d[model][key].as_f64().unwrap();
+                assert!((0.0..=1.0).contains(&s), "{model} {key}: {s}");
+            }
+        }
+        assert!(d["geometric"]["plus_from_plus"].as_f64().unwrap() > 0.5);
+        assert!(out.join("collection.png").is_file() && out.join("collection.svg").is_file());
+        let _ = std::fs::remove_dir_all(&dir);
     }
 
     #[test]

@@ -455,6 +455,16 @@ impl Bench {
         self.dmd.as_ref()
     }
 
+    /// The same bench with its DMD reflecting geometrically (a copy of itself when it already
+    /// does): the reference of the diffractive model's comparison.
+    pub fn with_geometric_dmd(&self) -> Bench {
+        let mut b = self.clone();
+        if let Some(s) = &mut b.dmd {
+            s.dmd = s.dmd.geometric();
+        }
+        b
+    }
+
     /// [arm +, arm −].
     pub fn detectors(&self) -> &[Photodiode; 2] {
         &self.detectors

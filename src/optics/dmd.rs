@@ -12,9 +12,12 @@
 //! which covers every ray of the bench (docs/rust-notes.md §4: this analytic grid agrees with a triangle
 //! BVH of the mirrors on 99.985 % of rays, the rest within f32 rounding of an edge).
 
+use std::sync::Arc;
+
 use glam::{DMat3, DVec3};
 
 use super::arm::Arm;
+use super::diffraction::{Diffraction, Facet, Grating, Order};
 use super::fresnel::reflect;
 use super::geometry::SURFACE_OFFSET;
 use super::spectrum::Spectrum;
@@ -101,6 +104,8 @@ pub struct Dmd {
     normal: [DVec3; 3],
     /// Highest |z| reached by a tilted mirror's corner.
     h: f64,
+    /// The diffractive model (docs/dmd_diffraction.md), None for geometric reflection.
+    diffraction: Option<Arc<Diffraction>>,
     x0: f64,
     y0: f64,
 }
@@ -143,6 +148,10 @@ pub enum DmdOutcome {
         reflectance: f64,
         unit: Option<usize>,
     },
+    /// Diffractive model only: the mirror front was met but the drawn order is evanescent (or
+    /// would leave below the facet), so no power leaves; the aluminium absorbs it all. `unit` as
+    /// for `Reflected`.
+    Evanescent { unit: Option<usize> },
     /// The ray went down between the mirrors (into the gaps or onto the back of a mirror): the
     /// CMOS substrate and hinges absorb it.
     Absorbed,
@@ -197,9 +206,38 @@ impl Dmd {
             rot_t: [rot[0].transpose(), rot[1].transpose(), rot[2].transpose()],
             normal: [rot[0] * DVec3::Z, rot[1] * DVec3::Z, DVec3::Z],
             h,
+            diffraction: None,
             x0: -(columns as f64) * pitch / 2.0,
             y0: (rows as f64) * pitch / 2.0,
         }
+    }
+
+    /// The same array reflecting as a diffractive grating (docs/dmd_diffraction.md): tail tables
+    /// for the traced `band` (m) in bins of `bin` (m), for the states the mirrors take (+, −
+    /// and the outside state).
+    pub fn with_diffraction(mut self, band: (f64, f64), bin: f64) -> Dmd {
+        let mut used = [true, true, false];
+        used[state_index(self.outside)] = true;
+        let facets = [0, 1, 2].map(|s| Facet::rotated(self.rot[s]));
+        let grating = Grating {
+            pitch: self.pitch,
+            side: self.side,
+        };
+        self.diffraction = Some(Arc::new(Diffraction::new(grating, facets, band, bin, used)));
+        self
+    }
+
+    /// The same array reflecting geometrically.
+    pub fn geometric(&self) -> Dmd {
+        Dmd {
+            diffraction: None,
+            ..self.clone()
+        }
+    }
+
+    /// The diffractive model, None when the array reflects geometrically.
+    pub fn diffraction(&self) -> Option<&Diffraction> {
+        self.diffraction.as_deref()
     }
 
     /// The unit normal of a mirror in `state`.
@@ -365,17 +403,19 @@ impl Dmd {
 
     /// A ray (origin `o`, unit direction `d`, wavelength `wavelength_m`) that has reached the
     /// array ([`Dmd::slab_entry`]) meets the actual tilted facets, with the pattern mirrors in
-    /// `states` and all others in the `outside` state: geometric reflection on the front of a
-    /// facet with the aluminium's reflectance R(λ) (docs/bench-facts.md §2.2–2.3), absorption
-    /// in the gaps, or, for an upward ray that meets no neighbouring facet, a way out of the
-    /// slab. The one place where the DMD acts on a ray; its diffraction (blaze and orders) is not
-    /// modelled.
+    /// `states` and all others in the `outside` state: reflection on the front of a facet with
+    /// the aluminium's reflectance R(λ) (docs/bench-facts.md §2.2–2.3), absorption in the gaps,
+    /// or, for an upward ray that meets no neighbouring facet, a way out of the slab. The one
+    /// place where the DMD acts on a ray. Reflection is geometric, or, with the diffractive
+    /// model, into the diffraction order that `order_u` (one uniform in [0, 1), unused by the
+    /// geometric model) draws (docs/dmd_diffraction.md).
     pub fn interact(
         &self,
         o: DVec3,
         d: DVec3,
         wavelength_m: f64,
         states: PatternStates,
+        order_u: f64,
     ) -> DmdOutcome {
         let pattern = self.pattern;
         let outside = self.outside;
@@ -396,11 +436,23 @@ impl Dmd {
                 normal,
             }) => {
                 let hit = o + t * d;
+                let unit = pattern.unit_of(col, row);
+                let direction = match &self.diffraction {
+                    None => reflect(d, normal),
+                    Some(diff) => {
+                        let s = state_index(state_of(col, row));
+                        match diff.draw(s, d, wavelength_m, order_u) {
+                            Order::Propagating { direction, .. } => direction,
+                            Order::Specular => reflect(d, normal),
+                            Order::Evanescent => return DmdOutcome::Evanescent { unit },
+                        }
+                    }
+                };
                 DmdOutcome::Reflected {
                     origin: hit + SURFACE_OFFSET * normal,
-                    direction: reflect(d, normal),
+                    direction,
                     reflectance: self.reflectance.at(wavelength_m).clamp(0.0, 1.0),
-                    unit: pattern.unit_of(col, row),
+                    unit,
                 }
             }
             Some(DmdHit::Gap { .. }) => DmdOutcome::Absorbed,

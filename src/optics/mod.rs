@@ -6,6 +6,7 @@
 pub mod arm;
 pub mod bench;
 pub mod chart;
+pub mod diffraction;
 pub mod dmd;
 pub mod fresnel;
 pub mod geometry;

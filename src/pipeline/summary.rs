@@ -62,8 +62,45 @@ pub struct TraceSummary {
     pub metrics: BTreeMap<String, f64>,
     /// The flux ledger.
     pub ledger: LedgerSummary,
+    /// With the diffractive DMD model only (`trace`): the collection with and without
+    /// diffraction (docs/dmd_diffraction.md).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub dmd_diffraction: Option<DiffractionSummary>,
     /// Output files (relative to the output directory).
     pub files: Vec<String>,
+}
+
+/// What `trace` reports on a bench whose DMD diffracts: the share of the power the pattern
+/// mirrors reflect that reaches each diode (over the traced band), with geometric mirrors and
+/// with the diffractive model, from two traces of the same rays (common random numbers).
+#[derive(Debug, Clone, Serialize)]
+pub struct DiffractionSummary {
+    /// Lamp rays of each of the two collection traces.
+    pub rays: u64,
+    pub geometric: CollectionShares,
+    pub diffractive: CollectionShares,
+}
+
+/// Shares of the reflected power of the mirrors in one state reaching one diode.
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct CollectionShares {
+    pub plus_from_plus: f64,
+    pub minus_from_plus: f64,
+    pub plus_from_minus: f64,
+    pub minus_from_minus: f64,
+}
+
+impl CollectionShares {
+    /// From a traced collection.
+    pub fn of(c: &crate::trace::collection::Collection) -> CollectionShares {
+        use crate::optics::Arm::{Minus, Plus};
+        CollectionShares {
+            plus_from_plus: c.share(Plus, Plus),
+            minus_from_plus: c.share(Minus, Plus),
+            plus_from_minus: c.share(Plus, Minus),
+            minus_from_minus: c.share(Minus, Minus),
+        }
+    }
 }
 
 /// The flux ledger in `summary.json` (W).
@@ -168,6 +205,7 @@ pub fn summarize(
             all_plus: world_summary(&t.ledger.worlds[0]),
             all_minus: world_summary(&t.ledger.worlds[1]),
         },
+        dmd_diffraction: None,
         files: Vec::new(),
     }
 }

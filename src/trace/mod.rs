@@ -14,6 +14,7 @@
 //! rays' emission and wavelength coordinates form a Latin hypercube (path.rs); the physics of
 //! each interaction is documented in path.rs.
 
+pub mod collection;
 pub mod fan;
 pub mod kernel;
 pub mod path;

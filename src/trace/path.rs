@@ -17,8 +17,10 @@
 //!   transmittance T_c = 10^−OD) the ray reflects, is transmitted (refracted into the substrate)
 //!   or is absorbed, the absorption sampled rather than weighted (`chrome_event`). Image masks
 //!   with grey levels choose clear or chrome with the pixel's clear fraction.
-//! - geometric optics only: diffraction by the DMD's mirror grid (its blaze and orders) is not
-//!   modelled; the arms' collection of the diffracted light is therefore not part of k±.
+//! - geometric optics, except at the DMD with the bench's diffractive model: there a ray that
+//!   meets a mirror front leaves in one diffraction order drawn from the order efficiencies
+//!   (`optics::diffraction`, docs/dmd_diffraction.md); an evanescent draw is absorbed by the
+//!   aluminium. With the default geometric model the mirrors reflect specularly.
 //!
 //! The nearest hit of every segment comes from the bench's BVH (`optics::bench::Accel`), checked
 //! against brute force in the tests below.
@@ -168,7 +170,8 @@ pub(super) fn run_batch_recorded<R: Recorder>(
 /// The object-kernel trace (`trace::kernel`) also uses `chart_crossing` (where a path meets a
 /// chart face, in the face's local coordinates), `detected` (every photocurrent tallied, with
 /// the path's mirror-state world, unit, object pixel and number of chart meetings) and
-/// `incident` (every booking of x_j); the defaults do nothing.
+/// `incident` (every booking of x_j); the spectral collection (`trace::collection`) uses
+/// `wavelength`. The defaults do nothing.
 pub(super) trait Recorder {
     fn segment(&mut self, o: DVec3, d: DVec3, t: f64);
     fn ray_done(&mut self, tally: &BatchTally);
@@ -180,6 +183,9 @@ pub(super) trait Recorder {
     fn detected(&mut self, _hit: Detection) {}
     #[inline(always)]
     fn incident(&mut self, _unit: usize, _pixel: u32, _w: f64) {}
+    /// The wavelength (m) of the lamp ray about to be traced.
+    #[inline(always)]
+    fn wavelength(&mut self, _wl: f64) {}
 }
 
 /// One photocurrent tallied by a path, for [`Recorder::detected`].
@@ -194,6 +200,8 @@ pub(super) struct Detection {
     /// The arm whose photodiode the path reached.
     pub detector: Arm,
     pub current_a: f64,
+    /// The power the path brought to the diode (W).
+    pub power_w: f64,
 }
 
 /// The recorder of an ordinary trace: records nothing.
@@ -225,6 +233,18 @@ const STREAM_PLUS: u64 = 1;
 const STREAM_MINUS: u64 = 2;
 
 impl RayKey {
+    /// The uniform in [0, 1) that draws the diffraction order of the DMD hit of branch `world` at
+    /// interaction `interactions` (SplitMix64 finalisations of the key: deterministic and
+    /// independent of the threads, and of every stream of the ray).
+    fn order_uniform(self, world: usize, interactions: u32) -> f64 {
+        use crate::rng::mix64;
+        let h = mix64(
+            mix64(mix64(self.seed ^ 0x4F52_4445_5253_0000) ^ self.index)
+                ^ ((world as u64) << 32 | interactions as u64),
+        );
+        (h >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
+    }
+
     fn stream(self, part: u64) -> StreamRng {
         crate::rng::stream(
             crate::rng::mix64(self.seed ^ crate::rng::mix64(0x5241_5953_0000_0000 + part)),
@@ -264,6 +284,7 @@ fn trace_ray<R: Recorder>(
 ) {
     let lamp = &bench.lamp();
     let (wl, spectral) = bench.sampler().sample(u[5], u[6]);
+    rec.wavelength(wl);
     let e = lamp.sample([u[0], u[1], u[2], u[3], u[4]], wl);
     let w = lamp.band_power_w * e.factor * spectral * inv_rays;
     let n_el = bench.elements().len();
@@ -472,6 +493,7 @@ fn detect<R: Recorder>(ctx: &Walk, p: &Path, arm: Arm, tally: &mut BatchTally, r
         chart_hits: p.chart_hits,
         detector: arm,
         current_a: current,
+        power_w: p.w,
     });
     match branch_state(p.world) {
         None => tally.b[arm] += current,
@@ -583,13 +605,24 @@ fn meet_dmd<R: Recorder>(
         PatternMode::Fixed(bits) => PatternStates::Bits(bits),
         PatternMode::Branch => PatternStates::Uniform(branch_state(p.world).unwrap_or(dmd.outside)),
     };
-    let outcome = dmd.interact(p.o, p.d, ctx.wl, states);
+    // The diffractive model's order draw: one uniform per mirror hit, hashed from the ray, its
+    // branch and its interaction count rather than drawn from the path's stream, so that the
+    // rest of the path sees the same random numbers under both models (common random numbers
+    // for the comparison `trace` reports).
+    let order_u = if dmd.diffraction().is_some() {
+        key.order_uniform(p.world, p.interactions)
+    } else {
+        0.0
+    };
+    let outcome = dmd.interact(p.o, p.d, ctx.wl, states, order_u);
     if p.x_pending {
         // x_j: the power incident on pattern mirrors in unit j's footprint. The two branches see
         // slightly different facets (they differ only at the edges), so each books half of what
         // it meets: x_j is the mean over the two states.
         p.x_pending = false;
-        if let DmdOutcome::Reflected { unit: Some(_), .. } = outcome {
+        if let DmdOutcome::Reflected { unit: Some(_), .. }
+        | DmdOutcome::Evanescent { unit: Some(_) } = outcome
+        {
             let share = if p.world == COMMON { 1.0 } else { 0.5 };
             tally.x[p.unit] += share * p.w;
             rec.incident(p.unit, p.pixel, share * p.w);
@@ -608,6 +641,11 @@ fn meet_dmd<R: Recorder>(
             p.d = direction;
             p.o = origin;
             Flow::Go
+        }
+        DmdOutcome::Evanescent { .. } => {
+            // The drawn order carries no power away: the aluminium absorbs it.
+            book(tally, p.world, setup.mirrors_element, p.w);
+            Flow::End
         }
         DmdOutcome::Absorbed => {
             book(tally, p.world, setup.gaps_element, p.w);

@@ -387,3 +387,92 @@ fn fixed_patterns_reproduce_the_transport_maps() {
         }
     }
 }
+
+/// The paper bench (its chart an image mask, as [`paper_bench_with_mask`]) with the DMD model
+/// `model` written into its `dmd` block.
+fn paper_bench_with_model(model: &str) -> Bench {
+    bench_with(
+        "paper_bench.ron",
+        &[
+            (
+                "pattern: Usaf(min_group: -2, max_group: 7),",
+                "pattern: Image(path: \"images/astronaut.png\", width_mm: 20.0, height_mm: 20.0),",
+            ),
+            (
+                "center_on: Elements(group: -1, first: 5, last: 6),",
+                "center_on: Point((0.0, 0.0)),",
+            ),
+            (
+                "package_mm: (40.0, 32.0),",
+                &format!("package_mm: (40.0, 32.0),\n        model: {model},"),
+            ),
+        ],
+    )
+}
+
+fn bits(v: &[f64]) -> Vec<u64> {
+    v.iter().map(|x| x.to_bits()).collect()
+}
+
+/// The diffractive DMD model (docs/dmd_diffraction.md): bit-identical on one and two threads,
+/// the ledger balanced ray by ray (evanescent draws are booked to the mirrors), and the same
+/// bench made geometric traces exactly as the file without the option (the order draw takes
+/// no number from the paths' streams, and the default changes nothing).
+#[test]
+fn diffractive_dmd_is_deterministic_balanced_and_optional() {
+    let bench = paper_bench_with_model("Diffractive()");
+    assert!(bench.dmd().unwrap().dmd.diffraction().is_some());
+    let go = |b: &Bench, threads: usize| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| run(b, 20_000, 42))
+    };
+    let (a, b) = (go(&bench, 1), go(&bench, 2));
+    assert_eq!(bits(&a.x), bits(&b.x));
+    assert_eq!(bits(&a.t), bits(&b.t));
+    for w in 0..3 {
+        assert_eq!(bits(&a.ledger[w]), bits(&b.ledger[w]));
+    }
+    assert_ledger_balances(&bench, 20_000, "paper bench, diffractive DMD");
+    let geometric = go(&paper_bench_with_mask(), 2);
+    let explicit = go(&paper_bench_with_model("Geometric"), 2);
+    let twin = go(&bench.with_geometric_dmd(), 2);
+    for t in [&explicit, &twin] {
+        assert_eq!(bits(&t.x), bits(&geometric.x));
+        assert_eq!(bits(&t.t), bits(&geometric.t));
+        for w in 0..3 {
+            assert_eq!(bits(&t.ledger[w]), bits(&geometric.ledger[w]));
+        }
+    }
+    // The light on the pattern is the same rays' but for light that returns to the pattern
+    // after a first reflection (off the window, from mirrors around the pattern), and the
+    // diffraction sends light away from the diodes: each arm's own current falls.
+    let (xa, xg): (f64, f64) = (a.x.iter().sum(), geometric.x.iter().sum());
+    assert!((xa - xg).abs() < 1e-3 * xg, "{xa} vs {xg}");
+    let own = |t: &Tallies, arm: Arm| -> f64 {
+        let units = t.x.len();
+        (0..units)
+            .map(|j| t.t[BatchTally::t_index(units, arm, arm.state(), j)])
+            .sum()
+    };
+    for arm in Arm::ALL {
+        assert!(own(&b, arm) < own(&geometric, arm), "{arm:?}");
+        assert!(own(&b, arm) > 0.0);
+    }
+}
+
+/// A tail bin outside 0.5 nm to the band's width is refused, naming the field.
+#[test]
+fn diffractive_tail_bin_is_checked() {
+    let path = scene_path("paper_bench.ron");
+    let text = std::fs::read_to_string(&path).unwrap().replace(
+        "package_mm: (40.0, 32.0),",
+        "package_mm: (40.0, 32.0),\n        model: Diffractive(tail_bin_nm: 0.1),",
+    );
+    let err = crate::scene::bench::parse_bench(&text, &path)
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("tail_bin_nm"), "{err}");
+}

@@ -307,7 +307,7 @@ impl Builder<'_> {
             self.element(el)?;
         }
         let dmd = match &file.dmd {
-            Some(d) => Some(self.dmd(d)?),
+            Some(d) => Some(self.dmd(d, band)?),
             None => None,
         };
         let detectors = [

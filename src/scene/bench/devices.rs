@@ -17,12 +17,12 @@ use crate::optics::spectrum::{Spectrum, Table};
 
 use super::build::{Builder, mm, solid_outline};
 use super::schema::{
-    DmdSpec, EmissionSpec, FilamentSpec, LampPowerSpec, LampSpec, LampSpectrumSpec, Outline,
-    PhotodiodeSpec, StateSpec, WindowSpec,
+    DmdModelSpec, DmdSpec, EmissionSpec, FilamentSpec, LampPowerSpec, LampSpec, LampSpectrumSpec,
+    Outline, PhotodiodeSpec, StateSpec, WindowSpec,
 };
 
 impl Builder<'_> {
-    pub(super) fn dmd(&mut self, d: &DmdSpec) -> Result<DmdSetup> {
+    pub(super) fn dmd(&mut self, d: &DmdSpec, band: (f64, f64)) -> Result<DmdSetup> {
         let e = |f: &str, m: String| self.ctx.err_path(&["dmd", f], m);
         if d.tilt_deg.0 >= 45.0 {
             return Err(e("tilt_deg", "the tilt must be below 45°".into()));
@@ -71,6 +71,23 @@ impl Builder<'_> {
             state,
             refl,
         );
+        let dmd = match d.model {
+            DmdModelSpec::Geometric => dmd,
+            DmdModelSpec::Diffractive { tail_bin_nm } => {
+                let width_nm = (band.1 - band.0) * 1e9;
+                if !(0.5..=width_nm).contains(&tail_bin_nm.0) {
+                    return Err(self.ctx.err_path(
+                        &["dmd", "model", "tail_bin_nm"],
+                        format!(
+                            "the tail table's wavelength bin must be 0.5 nm to the band's \
+                             {width_nm:.0} nm, got {}",
+                            tail_bin_nm.0
+                        ),
+                    ));
+                }
+                dmd.with_diffraction(band, tail_bin_nm.0 * 1e-9)
+            }
+        };
         let (hx, hy) = dmd.half_size();
         let (px, py) = (0.5e-3 * d.package_mm.0.0, 0.5e-3 * d.package_mm.1.0);
         if px <= hx || py <= hy {

@@ -44,9 +44,9 @@ pub use crate::scene::numbers::{
 };
 pub use schema::{
     BenchFile, CenterOnSpec, ChartGuidedSpec, ChartPatternSpec, CoatingSpec, DetectorsSpec,
-    Direction, DmdSpec, ElementSpec, EmissionSpec, FieldSamplingSpec, FilamentSpec, GlassSpec,
-    Interactions, LampPowerSpec, LampSpec, LampSpectrumSpec, MirrorCount, MirrorIndex, Outline,
-    PatternSpec, PhotodiodeSpec, Segments, SpectrumSpec, StateSpec, UsafElement, UsafGroup,
+    Direction, DmdModelSpec, DmdSpec, ElementSpec, EmissionSpec, FieldSamplingSpec, FilamentSpec,
+    GlassSpec, Interactions, LampPowerSpec, LampSpec, LampSpectrumSpec, MirrorCount, MirrorIndex,
+    Outline, PatternSpec, PhotodiodeSpec, Segments, SpectrumSpec, StateSpec, UsafElement, UsafGroup,
     WindowSpec,
 };
 

@@ -611,6 +611,37 @@ pub struct DmdSpec {
     pub outside_state: StateSpec,
     /// Package outline around the array (mm): light landing on it outside the array is absorbed.
     pub package_mm: (Positive, Positive),
+    /// How the mirrors reflect: `Geometric` (default) or `Diffractive(...)`, the array as a
+    /// blazed grating (docs/dmd_diffraction.md).
+    #[serde(default, skip_serializing_if = "DmdModelSpec::is_geometric")]
+    pub model: DmdModelSpec,
+}
+
+/// How the DMD's mirrors reflect (docs/dmd_diffraction.md).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub enum DmdModelSpec {
+    /// Each mirror reflects specularly (geometric optics).
+    #[default]
+    Geometric,
+    /// The array is a two-dimensional grating: each ray that meets a mirror leaves in one
+    /// diffraction order drawn with the order's efficiency. `tail_bin_nm`: the wavelength bin of
+    /// the tables of the orders far from the blaze peak (default 10 nm); the orders near the
+    /// peak are computed exactly for every ray.
+    Diffractive {
+        #[serde(default = "default_tail_bin")]
+        tail_bin_nm: Positive,
+    },
+}
+
+impl DmdModelSpec {
+    pub fn is_geometric(&self) -> bool {
+        matches!(self, DmdModelSpec::Geometric)
+    }
+}
+
+fn default_tail_bin() -> Positive {
+    Positive(10.0)
 }
 
 fn default_hinge() -> DirectionDeg {
