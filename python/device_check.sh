@@ -6,7 +6,7 @@
 #     OUT=/some/folder bash python/device_check.sh
 #
 # Everything it installs comes from target/device-wheels/ (made on a networked machine; see
-# python/README-device.md): the spibench wheel, deepinv, and those of deepinv's pure-Python
+# python/bench/fetch_device_wheels.sh): the spibench wheel, deepinv, and those of deepinv's pure-Python
 # dependencies (and h5py, pytest) that the machine lacks, installed with
 # `pip --no-index --no-deps --target` into $OUT/site, which goes on PYTHONPATH. Results:
 # $OUT/device_check.log, $OUT/pytest.txt, $OUT/bench.json, $OUT/bench_1thread.json.

@@ -15,7 +15,7 @@ from spibench.deepinv import TracedSinglePixel  # noqa: E402
 @pytest.fixture(scope="module")
 def physics(kernel):
     acq = spibench.Acquisition(kernel, "secondary_complementary_balancing", 0.25)
-    return TracedSinglePixel(acq, noise="bench", seed=3)
+    return TracedSinglePixel(acq, noise="bench", seed=3, max_iter=200, tol=1e-8)
 
 
 def test_deepinv_adjointness(physics):
