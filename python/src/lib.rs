@@ -324,6 +324,7 @@ impl Kernel {
         }
     }
 
+    #[allow(clippy::type_complexity)]
     fn csr_parts<'py>(
         py: Python<'py>,
         m: &operator::Csr,

@@ -390,19 +390,19 @@ impl TracedOperator {
         let k = &self.coefficients;
         let sum_y: f64 = y.iter().sum();
         let mut t = vec![0.0; self.pixels];
-        for d in 0..2 {
-            let kd = if d == 0 { k.ka } else { k.kb };
+        let kd = [k.ka, k.kb];
+        for (d, (g, c)) in self.g.iter().zip(&self.c).enumerate() {
             let mut u = vec![0.0; self.units];
-            if kd != 0.0 {
-                let w: Vec<f64> = y.iter().map(|v| kd * v).collect();
+            if kd[d] != 0.0 {
+                let w: Vec<f64> = y.iter().map(|v| kd[d] * v).collect();
                 self.patterns.apply_adjoint(&w, &mut u);
             }
             let s = k.ks[d] * sum_y;
             u.iter_mut().for_each(|v| *v += s);
-            self.g[d].apply_adjoint_add(&u, &mut t);
+            g.apply_adjoint_add(&u, &mut t);
             let cd = k.kc[d] * sum_y;
             if cd != 0.0 {
-                for (ti, ci) in t.iter_mut().zip(&self.c[d]) {
+                for (ti, ci) in t.iter_mut().zip(c) {
                     *ti += cd * ci;
                 }
             }

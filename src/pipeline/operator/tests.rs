@@ -74,12 +74,11 @@ fn operator_matches_the_noise_free_record() {
         let y = scheme.measurements(frames, m);
         let lin = op.apply(t).unwrap();
         let scale = y.iter().fold(0.0f64, |a, v| a.max(v.abs()));
-        for i in 0..m {
-            let model = lin[i] + op.offset[i];
+        for (i, ((l, o), yi)) in lin.iter().zip(&op.offset).zip(&y).enumerate() {
+            let model = l + o;
             assert!(
-                (model - y[i]).abs() <= 1e-9 * scale,
-                "{scheme:?} row {i}: {model} vs {}",
-                y[i]
+                (model - yi).abs() <= 1e-9 * scale,
+                "{scheme:?} row {i}: {model} vs {yi}"
             );
         }
     }
@@ -91,17 +90,17 @@ fn kernel_matrices_give_the_kernel_product_exactly() {
     let mats = KernelMatrices::new(&kernel);
     let t = random(kernel.grid.pixels(), 7);
     let p = kernel.apply(&t);
-    let mut x = vec![0.0; kernel.units()];
+    let units = kernel.units();
+    let bits = |v: &[f64], v0: &[f64]| -> Vec<u64> {
+        v.iter().zip(v0).map(|(a, b)| (a + b).to_bits()).collect()
+    };
+    let exact = |v: &[f64]| -> Vec<u64> { v.iter().map(|a| a.to_bits()).collect() };
+    let mut x = vec![0.0; units];
     mats.x.apply(&t, &mut x);
-    for j in 0..kernel.units() {
-        assert_eq!((x[j] + mats.x0[j]).to_bits(), p.x[j].to_bits());
-    }
-    for b in 0..4 {
-        mats.t[b].apply(&t, &mut x);
-        for j in 0..kernel.units() {
-            let want = p.t[b * kernel.units() + j];
-            assert_eq!((x[j] + mats.t0[b][j]).to_bits(), want.to_bits());
-        }
+    assert_eq!(bits(&x, &mats.x0), exact(&p.x));
+    for (b, (m, m0)) in mats.t.iter().zip(&mats.t0).enumerate() {
+        m.apply(&t, &mut x);
+        assert_eq!(bits(&x, m0), exact(&p.t[b * units..(b + 1) * units]));
     }
 }
 
