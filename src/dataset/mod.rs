@@ -47,6 +47,11 @@ mod check;
 const OBJECTS: u64 = 0x0B1E_C750_0000_0001;
 const NOISE: u64 = 0x0015_E000_0000_0002;
 
+/// The record seed (noise and drift) of sample `s` of a dataset of seed `seed`.
+pub fn noise_seed(seed: u64, s: u64) -> u64 {
+    rng::mix64(rng::mix64(seed ^ NOISE) ^ s)
+}
+
 /// The manifest's format name.
 pub const FORMAT: &str = "spibench-dataset-1";
 
@@ -616,7 +621,7 @@ impl Prepared {
         };
         let object = self.object(s)?.data;
         let transport = Transport::from_kernel(&scene.bench, kernel, &object)?;
-        let seed = rng::mix64(rng::mix64(self.spec.file.seed ^ NOISE) ^ s);
+        let seed = noise_seed(self.spec.file.seed, s);
         let rec = evaluate::acquire(scene, &transport, &self.patterns, seed, &|_, _, _| {})?;
         let mut measurements = Vec::new();
         for (_, scheme, m) in self.measurement_names() {

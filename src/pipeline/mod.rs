@@ -32,6 +32,7 @@
 
 pub mod cache;
 pub mod evaluate;
+pub mod operator;
 pub mod optimise;
 pub mod perturb;
 mod record;

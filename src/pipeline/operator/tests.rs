@@ -1,0 +1,130 @@
+//! The traced operator against the record stage, and its adjoint.
+
+use super::*;
+use crate::acquisition::Scheme;
+use crate::detector::RecordModel;
+use crate::pipeline::evaluate;
+use crate::rng::{self, uniform};
+use crate::transport::Transport;
+
+fn paper_doc() -> BenchDoc {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/paper_bench.ron");
+    BenchDoc::read(&path).unwrap()
+}
+
+/// A small kernel of the paper bench (12 × 12 pixels over its 7.88 mm field) and the bench's
+/// run scene, noise off, recorded frame by frame.
+fn setup() -> (RunScene, Kernel) {
+    let doc = paper_doc();
+    let options = TraceOptions::new(8 * crate::trace::RAYS_PER_BATCH, 3);
+    let kernel = clear_chart_kernel(&doc, None, (12, 12), (7.88, 7.88), &options).unwrap();
+    let mut scene = doc.run_scene().unwrap();
+    scene.settings.noise = false;
+    scene.settings.additive_noise = None;
+    scene.settings.record = RecordModel::Frames;
+    scene.settings.schemes = Scheme::all().to_vec();
+    (scene, kernel)
+}
+
+fn random(n: usize, seed: u64) -> Vec<f64> {
+    let mut r = rng::stream(seed, 0);
+    (0..n).map(|_| uniform(&mut r)).collect()
+}
+
+#[test]
+fn adjoint_is_exact_for_every_scheme() {
+    let (scene, kernel) = setup();
+    let mats = KernelMatrices::new(&kernel);
+    let (patterns, m) = patterns_for(&scene, 0.1).unwrap();
+    for scheme in Scheme::all() {
+        let op = TracedOperator::new(&scene, &mats, &patterns, scheme, m).unwrap();
+        let t = random(op.pixels, 1);
+        let y: Vec<f64> = random(m, 2).iter().map(|v| v - 0.5).collect();
+        let at = op.apply(&t).unwrap();
+        let lhs = dot(&at, &y);
+        let rhs = dot(&t, &op.apply_adjoint(&y).unwrap());
+        // Relative to the Cauchy–Schwarz bound ‖At‖‖y‖ (⟨At, y⟩ itself sums cancelling terms).
+        let scale = dot(&at, &at).sqrt() * dot(&y, &y).sqrt();
+        assert!(
+            (lhs - rhs).abs() <= 1e-12 * scale,
+            "{scheme:?}: {lhs} vs {rhs}"
+        );
+    }
+}
+
+/// A t + y₀ is the noise-free record's measurement (frames, ideal channels) to rounding, for
+/// every scheme; the calibrated scheme on the clear object, whose swings it divides by.
+#[test]
+fn operator_matches_the_noise_free_record() {
+    let (scene, kernel) = setup();
+    let mats = KernelMatrices::new(&kernel);
+    let (patterns, m) = patterns_for(&scene, 0.1).unwrap();
+    let object = random(kernel.grid.pixels(), 5);
+    let ones = vec![1.0; kernel.grid.pixels()];
+    for scheme in Scheme::all() {
+        let op = TracedOperator::new(&scene, &mats, &patterns, scheme, m).unwrap();
+        let t = if scheme == Scheme::DoubleArmCalibrated {
+            &ones
+        } else {
+            &object
+        };
+        let transport = Transport::from_kernel(&scene.bench, &kernel, t).unwrap();
+        let rec = evaluate::acquire(&scene, &transport, &patterns, 9, &|_, _, _| {}).unwrap();
+        let frames = &rec.record(scheme.sequence()).unwrap().frames;
+        let y = scheme.measurements(frames, m);
+        let lin = op.apply(t).unwrap();
+        let scale = y.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+        for (i, ((l, o), yi)) in lin.iter().zip(&op.offset).zip(&y).enumerate() {
+            let model = l + o;
+            assert!(
+                (model - yi).abs() <= 1e-9 * scale,
+                "{scheme:?} row {i}: {model} vs {yi}"
+            );
+        }
+    }
+}
+
+#[test]
+fn kernel_matrices_give_the_kernel_product_exactly() {
+    let (_, kernel) = setup();
+    let mats = KernelMatrices::new(&kernel);
+    let t = random(kernel.grid.pixels(), 7);
+    let p = kernel.apply(&t);
+    let units = kernel.units();
+    let bits = |v: &[f64], v0: &[f64]| -> Vec<u64> {
+        v.iter().zip(v0).map(|(a, b)| (a + b).to_bits()).collect()
+    };
+    let exact = |v: &[f64]| -> Vec<u64> { v.iter().map(|a| a.to_bits()).collect() };
+    let mut x = vec![0.0; units];
+    mats.x.apply(&t, &mut x);
+    assert_eq!(bits(&x, &mats.x0), exact(&p.x));
+    for (b, (m, m0)) in mats.t.iter().zip(&mats.t0).enumerate() {
+        m.apply(&t, &mut x);
+        assert_eq!(bits(&x, m0), exact(&p.t[b * units..(b + 1) * units]));
+    }
+}
+
+#[test]
+fn bad_sizes_and_values_are_named() {
+    let (scene, kernel) = setup();
+    let mats = KernelMatrices::new(&kernel);
+    let (patterns, m) = patterns_for(&scene, 0.1).unwrap();
+    let op = TracedOperator::new(&scene, &mats, &patterns, Scheme::DoubleArm, m).unwrap();
+    let e = op.apply(&[1.0; 3]).unwrap_err().to_string();
+    assert!(e.contains("`x`"), "{e}");
+    let mut y = vec![0.0; m];
+    y[2] = f64::NAN;
+    let e = op.apply_adjoint(&y).unwrap_err().to_string();
+    assert!(e.contains("`y`") && e.contains("value 2"), "{e}");
+    assert!(patterns_for(&scene, 1.5).is_err());
+    let e = clear_chart_kernel(
+        &paper_doc(),
+        Some("nope"),
+        (4, 4),
+        (1.0, 1.0),
+        &TraceOptions::new(1024, 1),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("nope"), "{e}");
+}
