@@ -260,7 +260,7 @@ fn bad_specs_are_located_input_errors() {
         ),
         (
             format!("seed: 7, benches: Tolerance(file: {tol:?}, samples_per_bench: 0),"),
-            vec!["field `samples_per_bench`", "from 1 to", "line 6"],
+            vec!["samples_per_bench`", "from 1 to", "line 6"],
         ),
         (
             format!("seed: 7, benches: Tolerance(file: {bad_tol:?}, samples_per_bench: 2),"),
@@ -527,7 +527,7 @@ fn optional_arrays_hold_scope_records_and_scored_reconstructions() {
             ],
             &[],
         ),
-        &["scope_frames", "at most 100", "line 9"],
+        &["scope_frames", "from 0 to 100", "line 9"],
         &o,
     );
 }
