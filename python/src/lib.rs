@@ -467,6 +467,7 @@ impl Kernel {
     /// The library's kernel product of each object (rows of `objects`): the power on each
     /// unit x_j (W), and the four T blocks (A), as `Kernel::apply` computes them.
     #[pyo3(signature = (objects, threads=None))]
+    #[allow(clippy::type_complexity)]
     fn product<'py>(
         &self,
         py: Python<'py>,

@@ -233,11 +233,11 @@ fn bad_specs_are_located_input_errors() {
         (folder(&empty), vec!["no PNG", "objects"]),
         (folder(&junk), vec!["unreadable image", "broken.png"]),
         (folder(&small), vec!["smaller than", "tiny.png"]),
+        ("samples: 0,".into(), vec!["samples", "from 1 to", "line 7"]),
         (
-            "samples: 0,".into(),
-            vec!["samples", "at least one", "line 7"],
+            "samples: 9000000, max_disk_gb: 1.0,".into(),
+            vec!["GB", "max_disk_gb"],
         ),
-        ("samples: 900000000,".into(), vec!["GB", "max_disk_gb"]),
         (
             "acquisition: (schemes: [DoubleArm], ratios: [0.05], \
              patterns: Hadamard(ordering: CakeCutting)),"
@@ -246,7 +246,7 @@ fn bad_specs_are_located_input_errors() {
         ),
         (
             "seed: 7,\n    electronics: (oscilloscope: (bits: 40)),".into(),
-            vec!["bits", "1 to 24 bits", "line 7"],
+            vec!["bits", "from 1 to 24", "line 7"],
         ),
         (
             "seed: 7, benches: Tolerance(file: \"nowhere.ron\", samples_per_bench: 2),".into(),
@@ -260,7 +260,7 @@ fn bad_specs_are_located_input_errors() {
         ),
         (
             format!("seed: 7, benches: Tolerance(file: {tol:?}, samples_per_bench: 0),"),
-            vec!["field `samples_per_bench`", "at least one sample", "line 6"],
+            vec!["samples_per_bench`", "from 1 to", "line 6"],
         ),
         (
             format!("seed: 7, benches: Tolerance(file: {bad_tol:?}, samples_per_bench: 2),"),
@@ -569,7 +569,7 @@ fn optional_arrays_hold_scope_records_and_scored_reconstructions() {
             ],
             &[],
         ),
-        &["scope_frames", "at most 100", "line 9"],
+        &["scope_frames", "from 0 to 100", "line 9"],
         &o,
     );
 }
