@@ -28,7 +28,7 @@ from typing import Dict, Iterable, List, Mapping, Optional, Sequence, Tuple, Uni
 import numpy as np
 import scipy.sparse as sp
 
-from . import _spibench
+from . import _manifest, _spibench
 from ._spibench import InputError
 
 __all__ = [
@@ -51,15 +51,7 @@ __all__ = [
 __version__ = _spibench.version()
 
 #: The acquisition schemes, as the command line names them.
-SCHEMES = (
-    "traditional",
-    "single_arm_complementary",
-    "double_arm",
-    "secondary_complementary_balancing",
-    "traditional_zero_mean",
-    "double_arm_calibrated",
-    "double_arm_offset",
-)
+SCHEMES = _manifest.SCHEMES
 
 #: The metrics every trace records (name, unit).
 METRICS = (
@@ -670,9 +662,12 @@ class OpenDataset:
         mpath = os.path.join(self.path, "manifest.json")
         try:
             with open(mpath, encoding="utf-8") as f:
-                self.manifest = json.load(f)
+                manifest = json.load(f)
         except FileNotFoundError:
             raise InputError(f"{mpath}: no manifest.json: not a spibench dataset folder") from None
+        # Every name and path is checked before any other file of the folder is opened.
+        _manifest._error = InputError
+        self.manifest = _manifest.checked(manifest, self.path, mpath)
         self.shards = sorted(self.manifest["shards"], key=lambda s: s["index"])
         self._inner = None
 

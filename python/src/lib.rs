@@ -23,7 +23,7 @@ use spibench::acquisition::{PatternSet, Scheme};
 use spibench::dataset::{self, Prepared};
 use spibench::detector::RecordModel;
 use spibench::error::{Error, Result};
-use spibench::pipeline::evaluate::{self, Evaluation};
+use spibench::pipeline::evaluate::{self, Evaluation, evaluation_of};
 use spibench::pipeline::operator::{self, KernelMatrices, TracedOperator};
 use spibench::pipeline::{TraceRequest, Traced, trace_stage};
 use spibench::scene::doc::BenchDoc;
@@ -189,18 +189,9 @@ impl Bench {
             }
             // As `pipeline::evaluate` (what `sweep` runs at every point), keeping the traced
             // transport for its maps.
-            let cmrr_db = spibench::scene::run::detector_si(&doc.file.electronics.detector)
-                .ok()
-                .map(|d| d.cmrr_db());
             let bench = doc.build()?;
             let traced = trace_stage(&bench, &TraceRequest::new(rays, seed))?;
-            let evaluation = Evaluation {
-                settings: doc.edits().to_vec(),
-                metrics: traced.metrics.clone(),
-                cmrr_db,
-                arrivals: traced.arrivals(),
-                quality: None,
-            };
+            let evaluation = evaluation_of(doc, doc.edits().to_vec(), &traced, None);
             Ok(Trace { traced, evaluation })
         })
     }
@@ -917,7 +908,9 @@ fn make_dataset(
         let prep = Prepared::new(spec)?;
         let range = (0, prep.shards_total());
         let command = vec!["spibench".to_string(), "dataset (python)".to_string()];
-        let g = dataset::generate(&prep, &out, range, false, &command, &|_, _| {})?;
+        // The same folder lock as the command line: a second writer stops at once.
+        let lock = spibench::report::output::FolderLock::acquire(&out)?;
+        let g = dataset::generate(&prep, &lock, range, false, &command, &|_, _| {})?;
         Ok(g.shards_written)
     })
 }

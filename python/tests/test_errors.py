@@ -68,3 +68,39 @@ def test_arguments(paper, kernel):
         paper.kernel(grid=(4, 4), field_mm=-1.0, rays=1024)
     with pytest.raises(InputError, match="no manifest"):
         spibench.open_dataset("/nonexistent")
+
+
+@pytest.mark.parametrize(
+    "field, edit",
+    [
+        ("shards[0].dir", lambda m: m["shards"][0].__setitem__("dir", "../outside/evil")),
+        ("shards[0].dir", lambda m: m["shards"][0].__setitem__("dir", "/etc")),
+        ("schema[0].name", lambda m: m["schema"][0].__setitem__("name", "../../../outside/evil/sample")),
+    ],
+)
+def test_a_manifest_leading_out_of_its_folder_is_refused(dataset, tmp_path, field, edit):
+    """The manifest is untrusted: names that leave the folder are refused before any read."""
+    import json
+    import shutil
+
+    ds, _ = dataset
+    copy = tmp_path / "copy"
+    shutil.copytree(ds.path, copy)
+    m = json.loads((copy / "manifest.json").read_text())
+    edit(m)
+    (copy / "manifest.json").write_text(json.dumps(m))
+    with pytest.raises(InputError, match=field.replace("[", r"\[").replace("]", r"\]")):
+        spibench.open_dataset(copy)
+
+
+def test_a_symbolic_link_out_of_the_folder_is_refused(dataset, tmp_path):
+    import shutil
+
+    ds, _ = dataset
+    copy = tmp_path / "copy"
+    shutil.copytree(ds.path, copy)
+    outside = tmp_path / "outside"
+    shutil.move(str(copy / "shard_000000"), outside)
+    (copy / "shard_000000").symlink_to(outside)
+    with pytest.raises(InputError, match=r"shards\[0\]\.dir"):
+        spibench.open_dataset(copy)

@@ -152,7 +152,7 @@ fn dmd_size(args: &PatternsArgs) -> crate::Result<((usize, usize), String)> {
         ));
     };
     Ok((
-        (d.columns, d.rows),
+        (d.columns.get() as usize, d.rows.get() as usize),
         format!("dmd.columns × dmd.rows of {name}"),
     ))
 }

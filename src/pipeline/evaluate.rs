@@ -74,8 +74,6 @@ pub fn evaluate(
     o: &EvaluateOptions,
 ) -> Result<Evaluation> {
     let req = TraceRequest::new(o.rays, o.seed);
-    // The electronics alone (no bench build): the diodes' responsivity scales.
-    let detector = crate::scene::run::detector_si(&doc.file.electronics.detector).ok();
     let quiet: Progress = &|_, _, _| {};
     let (traced, quality) = if o.quality {
         let scene = doc.run_scene()?;
@@ -87,6 +85,21 @@ pub fn evaluate(
         let bench = doc.build()?;
         (pipeline::trace_stage(&bench, &req)?, None)
     };
+    Ok(evaluation_of(doc, settings, &traced, quality))
+}
+
+/// The evaluation of a bench already traced (`traced` from `doc`): its metrics, the bench's
+/// CMRR with the arms' k± in it, the electronics' CMRR alone, the arrivals and the given
+/// quality scores. [`evaluate`] is this after its trace; a caller that keeps the trace (the
+/// Python package, for its maps) calls it directly.
+pub fn evaluation_of(
+    doc: &BenchDoc,
+    settings: Vec<(String, f64)>,
+    traced: &Traced,
+    quality: Option<Vec<SchemeResult>>,
+) -> Evaluation {
+    // The electronics alone (no bench build): the diodes' responsivity scales.
+    let detector = crate::scene::run::detector_si(&doc.file.electronics.detector).ok();
     let cmrr = detector.as_ref().and_then(|d| {
         let imbalance = traced.metrics.get("imbalance")?;
         Some(crate::transport::metrics::cmrr_db(
@@ -94,14 +107,14 @@ pub fn evaluate(
             d.responsivity_scale,
         ))
     });
-    Ok(Evaluation {
+    Evaluation {
         settings,
         cmrr,
         cmrr_electronics_db: detector.map(|d| d.cmrr_db()),
         arrivals: traced.arrivals(),
-        metrics: traced.metrics,
+        metrics: traced.metrics.clone(),
         quality,
-    })
+    }
 }
 
 /// Whether `name` is a number recorded for every evaluated bench by [`values`] (quality scores

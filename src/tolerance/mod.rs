@@ -585,7 +585,11 @@ pub fn is_value_name(name: &str) -> bool {
         .iter()
         .find_map(|s| name.strip_suffix(s))
         .unwrap_or(name);
-    if METRICS.iter().any(|m| m.0 == base) || base == "cmrr_db" || name == "arrivals" {
+    if METRICS.iter().any(|m| m.0 == base)
+        || base == "cmrr_db"
+        || base == "cmrr_electronics_db"
+        || name == "arrivals"
+    {
         return true;
     }
     ["_mssim", "_psnr_db", "_finest_lp_per_mm"]

@@ -46,8 +46,8 @@ pub use schema::{
     BenchFile, CenterOnSpec, ChartGuidedSpec, ChartPatternSpec, CoatingSpec, DetectorsSpec,
     Direction, DmdModelSpec, DmdSpec, ElementSpec, EmissionSpec, FieldSamplingSpec, FilamentSpec,
     GlassSpec, Interactions, LampPowerSpec, LampSpec, LampSpectrumSpec, MirrorCount, MirrorIndex,
-    Outline, PatternSpec, PhotodiodeSpec, Segments, SpectrumSpec, StateSpec, UsafElement, UsafGroup,
-    WindowSpec,
+    Outline, PatternSpec, PhotodiodeSpec, Segments, SpectrumSpec, StateSpec, UsafElement,
+    UsafGroup, WindowSpec,
 };
 
 // Conversion.
