@@ -117,12 +117,16 @@ pub fn evaluation_of(
     }
 }
 
+/// The common-mode rejections every evaluation records beside the traced metrics: the bench's
+/// (with the arms' k±) and the electronics' alone. Value names elsewhere (tolerance records)
+/// are checked against this list, so a new one is added here once.
+pub const CMRR_VALUES: [&str; 2] = ["cmrr_db", "cmrr_electronics_db"];
+
 /// Whether `name` is a number recorded for every evaluated bench by [`values`] (quality scores
 /// are checked when the evaluations exist).
 pub fn is_metric(name: &str) -> bool {
     METRICS.iter().any(|m| m.0 == name)
-        || name == "cmrr_db"
-        || name == "cmrr_electronics_db"
+        || CMRR_VALUES.contains(&name)
         || name.ends_with("_mssim")
         || name.ends_with("_psnr_db")
         || name.ends_with("_finest_lp_per_mm")

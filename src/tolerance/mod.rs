@@ -586,8 +586,7 @@ pub fn is_value_name(name: &str) -> bool {
         .find_map(|s| name.strip_suffix(s))
         .unwrap_or(name);
     if METRICS.iter().any(|m| m.0 == base)
-        || base == "cmrr_db"
-        || base == "cmrr_electronics_db"
+        || crate::pipeline::evaluate::CMRR_VALUES.contains(&base)
         || name == "arrivals"
     {
         return true;
