@@ -6,7 +6,8 @@
 #
 # - a small dataset as a 4-task array (--array=0-3) and its dependent merge: every file of the
 #   merged dataset, the .npy arrays, spec.ron and bench.ron, equals the single-process run's byte
-#   for byte; manifest.json too, less its provenance "command" (the command lines differ);
+#   for byte; manifest.json too, less its provenance "command" and "merged_from" (the command
+#   lines differ, and the merge records the shard folders it read);
 # - a tolerance Monte Carlo as a 3-task array numbered from 1 (--array=1-3) and its merge: every
 #   file equals the single-process run's byte for byte (trials, sensitivity table, CSV, SVG, PNG,
 #   HTML report, PDF figures), except summary.json, compared less its provenance "command" and
@@ -73,12 +74,16 @@ files() { (cd "$1" && find . -type f | LC_ALL=C sort); }
 same_files() {
     diff <(files "$1") <(files "$2") >&2 || { say "FAILED: $1 and $2 hold different files"; fail=1; }
 }
-# JSON lines of a field that is expected to differ, from its opening line to its closing one.
+# The JSON file less the provenance fields named (they are expected to differ), re-printed with
+# sorted keys so that the comparison does not hang on the commas around a removed field.
 drop() {
-    local json=$1 field sed_args=()
-    shift
-    for field; do sed_args+=(-e "/^    \"$field\": \\[/,/^    \\],\\?\$/d"); done
-    sed "${sed_args[@]}" "$json"
+    python3 - "$@" <<'PY'
+import json, sys
+doc = json.load(open(sys.argv[1]))
+for field in sys.argv[2:]:
+    doc["provenance"].pop(field, None)
+print(json.dumps(doc, indent=1, sort_keys=True))
+PY
 }
 # Whether the two files (of $f) are equal, compared as $3 says.
 compare() {
@@ -92,7 +97,8 @@ same_files dataset-single dataset
 n=0
 while read -r f; do
     if [ "$f" = ./manifest.json ]; then
-        compare <(drop dataset-single/"$f" command) <(drop dataset/"$f" command) "less provenance.command"
+        compare <(drop dataset-single/"$f" command merged_from) <(drop dataset/"$f" command merged_from) \
+            "less provenance.command and provenance.merged_from"
     else
         compare dataset-single/"$f" dataset/"$f" bytes
     fi
