@@ -5,6 +5,7 @@
 //! objects in the same run.
 //!
 //!     cargo bench --bench dataset            (SPIBENCH_DATASET_SAMPLES, _RAYS override)
+//!     SPIBENCH_DATASET_THREADS="1 2 4 8 16" cargo bench --bench dataset   (thread scaling too)
 //!
 //! Targets on a 2-core machine: ≥ 200 samples/s after the kernel trace, kernel trace < 2 min.
 //! The samples are recorded frame by frame (the dataset default); a subset is also recorded
@@ -27,6 +28,41 @@ fn env(name: &str, default: u64) -> u64 {
         .ok()
         .and_then(|v| v.parse().ok())
         .unwrap_or(default)
+}
+
+/// With SPIBENCH_DATASET_THREADS (say "1 2 4 8 16"), the same dataset written again at each
+/// thread count (a pool of that many threads): samples/s, the speed-up against the first count,
+/// and the share of the time outside the parallel sample loops (the serial part).
+fn scaling(prep: &Prepared, samples: u64) {
+    let Ok(list) = std::env::var("SPIBENCH_DATASET_THREADS") else {
+        return;
+    };
+    let mut base = None;
+    for t in list
+        .split([' ', ','])
+        .filter_map(|w| w.parse::<usize>().ok())
+    {
+        let out =
+            std::env::temp_dir().join(format!("spibench-bench-dataset-{}-{t}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&out);
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(t)
+            .build()
+            .expect("pool");
+        let g = pool.install(|| {
+            let lock = spibench::report::output::FolderLock::acquire(&out).expect("lock");
+            let range = shard_range(prep.shards_total(), None);
+            generate(prep, &lock, range, false, &["bench".into()], &|_, _| {}).expect("dataset")
+        });
+        let _ = std::fs::remove_dir_all(&out);
+        let rate = samples as f64 / g.seconds;
+        let base = *base.get_or_insert(rate);
+        println!(
+            "threads {t:3}: {rate:8.1} samples/s, speed-up {:5.2}, {:4.1} % outside the sample loops",
+            rate / base,
+            100.0 * (1.0 - g.sample_seconds / g.seconds)
+        );
+    }
 }
 
 fn main() {
@@ -59,10 +95,14 @@ fn main() {
     .expect("dataset");
     let per_s = samples as f64 / g.seconds;
     println!(
-        "dataset: {samples} samples in {:.1} s: {per_s:.0} samples/s (written to disk) [target ≥ 200]",
-        g.seconds
+        "dataset: {samples} samples in {:.1} s: {per_s:.0} samples/s (written to disk) [target ≥ 200]; \
+         {:.1} % of the time outside the parallel sample loops",
+        g.seconds,
+        100.0 * (1.0 - g.sample_seconds / g.seconds)
     );
     let _ = std::fs::remove_dir_all(&out);
+    drop(lock);
+    scaling(&prep, samples);
 
     // The same samples recorded sample by sample in time (the model of `spibench run`), on a
     // subset, without writing: what the frame-level record saves.

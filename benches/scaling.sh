@@ -1,22 +1,45 @@
 #!/usr/bin/env bash
-# Thread scaling of the two parallel jobs, on the machine it runs on: a trace of 4·10⁶ lamp rays
-# and a dataset of 96 × 96 objects (3 schemes × 3 ratios), each at 1, 2, 4, … threads up to the
-# core count, wall time from the command's own start to its end. Usage:
-#   benches/scaling.sh [SPIBENCH] [OUT]      (default: target/release/spibench, /tmp/spibench-scaling)
-# It prints one line per job and thread count: seconds, rays/s or samples/s, and the speed-up
-# against one thread. Results are bit-identical for every thread count; the script checks it.
+# Thread scaling of the two parallel jobs on the machine it runs on: a trace of RAYS lamp rays
+# and a dataset of SAMPLES 96 × 96 objects (3 schemes × 3 ratios, a kernel of 200 000 rays),
+# each at 1, 2, 4, … threads up to the core count; wall time of the whole command (kernel trace,
+# setup and writing included). Runs unattended and prints one compact table.
+#
+#   benches/scaling.sh [BIN …]          (default: target/release/spibench)
+#
+# Several binaries (say the commit before a change and after it) run in turn on the same machine,
+# so their figures compare; each is labelled by its position (b1, b2, …) and listed first.
+# Environment: OUT (work folder, default /tmp/spibench-scaling, emptied first), SAMPLES (4000),
+# RAYS (4000000), THREADS (default "1 2 4 … cores"), JOBS ("trace dataset"; either alone).
+#
+# Columns: seconds; rays/s or samples/s; speed-up against 1 thread (×1) and against 2 threads
+# (×2, the figure issue 26 states for the dataset); `out%`, the share of the dataset command's
+# own time spent outside its parallel sample loops (printed by binaries that report it, else
+# "-"); `same`, whether the outputs equal the first run's of that binary byte for byte (the
+# dataset's arrays, and its manifest less the command line) and, for binaries after the first,
+# whether the dataset's arrays equal b1's. Exit status 1 if any output differs.
+# Budget: with the defaults one binary takes about 2 minutes on 16 cores (most of it at 1 thread).
 set -euo pipefail
 cd "$(dirname "$0")/.."
-bin=${1:-target/release/spibench}
-out=${2:-/tmp/spibench-scaling}
+bins=("$@")
+[ ${#bins[@]} -gt 0 ] || bins=(target/release/spibench)
+out=${OUT:-/tmp/spibench-scaling}
 samples=${SAMPLES:-4000}
 rays=${RAYS:-4000000}
-rm -rf "$out" && mkdir -p "$out"
+jobs=${JOBS:-trace dataset}
 cores=$(nproc)
-threads=(1)
-t=2
-while [ "$t" -le "$cores" ]; do threads+=("$t"); t=$((t * 2)); done
-cat > "$out/spec.ron" <<SPEC
+if [ -n "${THREADS:-}" ]; then
+    read -r -a threads <<<"$THREADS"
+else
+    threads=(1)
+    t=2
+    while [ "$t" -le "$cores" ]; do threads+=("$t"); t=$((t * 2)); done
+    [ "${threads[-1]}" -eq "$cores" ] || [ "$cores" -eq 1 ] || threads+=("$cores")
+fi
+for b in "${bins[@]}"; do
+    [ -x "$b" ] || { echo "scaling: $b is not an executable" >&2; exit 2; }
+done
+rm -rf "$out" && mkdir -p "$out"
+cat >"$out/spec.ron" <<SPEC
 Dataset(
     bench: "$PWD/scenes/paper_bench.ron",
     kernel: (rays: 200000, seed: 1, grid_px: (96, 96), field_mm: (7.88, 7.88)),
@@ -28,23 +51,76 @@ Dataset(
 )
 SPEC
 now() { date +%s.%N; }
-echo "cores: $cores; binary: $bin"
-base_trace=; base_data=
-for t in "${threads[@]}"; do
-    s=$(now)
-    "$bin" trace scenes/paper_bench.ron --rays "$rays" --threads "$t" --out "$out/trace$t" -q >/dev/null
-    dt=$(awk -v a="$(now)" -v b="$s" 'BEGIN { print a - b }')
-    base_trace=${base_trace:-$dt}
-    awk -v t="$t" -v dt="$dt" -v n="$rays" -v b="$base_trace" \
-        'BEGIN { printf "trace   %2d threads: %7.2f s  %9.0f rays/s  speed-up %5.2f\n", t, dt, n / dt, b / dt }'
-    cmp -s "$out/trace1/maps.exr" "$out/trace$t/maps.exr" || echo "trace: maps differ at $t threads"
+# A dataset manifest as sorted JSON, less the keys named (dotted paths), for comparisons.
+manifest_less() {
+    python3 - "$@" <<'PY'
+import json, sys
+m = json.load(open(sys.argv[1]))
+for key in sys.argv[2:]:
+    d = m
+    *head, last = key.split(".")
+    for h in head:
+        d = d.get(h, {})
+    d.pop(last, None)
+print(json.dumps(m, sort_keys=True))
+PY
+}
+have_python=$(command -v python3 >/dev/null && echo 1 || echo 0)
+failed=0
+echo "cores: $cores; threads: ${threads[*]}; trace $rays rays; dataset $samples samples"
+for i in "${!bins[@]}"; do echo "b$((i + 1)): ${bins[$i]} ($("${bins[$i]}" --version 2>/dev/null || echo '?'))"; done
+printf '%-8s %-3s %4s %8s %12s %6s %6s %5s %s\n' job bin thr s rate/s x1 x2 out% same
+for job in $jobs; do
+    for i in "${!bins[@]}"; do
+        bin=${bins[$i]}
+        tag=b$((i + 1))
+        base1=
+        base2=
+        for t in "${threads[@]}"; do
+            dir="$out/$job-$tag-$t"
+            s=$(now)
+            case $job in
+            trace)
+                n=$rays
+                "$bin" trace scenes/paper_bench.ron --rays "$rays" --threads "$t" --out "$dir" -q >"$dir.log" 2>&1
+                ;;
+            dataset)
+                n=$samples
+                "$bin" dataset "$out/spec.ron" --threads "$t" --out "$dir" -q >"$dir.log" 2>&1
+                ;;
+            *) echo "scaling: unknown job $job (JOBS: trace, dataset)" >&2; exit 2 ;;
+            esac || {
+                echo "scaling: $bin $job failed at $t threads:" >&2
+                tail -5 "$dir.log" >&2
+                exit 1
+            }
+            dt=$(awk -v a="$(now)" -v b="$s" 'BEGIN { print a - b }')
+            base1=${base1:-$dt}
+            [ "$t" != 2 ] || base2=$dt
+            pct=$(grep -o '[0-9.]* % of the' "$dir.log" | head -1 | cut -d' ' -f1 || true)
+            same=ok
+            first="$out/$job-$tag-${threads[0]}"
+            if [ "$job" = trace ]; then
+                cmp -s "$first/maps.exr" "$dir/maps.exr" || same=DIFFERS
+            else
+                diff -rq -x manifest.json "$first" "$dir" >/dev/null || same=DIFFERS
+                if [ "$have_python" = 1 ] && [ "$same" = ok ] &&
+                    [ "$(manifest_less "$first/manifest.json" provenance.command)" != \
+                      "$(manifest_less "$dir/manifest.json" provenance.command)" ]; then
+                    same=MANIFEST-DIFFERS
+                fi
+                if [ "$i" -gt 0 ] && [ "$t" = "${threads[0]}" ]; then
+                    diff -rq -x manifest.json "$out/$job-b1-$t" "$dir" >/dev/null &&
+                        same="$same,=b1" || same="$same,ARRAYS-DIFFER-FROM-b1"
+                fi
+            fi
+            case $same in *DIFF*) failed=1 ;; esac
+            awk -v job="$job" -v tag="$tag" -v t="$t" -v dt="$dt" -v n="$n" -v b1="$base1" \
+                -v b2="$base2" -v pct="${pct:--}" -v same="$same" 'BEGIN {
+                    x2 = b2 == "" ? "-" : sprintf("%.2f", b2 / dt)
+                    printf "%-8s %-3s %4d %8.2f %12.1f %6.2f %6s %5s %s\n",
+                        job, tag, t, dt, n / dt, b1 / dt, x2, pct, same }'
+        done
+    done
 done
-for t in "${threads[@]}"; do
-    s=$(now)
-    "$bin" dataset "$out/spec.ron" --threads "$t" --out "$out/data$t" -q >/dev/null
-    dt=$(awk -v a="$(now)" -v b="$s" 'BEGIN { print a - b }')
-    base_data=${base_data:-$dt}
-    awk -v t="$t" -v dt="$dt" -v n="$samples" -v b="$base_data" \
-        'BEGIN { printf "dataset %2d threads: %7.2f s  %9.1f samples/s  speed-up %5.2f\n", t, dt, n / dt, b / dt }'
-    diff -rq "$out/data1" "$out/data$t" -x manifest.json >/dev/null || echo "dataset: arrays differ at $t threads"
-done
+exit $failed

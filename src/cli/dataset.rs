@@ -126,12 +126,15 @@ pub fn run(args: &DatasetArgs) -> anyhow::Result<()> {
     let m = read_manifest(&args.out)?;
     let samples: u64 = m.shards.iter().map(|s| s.samples).sum();
     println!(
-        "{} shards written ({} already there), {} samples in {} ({:.1} samples/s)",
+        "{} shards written ({} already there), {} samples in {} ({:.1} samples/s; {:.1} % of \
+         the {:.2} s outside the sample loops)",
         g.shards_written,
         g.shards_resumed,
         samples,
         args.out.display(),
-        (g.shards_written * prep.spec.file.shard_samples) as f64 / g.seconds.max(1e-9)
+        g.samples_written as f64 / g.seconds.max(1e-9),
+        100.0 * (1.0 - g.sample_seconds / g.seconds.max(1e-9)),
+        g.seconds
     );
     // Reference values for readers (the CI's numpy check reads this line).
     if range.0 < range.1 {

@@ -7,7 +7,7 @@
 //!   (`object`, `meas_SCHEME_rRATIO`, `scope_SEQUENCE`, …), its file exactly `NAME.npy`, and
 //!   every shard holds exactly the schema's arrays in the schema's order;
 //! - the copies of the inputs are exactly `spec.ron`, `bench.ron`, `tolerances.ron` and
-//!   `patterns.npy`, each with a SHA-256;
+//!   `patterns.npy`, each with a SHA-256; every object image listed has a name and a SHA-256;
 //! - none of these resolves, through a symbolic link, outside the folder.
 
 use std::collections::BTreeSet;
@@ -112,6 +112,31 @@ fn check_copies(m: &Manifest, file: &Path) -> Result<()> {
                 ));
             }
             _ => {}
+        }
+    }
+    // The object names are only compared and printed (never opened), so any file name will do,
+    // but not one that could forge lines of a message.
+    for (i, o) in p.objects.iter().enumerate() {
+        let at = |f: &str| format!("provenance.objects[{i}].{f}");
+        if o.name.is_empty() || o.name.chars().any(char::is_control) {
+            return Err(bad_field(
+                file,
+                &at("name"),
+                format!(
+                    "an object is named by a non-empty file name, not {:?}",
+                    o.name
+                ),
+            ));
+        }
+        if !is_sha256_hex(&o.sha256) {
+            return Err(bad_field(
+                file,
+                &at("sha256"),
+                format!(
+                    "a SHA-256 is 64 lowercase hexadecimal digits, not {:?}",
+                    o.sha256
+                ),
+            ));
         }
     }
     Ok(())
@@ -355,6 +380,10 @@ mod tests {
                 bench_sha256: sum("bench"),
                 tolerance_file: None,
                 tolerance_sha256: None,
+                objects: vec![crate::dataset::ObjectFile {
+                    name: "a.png".into(),
+                    sha256: sum("a.png"),
+                }],
                 merged_from: Vec::new(),
             },
             seed: 1,
@@ -459,6 +488,18 @@ mod tests {
             "patterns_sha256",
         );
         refused(|m| m.format = "other".into(), "format");
+        refused(
+            |m| m.provenance.objects[0].sha256 = "A".repeat(64),
+            "provenance.objects[0].sha256",
+        );
+        refused(
+            |m| m.provenance.objects[0].name = "a\nb".into(),
+            "provenance.objects[0].name",
+        );
+        refused(
+            |m| m.provenance.objects[0].name = String::new(),
+            "provenance.objects[0].name",
+        );
     }
 
     #[cfg(unix)]

@@ -34,7 +34,9 @@ use crate::error::{Error, Result};
 use crate::pipeline::evaluate;
 use crate::raster::Raster;
 use crate::report::output::FolderLock;
+use crate::report::untrusted::bad_field;
 use crate::rng::{self, uniform};
+pub use crate::scene::dataset::ObjectFile;
 use crate::scene::dataset::{BenchesSpec, DatasetSpec, FitRule, ObjectSource};
 use crate::scene::doc::BenchDoc;
 use crate::scene::run::RunScene;
@@ -98,6 +100,13 @@ pub struct ManifestProvenance {
     /// The tolerance file of a dataset over drawn benches (copied as `tolerances.ron`).
     pub tolerance_file: Option<String>,
     pub tolerance_sha256: Option<String>,
+    /// The object images the spec read (a folder's files in name order, or the shipped test
+    /// images), each with the SHA-256 of its bytes; empty for drawn objects (USAF, phantom,
+    /// rectangles). `--resume` and `--merge` compare them: a folder's images may change while
+    /// the spec that names the folder does not. (A manifest written before this field reads
+    /// as empty.)
+    #[serde(default)]
+    pub objects: Vec<ObjectFile>,
     /// For a merged dataset: the folders merged, each with the command that made it.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub merged_from: Vec<MergedInput>,
@@ -184,6 +193,14 @@ pub struct BenchKernel {
 
 /// Invalid drawn benches tolerated in a row before a dataset gives up.
 const MAX_REDRAWS: u64 = 64;
+
+/// One array of a shard, encoded: its name, its `.npy` bytes and their SHA-256.
+#[derive(Debug, Clone, PartialEq)]
+pub struct EncodedArray {
+    pub name: String,
+    pub bytes: Vec<u8>,
+    pub sha256: String,
+}
 
 /// One sample.
 #[derive(Debug, Clone, PartialEq)]
@@ -782,13 +799,12 @@ impl Prepared {
             .div_ceil(self.spec.file.shard_samples)
     }
 
-    /// The arrays of shard b, as (name, file bytes).
-    pub fn shard_arrays(&self, b: u64) -> Result<Vec<(String, Vec<u8>)>> {
+    /// The samples of shard b, computed in parallel (the drawn benches they see traced first,
+    /// each once, in index order; a kernel trace is itself parallel).
+    pub fn shard_samples(&self, b: u64) -> Result<Vec<Sample>> {
         let f = &self.spec.file;
         let first = b * f.shard_samples;
         let end = (first + f.shard_samples).min(f.samples);
-        // The benches this shard's samples see, each traced once (in index order; a kernel
-        // trace is itself parallel).
         let t0 = self.bench_index(first);
         let benches: Vec<BenchKernel> = match &self.drawn {
             Some(d) => (t0..=self.bench_index(end - 1))
@@ -796,43 +812,69 @@ impl Prepared {
                 .collect::<Result<_>>()?,
             None => Vec::new(),
         };
-        let samples: Vec<Sample> = (first..end)
+        (first..end)
             .into_par_iter()
             .map(|s| {
                 let bench = benches.get((self.bench_index(s) - t0) as usize);
                 self.sample_on(s, bench)
             })
-            .collect::<Result<_>>()?;
+            .collect()
+    }
+
+    /// The arrays of shard b made of its `samples` ([`Prepared::shard_samples`]), in schema
+    /// order, each assembled, encoded as `.npy` and hashed as one parallel task (the writing of
+    /// a shard is what stood between the parallel sample loops; see [`generate`]).
+    pub fn encode_shard(&self, b: u64, samples: &[Sample]) -> Vec<EncodedArray> {
+        let first = b * self.spec.file.shard_samples;
+        let end = first + samples.len() as u64;
         let measurement_names = self.measurement_names();
         let optional_arrays = self.optional_arrays();
-        let n = samples.len();
-        let mut out = Vec::new();
-        for a in self.schema() {
-            let mut data = Vec::new();
-            match a.name.as_str() {
-                "sample" => data.extend((first..end).map(|s| s as f64)),
-                "object" => samples.iter().for_each(|s| data.extend(&s.object)),
-                "k" => samples.iter().for_each(|s| data.extend(s.k_a_per_w)),
-                "b" => samples.iter().for_each(|s| data.extend(s.b_a)),
-                "bench" => data.extend((first..end).map(|s| self.bench_index(s) as f64)),
-                "deviations" => samples.iter().for_each(|s| data.extend(&s.deviations)),
-                name => {
-                    if let Some(i) = measurement_names.iter().position(|m| m.0 == name) {
-                        samples.iter().for_each(|s| data.extend(&s.measurements[i]));
-                    } else {
-                        let i = optional_arrays
-                            .iter()
-                            .position(|a| a.name == name)
-                            .expect("schema names");
-                        samples.iter().for_each(|s| data.extend(&s.optional[i]));
+        let rows = |data: &mut Vec<f64>, row: &dyn Fn(&Sample) -> &[f64]| {
+            samples.iter().for_each(|s| data.extend_from_slice(row(s)))
+        };
+        self.schema()
+            .into_par_iter()
+            .map(|a| {
+                let mut data = Vec::new();
+                match a.name.as_str() {
+                    "sample" => data.extend((first..end).map(|s| s as f64)),
+                    "object" => rows(&mut data, &|s| &s.object),
+                    "k" => rows(&mut data, &|s| &s.k_a_per_w),
+                    "b" => rows(&mut data, &|s| &s.b_a),
+                    "bench" => data.extend((first..end).map(|s| self.bench_index(s) as f64)),
+                    "deviations" => rows(&mut data, &|s| &s.deviations),
+                    name => {
+                        if let Some(i) = measurement_names.iter().position(|m| m.0 == name) {
+                            rows(&mut data, &|s| &s.measurements[i]);
+                        } else {
+                            let i = optional_arrays
+                                .iter()
+                                .position(|a| a.name == name)
+                                .expect("schema names");
+                            rows(&mut data, &|s| &s.optional[i]);
+                        }
                     }
                 }
-            }
-            let mut shape = vec![n];
-            shape.extend(&a.sample_shape);
-            out.push((a.name, crate::report::npy::encode_f64(&shape, &data)));
-        }
-        Ok(out)
+                let mut shape = vec![samples.len()];
+                shape.extend(&a.sample_shape);
+                let bytes = crate::report::npy::encode_f64(&shape, &data);
+                EncodedArray {
+                    sha256: sha256_hex(&bytes),
+                    name: a.name,
+                    bytes,
+                }
+            })
+            .collect()
+    }
+
+    /// The arrays of shard b, as (name, file bytes).
+    pub fn shard_arrays(&self, b: u64) -> Result<Vec<(String, Vec<u8>)>> {
+        let samples = self.shard_samples(b)?;
+        Ok(self
+            .encode_shard(b, &samples)
+            .into_iter()
+            .map(|a| (a.name, a.bytes))
+            .collect())
     }
 
     /// `patterns.npy`: the base patterns, each row packed 8 units to a byte (most
@@ -869,6 +911,7 @@ impl Prepared {
                 bench_sha256: sha256_hex(self.bench_text.as_bytes()),
                 tolerance_file: self.drawn.as_ref().map(|_| "tolerances.ron".into()),
                 tolerance_sha256: self.drawn.as_ref().map(|d| sha256_hex(d.text.as_bytes())),
+                objects: self.spec.object_files.clone(),
                 merged_from: Vec::new(),
             },
             seed: self.spec.file.seed,
@@ -1012,8 +1055,12 @@ fn remove_leftovers(dir: &Path, manifest: &Manifest) -> Result<()> {
 #[derive(Debug, Clone)]
 pub struct Generated {
     pub shards_written: u64,
+    pub samples_written: u64,
     pub shards_resumed: u64,
     pub seconds: f64,
+    /// The seconds spent computing samples (the parallel sample loops); the rest of `seconds`
+    /// is spent outside them (setup, and the wait for the last shard's writing).
+    pub sample_seconds: f64,
 }
 
 /// Makes (or, with `resume`, continues) the shards `range` of a dataset in the folder `lock`
@@ -1044,6 +1091,19 @@ pub fn generate(
                  resume it with the same spec and --shard",
             )
             .in_file(dir));
+        }
+        if let Some((i, why)) =
+            objects_differ(&fresh.provenance.objects, &manifest.provenance.objects)
+        {
+            return Err(bad_field(
+                &dir.join("manifest.json"),
+                &format!("provenance.objects[{i}]"),
+                format!(
+                    "the folder's dataset was made from other object images than the spec reads \
+                     now: {why}; resume with the images it was made from, or make the dataset \
+                     again in a new folder"
+                ),
+            ));
         }
         for s in &manifest.shards {
             verify_shard(dir, s)?;
@@ -1076,49 +1136,106 @@ pub fn generate(
         write_manifest(dir, &manifest)?;
     }
     let done: Vec<u64> = manifest.shards.iter().map(|s| s.index).collect();
-    let resumed = done.len() as u64;
-    let mut written = 0;
-    for b in range.0..range.1 {
-        if done.contains(&b) {
-            continue;
-        }
-        let arrays = prep.shard_arrays(b)?;
-        let name = shard_dir_name(b);
-        let staging = dir.join(format!(".{name}.partial"));
-        let _ = std::fs::remove_dir_all(&staging);
-        lock.staging(Some(&staging));
-        std::fs::create_dir_all(&staging).map_err(|e| Error::write(&staging, e))?;
-        let mut files = Vec::new();
-        for (a, bytes) in &arrays {
-            let file = format!("{a}.npy");
-            let p = staging.join(&file);
-            std::fs::write(&p, bytes).map_err(|e| Error::write(&p, e))?;
-            files.push(FileHash {
-                name: a.clone(),
-                file,
-                sha256: sha256_hex(bytes),
-            });
-        }
-        let final_dir = dir.join(&name);
-        std::fs::rename(&staging, &final_dir).map_err(|e| Error::write(&final_dir, e))?;
-        lock.staging(None);
-        let first = b * prep.spec.file.shard_samples;
-        manifest.shards.push(ShardEntry {
-            index: b,
-            first_sample: first,
-            samples: (first + prep.spec.file.shard_samples).min(prep.spec.file.samples) - first,
-            dir: name,
-            files,
-        });
-        write_manifest(dir, &manifest)?;
-        written += 1;
-        progress(b + 1 - range.0, range.1 - range.0);
-    }
+    let todo: Vec<u64> = (range.0..range.1).filter(|b| !done.contains(b)).collect();
+    let (written, sample_seconds) = make_shards(prep, lock, &mut manifest, &todo, &|b| {
+        progress(b + 1 - range.0, range.1 - range.0)
+    })?;
+    let samples_written = manifest
+        .shards
+        .iter()
+        .filter(|s| todo.contains(&s.index))
+        .map(|s| s.samples)
+        .sum();
     Ok(Generated {
         shards_written: written,
-        shards_resumed: resumed,
+        samples_written,
+        shards_resumed: done.len() as u64,
         seconds: start.elapsed().as_secs_f64(),
+        sample_seconds,
     })
+}
+
+/// Makes the shards `todo`, in order, into the folder `lock` holds, and commits each (its
+/// entry added to `manifest`, `committed(b)` called). The samples of a shard are computed while
+/// the last one's arrays are encoded, hashed and written (`rayon::join`, so on the threads of
+/// the pool the job runs in, as the encoding and hashing of the arrays within a shard): the
+/// writing of a shard used to stand between two parallel sample loops, the serial part that
+/// kept the job from using many cores. Shards are still committed one at a time, in index
+/// order, each by a rename followed by the manifest's rewrite, so the folder and a resume are
+/// the same as without the overlap; at most two shards are in memory. Returns the shards
+/// written and the seconds spent in the sample loops.
+fn make_shards(
+    prep: &Prepared,
+    lock: &FolderLock,
+    manifest: &mut Manifest,
+    todo: &[u64],
+    committed: &(dyn Fn(u64) + Sync),
+) -> Result<(u64, f64)> {
+    let mut commit = |(b, samples): (u64, Vec<Sample>)| -> Result<()> {
+        commit_shard(prep, lock, manifest, b, &samples)?;
+        committed(b);
+        Ok(())
+    };
+    let mut sample_seconds = 0.0;
+    let mut pending = None;
+    for &b in todo {
+        let last = pending.take();
+        let ((samples, seconds), done) = rayon::join(
+            || {
+                let t = std::time::Instant::now();
+                (prep.shard_samples(b), t.elapsed().as_secs_f64())
+            },
+            || last.map(&mut commit).transpose(),
+        );
+        sample_seconds += seconds;
+        // Shard b − 1's error first; with a later shard's error, the earlier shards stay
+        // committed (a resume continues from them).
+        done?;
+        pending = Some((b, samples?));
+    }
+    pending.map(&mut commit).transpose()?;
+    Ok((todo.len() as u64, sample_seconds))
+}
+
+/// Writes shard b of `samples` in a staging folder, commits it by rename and rewrites the
+/// manifest with its entry.
+fn commit_shard(
+    prep: &Prepared,
+    lock: &FolderLock,
+    manifest: &mut Manifest,
+    b: u64,
+    samples: &[Sample],
+) -> Result<()> {
+    let dir = lock.dir();
+    let arrays = prep.encode_shard(b, samples);
+    let name = shard_dir_name(b);
+    let staging = dir.join(format!(".{name}.partial"));
+    let _ = std::fs::remove_dir_all(&staging);
+    lock.staging(Some(&staging));
+    std::fs::create_dir_all(&staging).map_err(|e| Error::write(&staging, e))?;
+    let mut files = Vec::new();
+    for a in arrays {
+        let file = format!("{}.npy", a.name);
+        let p = staging.join(&file);
+        std::fs::write(&p, &a.bytes).map_err(|e| Error::write(&p, e))?;
+        files.push(FileHash {
+            name: a.name,
+            file,
+            sha256: a.sha256,
+        });
+    }
+    let final_dir = dir.join(&name);
+    std::fs::rename(&staging, &final_dir).map_err(|e| Error::write(&final_dir, e))?;
+    lock.staging(None);
+    let first = b * prep.spec.file.shard_samples;
+    manifest.shards.push(ShardEntry {
+        index: b,
+        first_sample: first,
+        samples: samples.len() as u64,
+        dir: name,
+        files,
+    });
+    write_manifest(dir, manifest)
 }
 
 /// Merges dataset folders (each one job's shards) into `out`: the same spec, bench and seed in
@@ -1154,6 +1271,19 @@ pub fn merge(inputs: &[PathBuf], out: &Path, command: &[String]) -> Result<Manif
                 inputs[0].display()
             ))
             .in_file(d));
+        }
+    }
+    for (d, m) in inputs.iter().zip(&manifests).skip(1) {
+        if let Some((i, why)) = objects_differ(&m0.provenance.objects, &m.provenance.objects) {
+            return Err(bad_field(
+                &d.join("manifest.json"),
+                &format!("provenance.objects[{i}]"),
+                format!(
+                    "cannot merge: {} was made from other object images than {}: {why}",
+                    d.display(),
+                    inputs[0].display()
+                ),
+            ));
         }
     }
     let owner = shard_owners(inputs, &manifests)?;
@@ -1195,6 +1325,46 @@ pub fn merge(inputs: &[PathBuf], out: &Path, command: &[String]) -> Result<Manif
     write_manifest(&sdir, &merged)?;
     staging.commit()?;
     Ok(merged)
+}
+
+/// The first difference between the object images `want` and those `got` lists, as its index
+/// in `got` (or where `got` ends) and a sentence naming the object; `None` when they agree.
+fn objects_differ(want: &[ObjectFile], got: &[ObjectFile]) -> Option<(usize, String)> {
+    let short = |h: &str| h.get(..16).unwrap_or(h).to_string();
+    (0..want.len().max(got.len())).find_map(|i| match (want.get(i), got.get(i)) {
+        (Some(a), Some(b)) if a == b => None,
+        (Some(a), Some(b)) if a.name == b.name => Some((
+            i,
+            format!(
+                "object {i}, {:?}, has SHA-256 {}… there, not {}…",
+                b.name,
+                short(&b.sha256),
+                short(&a.sha256)
+            ),
+        )),
+        (Some(a), Some(b)) => Some((
+            i,
+            format!("object {i} is {:?} there, not {:?}", b.name, a.name),
+        )),
+        (Some(a), None) => Some((
+            i,
+            format!(
+                "it lists {} object(s), without {:?} (object {i})",
+                got.len(),
+                a.name
+            ),
+        )),
+        (None, Some(b)) => Some((
+            i,
+            format!(
+                "it lists {} object(s), {:?} (object {i}) besides the {} expected",
+                got.len(),
+                b.name,
+                want.len()
+            ),
+        )),
+        (None, None) => None,
+    })
 }
 
 /// Which input holds each shard of the dataset (shard index → input), refusing a shard held

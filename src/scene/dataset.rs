@@ -25,10 +25,12 @@
 
 use std::path::{Path, PathBuf};
 
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::acquisition::Scheme;
 use crate::error::{Error, Result};
+use crate::provenance::sha256_hex;
 use crate::raster::Raster;
 use crate::scene::locate;
 use crate::scene::numbers::{Count, Positive, Ratio, checked, via};
@@ -251,6 +253,17 @@ pub enum ObjectSource {
     },
 }
 
+/// An object image a dataset reads (a file of an image folder, or a shipped test image), named
+/// as the spec finds it and hashed as read: a dataset's manifest lists them
+/// (`provenance.objects`), so that a merge or a resume sees an image that changed between jobs.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct ObjectFile {
+    /// The file's name in the image folder, or the test image's name.
+    pub name: String,
+    /// The SHA-256 of the bytes decoded (the file's, or the shipped image's).
+    pub sha256: String,
+}
+
 /// A validated dataset spec.
 #[derive(Debug, Clone)]
 pub struct DatasetSpec {
@@ -262,6 +275,8 @@ pub struct DatasetSpec {
     /// The tolerance file of `benches: Tolerance(..)`, resolved against the spec's folder.
     pub tolerance_path: Option<PathBuf>,
     pub objects: ObjectSource,
+    /// The object images read, in the order samples use them (none for drawn objects).
+    pub object_files: Vec<ObjectFile>,
 }
 
 /// Reads and validates a dataset spec; images are loaded (and checked against the grid) here.
@@ -317,6 +332,7 @@ pub fn parse_dataset(text: &str, path: &Path) -> Result<DatasetSpec> {
         }
         Ok(())
     };
+    let mut object_files = Vec::new();
     let objects = match &file.objects {
         ObjectsSpec::Folder { path: folder, rule } => {
             let dir = base.join(folder);
@@ -348,15 +364,31 @@ pub fn parse_dataset(text: &str, path: &Path) -> Result<DatasetSpec> {
                     ),
                 ));
             }
+            // Read, hashed and decoded in parallel (a folder may hold thousands of images);
+            // the first bad file in name order is the one reported.
+            let read: Vec<Result<(Raster, String)>> = files
+                .par_iter()
+                .map(|f| {
+                    let unreadable = |e: String| {
+                        err("objects", format!("unreadable image {}: {e}", f.display()))
+                    };
+                    let bytes = std::fs::read(f).map_err(|e| unreadable(e.to_string()))?;
+                    let img = crate::objects::image_file::decode_gray(&bytes)
+                        .map_err(|e| unreadable(e.to_string()))?;
+                    Ok((img, sha256_hex(&bytes)))
+                })
+                .collect();
             let mut names = Vec::new();
             let mut images = Vec::new();
-            for f in &files {
+            for (f, r) in files.iter().zip(read) {
+                let (img, sha256) = r?;
                 let name = f.file_name().map(|n| n.to_string_lossy().to_string());
                 let name = name.unwrap_or_default();
-                let img = crate::objects::image_file::load_gray(f).map_err(|e| {
-                    err("objects", format!("unreadable image {}: {e}", f.display()))
-                })?;
                 fit(&img, &name, *rule)?;
+                object_files.push(ObjectFile {
+                    name: name.clone(),
+                    sha256,
+                });
                 names.push(name);
                 images.push(img.map(|v| v / 255.0));
             }
@@ -377,6 +409,10 @@ pub fn parse_dataset(text: &str, path: &Path) -> Result<DatasetSpec> {
                 let img = crate::objects::image_file::decode_gray(bytes)
                     .map_err(|e| err("names", e.to_string()))?;
                 fit(&img, n, *rule)?;
+                object_files.push(ObjectFile {
+                    name: n.clone(),
+                    sha256: sha256_hex(bytes),
+                });
                 images.push(img.map(|v| v / 255.0));
             }
             ObjectSource::Images {
@@ -412,6 +448,7 @@ pub fn parse_dataset(text: &str, path: &Path) -> Result<DatasetSpec> {
         path: path.to_path_buf(),
         text: text.to_string(),
         objects,
+        object_files,
     })
 }
 
