@@ -191,7 +191,10 @@ fn check_weights(objective: &Objective) -> crate::Result<()> {
         Objective::Power => Vec::new(),
         Objective::Weighted(w) => w.iter().map(|(_, v)| ("--weight", *v)).collect(),
     };
-    match weights.into_iter().find(|(_, w)| !(w.abs() <= max)) {
+    match weights
+        .into_iter()
+        .find(|(_, w)| !(w.is_finite() && w.abs() <= max))
+    {
         Some((flag, w)) => Err(crate::Error::field(
             flag,
             format!("a weight must be a finite number within ±{max:e}, got {w:e}"),
