@@ -525,7 +525,7 @@ fn non_finite_outputs(out: &Path, what: &str) -> Vec<String> {
             continue;
         }
         let text = std::fs::read_to_string(e.path()).unwrap_or_default();
-        let cells = text.split(|c: char| c == ',' || c == '\n' || c == ':' || c == ' ');
+        let cells = text.split([',', '\n', ':', ' ']);
         if let Some(c) = cells
             .map(str::trim)
             .find(|c| ["NaN", "inf", "-inf"].contains(c))
