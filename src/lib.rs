@@ -8,6 +8,7 @@
 pub mod acquisition;
 pub mod align;
 #[cfg(feature = "cli")]
+pub mod checked;
 pub mod cli;
 pub mod dataset;
 pub mod detector;

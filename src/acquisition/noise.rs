@@ -36,6 +36,7 @@
 use rand::Rng;
 use serde::{Deserialize, Serialize};
 
+use crate::checked::{NonNegative, via};
 use crate::error::{Error, Result};
 use crate::rng;
 
@@ -84,6 +85,7 @@ impl NoiseDistribution {
 pub struct AdditiveNoise {
     pub distribution: NoiseDistribution,
     /// Standard deviation σ of one draw (σ ≥ 0).
+    #[serde(deserialize_with = "via::<NonNegative, _, _>")]
     pub std: f64,
     /// Subtract the distribution's mean from every draw (default: no, as in the paper).
     #[serde(default)]

@@ -68,6 +68,8 @@ pub struct AlignArgs {
     /// comparison and the uncertainty probes add up to 4 + 2 × free variables).
     #[arg(long, default_value_t = 200)]
     pub max_evaluations: usize,
+    #[command(flatten)]
+    pub work: super::args::WorkArgs,
 }
 
 /// `align`'s default ray count of the last stage (also set on the flag, for `--help`).
@@ -180,6 +182,49 @@ fn check_counts(args: &AlignArgs, free: usize, rays: u64) -> crate::Result<u64> 
     }
 }
 
+/// The objective's weights within ±[`crate::checked::MAX_SCALAR`] (10¹⁵), as every weight of an
+/// input file: a weight of 10³⁰⁸ is finite, but its squared standard errors overflow.
+fn check_weights(objective: &Objective) -> crate::Result<()> {
+    let max = crate::checked::MAX_SCALAR;
+    let weights: Vec<(&str, f64)> = match objective {
+        Objective::Balance { offset_weight, .. } => vec![("--offset-weight", *offset_weight)],
+        Objective::Power => Vec::new(),
+        Objective::Weighted(w) => w.iter().map(|(_, v)| ("--weight", *v)).collect(),
+    };
+    match weights
+        .into_iter()
+        .find(|(_, w)| !(w.is_finite() && w.abs() <= max))
+    {
+        Some((flag, w)) => Err(crate::Error::field(
+            flag,
+            format!("a weight must be a finite number within ±{max:e}, got {w:e}"),
+        )),
+        None => Ok(()),
+    }
+}
+
+/// align's total work, bounded above: the search's first trace and each of its evaluations at
+/// up to the last stage's rays, the final comparison ([`crate::align::CANDIDATES`] points) and
+/// the uncertainty probes (two per free variable) at twice those rays, and the start and the
+/// result at the last stage's rays.
+fn work(free: usize, o: &AlignOptions) -> super::args::Work {
+    let rays = o.max_rays as f64;
+    let search = o.max_evaluations as f64 + 1.0;
+    let checks = (crate::align::CANDIDATES + 2 * free) as f64;
+    super::args::Work {
+        rays: (search + 2.0) * rays + checks * 2.0 * rays,
+        what: format!(
+            "up to {} evaluations and the start and result × {} rays, {} comparison and probe \
+             traces × {} rays",
+            o.max_evaluations + 1,
+            o.max_rays,
+            crate::align::CANDIDATES + 2 * free,
+            2 * o.max_rays
+        ),
+        ..Default::default()
+    }
+}
+
 /// Runs `spibench align`.
 pub fn run(args: &AlignArgs) -> Result<()> {
     let (name, doc) = args.bench.load()?;
@@ -204,6 +249,7 @@ pub fn run(args: &AlignArgs) -> Result<()> {
                 .collect::<crate::Result<_>>()?,
         ),
     };
+    check_weights(&objective)?;
     crate::align::check_objective(&objective)?;
     let opts = &args.bench.opts;
     let rays = opts.rays_or(DEFAULT_RAYS, super::args::MIN_RAYS_WITH_STDERR)?;
@@ -213,8 +259,10 @@ pub fn run(args: &AlignArgs) -> Result<()> {
         seed: opts.seed(),
         max_evaluations: args.max_evaluations,
     };
-    // Bounds, start and starting bench checked before the output folder or any trace.
+    // Bounds, start, starting bench and total work checked before the output folder or any
+    // trace.
     crate::align::check_start(&doc, &free, true)?;
+    args.work.check(&work(free.len(), &o))?;
     let out = OutputDir::create(&opts.out_or("out/align"))?;
     let bar = super::progress::bar(o.max_evaluations as u64, "evals");
     let t0 = std::time::Instant::now();
@@ -567,6 +615,34 @@ mod tests {
         assert_eq!(
             from_file("detectors.minus.diameter_mm", 5.0, &set).unwrap(),
             5.0
+        );
+    }
+
+    #[test]
+    fn work_counts_every_trace_and_refuses_a_huge_search() {
+        let o = AlignOptions {
+            start_rays: 12_500,
+            max_rays: 200_000,
+            seed: 1,
+            max_evaluations: 200,
+        };
+        // 201 search traces, start and result, 4 candidates and 2 probes at twice the rays.
+        let w = work(1, &o);
+        assert_eq!(w.rays, 203.0 * 2e5 + 6.0 * 4e5);
+        assert!(super::super::args::WorkArgs::default().check(&w).is_ok());
+        let huge = AlignOptions {
+            max_rays: 1_000_000_000,
+            max_evaluations: 1000,
+            ..o
+        };
+        let e = super::super::args::WorkArgs::default()
+            .check(&work(2, &huge))
+            .unwrap_err();
+        let m = e.to_string();
+        assert!(e.is_user_error() && m.contains("--allow-large"), "{m}");
+        assert!(
+            m.contains("1001 evaluations") && m.contains("traced rays"),
+            "{m}"
         );
     }
 }

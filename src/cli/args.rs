@@ -64,9 +64,9 @@ pub fn check_rays(rays: u64, min: u64) -> crate::Result<u64> {
     Ok(rays)
 }
 
-/// The smallest `--rays` of the commands that report standard errors (sweep, tolerance, align,
-/// trace): two batches.
-pub const MIN_RAYS_WITH_STDERR: u64 = 2 * crate::trace::RAYS_PER_BATCH;
+/// The smallest `--rays` of the commands that report standard errors (run, sweep, tolerance,
+/// align, trace), and of a bench file's `run.rays`: two batches.
+pub const MIN_RAYS_WITH_STDERR: u64 = crate::scene::run::MIN_RAYS;
 
 /// The bench, its `--set` edits and [`RunOpts`]: the arguments of `run`, `sweep`,
 /// `tolerance` and `align`.
@@ -276,6 +276,7 @@ mod tests {
     #[test]
     fn one_rays_check() {
         let min = MIN_RAYS_WITH_STDERR;
+        assert_eq!(min, 2 * crate::trace::RAYS_PER_BATCH, "two batches");
         assert_eq!(check_rays(min, min).unwrap(), min);
         let e = check_rays(min - 1, min).unwrap_err();
         assert!(e.is_user_error() && e.to_string().contains("--rays"), "{e}");

@@ -103,7 +103,7 @@ pub fn load_scene(args: &RunArgs) -> crate::Result<(String, BenchDoc, RunScene)>
     let (name, doc) = args.bench.load()?;
     let mut scene = doc.run_scene()?;
     if let Some(r) = args.bench.opts.rays {
-        scene.settings.rays = super::args::check_rays(r, 1)?;
+        scene.settings.rays = super::args::check_rays(r, super::args::MIN_RAYS_WITH_STDERR)?;
     }
     Ok((name, doc, scene))
 }
@@ -634,7 +634,7 @@ mod tests {
         let args = RunArgs {
             bench: crate::cli::args::BenchArgs {
                 opts: crate::cli::args::RunOpts {
-                    rays: Some(1000),
+                    rays: Some(2048),
                     ..Default::default()
                 },
                 ..Default::default()
@@ -644,14 +644,18 @@ mod tests {
         };
         let (name, _, scene) = load_scene(&args).unwrap();
         assert_eq!(name, PAPER_BENCH_NAME);
-        assert_eq!(scene.settings.rays, 1000);
+        assert_eq!(scene.settings.rays, 2048);
         assert_eq!(scene.bench.units_shape(), (48, 48));
         assert_eq!(
             scene.settings.sampling_ratios,
             vec![0.05, 0.1, 0.15, 0.2, 0.4, 0.6, 0.8, 1.0]
         );
-        let mut bad = args;
-        bad.bench.opts.rays = Some(0);
-        assert!(load_scene(&bad).unwrap_err().is_user_error());
+        // One batch has no standard error: fewer than two are refused, naming `--rays`.
+        for rays in [0, 1, 2047] {
+            let mut bad = args.clone();
+            bad.bench.opts.rays = Some(rays);
+            let e = load_scene(&bad).unwrap_err();
+            assert!(e.is_user_error() && e.to_string().contains("--rays"), "{e}");
+        }
     }
 }

@@ -18,6 +18,7 @@ pub mod usaf;
 
 use std::path::{Path, PathBuf};
 
+use crate::checked::{Count, Finite, NonNegative, Positive, Whole, via};
 use crate::error::{Error, Result};
 use crate::raster::Raster;
 use usaf::{PaperRegion, Polarity, Region, UsafChart};
@@ -35,10 +36,10 @@ pub enum ObjectSpec {
     /// The analytic 1951 USAF chart: the exact clear-area fraction of each pixel × 255.
     Usaf {
         /// Smallest group on the chart (default −2, as on the Thorlabs R3L3S1N).
-        #[serde(default = "default_min_group")]
+        #[serde(default = "default_min_group", deserialize_with = "via::<Group, _, _>")]
         min_group: i32,
         /// Largest group on the chart (default 7).
-        #[serde(default = "default_max_group")]
+        #[serde(default = "default_max_group", deserialize_with = "via::<Group, _, _>")]
         max_group: i32,
         /// `Negative` (clear bars in chrome, the paper's target; default) or `Positive`.
         #[serde(default = "default_polarity")]
@@ -56,6 +57,13 @@ pub enum ObjectSpec {
         path: PathBuf,
     },
 }
+
+/// A group of the chart layout (−2 to 9, [`usaf::MIN_SUPPORTED_GROUP`] to
+/// [`usaf::MAX_SUPPORTED_GROUP`]).
+type Group = Whole<{ usaf::MIN_SUPPORTED_GROUP as i64 }, { usaf::MAX_SUPPORTED_GROUP as i64 }>;
+
+/// An element of a group: 1 to 6.
+type Element = Count<1, 6>;
 
 fn default_min_group() -> i32 {
     -2
@@ -82,17 +90,24 @@ pub enum UsafRegion {
     /// The square around elements `first..=last` of `group`, with `margin_mm` on every side
     /// (default: one bar width of element `first`).
     Elements {
+        #[serde(deserialize_with = "via::<Group, _, _>")]
         group: i32,
+        #[serde(deserialize_with = "via::<Element, _, _>")]
         first: u8,
+        #[serde(deserialize_with = "via::<Element, _, _>")]
         last: u8,
-        #[serde(default)]
+        #[serde(default, deserialize_with = "via::<Option<NonNegative>, _, _>")]
         margin_mm: Option<f64>,
     },
     /// An explicit window in chart millimetres (origin at the plate centre, y up).
     Window {
+        #[serde(deserialize_with = "via::<Finite, _, _>")]
         center_x_mm: f64,
+        #[serde(deserialize_with = "via::<Finite, _, _>")]
         center_y_mm: f64,
+        #[serde(deserialize_with = "via::<Positive, _, _>")]
         width_mm: f64,
+        #[serde(deserialize_with = "via::<Positive, _, _>")]
         height_mm: f64,
     },
 }
@@ -345,25 +360,61 @@ mod tests {
             (parse("Phantom").unwrap(), 64, 32),
             (parse("Phantom").unwrap(), 0, 0),
             (parse("Usaf(region: Fig6)").unwrap(), MAX_OBJECT_SIDE + 1, 4),
-            (parse("Usaf(region: Fig6, min_group: -3)").unwrap(), 8, 8),
-            (parse("Usaf(region: Fig6, min_group: 3, max_group: 1)").unwrap(), 8, 8),
-            (parse("Usaf(region: Elements(group: 0, first: 5, last: 4))").unwrap(), 8, 8),
-            (parse("Usaf(region: Elements(group: 8, first: 1, last: 2))").unwrap(), 8, 8),
-            (parse("Usaf(region: Elements(group: 0, first: 1, last: 2, margin_mm: -1))").unwrap(), 8, 8),
             (
-                parse("Usaf(region: Window(center_x_mm: 0, center_y_mm: 0, width_mm: 0, height_mm: 1))")
-                    .unwrap(),
+                parse("Usaf(region: Fig6, min_group: 3, max_group: 1)").unwrap(),
                 8,
                 8,
             ),
-            (parse("File(path: \"scenes/images/nothing.png\")").unwrap(), 8, 8),
+            (
+                parse("Usaf(region: Elements(group: 0, first: 5, last: 4))").unwrap(),
+                8,
+                8,
+            ),
+            (
+                parse("Usaf(region: Elements(group: 8, first: 1, last: 2))").unwrap(),
+                8,
+                8,
+            ),
+            (
+                parse("File(path: \"scenes/images/nothing.png\")").unwrap(),
+                8,
+                8,
+            ),
             (parse("File(path: \"Cargo.toml\")").unwrap(), 8, 8),
         ];
         for (spec, w, h) in &cases {
             let e = render_object(spec, *w, *h, base).unwrap_err();
             assert!(e.is_user_error(), "{spec:?}: {e}");
         }
-        let e = render_object(&cases[6].0, 8, 8, base).unwrap_err();
+        let e = render_object(&cases[5].0, 8, 8, base).unwrap_err();
         assert!(e.to_string().contains("group"), "{e}");
+        // A number out of its own range is refused while reading, naming its field.
+        for (text, field) in [
+            ("Usaf(region: Fig6, min_group: -3)", "min_group"),
+            (
+                "Usaf(region: Elements(group: 12, first: 1, last: 2))",
+                "group",
+            ),
+            (
+                "Usaf(region: Elements(group: 0, first: 0, last: 2))",
+                "first",
+            ),
+            (
+                "Usaf(region: Elements(group: 0, first: 1, last: 2, margin_mm: -1))",
+                "margin_mm",
+            ),
+            (
+                "Usaf(region: Window(center_x_mm: 0, center_y_mm: 0, width_mm: 0, height_mm: 1))",
+                "width_mm",
+            ),
+            (
+                "Usaf(region: Window(center_x_mm: NaN, center_y_mm: 0, width_mm: 1, height_mm: 1))",
+                "center_x_mm",
+            ),
+        ] {
+            let e = parse(text).unwrap_err();
+            assert!(e.is_user_error(), "{text}: {e}");
+            assert!(e.to_string().contains(&format!("{field}`")), "{text}: {e}");
+        }
     }
 }

@@ -17,6 +17,7 @@
 use std::time::Instant;
 
 use super::operator::LinearOperator;
+use crate::checked::{Count, MAX_SCALAR, Positive, UnitFraction, checked, via};
 use crate::error::{Error, Result};
 use crate::raster::Raster;
 
@@ -43,24 +44,33 @@ pub enum Init {
 #[serde(deny_unknown_fields, default)]
 pub struct Tval3Options {
     /// Weight of ||Au − b||² after pre-processing (2^8). Large for noise-free data.
+    #[serde(deserialize_with = "via::<Weight, _, _>")]
     pub mu: f64,
     /// Weight of ||Du − w||² (2^5).
+    #[serde(deserialize_with = "via::<Weight, _, _>")]
     pub beta: f64,
     /// Starting mu; continuation multiplies by `rate_ctn` per inner loop up to `mu`. Unset means
     /// `mu` (TVAL3 fills `mu0 = mu` when it is not given), so a file that sets only `mu` gets no
     /// continuation, as in TVAL3.
+    #[serde(deserialize_with = "via::<Option<Weight>, _, _>")]
     pub mu0: Option<f64>,
     /// Starting beta, as `mu0` (unset means `beta`).
+    #[serde(deserialize_with = "via::<Option<Weight>, _, _>")]
     pub beta0: Option<f64>,
     /// Continuation factor (2).
+    #[serde(deserialize_with = "via::<ContinuationRate, _, _>")]
     pub rate_ctn: f64,
     /// Outer tolerance on ||U − U_prev_outer|| / ||Up|| (1e-6).
+    #[serde(deserialize_with = "via::<Positive, _, _>")]
     pub tol: f64,
     /// Inner tolerance on ||U − Up|| / ||Up|| (1e-3).
+    #[serde(deserialize_with = "via::<Positive, _, _>")]
     pub tol_inn: f64,
     /// Maximum number of inner loops (10).
+    #[serde(deserialize_with = "via::<Count<1, MAX_ITERATIONS>, _, _>")]
     pub maxcnt: usize,
     /// Maximum number of iterations in total (1025).
+    #[serde(deserialize_with = "via::<Count<1, MAX_ITERATIONS>, _, _>")]
     pub maxit: usize,
     pub init: Init,
     pub tv_norm: TvNorm,
@@ -71,14 +81,43 @@ pub struct Tval3Options {
     /// Scale b to a range between 0.5 and 1.5 (true).
     pub scale_b: bool,
     /// Armijo constant of the line search (1e-5).
+    #[serde(deserialize_with = "via::<UnitFraction, _, _>")]
     pub c: f64,
     /// Backtracking factor (0.6).
+    #[serde(deserialize_with = "via::<UnitFraction, _, _>")]
     pub gamma: f64,
     /// Non-monotone averaging weight, Zhang–Hager η (0.9995).
+    #[serde(deserialize_with = "via::<UnitFraction, _, _>")]
     pub gam: f64,
     /// Factor applied to `gam` after a line-search failure (0.9).
+    #[serde(deserialize_with = "via::<UnitFraction, _, _>")]
     pub rate_gam: f64,
 }
+
+/// The most iterations (and inner loops) a file may ask for: 10⁶, about a thousand times the
+/// reference runs' 300, so that a typing error cannot start a run of days.
+pub const MAX_ITERATIONS: u64 = 1_000_000;
+
+checked!(
+    /// A weight of the augmented Lagrangian (`mu`, `beta`, `mu0`, `beta0`): a positive normal
+    /// number of at most [`MAX_SCALAR`]. The solver divides one weight by the other (mu/beta in
+    /// the step and the w-update, beta/mu in the multipliers), so a subnormal weight made the
+    /// iterates non-finite (a beta of 5e-324 beside mu = 256 did).
+    Weight,
+    |v| v.is_normal() && v > 0.0 && v <= MAX_SCALAR,
+    |v| format!(
+        "a TVAL3 weight must be a positive normal number of at most {MAX_SCALAR:e} (TVAL3 \
+         divides by it; typical weights are 2^4 to 2^13), got {v:e}"
+    )
+);
+
+checked!(
+    /// The continuation factor: above 1 (continuation raises mu0 toward mu) and at most
+    /// [`MAX_SCALAR`].
+    ContinuationRate,
+    |v| v > 1.0 && v <= MAX_SCALAR,
+    |v| format!("must be a finite number above 1, got {v:e}")
+);
 
 impl Default for Tval3Options {
     fn default() -> Self {

@@ -226,7 +226,8 @@ mod tests {
     }
 
     /// Every number of every input file is read through a checked type: a field of a
-    /// `Deserialize` type in `scene` may not hold a bare `f64` or integer unless it is read
+    /// `Deserialize` type in `scene` (or of the solver options, the additive noise and the objects
+    /// below it) may not hold a bare `f64` or integer unless it is read
     /// `via` a checked type (`deserialize_with = "via::<…>"`), is a seed (any value is valid), or
     /// its whole type is built by `try_from` a checked form. The records spibench writes for its
     /// own merges (tolerance shards) hold results, not input, and are listed here by name.
@@ -237,9 +238,18 @@ mod tests {
             "f32", "f64", "u8", "u16", "u32", "u64", "u128", "usize", "i8", "i16", "i32", "i64",
             "i128", "isize",
         ];
-        let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("src/scene");
-        let mut files = Vec::new();
-        let mut dirs = vec![root];
+        let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
+        // The input types below `scene` that the files hold: the TVAL3 options, the additive
+        // noise and the objects (with their USAF regions).
+        let mut files: Vec<std::path::PathBuf> = [
+            "reconstruction/tval3.rs",
+            "acquisition/noise.rs",
+            "objects/mod.rs",
+        ]
+        .iter()
+        .map(|f| src.join(f))
+        .collect();
+        let mut dirs = vec![src.join("scene")];
         while let Some(d) = dirs.pop() {
             for e in std::fs::read_dir(&d).unwrap().flatten() {
                 let p = e.path();
@@ -301,7 +311,9 @@ mod tests {
                     let code = line.split("//").next().unwrap_or("");
                     let body_line = depth > 0 || !code.contains('{');
                     let t = code.trim();
-                    if body_line && depth == 1 {
+                    // Depth 1: a struct's fields or an enum's variants; depth 2: the fields of
+                    // a struct variant (`Usaf { min_group: … }`).
+                    if body_line && (depth == 1 || depth == 2) {
                         if t.starts_with("#[") || (!attrs.is_empty() && !attrs.ends_with(']')) {
                             attrs.push_str(t);
                         } else if !t.is_empty() {
@@ -355,7 +367,8 @@ mod tests {
         );
         assert!(
             bad.is_empty(),
-            "read these through a checked type of scene::numbers (or `via` one):\n{}",
+            "read these through a checked type of crate::checked or scene::numbers (or `via` \
+             one):\n{}",
             bad.join("\n")
         );
     }

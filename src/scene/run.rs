@@ -54,6 +54,12 @@ pub const MAX_SCOPE_SAMPLES: f64 = 2e9;
 /// The largest number of rays a run may trace (10¹⁰ rays is about a day on two cores).
 pub const MAX_RAYS: u64 = 10_000_000_000;
 
+/// The fewest rays a traced number's standard error needs: the trace's standard errors are batch
+/// means over batches of `trace::RAYS_PER_BATCH` (1024) rays, and two full batches are the
+/// fewest that give a spread (one batch gave NaN standard errors; `cli::args` ties the two
+/// constants by a test).
+pub const MIN_RAYS: u64 = 2048;
+
 /// The largest output or oscilloscope offset (V): far beyond any amplifier or scope input.
 pub const MAX_OFFSET_V: f64 = 1e3;
 
@@ -340,7 +346,7 @@ pub struct RunSpec {
     pub title: String,
     /// Lamp rays to trace for the transport. Default 2 × 10⁶ (about 7 s on two cores for the
     /// paper bench, which gives k± to about 0.09 % relative standard error).
-    #[serde(deserialize_with = "via::<Count<1, MAX_RAYS>, _, _>")]
+    #[serde(deserialize_with = "via::<Count<MIN_RAYS, MAX_RAYS>, _, _>")]
     pub rays: u64,
     /// Sampling ratios M/N, each in (0, 1]. Default the paper's Fig. 6: 5, 10, 15, 20, 40, 60,
     /// 80 and 100 %.

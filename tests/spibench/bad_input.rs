@@ -52,6 +52,12 @@ fn bench_case(tag: &str, from: &str, to: &str, marker: &str, field: &str) {
 
 /// An experiment edit through `spibench simulate`.
 fn experiment_case(tag: &str, from: &str, to: &str, marker: &str, field: &str) {
+    experiment_fragments(tag, from, to, marker, &[&format!("field `{field}`")]);
+}
+
+/// An experiment edit through `spibench simulate`: exit 2 naming the file, the line and
+/// `fragments`.
+fn experiment_fragments(tag: &str, from: &str, to: &str, marker: &str, fragments: &[&str]) {
     let dir = TempDir::new(&format!("bad-exp-{tag}"));
     let (exp, line) = edited(&dir, EXPERIMENT, from, to, marker);
     let out = dir.join("out");
@@ -65,8 +71,9 @@ fn experiment_case(tag: &str, from: &str, to: &str, marker: &str, field: &str) {
         &[],
     );
     let located = format!("line {line},");
-    let field = format!("field `{field}`");
-    assert_input_error(&o, &["fig1.ron", &located, &field], &out);
+    let mut all = vec!["fig1.ron", located.as_str()];
+    all.extend_from_slice(fragments);
+    assert_input_error(&o, &all, &out);
 }
 
 #[test]
@@ -531,4 +538,177 @@ fn total_work_above_the_limits_is_refused_with_its_estimate() {
         &["dataset", spec.to_str().unwrap()],
         &["100000000 samples", "--allow-large"],
     );
+}
+
+// The rest of the catalogue of the newer commands' classes, and where the other cases live:
+// merges (`untrusted::a_merge_copies_what_it_checked_and_never_its_inputs`,
+// `untrusted::tolerance_shard_records_are_checked`), the dataset lock and `--quiet`
+// (`untrusted::a_dataset_folder_is_locked_and_quiet_means_quiet`), align's counts, bounds and
+// start (`cli_tolerance::align_checks_its_arguments_before_tracing`), TVAL3's weight in an
+// experiment (`cli_simulate::a_weight_the_solver_cannot_use_is_an_input_error`).
+
+/// Fewer rays than two batches of 1024 give no standard error: `run --rays 1` and a bench's
+/// `run.rays` are refused, naming the flag or the field (both were accepted).
+#[test]
+fn ray_counts_below_two_batches_are_refused() {
+    let dir = TempDir::new("bad-new-run-rays");
+    let bench = Path::new(env!("CARGO_MANIFEST_DIR")).join(BENCH);
+    for rays in ["1", "2047"] {
+        run_case(
+            &dir,
+            &["run", bench.to_str().unwrap(), "--rays", rays],
+            &["--rays", "2048", "two batches"],
+        );
+    }
+    let (scene, line) = edited(
+        &dir,
+        BENCH,
+        "\n)",
+        "\n    run: (sampling_ratios: [0.5], rays: 1),\n)",
+        "rays: 1)",
+    );
+    run_case(
+        &dir,
+        &["run", scene.to_str().unwrap()],
+        &[
+            "symmetric_arms.ron",
+            &format!("line {line},"),
+            "field `run.rays`",
+            "2048",
+        ],
+    );
+}
+
+/// The numbers of the solver options, the additive noise and the objects go through checked
+/// types like the bench's: each error names the file, the line and the full field path.
+#[test]
+fn solver_noise_and_object_numbers_are_located() {
+    let dir = TempDir::new("bad-new-solver");
+    let (scene, line) = edited(
+        &dir,
+        BENCH,
+        "\n)",
+        "\n    run: (sampling_ratios: [0.5], solver: (beta: 5e-324)),\n)",
+        "beta: 5e-324",
+    );
+    run_case(
+        &dir,
+        &["run", scene.to_str().unwrap()],
+        &[
+            "symmetric_arms.ron",
+            &format!("line {line},"),
+            "field `run.solver.beta`",
+            "5e-324",
+        ],
+    );
+    experiment_case(
+        "noise-std",
+        "scheme: Traditional),",
+        "scheme: Traditional, noise: (distribution: Gaussian, std: -inf)),",
+        "std: -inf",
+        "cases[0].noise.std",
+    );
+    experiment_fragments(
+        "usaf-group",
+        "object: Phantom",
+        "object: Usaf(region: Elements(group: 12, first: 1, last: 2))",
+        "group: 12",
+        &["field `objects[0].object", "group`", "from -2 to 9"],
+    );
+    experiment_fragments(
+        "usaf-window",
+        "object: Phantom",
+        "object: Usaf(region: Window(center_x_mm: 0.0, center_y_mm: NaN, width_mm: 1.0, \
+         height_mm: 1.0))",
+        "center_y_mm",
+        &["field `objects[0].object", "center_y_mm`"],
+    );
+}
+
+/// align estimates its total work before the first trace and refuses a search above the limit
+/// with the estimate; a starting bench outside a field's range names the field.
+#[test]
+fn align_work_and_start_are_checked_before_tracing() {
+    let dir = TempDir::new("bad-new-align");
+    let bench = Path::new(env!("CARGO_MANIFEST_DIR")).join(BENCH);
+    let bench = bench.to_str().unwrap();
+    let free = "detectors.minus.decenter_mm.x=-2:2";
+    run_case(
+        &dir,
+        &[
+            "align",
+            bench,
+            "--free",
+            free,
+            "--max-evaluations",
+            "100000000",
+            "--rays",
+            "1000000",
+        ],
+        &["100000001 evaluations", "traced rays", "--allow-large"],
+    );
+    run_case(
+        &dir,
+        &[
+            "align",
+            bench,
+            "--free",
+            free,
+            "--set",
+            "dmd.fill_factor=1.5",
+        ],
+        &["dmd.fill_factor", "value 1.5 refused", "(0, 1]"],
+    );
+    run_case(
+        &dir,
+        &["align", bench, "--free", free, "--offset-weight", "1e308"],
+        &["--offset-weight", "1e15"],
+    );
+}
+
+/// The tolerance command's PDFs are the same bytes in two identical runs (their object order
+/// once followed a hash map's).
+#[test]
+fn tolerance_pdfs_are_byte_identical_between_runs() {
+    let dir = TempDir::new("bad-new-pdf");
+    let scenes = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");
+    let bench = scenes.join("tests/symmetric_arms.ron");
+    let tol = scenes.join("tolerances/symmetric_arms.ron");
+    let pdfs = |out: &Path| -> Vec<(String, Vec<u8>)> {
+        let o = spibench(
+            &[
+                "tolerance",
+                bench.to_str().unwrap(),
+                "--tolerances",
+                tol.to_str().unwrap(),
+                "--trials",
+                "3",
+                "--rays",
+                "4096",
+                "--out",
+                out.to_str().unwrap(),
+            ],
+            &[],
+        );
+        assert!(o.status.success(), "{}", stderr(&o));
+        let mut files: Vec<(String, Vec<u8>)> = std::fs::read_dir(out)
+            .unwrap()
+            .flatten()
+            .filter(|e| e.path().extension().is_some_and(|x| x == "pdf"))
+            .map(|e| {
+                (
+                    e.file_name().to_string_lossy().into_owned(),
+                    std::fs::read(e.path()).unwrap(),
+                )
+            })
+            .collect();
+        files.sort();
+        files
+    };
+    let (a, b) = (pdfs(&dir.join("a")), pdfs(&dir.join("b")));
+    assert!(!a.is_empty(), "tolerance wrote no PDF");
+    for ((name, x), (_, y)) in a.iter().zip(&b) {
+        assert!(x == y, "{name} differs between two identical runs");
+    }
+    assert_eq!(a.len(), b.len());
 }

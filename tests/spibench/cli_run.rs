@@ -284,12 +284,12 @@ fn run_reports_saturation() {
 #[test]
 fn run_rejects_bad_input_with_file_line_and_field() {
     let dir = TempDir::new("run-bad");
-    let scene = small_scene(&dir, "typo.ron", "rays: 1000, sampling_ratio: [0.5]", &[]);
+    let scene = small_scene(&dir, "typo.ron", "rays: 2048, sampling_ratio: [0.5]", &[]);
     let out = dir.join("out");
     let o = run_to(&scene, &out, "2");
     assert_input_error(&o, &["typo.ron", "line", "sampling_ratio"], &out);
 
-    let scene = small_scene(&dir, "slow.ron", "rays: 1000, settling_time_us: 60.0", &[]);
+    let scene = small_scene(&dir, "slow.ron", "rays: 2048, settling_time_us: 60.0", &[]);
     let o = run_to(&scene, &out, "2");
     assert_input_error(&o, &["slow.ron", "line", "settling_time_us"], &out);
 

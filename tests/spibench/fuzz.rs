@@ -474,7 +474,7 @@ fn mutants_of_tolerance_files_and_dataset_specs_end_in_input_errors() {
 /// Values tried in place of a command-line argument: non-numbers, non-finite and huge numbers,
 /// integers at 2⁶³ and past 2⁶⁴, zero and negatives, and malformed sizes and ranges. (Valid but
 /// slow values, such as 4·10⁹ rays for `trace`, are left out: the test must stay short.)
-const ARG_VALUES: [&str; 15] = [
+const ARG_VALUES: [&str; 18] = [
     "NaN",
     "inf",
     "-1",
@@ -490,12 +490,58 @@ const ARG_VALUES: [&str; 15] = [
     "0/0",
     "dmd.tilt_deg=NaN:1:2",
     "dmd.tilt_deg=0:1:18446744073709551615",
+    "detectors.minus.decenter_mm.x=-1e308:1e308",
+    "imbalance=1e308",
+    "1",
 ];
 
+/// A small experiment for `spibench simulate` (8 × 8 units, two cases, a few iterations).
+const SMALL_EXPERIMENT: &str = r#"Experiment(
+    title: "fuzz",
+    width: 8,
+    height: 8,
+    objects: [(name: "phantom", object: Phantom), (name: "usaf", object: Usaf(region: Elements(group: 0, first: 4, last: 6)))],
+    sampling_ratios: [0.5],
+    cases: [
+        (label: "scb", scheme: SecondaryComplementaryBalancing,
+         arms: (k_plus: 1.01, k_minus: 1.02, b_plus: 1.0, b_minus: 5.0),
+         noise: (distribution: Gaussian, std: 2.0)),
+    ],
+    solver: (mu: 256.0, beta: 32.0, tol: 1e-3, maxit: 30, nonneg: true),
+    seed: 5,
+)
+"#;
+
+/// The non-finite numbers of a run's outputs (exit 0): `NaN` or an infinity in `summary.json`
+/// (which JSON cannot hold: a number written as `NaN` or `inf`) or in a CSV table.
+fn non_finite_outputs(out: &Path, what: &str) -> Vec<String> {
+    let mut bad = Vec::new();
+    let Ok(entries) = std::fs::read_dir(out) else {
+        return bad;
+    };
+    for e in entries.flatten() {
+        let name = e.file_name().to_string_lossy().into_owned();
+        if !(name == "summary.json" || name.ends_with(".csv")) {
+            continue;
+        }
+        let text = std::fs::read_to_string(e.path()).unwrap_or_default();
+        let cells = text.split([',', '\n', ':', ' ']);
+        if let Some(c) = cells
+            .map(str::trim)
+            .find(|c| ["NaN", "inf", "-inf"].contains(c))
+        {
+            bad.push(format!("{what}: {c} in {name}"));
+        }
+    }
+    bad
+}
+
 /// Every command's arguments mutated one at a time through the binary (six mutants of each
-/// value-taking argument of a cheap valid command line): exit 0 or 2 only, never a panic or
+/// value-taking argument of a cheap valid command line, `align` and `simulate` included), then
+/// 24 mutants of a small experiment file through `simulate`: exit 0 or 2 only, never a panic or
 /// an abort, an exit-2 message that names an argument or a file, nothing left behind after
-/// exit 2, and no NaN in a summary after exit 0.
+/// exit 2 (no output, staging folder or lock), and no NaN or infinity in a summary or CSV table
+/// after exit 0.
 #[test]
 fn mutated_command_line_arguments_exit_0_or_2() {
     let dir = TempDir::new("fuzz-args");
@@ -520,12 +566,16 @@ fn mutated_command_line_arguments_exit_0_or_2() {
     let (pp, yp) = (dir.join("p.npy"), dir.join("y.npy"));
     spibench::report::npy::write_u8(&pp, &[8, 16], &[1u8; 128]).unwrap();
     spibench::report::npy::write_f64(&yp, &[8], &[1.0; 8]).unwrap();
-    let (tol, spec, pp, yp) = (
+    let exp = dir.join("exp.ron");
+    std::fs::write(&exp, SMALL_EXPERIMENT).unwrap();
+    let (tol, spec, pp, yp, exp) = (
         tol.to_str().unwrap(),
         spec.to_str().unwrap(),
         pp.to_str().unwrap(),
         yp.to_str().unwrap(),
+        exp.to_str().unwrap(),
     );
+    let free = "detectors.minus.decenter_mm.x=-2:2";
     // Each command line with the indices of the values that are mutated.
     let commands: Vec<(Vec<&str>, Vec<usize>)> = vec![
         (
@@ -601,6 +651,47 @@ fn mutated_command_line_arguments_exit_0_or_2() {
             vec![6],
         ),
         (vec!["--threads", "1", "check", sym], vec![1]),
+        (
+            vec![
+                "align",
+                sym,
+                "--free",
+                free,
+                "--rays",
+                "2048",
+                "--start-rays",
+                "2048",
+                "--max-evaluations",
+                "4",
+                "--min-fraction",
+                "0.9",
+                "--offset-weight",
+                "0.1",
+                "--seed",
+                "1",
+            ],
+            vec![3, 5, 7, 9, 11, 13, 15],
+        ),
+        (
+            vec![
+                "align",
+                sym,
+                "--free",
+                free,
+                "--objective",
+                "weighted",
+                "--weight",
+                "imbalance=1",
+                "--rays",
+                "2048",
+                "--max-evaluations",
+                "4",
+                "--set",
+                "detectors.minus.decenter_mm.x=0.5",
+            ],
+            vec![5, 7, 13],
+        ),
+        (vec!["simulate", exp, "--zero-one", "plain"], vec![1, 3]),
     ];
     let mut failures = Vec::new();
     let mut n = 0;
@@ -623,13 +714,7 @@ fn mutated_command_line_arguments_exit_0_or_2() {
                     exits[c as usize / 2] += 1;
                 }
                 match o.status.code() {
-                    Some(0) => {
-                        let s =
-                            std::fs::read_to_string(out.join("summary.json")).unwrap_or_default();
-                        if s.contains("NaN") {
-                            failures.push(format!("{what}: NaN in summary.json"));
-                        }
-                    }
+                    Some(0) => failures.extend(non_finite_outputs(&out, &what)),
                     Some(2) => {
                         if err.contains("panicked") || err.trim().is_empty() {
                             failures.push(format!("{what}: exit 2 with {err:?}"));
@@ -641,6 +726,41 @@ fn mutated_command_line_arguments_exit_0_or_2() {
                     other => failures.push(format!("{what}: exit {other:?}: {err}")),
                 }
             }
+        }
+    }
+    // Mutated experiment files through `spibench simulate`: the same rules, and an exit-2
+    // message that names the file.
+    for i in 0..24u64 {
+        let m = mutant(SMALL_EXPERIMENT, 900, i);
+        let file = dir.join(&format!("exp{i}.ron"));
+        std::fs::write(&file, &m).unwrap();
+        let out = dir.join(&format!("out{n}"));
+        n += 1;
+        let o = spibench(
+            &[
+                "simulate",
+                file.to_str().unwrap(),
+                "--out",
+                out.to_str().unwrap(),
+            ],
+            &[("RAYON_NUM_THREADS", "1")],
+        );
+        let err = String::from_utf8_lossy(&o.stderr).into_owned();
+        let what = format!("experiment mutant {i}");
+        if let Some(c @ (0 | 2)) = o.status.code() {
+            exits[c as usize / 2] += 1;
+        }
+        match o.status.code() {
+            Some(0) => failures.extend(non_finite_outputs(&out, &what)),
+            Some(2) => {
+                if err.contains("panicked") || !err.contains(&format!("exp{i}.ron")) {
+                    failures.push(format!("{what}: exit 2 with {err:?}"));
+                }
+                if out.exists() {
+                    failures.push(format!("{what}: output left after exit 2"));
+                }
+            }
+            other => failures.push(format!("{what}: exit {other:?}: {err}")),
         }
     }
     for e in std::fs::read_dir(&dir.0).unwrap().flatten() {

@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 /// modules on one floor stand side by side and never use each other (the jobs in particular
 /// compose `pipeline`, not each other). Every top-level module must be listed.
 const FLOORS: &[&[&str]] = &[
-    &["error", "rng", "npy", "lib", "main"],
+    &["error", "rng", "npy", "checked", "lib", "main"],
     &["raster", "detector", "provenance"],
     &["objects", "reconstruction"],
     &["acquisition", "metrics", "optics"],
