@@ -55,6 +55,11 @@ enum Move {
 /// The value of a numeric bench variable (a field path; a rigid-body move reads 0, since moves
 /// are relative to the bench they are applied to).
 pub fn get(file: &BenchFile, path: &str) -> Result<f64> {
+    if let Some(turn) = parse_turn(path) {
+        // Check that the bench can be turned (a DMD, parts on one chief line only).
+        apply_turn(&mut file.clone(), turn, 0.0, path)?;
+        return Ok(0.0);
+    }
     if let Some((target, mv)) = parse_move(path)? {
         // Check that the part exists and can move.
         let _ = (pose(&mut file.clone(), &target, path)?, mv);
@@ -75,6 +80,9 @@ pub fn set(file: &mut BenchFile, path: &str, value: f64) -> Result<()> {
             path,
             format!("a bench variable must be a finite number, got {value}"),
         ));
+    }
+    if let Some(turn) = parse_turn(path) {
+        return apply_turn(file, turn, value, path);
     }
     if let Some((target, mv)) = parse_move(path)? {
         return apply_move(file, &target, mv, value, path);
@@ -164,6 +172,13 @@ pub fn list(file: &BenchFile) -> Vec<String> {
                     leaves(inner, &name, &mut out);
                     moves_of(&name, &mut out);
                 }
+            }
+        }
+    }
+    if file.dmd.is_some() {
+        for kind in ["turn_deg", "tracked_turn_deg"] {
+            for axis in ["hinge", "across"] {
+                out.push(format!("illumination.{kind}.{axis}"));
             }
         }
     }
@@ -590,6 +605,219 @@ fn apply_move(file: &mut BenchFile, target: &str, mv: Move, value: f64, path: &s
     Ok(())
 }
 
+// ---------------------------------------------------------------------------------------------
+// Turns of the illumination about the DMD's centre (docs/dmd_diffraction.md, "Blaze matching").
+
+/// How far (mm) a part's position may lie from a chief line and still count as on it.
+const ON_LINE_MM: f64 = 5.0;
+
+/// The most fold mirrors an arm's chief line follows.
+const MAX_FOLDS: usize = 4;
+
+/// A turn of the illumination: about the mirrors' hinge or about the in-plane axis across it,
+/// with the arms left in place or following their states' specular directions.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Turn {
+    across: bool,
+    tracked: bool,
+}
+
+/// `illumination.turn_deg.hinge|across`, `illumination.tracked_turn_deg.hinge|across`; None
+/// for any other path (an unknown `illumination.…` path then fails as an unknown part, with
+/// these paths among the suggestions, since [`list`] holds them).
+fn parse_turn(path: &str) -> Option<Turn> {
+    let segs: Vec<&str> = path.split('.').collect();
+    let (kind, axis) = match segs.as_slice() {
+        ["illumination", kind, axis] => (*kind, *axis),
+        _ => return None,
+    };
+    let tracked = match kind {
+        "turn_deg" => false,
+        "tracked_turn_deg" => true,
+        _ => return None,
+    };
+    let across = match axis {
+        "hinge" => false,
+        "across" => true,
+        _ => return None,
+    };
+    Some(Turn { across, tracked })
+}
+
+fn v3(p: Mm3) -> DVec3 {
+    DVec3::new(p.0, p.1, p.2)
+}
+
+fn mm3(v: DVec3) -> Mm3 {
+    Mm3(v.x, v.y, v.z)
+}
+
+/// The mirror reflection of direction `d` off a surface of unit normal `n`.
+fn reflect(d: DVec3, n: DVec3) -> DVec3 {
+    d - 2.0 * d.dot(n) * n
+}
+
+/// The distance along `dir` from `o` of the point of the line nearest `p`, when `p` lies ahead
+/// of `o` and within [`ON_LINE_MM`] of the line.
+fn along_line(p: DVec3, o: DVec3, dir: DVec3) -> Option<f64> {
+    let s = (p - o).dot(dir);
+    let off = (p - o - s * dir).length();
+    (s > 1e-6 && off <= ON_LINE_MM).then_some(s)
+}
+
+/// The parts a turn moves: the illumination's elements (on the half-line from the DMD's centre
+/// through the lamp) and each arm's (on its chief line: from the DMD's centre along its state's
+/// specular reflection of the incoming chief direction `d`, folded by each mirror met on it).
+struct Groups {
+    illumination: Vec<String>,
+    arms: [Vec<String>; 2],
+}
+
+fn groups(file: &BenchFile, d: DVec3, normals: [DVec3; 2], path: &str) -> Result<Groups> {
+    let place: Vec<(String, DVec3, Option<Direction>)> = file
+        .elements
+        .iter()
+        .map(|el| {
+            let (position, mirror) = match el {
+                ElementSpec::Lens { position_mm, .. }
+                | ElementSpec::Filter { position_mm, .. }
+                | ElementSpec::Aperture { position_mm, .. }
+                | ElementSpec::Tube { position_mm, .. }
+                | ElementSpec::Baffle { position_mm, .. }
+                | ElementSpec::Chart { position_mm, .. } => (*position_mm, None),
+                ElementSpec::Mirror {
+                    position_mm,
+                    normal,
+                    ..
+                } => (*position_mm, Some(*normal)),
+            };
+            (el.name().to_string(), v3(position), mirror)
+        })
+        .collect();
+    let illumination: Vec<String> = place
+        .iter()
+        .filter(|(_, p, _)| along_line(*p, DVec3::ZERO, -d).is_some())
+        .map(|(n, _, _)| n.clone())
+        .collect();
+    let mut arms: [Vec<String>; 2] = [Vec::new(), Vec::new()];
+    for (k, arm) in arms.iter_mut().enumerate() {
+        let (mut o, mut dir) = (DVec3::ZERO, reflect(d, normals[k]));
+        for _ in 0..=MAX_FOLDS {
+            let mut on: Vec<(f64, usize)> = place
+                .iter()
+                .enumerate()
+                .filter(|(_, (n, _, _))| !arm.contains(n))
+                .filter_map(|(i, (_, p, _))| along_line(*p, o, dir).map(|s| (s, i)))
+                .collect();
+            on.sort_by(|a, b| a.0.total_cmp(&b.0));
+            let fold = on.iter().find(|(_, i)| place[*i].2.is_some()).copied();
+            let end = fold.map_or(f64::INFINITY, |f| f.0);
+            arm.extend(
+                on.iter()
+                    .filter(|(s, _)| *s <= end)
+                    .map(|(_, i)| place[*i].0.clone()),
+            );
+            let Some((_, i)) = fold else { break };
+            let normal = place[i].2.map(|n| unit(n, path)).transpose()?;
+            (o, dir) = (place[i].1, reflect(dir, normal.unwrap_or(DVec3::Z)));
+        }
+    }
+    for (name, _, _) in &place {
+        let on = usize::from(illumination.contains(name))
+            + arms.iter().filter(|a| a.contains(name)).count();
+        if on > 1 {
+            return Err(Error::field(
+                path,
+                format!(
+                    "`{name}` lies on more than one chief line (the illumination's, the arms'): \
+                     this bench cannot be turned as a whole; move its parts one by one"
+                ),
+            ));
+        }
+    }
+    Ok(Groups { illumination, arms })
+}
+
+/// Turns the illumination by `deg` about the DMD's centre: the lamp (its field-sampling target
+/// with it) and the illumination's elements rigidly, about the mirrors' hinge or the in-plane
+/// axis across it; a tracked turn also turns each arm (its detector and elements) by the
+/// smallest rotation that carries its state's specular direction to the new one, so the arms
+/// stay on the geometric reflection of the incoming chief ray.
+fn apply_turn(file: &mut BenchFile, turn: Turn, deg: f64, path: &str) -> Result<()> {
+    let Some(dmd) = file.dmd.as_ref() else {
+        return Err(Error::field(
+            path,
+            "turns the illumination about the DMD's centre: this bench has no `dmd`",
+        ));
+    };
+    let (tilt, a) = (
+        dmd.tilt_deg.0.to_radians(),
+        dmd.tilt_axis_deg.0.to_radians(),
+    );
+    // The hinge as in optics::dmd: state + is a right-handed turn by the tilt about it.
+    let hinge = DVec3::new(a.cos(), a.sin(), 0.0);
+    let axis = if turn.across {
+        hinge.cross(DVec3::Z)
+    } else {
+        hinge
+    };
+    let normals = [1.0, -1.0].map(|s| DMat3::from_axis_angle(hinge, s * tilt) * DVec3::Z);
+    let lamp = v3(file.lamp.position_mm);
+    if lamp.z <= 0.0 {
+        return Err(Error::field(
+            path,
+            "turns the illumination about the DMD's centre: the lamp must stand in front of \
+             the array (z > 0)",
+        ));
+    }
+    let d = -lamp.normalize();
+    let g = groups(file, d, normals, path)?;
+    let q = DMat3::from_axis_angle(axis, deg.to_radians());
+    turn_part(file, "lamp", q, path)?;
+    if let Some(fs) = file.lamp.field_sampling.as_mut() {
+        fs.center_mm = mm3(q * v3(fs.center_mm));
+    }
+    for name in &g.illumination {
+        turn_part(file, name, q, path)?;
+    }
+    if turn.tracked {
+        let d2 = q * d;
+        for (k, names) in g.arms.iter().enumerate() {
+            let (u, u2) = (reflect(d, normals[k]), reflect(d2, normals[k]));
+            let r = DMat3::from_quat(glam::DQuat::from_rotation_arc(u, u2));
+            let detector = if k == 0 {
+                "detectors.plus"
+            } else {
+                "detectors.minus"
+            };
+            turn_part(file, detector, r, path)?;
+            for name in names {
+                turn_part(file, name, r, path)?;
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Turns a part rigidly by `q` about the DMD's centre (the origin): its position, its axis and
+/// its in-plane orientation.
+fn turn_part(file: &mut BenchFile, target: &str, q: DMat3, path: &str) -> Result<()> {
+    let p = pose(file, target, path)?;
+    let w = unit(*p.axis, path)?;
+    let hint = match p.x_axis.as_deref() {
+        Some(Some(d)) => Some(unit(*d, path)?),
+        _ => None,
+    };
+    let f = Frame::new(DVec3::ZERO, w, hint);
+    let vec = |v: DVec3| Direction::Vector(mm3(v));
+    *p.position = mm3(q * v3(*p.position));
+    *p.axis = vec(q * f.w);
+    if let Some(x) = p.x_axis {
+        *x = Some(vec(q * f.u));
+    }
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -682,5 +910,129 @@ mod tests {
         let mut z = f0.clone();
         set(&mut z, "detectors.minus.decenter_mm.x", 0.0).unwrap();
         assert_eq!(z.detectors.minus.position_mm, d0.position_mm);
+    }
+
+    fn element_position(f: &BenchFile, name: &str) -> DVec3 {
+        let el = f.elements.iter().find(|e| e.name() == name).unwrap();
+        match el {
+            ElementSpec::Lens { position_mm, .. }
+            | ElementSpec::Mirror { position_mm, .. }
+            | ElementSpec::Chart { position_mm, .. } => v3(*position_mm),
+            _ => panic!("{name}"),
+        }
+    }
+
+    #[test]
+    fn turns_find_the_illumination_and_the_arms_of_the_paper_bench() {
+        let f = paper();
+        let g = groups(
+            &f,
+            DVec3::NEG_Z,
+            [1.0, -1.0].map(|s| {
+                DMat3::from_axis_angle(
+                    DVec3::new(1.0, 1.0, 0.0).normalize(),
+                    s * 12f64.to_radians(),
+                ) * DVec3::Z
+            }),
+            "t",
+        )
+        .unwrap();
+        let mut ill = g.illumination.clone();
+        ill.sort();
+        assert_eq!(
+            ill,
+            [
+                "chart",
+                "collimator",
+                "field_stop",
+                "imaging_iris",
+                "imaging_lens",
+                "imaging_lens_tube",
+                "lamp_tube",
+                "nd_od1",
+                "nd_od2"
+            ]
+        );
+        assert_eq!(g.arms[0], ["arm_plus_lens", "arm_plus_fold"]);
+        assert_eq!(g.arms[1], ["arm_minus_lens", "arm_minus_fold"]);
+        let all = list(&f);
+        for p in [
+            "illumination.turn_deg.hinge",
+            "illumination.tracked_turn_deg.across",
+        ] {
+            assert!(all.iter().any(|x| x == p), "{p}");
+            assert_eq!(get(&f, p).unwrap(), 0.0);
+        }
+        let mut no_dmd = f.clone();
+        no_dmd.dmd = None;
+        let e = set(&mut no_dmd, "illumination.turn_deg.across", 3.0).unwrap_err();
+        assert!(
+            e.is_user_error() && e.to_string().contains("no `dmd`"),
+            "{e}"
+        );
+        let e = set(&mut f.clone(), "illumination.turn_deg.sideways", 3.0).unwrap_err();
+        assert!(
+            e.to_string().contains("illumination.turn_deg.across"),
+            "{e}"
+        );
+    }
+
+    /// A tracked turn keeps each arm on its state's specular reflection of the incoming chief
+    /// direction; a plain turn leaves the arms where they were. Both turn the illumination
+    /// rigidly by the angle.
+    #[test]
+    fn tracked_turns_keep_the_arms_on_the_specular_directions() {
+        let f0 = paper();
+        let hinge = DVec3::new(1.0, 1.0, 0.0).normalize();
+        let n =
+            [1.0, -1.0].map(|s| DMat3::from_axis_angle(hinge, s * 12f64.to_radians()) * DVec3::Z);
+        let off = |f: &BenchFile, k: usize, name: &str| {
+            let d = -v3(f.lamp.position_mm).normalize();
+            let u = reflect(d, n[k]);
+            // sin of the angle (acos near 1 would lose the small offsets)
+            element_position(f, name).normalize().cross(u).length()
+        };
+        let names = ["arm_plus_lens", "arm_minus_lens"];
+        for across in ["across", "hinge"] {
+            let mut f = f0.clone();
+            set(
+                &mut f,
+                &format!("illumination.tracked_turn_deg.{across}"),
+                10.0,
+            )
+            .unwrap();
+            let (a, b) = (v3(f0.lamp.position_mm), v3(f.lamp.position_mm));
+            assert!((a.angle_between(b).to_degrees() - 10.0).abs() < 1e-9);
+            assert!((a.length() - b.length()).abs() < 1e-9);
+            let (c0, c1) = (
+                element_position(&f0, "chart"),
+                element_position(&f, "chart"),
+            );
+            assert!(
+                (c0.angle_between(c1).to_degrees() - 10.0).abs() < 1e-9,
+                "{across}"
+            );
+            for (k, name) in names.iter().enumerate() {
+                // The − arm lens sits 0.3 mm off its line by design: the offset is kept.
+                assert!(
+                    (off(&f, k, name) - off(&f0, k, name)).abs() < 1e-9,
+                    "{across} {name}"
+                );
+            }
+            let mut g = f0.clone();
+            set(&mut g, &format!("illumination.turn_deg.{across}"), 10.0).unwrap();
+            for name in names {
+                assert_eq!(element_position(&g, name), element_position(&f0, name));
+            }
+            assert_eq!(g.lamp.position_mm, f.lamp.position_mm);
+        }
+        // Across the hinge the incidence on both facets stays the same (the blaze is symmetric).
+        let mut f = f0.clone();
+        set(&mut f, "illumination.turn_deg.across", 10.0).unwrap();
+        let d = -v3(f.lamp.position_mm).normalize();
+        assert!((d.dot(n[0]) - d.dot(n[1])).abs() < 1e-12);
+        assert!(
+            (d.dot(n[0]).abs() - 10f64.to_radians().cos() * 12f64.to_radians().cos()).abs() < 1e-12
+        );
     }
 }

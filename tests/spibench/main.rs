@@ -12,6 +12,7 @@ mod cli_sweep;
 mod cli_tolerance;
 mod common;
 mod dataset_provenance;
+mod dmd;
 mod fuzz;
 mod layering;
 mod output_dirs;

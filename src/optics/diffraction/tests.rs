@@ -268,3 +268,69 @@ fn large_pitch_tends_to_geometric_reflection() {
     }
     assert!(previous > 0.995, "{previous}");
 }
+
+/// The exact distribution of a ray (every order from the envelope for its own direction and
+/// wavelength) and the total-variation distance of the sampler's from it: the largest error
+/// the tail table (normal incidence's footprint, the bin's centre wavelength) can put into the
+/// share of the reflected power that reaches any set of directions.
+fn tail_error(diff: &Diffraction, state: usize, d: DVec3, wl: f64) -> f64 {
+    use std::collections::HashMap;
+    let g = diff.grating();
+    let facet = diff.facet(state);
+    let env = Envelope::new(g, facet, d, wl).unwrap();
+    let r = ((2.0 * g.pitch / wl).ceil() as i32 + 1) + CORE_RADIUS;
+    let mut exact: HashMap<(i32, i32), f64> = HashMap::new();
+    let mut reach = 0.0;
+    for i in -r..=r {
+        for j in -r..=r {
+            let (m, n) = (env.m0 + i, env.n0 + j);
+            if let Order::Propagating { .. } = diff.order(facet, d, wl, m, n) {
+                let p = env.probability(i, j);
+                exact.insert((m, n), p);
+                reach += p;
+            }
+        }
+    }
+    let (orders, lost) = diff.distribution(state, d, wl).unwrap();
+    let mut tv = ((1.0 - reach) - lost).abs();
+    for (m, n, p) in &orders {
+        tv += (p - exact.remove(&(*m, *n)).unwrap_or(0.0)).abs();
+    }
+    tv += exact.values().sum::<f64>();
+    tv / 2.0
+}
+
+/// The bound of the tail table's error (docs/dmd_diffraction.md, "Sampling"): the core and the
+/// tail's mass are exact, so the sampler's distribution differs from the exact one only in how
+/// the tail's mass is shared among the tail orders (≥ 3 orders from the peak). Measured: a
+/// total-variation distance of 0.108 within 5° of the normal and 0.137 up to 24°, about the
+/// tail's whole mass (where the ray's detuning differs by half an order from the table's, the
+/// tail's lobes sit one order off); the test fails above 0.12 and 0.15. Wavelengths across the
+/// band, at bin centres and edges, eight azimuths.
+#[test]
+fn tail_table_error_is_bounded() {
+    let diff = dlp7000();
+    let (mut near, mut wide) = (0.0f64, 0.0f64);
+    for state in 0..2 {
+        for wl in [
+            351e-9, 455e-9, 500e-9, 633e-9, 785e-9, 850e-9, 1005e-9, 1149e-9,
+        ] {
+            for k in 0..8 {
+                let az = (k as f64 * 45.0).to_radians();
+                for theta_deg in [0.0, 2.0, 5.0, 12.0, 24.0f64] {
+                    let s = theta_deg.to_radians().sin();
+                    let d = DVec3::new(s * az.cos(), s * az.sin(), -theta_deg.to_radians().cos());
+                    let e = tail_error(&diff, state, d, wl);
+                    if theta_deg <= 5.0 {
+                        near = near.max(e);
+                    } else {
+                        wide = wide.max(e);
+                    }
+                }
+            }
+        }
+    }
+    eprintln!("tail table error: TV ≤ {near:.2e} within 5°, ≤ {wide:.2e} to 24°");
+    assert!(near < 0.12, "{near}");
+    assert!(wide < 0.15, "{wide}");
+}
