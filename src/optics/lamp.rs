@@ -403,7 +403,8 @@ impl SpectralSampler {
 
 /// The interval of a CDF (c[0] = 0 ≤ … ≤ c[last] ≈ 1) that holds u, and u's position within
 /// it in [0, 1) (a second uniform for a piecewise-constant draw, made of u's remaining bits).
-#[inline]
+/// The plain binary search, the reference that [`CdfIndex::pick`] must equal.
+#[cfg(test)]
 pub(crate) fn pick(cdf: &[f64], u: f64) -> (usize, f64) {
     let i = cdf.partition_point(|&c| c <= u);
     within(cdf, i, u)
