@@ -1,45 +1,53 @@
 //! Tracer benchmark (harness = false, std::time only): `cargo bench --bench trace [-- SCENE]`.
 //!
 //! Traces a bench (default scenes/paper_bench.ron) and prints
-//! - rays per second per core on 1 and 2 threads,
+//! - rays per second per core on 1 and 2 threads, and that the two give bit-identical tallies,
 //! - the relative standard errors of k₊ and k₋, the number of rays and the time needed for
 //!   0.1 % (extrapolated with SE ∝ 1/√N from a pilot run, then confirmed by one run at that N),
-//! - the same for two baselines in the same run: the field target without the chart guidance,
-//!   and the bench without any field importance sampling (rays over the whole emission cone),
+//! - the same in the same run for the tracer's earlier sampling, `Sampling::Independent`
+//!   (independent Fresnel and chrome draws; the emission's Latin hypercube is the same), the
+//!   baseline of the stratified interaction streams,
+//! - and two baselines of the lamp's importance sampling: the field target without the chart
+//!   guidance, and the bench without any field importance sampling (rays over the whole cone),
 //! - the throughput of the diffractive DMD model against the geometric one (same rays, same
 //!   run, three alternating pilot runs each).
 //!
-//! Timings are wall-clock and depend on what else the machine is doing; the ratio to the
-//! baseline, measured in the same run, is the meaningful comparison.
+//! Timings are wall-clock and depend on what else the machine is doing (the load average is
+//! printed beside them); the ratio to the baseline, measured in the same run, is the meaningful
+//! comparison.
 
 use std::path::PathBuf;
 use std::time::Instant;
 
 use spibench::optics::Bench;
-use spibench::trace::{TraceOptions, trace};
+use spibench::trace::{Sampling, Tallies, TraceOptions, trace};
 use spibench::transport::Transport;
 
 struct Run {
     seconds: f64,
     rel_se: [f64; 2],
     k: [f64; 2],
+    tallies: Tallies,
 }
 
-fn run(bench: &Bench, rays: u64, seed: u64, threads: usize) -> Run {
+fn run(bench: &Bench, rays: u64, seed: u64, threads: usize, sampling: Sampling) -> Run {
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build()
         .expect("thread pool");
+    let options = TraceOptions {
+        sampling,
+        ..TraceOptions::new(rays, seed)
+    };
     let start = Instant::now();
-    let tallies = pool
-        .install(|| trace(bench, &TraceOptions::new(rays, seed)))
-        .expect("trace");
+    let tallies = pool.install(|| trace(bench, &options)).expect("trace");
     let seconds = start.elapsed().as_secs_f64();
     let t = Transport::from_tallies(bench, &tallies);
     Run {
         seconds,
         rel_se: [t.k[0].relative_stderr(), t.k[1].relative_stderr()],
         k: [t.k[0].value, t.k[1].value],
+        tallies,
     }
 }
 
@@ -47,6 +55,14 @@ fn run(bench: &Bench, rays: u64, seed: u64, threads: usize) -> Run {
 fn rays_for_target(pilot: &Run, rays: u64) -> u64 {
     let worst = pilot.rel_se[0].max(pilot.rel_se[1]);
     ((rays as f64) * (worst / 1e-3).powi(2)).ceil() as u64
+}
+
+/// The 1-minute load average, to print beside a timing (the machine may be shared).
+fn load() -> String {
+    std::fs::read_to_string("/proc/loadavg")
+        .ok()
+        .and_then(|s| s.split_whitespace().next().map(|l| format!("load {l}")))
+        .unwrap_or_else(|| "load ?".into())
 }
 
 fn main() {
@@ -79,13 +95,17 @@ fn main() {
     println!("bench: {}", scene.display());
 
     let pilot_rays = 1_000_000;
-    let one = run(&bench, pilot_rays, 1, 1);
-    let two = run(&bench, pilot_rays, 1, 2);
+    let new = Sampling::Stratified;
+    let one = run(&bench, pilot_rays, 1, 1, new);
+    let two = run(&bench, pilot_rays, 1, 2, new);
     println!(
-        "rays/s per core: {:.0} (1 thread), {:.0} (2 threads: {:.0} in total)",
+        "rays/s per core: {:.0} (1 thread), {:.0} (2 threads: {:.0} in total; {}); \
+         1 and 2 threads bit-identical: {}",
         pilot_rays as f64 / one.seconds,
         pilot_rays as f64 / two.seconds / 2.0,
-        pilot_rays as f64 / two.seconds
+        pilot_rays as f64 / two.seconds,
+        load(),
+        one.tallies == two.tallies
     );
     println!(
         "pilot {pilot_rays} rays: k+ = {:.5} (rel. SE {:.2e}), k- = {:.5} (rel. SE {:.2e})",
@@ -93,11 +113,39 @@ fn main() {
     );
     let n = rays_for_target(&two, pilot_rays);
     let predicted = two.seconds * n as f64 / pilot_rays as f64;
-    println!("0.1 % on k+ and k-: {n} rays, predicted {predicted:.1} s on 2 threads");
-    let confirm = run(&bench, n, 2, 2);
+    println!("0.1 % on k+ and k-: {n} rays, predicted {predicted:.2} s on 2 threads");
+    let confirm = run(&bench, n, 2, 2, new);
     println!(
-        "confirmed at {n} rays: {:.1} s, rel. SE k+ {:.2e}, k- {:.2e}",
-        confirm.seconds, confirm.rel_se[0], confirm.rel_se[1]
+        "confirmed at {n} rays: {:.2} s on 2 threads ({}), rel. SE k+ {:.2e}, k- {:.2e}",
+        confirm.seconds,
+        load(),
+        confirm.rel_se[0],
+        confirm.rel_se[1]
+    );
+
+    // The baseline in the same run: independent interaction draws (the tracer before the
+    // stratified streams), same emission, same seed.
+    let base = run(&bench, pilot_rays, 1, 2, Sampling::Independent);
+    let nb = rays_for_target(&base, pilot_rays);
+    let tb = base.seconds * nb as f64 / pilot_rays as f64;
+    let tn = predicted;
+    println!(
+        "baseline, independent interaction draws: {:.0} rays/s on 2 threads ({}), \
+         k+ = {:.5} (rel. SE {:.2e}), k- = {:.5} (rel. SE {:.2e}) -> 0.1 % needs {nb} rays, \
+         ~{tb:.2} s (extrapolated)",
+        pilot_rays as f64 / base.seconds,
+        load(),
+        base.k[0],
+        base.rel_se[0],
+        base.k[1],
+        base.rel_se[1],
+    );
+    println!(
+        "stratified against independent: {:.2}x the rays/s, {:.2}x fewer rays to 0.1 %, \
+         {:.2}x less time to 0.1 % (pilot extrapolations, same run)",
+        base.seconds / two.seconds,
+        nb as f64 / n as f64,
+        tb / tn.max(1e-9)
     );
 
     // The diffractive DMD model against the geometric one (docs/dmd_diffraction.md), same run,
@@ -115,8 +163,8 @@ fn main() {
     let (mut tg, mut td) = (0.0, 0.0);
     let mut kd = [0.0; 2];
     for _ in 0..3 {
-        tg += run(&geometric, pilot_rays, 1, 2).seconds;
-        let r = run(&diffractive, pilot_rays, 1, 2);
+        tg += run(&geometric, pilot_rays, 1, 2, new).seconds;
+        let r = run(&diffractive, pilot_rays, 1, 2, new);
         td += r.seconds;
         kd = r.k;
     }
@@ -144,7 +192,7 @@ fn main() {
         ("field target without chart guidance", &unguided),
         ("baseline without field sampling", &plain),
     ] {
-        let base = run(b, pilot_rays, 1, 2);
+        let base = run(b, pilot_rays, 1, 2, new);
         let nb = rays_for_target(&base, pilot_rays);
         let tb = base.seconds * nb as f64 / pilot_rays as f64;
         println!(

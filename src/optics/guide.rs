@@ -29,7 +29,7 @@ use glam::DVec3;
 
 use super::bench::{Bench, Interaction, Target};
 use super::fresnel::{reflect, refract};
-use super::lamp::{EmitterShape, pick};
+use super::lamp::{CdfIndex, EmitterShape};
 
 /// Wavelength bands of the proxy map. Dispersion moves the collimated beam's scale by ~3 % over
 /// 350–1150 nm in N-BK7 (docs/bench-facts.md §3.4); 16 bands leave ≤ 0.2 % per band, a few µm at the
@@ -128,6 +128,9 @@ pub struct ChartGuide {
     /// (nx + 1 entries each).
     row_cdf: Vec<f64>,
     col_cdf: Vec<f64>,
+    /// Guide tables of `row_cdf` and of each row's CDF in `col_cdf` (exactly `pick`, faster).
+    row_index: CdfIndex,
+    col_index: Vec<CdfIndex>,
     /// Density of s per cell (1/m²).
     density: Vec<f64>,
     /// The largest RMS residual of the design rays about the fitted maps (m): how well the proxy
@@ -307,11 +310,15 @@ impl ChartGuide {
         }
         row_cdf[ny] = 1.0;
         let density = clear.iter().map(|v| v / (total * cell * cell)).collect();
+        let row_index = CdfIndex::new(&row_cdf);
+        let col_index = col_cdf.chunks(nx + 1).map(CdfIndex::new).collect();
         Ok(ChartGuide {
             share,
             chart,
             band: bench.band(),
             maps,
+            row_index,
+            col_index,
             x0,
             y0,
             cell,
@@ -358,8 +365,9 @@ impl ChartGuide {
     /// two uniforms.
     #[inline]
     pub fn sample(&self, a: f64, b: f64, d: (f64, f64), wavelength_m: f64) -> (f64, f64) {
-        let (i, fa) = pick(&self.row_cdf, a);
-        let (j, fb) = pick(&self.col_cdf[i * (self.nx + 1)..(i + 1) * (self.nx + 1)], b);
+        let (i, fa) = self.row_index.pick(&self.row_cdf, a);
+        let row = &self.col_cdf[i * (self.nx + 1)..(i + 1) * (self.nx + 1)];
+        let (j, fb) = self.col_index[i].pick(row, b);
         let s = (
             self.x0 + (j as f64 + fb) * self.cell,
             self.y0 + (i as f64 + fa) * self.cell,

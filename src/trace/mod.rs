@@ -19,6 +19,7 @@ pub mod fan;
 pub mod kernel;
 pub mod path;
 pub mod split;
+pub mod strata;
 pub mod tally;
 
 use rayon::prelude::*;
@@ -27,6 +28,7 @@ use crate::error::{Error, Result};
 use crate::optics::Bench;
 
 pub use path::PatternMode;
+pub use strata::Sampling;
 pub use tally::{BatchScalars, BatchTally, Tallies};
 
 /// Rays per batch. Fixed (never derived from the thread count). 1024 rays are a few
@@ -50,6 +52,8 @@ pub struct TraceOptions<'a> {
     pub rays: u64,
     pub seed: u64,
     pub mode: PatternMode<'a>,
+    /// How the rays draw their random numbers (`strata.rs`).
+    pub sampling: Sampling,
     /// Told how far the trace has come.
     pub progress: Option<RayProgress<'a>>,
 }
@@ -60,6 +64,7 @@ impl std::fmt::Debug for TraceOptions<'_> {
             .field("rays", &self.rays)
             .field("seed", &self.seed)
             .field("mode", &self.mode)
+            .field("sampling", &self.sampling)
             .field("progress", &self.progress.is_some())
             .finish()
     }
@@ -71,6 +76,7 @@ impl TraceOptions<'_> {
             rays,
             seed,
             mode: PatternMode::Branch,
+            sampling: Sampling::default(),
             progress: None,
         }
     }
@@ -114,7 +120,15 @@ pub fn trace(bench: &Bench, options: &TraceOptions) -> Result<Tallies> {
             .into_par_iter()
             .map(|b| {
                 let rays = RAYS_PER_BATCH.min(n - b * RAYS_PER_BATCH);
-                path::run_batch(bench, options.mode, options.seed, b, rays, inv)
+                path::run_batch(
+                    bench,
+                    options.mode,
+                    options.sampling,
+                    options.seed,
+                    b,
+                    rays,
+                    inv,
+                )
             })
             .collect();
         for t in &chunk {

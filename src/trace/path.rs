@@ -47,7 +47,9 @@ use crate::optics::bench::{Bench, Interaction, Target};
 use crate::optics::dmd::{DmdOutcome, MirrorState, PatternStates};
 use crate::optics::fresnel::{reflect, refract};
 pub use crate::optics::geometry::SURFACE_OFFSET;
-use crate::rng::{StreamRng, uniform};
+use crate::rng::uniform;
+
+use super::strata::{BatchStrata, PathRng, Sampling, permutation};
 
 use super::tally::{
     BatchTally, COMMON, SLOT_EMITTED, SLOT_ESCAPED, SLOT_PATH_CAP, branch, branch_state,
@@ -101,12 +103,13 @@ pub(super) enum ChartCrossing {
 pub fn run_batch(
     bench: &Bench,
     mode: PatternMode,
+    sampling: Sampling,
     seed: u64,
     batch: u64,
     rays: u64,
     inv_rays: f64,
 ) -> BatchTally {
-    run_batch_recorded(bench, mode, seed, batch, rays, inv_rays, &mut ())
+    run_batch_sampled(bench, mode, sampling, seed, batch, rays, inv_rays, &mut ())
 }
 
 /// [`run_batch`] with a [`Recorder`] that sees every path segment and the end of every ray (the
@@ -115,6 +118,30 @@ pub fn run_batch(
 pub(super) fn run_batch_recorded<R: Recorder>(
     bench: &Bench,
     mode: PatternMode,
+    seed: u64,
+    batch: u64,
+    rays: u64,
+    inv_rays: f64,
+    rec: &mut R,
+) -> BatchTally {
+    run_batch_sampled(
+        bench,
+        mode,
+        Sampling::default(),
+        seed,
+        batch,
+        rays,
+        inv_rays,
+        rec,
+    )
+}
+
+/// [`run_batch_recorded`] with the choice of [`Sampling`].
+#[allow(clippy::too_many_arguments)]
+pub(super) fn run_batch_sampled<R: Recorder>(
+    bench: &Bench,
+    mode: PatternMode,
+    sampling: Sampling,
     seed: u64,
     batch: u64,
     rays: u64,
@@ -136,6 +163,7 @@ pub(super) fn run_batch_recorded<R: Recorder>(
         .map(|_| permutation(n, &mut rng))
         .collect();
     let inv_n = 1.0 / n as f64;
+    let strata = BatchStrata::new(sampling, seed, batch, n);
     for i in 0..n {
         let mut u = [0.0; STRATIFIED_DIMS];
         for (d, p) in perms.iter().enumerate() {
@@ -144,6 +172,8 @@ pub(super) fn run_batch_recorded<R: Recorder>(
         let key = RayKey {
             seed,
             index: batch * crate::trace::RAYS_PER_BATCH + i as u64,
+            strata: &strata,
+            slot: i,
         };
         let mut ray_rng = key.stream(STREAM_COMMON);
         trace_ray(
@@ -221,10 +251,16 @@ impl Recorder for () {
 /// numbers ray by ray, so their difference is resolved far better than their values
 /// (crate::transport::metrics). A single stream per batch would let one ray that takes another
 /// path shift the draws of every later ray of its batch.
+///
+/// With [`Sampling::Stratified`] the first draws of each stream come from the batch's Latin
+/// hypercube (`strata.rs`); they too depend on (seed, ray index) alone.
 #[derive(Debug, Clone, Copy)]
-struct RayKey {
+struct RayKey<'a> {
     seed: u64,
     index: u64,
+    /// The batch's stratified prefixes and the ray's place in its batch.
+    strata: &'a BatchStrata,
+    slot: usize,
 }
 
 /// The streams of a ray: before the DMD split, then the + and − branches.
@@ -232,7 +268,7 @@ const STREAM_COMMON: u64 = 0;
 const STREAM_PLUS: u64 = 1;
 const STREAM_MINUS: u64 = 2;
 
-impl RayKey {
+impl RayKey<'_> {
     /// The uniform in [0, 1) that draws the diffraction order of the DMD hit of branch `world` at
     /// interaction `interactions` (SplitMix64 finalisations of the key: deterministic and
     /// independent of the threads, and of every stream of the ray).
@@ -245,27 +281,18 @@ impl RayKey {
         (h >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
     }
 
-    fn stream(self, part: u64) -> StreamRng {
-        crate::rng::stream(
+    fn stream(self, part: u64) -> PathRng {
+        let tail = crate::rng::stream(
             crate::rng::mix64(self.seed ^ crate::rng::mix64(0x5241_5953_0000_0000 + part)),
             self.index,
-        )
+        );
+        PathRng::new(self.strata.prefix(self.slot, part as usize), tail)
     }
 }
 
 /// Emission dimensions (filament x, y; strategy; direction a, b) and the wavelength (bin, offset
 /// within the bin) stratified by the Latin hypercube.
 const STRATIFIED_DIMS: usize = 7;
-
-/// A uniformly random permutation of 0..n (Fisher–Yates).
-fn permutation(n: usize, rng: &mut StreamRng) -> Vec<u32> {
-    let mut p: Vec<u32> = (0..n as u32).collect();
-    for i in (1..n).rev() {
-        let j = ((uniform(rng) * (i + 1) as f64) as usize).min(i);
-        p.swap(i, j);
-    }
-    p
-}
 
 /// Traces one lamp ray with all its branches, adding to `tally`. `index` is scratch space for
 /// the refractive index of every medium at the ray's wavelength (computed once per ray).
@@ -276,7 +303,7 @@ fn trace_ray<R: Recorder>(
     inv_rays: f64,
     u: [f64; STRATIFIED_DIMS],
     key: RayKey,
-    rng: &mut StreamRng,
+    rng: &mut PathRng,
     tally: &mut BatchTally,
     stack: &mut Vec<Path>,
     index: &mut [f64],
@@ -353,7 +380,7 @@ fn walk<R: Recorder>(
     ctx: &Walk,
     mut p: Path,
     key: RayKey,
-    rng: &mut StreamRng,
+    rng: &mut PathRng,
     tally: &mut BatchTally,
     stack: &mut Vec<Path>,
     rec: &mut R,
@@ -423,7 +450,7 @@ fn surface<R: Recorder>(
     t: f64,
     i: usize,
     n: DVec3,
-    rng: &mut StreamRng,
+    rng: &mut PathRng,
     tally: &mut BatchTally,
     rec: &mut R,
 ) -> Flow {
@@ -516,7 +543,7 @@ fn cross_chart<R: Recorder>(
     x: Crossing,
     element: usize,
     chart: usize,
-    rng: &mut StreamRng,
+    rng: &mut PathRng,
     tally: &mut BatchTally,
     rec: &mut R,
 ) -> Flow {
@@ -539,7 +566,7 @@ fn cross_chart<R: Recorder>(
     }
     let clear = plate.mask.clear_fraction(local.x, local.y);
     let (n1, n2) = (ctx.index[x.m_in], ctx.index[x.m_out]);
-    if clear >= 1.0 || (clear > 0.0 && uniform(rng) < clear) {
+    if clear >= 1.0 || (clear > 0.0 && rng.uniform() < clear) {
         let r = crate::optics::fresnel::reflectance(n1, n2, x.cos_i);
         scatter(p, hit, x.nn, n1, n2, r, rng);
         return Flow::Go;
@@ -549,7 +576,7 @@ fn cross_chart<R: Recorder>(
     let wl = ctx.wl;
     let rc = plate.chrome_reflectance.at(wl).clamp(0.0, 1.0);
     let tc = 10f64.powf(-plate.chrome_od.at(wl)).min(1.0 - rc);
-    let (event, kept) = chrome_event(rc, tc, uniform(rng));
+    let (event, kept) = chrome_event(rc, tc, rng.uniform());
     let kept = p.w * kept;
     book(tally, p.world, element, p.w - kept);
     p.w = kept;
@@ -573,7 +600,7 @@ fn meet_dmd<R: Recorder>(
     ctx: &Walk,
     p: &mut Path,
     key: RayKey,
-    rng: &mut StreamRng,
+    rng: &mut PathRng,
     tally: &mut BatchTally,
     stack: &mut Vec<Path>,
     rec: &mut R,
@@ -712,8 +739,8 @@ fn attenuate(bench: &Bench, m: usize, t: f64, wl: f64, p: &mut Path, tally: &mut
 /// Reflect with probability `r`, else refract from n1 into n2 (normal `nn` faces the incoming
 /// ray). The ray leaves from `hit`, offset to its outgoing side.
 #[inline]
-fn scatter(p: &mut Path, hit: DVec3, nn: DVec3, n1: f64, n2: f64, r: f64, rng: &mut StreamRng) {
-    let refracted = if r >= 1.0 || uniform(rng) < r {
+fn scatter(p: &mut Path, hit: DVec3, nn: DVec3, n1: f64, n2: f64, r: f64, rng: &mut PathRng) {
+    let refracted = if r >= 1.0 || rng.uniform() < r {
         None
     } else {
         refract(p.d, nn, n1, n2)
@@ -733,6 +760,7 @@ fn scatter(p: &mut Path, hit: DVec3, nn: DVec3, n1: f64, n2: f64, r: f64, rng: &
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::rng::StreamRng;
 
     /// Drawing the chrome's absorption keeps the expected reflected and transmitted power
     /// (midpoint rule over u: exact up to the grid's 1e-6 resolution) and never raises a ray's

@@ -72,7 +72,15 @@ fn assert_ledger_balances(bench: &Bench, rays: u64, label: &str) {
         let n_batches = rays.div_ceil(RAYS_PER_BATCH);
         for b in 0..n_batches {
             let k = RAYS_PER_BATCH.min(rays - b * RAYS_PER_BATCH);
-            let bt = path::run_batch(bench, PatternMode::Branch, 5, b, k, 1.0 / rays as f64);
+            let bt = path::run_batch(
+                bench,
+                PatternMode::Branch,
+                Sampling::default(),
+                5,
+                b,
+                k,
+                1.0 / rays as f64,
+            );
             v.push((k, bt.ledger[tally::COMMON][n_el + tally::SLOT_EMITTED]));
         }
         v
@@ -362,7 +370,7 @@ fn fixed_patterns_reproduce_the_transport_maps() {
             rays: 200_000,
             seed: 900,
             mode: PatternMode::Fixed(&pattern),
-            progress: None,
+            ..TraceOptions::new(200_000, 900)
         };
         let direct = fixed_pattern_currents(&bench, &trace(&bench, &opts).unwrap());
         for (d, direct) in Arm::ALL.into_iter().zip(&direct) {

@@ -124,7 +124,7 @@ fn trace_case(case: &Case, seed: u64) -> [Estimate; 2] {
         rays: rays(&case.name),
         seed,
         mode: PatternMode::Fixed(&bits),
-        progress: None,
+        ..TraceOptions::new(0, 0)
     };
     fixed_pattern_currents(&bench, &trace(&bench, &opts).unwrap())
 }
