@@ -618,10 +618,9 @@ fn print_report(
                         format!("{:.3}±{:.3}", x.mssim_mean, x.mssim_sd)
                     }) as fn(&crate::run::repeats::RepeatStats) -> String,
                 ),
-                (
-                    format!("PSNR dB mean ± SD, {} repeats", rp.repeats),
-                    |x| format!("{:.2}±{:.2}", x.psnr_db_mean, x.psnr_db_sd),
-                ),
+                (format!("PSNR dB mean ± SD, {} repeats", rp.repeats), |x| {
+                    format!("{:.2}±{:.2}", x.psnr_db_mean, x.psnr_db_sd)
+                }),
             ] {
                 let rows = cells(&|res| stat(res).map_or_else(String::new, f));
                 for line in table_blocks(&title, &columns, &rows) {

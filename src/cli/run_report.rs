@@ -286,11 +286,17 @@ fn findings_section(blocks: &mut Vec<Block>, r: &ReportInput<'_>) {
     blocks.push(Block::Paragraph(f.basis()));
     for (score, ratios, frames) in &f.by_score {
         if *score == Score::Mssim {
-            let text: Vec<String> = ratios.iter().map(|st| st.sentence(*score)).collect();
-            blocks.push(Block::Paragraph(text.join(" ")));
+            for list in [ratios, frames] {
+                let text: Vec<String> = list.iter().map(|st| st.sentence(*score)).collect();
+                if !text.is_empty() {
+                    blocks.push(Block::Paragraph(text.join(" ")));
+                }
+            }
         }
-        for (what, list) in [("at each sampling ratio", ratios), ("at equal DMD frames", frames)]
-        {
+        for (what, list) in [
+            ("at each sampling ratio", ratios),
+            ("at equal DMD frames", frames),
+        ] {
             if list.is_empty() {
                 continue;
             }

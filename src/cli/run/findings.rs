@@ -216,11 +216,12 @@ impl Standing {
                 interval(next, d)
             )
         } else {
+            // Labels contain commas ("Double-arm, calibrated"): list them with "and".
             let names: Vec<&str> = tied.iter().map(|s| s.label()).collect();
             format!(
                 "{head}, but it is not distinguished from {} (the 95 % interval of the paired \
                  difference contains 0; nearest: {} by {}).",
-                names.join(", "),
+                names.join(" and "),
                 next.other.label(),
                 interval(next, d)
             )
@@ -316,8 +317,7 @@ pub fn at_equal_frames(s: &Scores) -> Vec<Standing> {
     let Some(rk) = reference(s) else {
         return Vec::new();
     };
-    let all_equal = (0..s.ratios.len())
-        .all(|r| s.frames.iter().all(|f| f[r] == s.frames[rk][r]));
+    let all_equal = (0..s.ratios.len()).all(|r| s.frames.iter().all(|f| f[r] == s.frames[rk][r]));
     if all_equal {
         return Vec::new();
     }
@@ -437,6 +437,10 @@ impl Findings {
                 "one run, differences not tested: --repeats N for intervals".into()
             }
         )];
+        lines.push(
+            "  (where; best scheme, its mean | nearest other scheme: best − it [95 % interval])"
+                .to_string(),
+        );
         let Some((score, ratios, frames)) = self.by_score.first() else {
             return lines;
         };
@@ -459,18 +463,12 @@ impl Findings {
                         Some(false) => "not distinguished",
                         None => "untested",
                     };
-                    line += &format!(
-                        " | {:<15} {} {verdict}",
-                        short(m.other),
-                        interval(m, d)
-                    );
+                    line += &format!(" | {:<15} {} {verdict}", short(m.other), interval(m, d));
                 }
                 lines.push(line);
             }
         }
-        lines.push(
-            "  (every scheme's margin, and PSNR: report.html, \"Findings\")".to_string(),
-        );
+        lines.push("  (every scheme's margin, and PSNR: report.html, \"Findings\")".to_string());
         lines
     }
 }
@@ -496,7 +494,11 @@ mod tests {
 
     fn scores(frames: Vec<Vec<usize>>, values: Vec<Vec<Vec<f64>>>) -> Scores {
         Scores {
-            schemes: vec![SecondaryComplementaryBalancing, DoubleArmCalibrated, Traditional],
+            schemes: vec![
+                SecondaryComplementaryBalancing,
+                DoubleArmCalibrated,
+                Traditional,
+            ],
             ratios: vec![0.25, 0.5],
             frames,
             values,
@@ -528,11 +530,18 @@ mod tests {
         assert_eq!(m.distinguished(), Some(false));
         assert_eq!(st[0].margins[1].distinguished(), Some(true));
         let text = st[0].sentence(Score::Mssim);
-        assert!(text.contains("not distinguished from calibrated"), "{text}");
+        assert!(
+            text.contains("not distinguished from Double-arm, calibrated"),
+            "{text}"
+        );
         // At 50 %, calibrated double-arm leads by a constant 0.01: zero spread, ahead.
         assert_eq!(st[1].best, DoubleArmCalibrated);
         assert_eq!(st[1].margins[0].distinguished(), Some(true));
-        assert!(st[1].sentence(Score::Mssim).contains("ahead of every other"));
+        assert!(
+            st[1]
+                .sentence(Score::Mssim)
+                .contains("ahead of every other")
+        );
     }
 
     /// One repeat: no interval, and the sentence says the difference is untested.
@@ -548,7 +557,11 @@ mod tests {
         );
         let st = at_ratios(&s);
         assert_eq!(st[0].margins[0].ci95, None);
-        assert!(st[0].sentence(Score::Mssim).contains("not a tested difference"));
+        assert!(
+            st[0]
+                .sentence(Score::Mssim)
+                .contains("not a tested difference")
+        );
     }
 
     /// At equal frames each scheme is read at the reference's frame counts, interpolated in
@@ -595,7 +608,11 @@ mod tests {
         let lines = f.printed();
         assert!(lines.len() >= 6);
         for l in &lines {
-            assert!(l.chars().count() <= 100, "{} columns: {l}", l.chars().count());
+            assert!(
+                l.chars().count() <= 100,
+                "{} columns: {l}",
+                l.chars().count()
+            );
         }
     }
 }
