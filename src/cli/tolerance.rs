@@ -686,8 +686,9 @@ fn monte_carlo_blocks(analysis: &Analysis) -> Vec<Block> {
     blocks.push(Block::Table {
         caption: Some(
             "Distribution over the trials (percentiles of the value and of its magnitude). \
-             The leaks are power fractions bounded by 0 and 1 (not percentages): a mean ± SD \
-             near 0 hides their skew, read their percentiles"
+             The leaks here are the recorded ratios P_wrong/P_own, unbounded where a part \
+             blinds the own arm; the tails table and the figures show them as the bounded \
+             fraction P_wrong/(P_own + P_wrong), 0 … 1"
                 .into(),
         ),
         header: [
@@ -809,7 +810,7 @@ fn monte_carlo_blocks(analysis: &Analysis) -> Vec<Block> {
 /// A metric's unit for the report (the leaks as bounded fractions).
 fn unit_of(metric: &str) -> String {
     if crate::tolerance::summaries::is_fraction(metric) {
-        return "fraction, 0–1".into();
+        return "ratio P_wrong/P_own".into();
     }
     crate::transport::metrics::METRICS
         .iter()
@@ -837,7 +838,8 @@ fn tail_block(analysis: &Analysis) -> Option<Block> {
             "The tail that matters: for k', k±, powers, CMRR and image scores the low values \
              (10th and 2.3rd percentiles, the lowest trial), for the imbalance, offsets and \
              leaks the large |values| (90th and 97.7th percentiles of |·|, the largest); the \
-             fraction of trials beyond the file's limits on the metric"
+             leaks as the bounded fraction P_wrong/(P_own + P_wrong), 0 … 1; the fraction of \
+             trials beyond the file's limits on the metric"
                 .into(),
         ),
         header: [
@@ -857,7 +859,11 @@ fn tail_block(analysis: &Analysis) -> Option<Block> {
             .map(|t| {
                 vec![
                     t.metric.clone(),
-                    unit_of(&t.metric),
+                    if crate::tolerance::summaries::is_fraction(&t.metric) {
+                        "fraction, 0–1".into()
+                    } else {
+                        unit_of(&t.metric)
+                    },
                     match t.tail {
                         Tail::Lower => "lower".into(),
                         Tail::UpperAbs => "upper of |·|".into(),
@@ -963,8 +969,14 @@ fn plotted_metrics(set: &ToleranceSet, analysis: &Analysis) -> Vec<(String, Stri
         ("imbalance", "imbalance (k₊ − k₋)/(k₊ + k₋)"),
         ("k_prime", "k' = k₊ + k₋ (A/W)"),
         ("b_minus_minus_b_plus", "b₋ − b₊ (A)"),
-        ("leak_plus", "off-arm leak, all units + (fraction, 0–1)"),
-        ("leak_minus", "off-arm leak, all units − (fraction, 0–1)"),
+        (
+            "leak_plus",
+            "off-arm leak, all units +: P₋/(P₊ + P₋) (fraction, 0–1)",
+        ),
+        (
+            "leak_minus",
+            "off-arm leak, all units −: P₊/(P₊ + P₋) (fraction, 0–1)",
+        ),
     ]
     .map(|(a, b)| (a.to_string(), b.to_string()))
     .to_vec();
@@ -1024,13 +1036,15 @@ fn distribution_plots(
     out: &OutputDir,
     files: &mut Vec<String>,
 ) -> crate::Result<Vec<Block>> {
-    use crate::tolerance::summaries::{Tail, histogram_bins, tail_of};
+    use crate::tolerance::summaries::{Tail, histogram_bins, shown, tail_of};
     let mut figs = Vec::new();
     for (metric, label) in plotted_metrics(set, analysis) {
+        // Leaks as bounded fractions (summaries::leak_fraction), their limits too.
         let mut v: Vec<f64> = s
             .records
             .iter()
             .filter_map(|r| r.value(&metric))
+            .map(|v| shown(&metric, v))
             .filter(|v| v.is_finite())
             .collect();
         if v.len() < 2 {
@@ -1057,7 +1071,13 @@ fn distribution_plots(
             x: cx,
             y_err: None,
         }];
-        cdf_series.extend(limit_lines(&limits_on(set, &metric, upper), 1.0));
+        let limit_at = |abs: bool| -> Vec<(String, f64)> {
+            limits_on(set, &metric, abs)
+                .into_iter()
+                .map(|(l, x)| (l, shown(&metric, x)))
+                .collect()
+        };
+        cdf_series.extend(limit_lines(&limit_at(upper), 1.0));
         let cdf = LinePlot {
             title: String::new(),
             x_label: if upper {
@@ -1072,7 +1092,7 @@ fn distribution_plots(
         let bins = histogram_bins(&v);
         let (steps, top) = histogram_series(&v, bins);
         let mut hist_series = vec![steps];
-        hist_series.extend(limit_lines(&limits_on(set, &metric, false), top));
+        hist_series.extend(limit_lines(&limit_at(false), top));
         let hist = LinePlot {
             title: String::new(),
             x_label: label.clone(),
