@@ -36,7 +36,8 @@ impl Limit {
             .iter()
             .any(|m| m.0 == metric)
             || crate::pipeline::evaluate::CMRR_VALUES.contains(&metric);
-        if !traced && !(quality && crate::tolerance::is_metric(metric)) {
+        let known = traced || (quality && crate::tolerance::is_metric(metric));
+        if !known {
             let names: Vec<&str> = crate::transport::metrics::METRICS
                 .iter()
                 .map(|m| m.0)
