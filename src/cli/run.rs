@@ -48,6 +48,8 @@ use crate::run::{RunOutcome, SchemeResult, Stage};
 use crate::scene::doc::BenchDoc;
 use crate::scene::run::RunScene;
 
+pub mod findings;
+
 /// The paper's bench, built into the binary.
 pub const PAPER_BENCH: &str = include_str!("../../scenes/paper_bench.ron");
 
@@ -184,22 +186,32 @@ pub fn run(args: &RunArgs) -> Result<()> {
     }
     let provenance = bench_provenance(&name, &doc, &[seed])?;
     let settings_ron = super::run_report::effective_ron(&doc, outcome.transport.rays)?;
+    let findings = findings::Findings::of(&outcomes);
+    // Statistics need two repeats or more: a plain run writes none (as documented). They are
+    // written first, so that the report embeds their error-bar figures.
+    let (repeat_files, stats) = if repeats.repeats > 1 {
+        (
+            super::run_repeats::write(&repeats, &scene.settings, &out)?.len(),
+            Some(&repeats),
+        )
+    } else {
+        (0, None)
+    };
     let summary_files = write_outputs(
-        &name,
-        &scene.bench,
+        &RunPage {
+            name: &name,
+            bench: &scene.bench,
+            settings_ron: &settings_ron,
+            findings: &findings,
+            repeats: stats,
+        },
         outcome,
-        &settings_ron,
         &provenance,
         &out,
-    )? + if repeats.repeats > 1 {
-        // Statistics need two repeats or more: a plain run writes none (as documented).
-        super::run_repeats::write(&repeats, &scene.settings, &out)?.len()
-    } else {
-        0
-    };
+    )? + repeat_files;
     super::run_arrays::write_arrays(outcome, &out)?;
     let dir = out.commit()?;
-    print_report(&name, outcome);
+    print_report(&name, outcome, &findings, stats);
     super::run_repeats::print(&repeats);
     println!(
         "wrote {} ({} files, {:.1} s)",
@@ -261,14 +273,24 @@ pub(super) fn bench_provenance(
     Ok(p)
 }
 
+/// What the report of a run is drawn from besides the outcome of repeat 0.
+pub struct RunPage<'a> {
+    pub name: &'a str,
+    pub bench: &'a crate::optics::Bench,
+    /// The effective bench as RON.
+    pub settings_ron: &'a str,
+    pub findings: &'a findings::Findings,
+    /// The repeat statistics (N ≥ 2 only).
+    pub repeats: Option<&'a crate::run::repeats::Repeats>,
+}
+
 fn write_outputs(
-    name: &str,
-    bench: &crate::optics::Bench,
+    page: &RunPage<'_>,
     o: &RunOutcome,
-    settings_ron: &str,
     provenance: &crate::provenance::Provenance,
     out: &OutputDir,
 ) -> crate::Result<usize> {
+    let (name, bench, settings_ron) = (page.name, page.bench, page.settings_ron);
     let mut files = Vec::new();
     let bench_path = out.path("bench.ron");
     std::fs::write(&bench_path, settings_ron).map_err(|e| crate::Error::write(&bench_path, e))?;
@@ -296,7 +318,7 @@ fn write_outputs(
     let count = files.len() + 1;
     let summary = summarize_run(name, bench, o, files);
     super::provenance::write_summary_and_timings(out, &summary, provenance, Some(&run_timings(o)))?;
-    super::run_report::write_report(name, bench, o, &summary, settings_ron, out)?;
+    super::run_report::write_report(page, o, &summary, out)?;
     Ok(count)
 }
 
@@ -517,13 +539,22 @@ fn table_blocks(title: &str, columns: &[String], rows: &[(String, Vec<String>)])
     lines
 }
 
-fn print_report(name: &str, o: &RunOutcome) {
+fn print_report(
+    name: &str,
+    o: &RunOutcome,
+    found: &findings::Findings,
+    repeats: Option<&crate::run::repeats::Repeats>,
+) {
     let t = &o.transport;
     let pm = |e: crate::transport::Estimate| format!("{:.4e} ± {:.1e}", e.value, e.stderr);
     println!(
         "{name}: {}×{} units, {} rays (seed {})",
         t.units_across, t.units_down, t.rays, o.seed
     );
+    // The result first: which scheme wins where, and whether the lead is tested.
+    for line in found.printed() {
+        println!("{line}");
+    }
     println!(
         "  trace {:.1} s, record {:.1} s, solve {:.1} s",
         o.timings.trace_s, o.timings.record_s, o.timings.solve_s
@@ -572,16 +603,44 @@ fn print_report(name: &str, o: &RunOutcome) {
             })
             .collect()
     };
-    let scores = cells(&|res| {
-        format!(
-            "{:.3} ({:.1}){}",
-            res.mssim,
-            res.psnr_db,
-            if res.saturated { "!" } else { "" }
-        )
-    });
-    for line in table_blocks("MSSIM (PSNR dB)", &columns, &scores) {
-        println!("{line}");
+    match repeats {
+        Some(rp) => {
+            // Means and SDs over the repeats, as repeats.csv holds them, labelled as such.
+            let stat = |res: &SchemeResult| {
+                rp.stats
+                    .iter()
+                    .find(|x| x.scheme == res.scheme && x.ratio == res.ratio)
+            };
+            for (title, f) in [
+                (
+                    format!("MSSIM mean ± SD, {} repeats", rp.repeats),
+                    (|x: &crate::run::repeats::RepeatStats| {
+                        format!("{:.3}±{:.3}", x.mssim_mean, x.mssim_sd)
+                    }) as fn(&crate::run::repeats::RepeatStats) -> String,
+                ),
+                (format!("PSNR dB mean ± SD, {} repeats", rp.repeats), |x| {
+                    format!("{:.2}±{:.2}", x.psnr_db_mean, x.psnr_db_sd)
+                }),
+            ] {
+                let rows = cells(&|res| stat(res).map_or_else(String::new, f));
+                for line in table_blocks(&title, &columns, &rows) {
+                    println!("{line}");
+                }
+            }
+        }
+        None => {
+            let scores = cells(&|res| {
+                format!(
+                    "{:.3} ({:.1}){}",
+                    res.mssim,
+                    res.psnr_db,
+                    if res.saturated { "!" } else { "" }
+                )
+            });
+            for line in table_blocks("MSSIM (PSNR dB), one run", &columns, &scores) {
+                println!("{line}");
+            }
+        }
     }
     if let Some(c) = &o.resolution {
         println!(

@@ -13,7 +13,9 @@ use crate::report::html::{Block, Page, concise_unit, eng, render};
 use crate::report::output::OutputDir;
 use crate::run::RunOutcome;
 
+use super::run::findings::{Findings, Score};
 use super::run::{element_text, pct};
+use crate::run::repeats::Repeats;
 use crate::run::summary::RunSummary;
 
 /// Reads a file already written into the staging folder.
@@ -200,27 +202,31 @@ struct ReportInput<'a> {
     o: &'a RunOutcome,
     summary: &'a RunSummary<'a>,
     settings_ron: &'a str,
+    findings: &'a Findings,
+    repeats: Option<&'a Repeats>,
     out: &'a OutputDir,
 }
 
 /// Writes `report.html` into the staging folder.
 pub fn write_report(
-    name: &str,
-    bench: &crate::optics::Bench,
+    page: &super::run::RunPage<'_>,
     o: &RunOutcome,
     summary: &RunSummary<'_>,
-    settings_ron: &str,
     out: &OutputDir,
 ) -> Result<()> {
     let r = ReportInput {
-        name,
-        bench,
+        name: page.name,
+        bench: page.bench,
         o,
         summary,
-        settings_ron,
+        settings_ron: page.settings_ron,
+        findings: page.findings,
+        repeats: page.repeats,
         out,
     };
+    let name = r.name;
     let mut blocks = intro_blocks(&r);
+    findings_section(&mut blocks, &r);
     bench_section(&mut blocks, &r)?;
     ledger_section(&mut blocks, &r);
     signals_section(&mut blocks, &r)?;
@@ -266,6 +272,63 @@ fn intro_blocks(r: &ReportInput<'_>) -> Vec<Block> {
         }
     }
     blocks
+}
+
+/// The findings, first: which scheme scores best at each ratio and at equal frames, its margin
+/// over every other scheme (the fair baselines included) and, with repeats, the paired 95 %
+/// intervals that decide whether a lead is a lead (cli::run::findings).
+fn findings_section(blocks: &mut Vec<Block>, r: &ReportInput<'_>) {
+    let f = r.findings;
+    blocks.push(Block::Heading {
+        level: 2,
+        text: "Findings".into(),
+    });
+    blocks.push(Block::Paragraph(f.basis()));
+    for (score, ratios, frames) in &f.by_score {
+        if *score == Score::Mssim {
+            for list in [ratios, frames] {
+                let text: Vec<String> = list.iter().map(|st| st.sentence(*score)).collect();
+                if !text.is_empty() {
+                    blocks.push(Block::Paragraph(text.join(" ")));
+                }
+            }
+        }
+        for (what, list) in [
+            ("at each sampling ratio", ratios),
+            ("at equal DMD frames", frames),
+        ] {
+            if list.is_empty() {
+                continue;
+            }
+            let (header, rows) = f.table(*score, list);
+            blocks.push(Block::Table {
+                caption: Some(format!(
+                    "{} {what}: the best scheme ({}) and its margin over every other, best − \
+                     scheme{}{}",
+                    score.label(),
+                    if f.repeats > 1 {
+                        format!("mean ± SD of {} repeats", f.repeats)
+                    } else {
+                        "one run".into()
+                    },
+                    if f.repeats > 1 {
+                        " [paired Student-t 95 % interval]"
+                    } else {
+                        " (no interval: one run)"
+                    },
+                    if what.contains("frames") {
+                        "; each scheme's score interpolated in log(frames) between its ratios, \
+                         at the frames SCB shows (calibration included); schemes whose frames \
+                         do not reach a budget are left out (–)"
+                    } else {
+                        ""
+                    }
+                )),
+                header,
+                rows,
+            });
+        }
+    }
 }
 
 /// The bench: the layout, the traced gains and offsets, the per-unit maps and the
@@ -452,26 +515,63 @@ fn reconstructions_section(blocks: &mut Vec<Block>, r: &ReportInput<'_>) -> Resu
         "iterations (stop)",
         "saturated",
     ];
+    let stat = |res: &crate::pipeline::SchemeResult| {
+        r.repeats.and_then(|rp| {
+            rp.stats
+                .iter()
+                .find(|x| x.scheme == res.scheme && x.ratio == res.ratio)
+        })
+    };
     let rows = o
         .results
         .iter()
         .map(|r| {
+            let (psnr, mssim) = match stat(r) {
+                Some(x) => (
+                    format!("{:.2} ± {:.2}", x.psnr_db_mean, x.psnr_db_sd),
+                    format!("{:.4} ± {:.4}", x.mssim_mean, x.mssim_sd),
+                ),
+                None => (format!("{:.2}", r.psnr_db), format!("{:.4}", r.mssim)),
+            };
             vec![
                 r.scheme.label().to_string(),
                 pct(r.ratio),
                 r.measurements.to_string(),
                 r.dmd_frames.to_string(),
                 format!("{:.2}", r.acquisition_time_s * 1e3),
-                format!("{:.2}", r.psnr_db),
-                format!("{:.4}", r.mssim),
+                psnr,
+                mssim,
                 element_text(r.finest_resolved),
                 iterations_cell(r),
                 if r.saturated { "yes" } else { "no" }.to_string(),
             ]
         })
         .collect();
+    let (header, caption) = match r.repeats {
+        Some(rp) => (
+            header.map(|h| match h {
+                "PSNR (dB)" => "PSNR (dB), mean ± SD",
+                "MSSIM" => "MSSIM, mean ± SD",
+                other => other,
+            }),
+            format!(
+                "Every scheme at every ratio. PSNR and MSSIM: mean ± sample SD over {} repeats \
+                 (repeats.csv); the other columns, the images above and results.csv are \
+                 repeat 1's, the plain run (seed {})",
+                rp.repeats, o.seed
+            ),
+        ),
+        None => (
+            header,
+            format!(
+                "Every scheme at every ratio: one run (seed {}), so the scores carry no spread \
+                 (--repeats N gives mean ± SD)",
+                o.seed
+            ),
+        ),
+    };
     blocks.push(Block::Table {
-        caption: Some("Every scheme at every ratio".into()),
+        caption: Some(caption),
         header: header.iter().map(|h| h.to_string()).collect(),
         rows,
     });
@@ -538,6 +638,31 @@ fn curves_section(blocks: &mut Vec<Block>, r: &ReportInput<'_>) -> Result<()> {
         }
     }
     blocks.push(Block::Figures(figs));
+    if let Some(rp) = r.repeats {
+        blocks.push(Block::Paragraph(format!(
+            "The curves above are repeat 1's (the plain run). Below, every scheme's mean score \
+             over {} repeats against the DMD frames it showed (calibration frames included), \
+             with error bars of ± one sample SD: schemes that show a pattern and its complement \
+             are compared with those that show it once at equal cost.",
+            rp.repeats
+        )));
+        let mut bars = Vec::new();
+        for (file, cap) in [
+            (
+                "mssim_vs_frames.svg",
+                "MSSIM against DMD frames, mean ± SD over the repeats",
+            ),
+            (
+                "psnr_vs_frames.svg",
+                "PSNR against DMD frames, mean ± SD over the repeats",
+            ),
+        ] {
+            if let Some(b) = staged_svg(out, file, cap)? {
+                bars.push(b);
+            }
+        }
+        blocks.push(Block::Figures(bars));
+    }
     let f = &summary.findings;
     let mut text = String::new();
     if !f.scb_beats_double_arm_at.is_empty() || !f.scb_not_above_double_arm_at.is_empty() {

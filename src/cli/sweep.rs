@@ -23,6 +23,8 @@ use crate::transport::metrics::METRICS;
 
 use super::rows::Row;
 
+pub mod limits;
+
 /// Arguments of `spibench sweep`.
 #[derive(Debug, Clone, Args)]
 #[command(
@@ -44,6 +46,11 @@ pub struct SweepArgs {
     /// point, with the bench's `run` settings.
     #[arg(long)]
     pub quality: bool,
+    /// A limit on |METRIC| (e.g. `imbalance=0.01`; repeatable, 1-D sweeps): where along the
+    /// variable the metric crosses it, with a 95 % interval from the points' standard errors
+    /// (printed, in the report and in summary.json's `limits`).
+    #[arg(long, value_name = "METRIC=VALUE")]
+    pub limit: Vec<String>,
     #[command(flatten)]
     pub work: super::args::WorkArgs,
 }
@@ -78,6 +85,8 @@ struct SweepSummary<'a> {
     /// `cmrr_electronics_db`, the detector's alone (exact; null when infinite), and
     /// `arrivals` (lamp rays that reached the pattern area)).
     metrics: Vec<MetricDoc>,
+    /// Where each `--limit` is crossed (1-D sweeps; empty without `--limit`).
+    limits: &'a [limits::LimitReport],
     nominal: Row,
     rows: Vec<Row>,
     files: Vec<String>,
@@ -119,6 +128,18 @@ pub fn run(args: &SweepArgs) -> Result<()> {
         opts.rays_or(DEFAULT_RAYS, super::args::MIN_RAYS_WITH_STDERR)?,
         opts.seed(),
     );
+    let limit_args: Vec<limits::Limit> = args
+        .limit
+        .iter()
+        .map(|l| limits::Limit::parse(l, args.quality))
+        .collect::<crate::Result<_>>()?;
+    if !limit_args.is_empty() && vary.len() != 1 {
+        return Err(crate::Error::field(
+            "--limit",
+            "a crossing is found along one variable: give one --vary",
+        )
+        .into());
+    }
     // Unknown paths fail here, before anything is traced.
     let nominal_values: Vec<f64> = vary
         .iter()
@@ -156,9 +177,27 @@ pub fn run(args: &SweepArgs) -> Result<()> {
     let seconds = start.elapsed().as_secs_f64();
     let bench = doc.build()?;
     let provenance = super::run::bench_provenance(&name, &doc, &[seed])?;
-    let files = write_outputs(&name, &bench, &s, &nominal_values, &provenance, &out)?;
+    let rows: Vec<Row> = s.points.iter().map(|p| row(p, &s.nominal)).collect();
+    let crossed: Vec<limits::LimitReport> = limit_args
+        .iter()
+        .map(|l| limits::report(l, &s.vary[0].path, &rows))
+        .collect::<crate::Result<_>>()?;
+    let files = write_outputs(
+        &name,
+        &bench,
+        &s,
+        &nominal_values,
+        &crossed,
+        &provenance,
+        &out,
+    )?;
     let dir = out.commit()?;
     print_table(&s);
+    for c in &crossed {
+        for line in c.lines() {
+            println!("  {line}");
+        }
+    }
     println!(
         "wrote {} ({} files, {:.1} s)",
         dir.display(),
@@ -228,6 +267,7 @@ fn write_outputs(
     bench: &crate::optics::Bench,
     s: &Sweep,
     nominal_values: &[f64],
+    crossed: &[limits::LimitReport],
     provenance: &crate::provenance::Provenance,
     out: &OutputDir,
 ) -> Result<usize> {
@@ -252,8 +292,11 @@ fn write_outputs(
     std::fs::write(&path, &svg).map_err(|e| crate::Error::write(&path, e))?;
     files.push("layout.svg".into());
     blocks.push(layout);
+    if !crossed.is_empty() {
+        blocks.push(limits_block(crossed));
+    }
     let figures = match s.vary.as_slice() {
-        [v] => line_plots(s, v, out, &mut files)?,
+        [v] => line_plots(s, v, crossed, out, &mut files)?,
         [a, b] => heatmaps(s, [a, b], nominal_values, out, &mut files)?,
         _ => Vec::new(),
     };
@@ -298,6 +341,7 @@ fn write_outputs(
                 meaning,
             })
             .collect(),
+        limits: crossed,
         nominal,
         rows,
         files: files.clone(),
@@ -311,6 +355,7 @@ fn write_outputs(
 fn line_plots(
     s: &Sweep,
     v: &Vary,
+    crossed: &[limits::LimitReport],
     out: &OutputDir,
     files: &mut Vec<String>,
 ) -> crate::Result<Vec<(String, String)>> {
@@ -320,24 +365,27 @@ fn line_plots(
         let Some(i) = METRICS.iter().position(|m| m.0 == metric) else {
             continue;
         };
+        let ys: Vec<f64> = s.points.iter().map(|p| p.metrics.values[i].value).collect();
+        let mut series = vec![Series {
+            label: String::new(),
+            x: xs.clone(),
+            y: ys.clone(),
+            y_err: Some(
+                s.points
+                    .iter()
+                    .map(|p| {
+                        let e = p.metrics.values[i].stderr();
+                        if e.is_finite() { e } else { 0.0 }
+                    })
+                    .collect(),
+            ),
+        }];
+        series.extend(limit_lines(crossed, metric, &xs, &ys));
         let plot = LinePlot {
             title: String::new(),
             x_label: v.path.clone(),
             y_label: label.to_string(),
-            series: vec![Series {
-                label: String::new(),
-                x: xs.clone(),
-                y: s.points.iter().map(|p| p.metrics.values[i].value).collect(),
-                y_err: Some(
-                    s.points
-                        .iter()
-                        .map(|p| {
-                            let e = p.metrics.values[i].stderr();
-                            if e.is_finite() { e } else { 0.0 }
-                        })
-                        .collect(),
-                ),
-            }],
+            series,
             log_x: false,
         };
         let (svg, png) = (format!("{metric}.svg"), format!("{metric}.png"));
@@ -381,6 +429,93 @@ fn line_plots(
         files.extend(["mssim.svg".to_string(), "mssim.png".to_string()]);
     }
     Ok(figures)
+}
+
+/// The limits on `metric` as horizontal lines across the plot (at ±L where the metric takes
+/// both signs, at the sign it takes otherwise).
+fn limit_lines(
+    crossed: &[limits::LimitReport],
+    metric: &str,
+    xs: &[f64],
+    ys: &[f64],
+) -> Vec<Series> {
+    let (lo, hi) = xs
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| {
+            (a.min(x), b.max(x))
+        });
+    let negative = ys.iter().any(|&y| y < 0.0);
+    let positive = ys.iter().any(|&y| y > 0.0) || !negative;
+    let mut out = Vec::new();
+    for c in crossed.iter().filter(|c| c.metric == metric) {
+        for (sign, show) in [(1.0, positive), (-1.0, negative)] {
+            if show && lo.is_finite() {
+                out.push(Series {
+                    label: format!("limit |{metric}| = {}", c.limit),
+                    x: vec![lo, hi],
+                    y: vec![sign * c.limit; 2],
+                    y_err: None,
+                });
+            }
+        }
+    }
+    out
+}
+
+/// The report's table of limit crossings.
+fn limits_block(crossed: &[limits::LimitReport]) -> Block {
+    let mut rows = Vec::new();
+    for c in crossed {
+        let head = vec![
+            format!("|{}| ≤ {}", c.metric, c.limit),
+            format!("{} of {}", c.points_within, c.points),
+        ];
+        if c.crossings.is_empty() {
+            let mut r = head.clone();
+            r.extend([
+                if c.points_within == c.points {
+                    "met at every point".to_string()
+                } else {
+                    "exceeded at every point".to_string()
+                },
+                String::new(),
+                String::new(),
+                String::new(),
+            ]);
+            rows.push(r);
+        }
+        for x in &c.crossings {
+            let mut r = head.clone();
+            r.extend([
+                x.direction.to_string(),
+                format!("{:.6} ± {:.2e}", x.at, x.stderr),
+                x.ci95
+                    .map_or_else(|| "–".into(), |[lo, hi]| format!("[{lo:.6}, {hi:.6}]")),
+                format!("{} … {}", x.between[0], x.between[1]),
+            ]);
+            rows.push(r);
+        }
+    }
+    Block::Table {
+        caption: Some(format!(
+            "Where each limit is crossed along {}: linear interpolation between the grid points \
+             on either side; ± the standard error from the two points' standard errors (added \
+             linearly: the points share their random numbers), 95 % interval ± 1.96 σ; the \
+             interpolation's own error is not included",
+            crossed.first().map_or("", |c| c.variable.as_str())
+        )),
+        header: [
+            "limit",
+            "points within",
+            "crossing",
+            "at ± SE",
+            "95 % interval",
+            "between grid points",
+        ]
+        .map(String::from)
+        .to_vec(),
+        rows,
+    }
 }
 
 /// 2-D: heatmaps of the first four plotted metrics with the nominal bench marked.

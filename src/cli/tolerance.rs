@@ -685,10 +685,15 @@ fn monte_carlo_blocks(analysis: &Analysis) -> Vec<Block> {
     });
     blocks.push(Block::Table {
         caption: Some(
-            "Distribution over the trials (percentiles of the value and of its magnitude)".into(),
+            "Distribution over the trials (percentiles of the value and of its magnitude). \
+             The leaks here are the recorded ratios P_wrong/P_own, unbounded where a part \
+             blinds the own arm; the tails table and the figures show them as the bounded \
+             fraction P_wrong/(P_own + P_wrong), 0 … 1"
+                .into(),
         ),
         header: [
             "metric",
+            "unit",
             "mean",
             "std dev",
             "median",
@@ -704,7 +709,7 @@ fn monte_carlo_blocks(analysis: &Analysis) -> Vec<Block> {
             .percentiles
             .iter()
             .map(|p| {
-                let mut r = vec![p.metric.clone()];
+                let mut r = vec![p.metric.clone(), unit_of(&p.metric)];
                 r.extend(
                     [
                         p.mean,
@@ -753,20 +758,29 @@ fn monte_carlo_blocks(analysis: &Analysis) -> Vec<Block> {
             rows: yrows,
         });
     }
+    blocks.extend(tail_block(analysis));
+    blocks.extend(compensator_block(analysis));
     if !analysis.rss.is_empty() {
         blocks.push(Block::Table {
-            caption: Some(
+            caption: Some(format!(
                 "Root-sum-square spread from the sensitivity table (linear, independent \
                  tolerances) against the Monte Carlo spread: a large gap means the \
-                 tolerances interact or act nonlinearly"
-                    .into(),
-            ),
+                 tolerances interact or act nonlinearly. The RSS is flagged where a tolerance \
+                 whose change reaches {:.0} % of the largest has a one-sided range, moves the \
+                 metric the same way at both ends, or has a quadratic term above {:.0} % of its \
+                 linear term at the range end (fitted through the nominal bench and both ends, \
+                 beyond 2 standard errors): there an agreement with the Monte Carlo σ can be a \
+                 coincidence",
+                100.0 * crate::tolerance::summaries::RELEVANT_FRACTION,
+                100.0 * crate::tolerance::summaries::CURVATURE_LIMIT
+            )),
             header: [
                 "metric",
                 "RSS σ",
                 "Monte Carlo σ",
                 "dominant tolerance",
                 "its share",
+                "RSS model",
             ]
             .map(String::from)
             .to_vec(),
@@ -780,6 +794,11 @@ fn monte_carlo_blocks(analysis: &Analysis) -> Vec<Block> {
                         format!("{:.3e}", r.monte_carlo_std_dev),
                         r.dominant.clone(),
                         format!("{:.0} %", 100.0 * r.dominant_share),
+                        if r.linearity_flags.is_empty() {
+                            "linear, two-sided".into()
+                        } else {
+                            format!("FLAGGED: {}", r.linearity_flags.join("; "))
+                        },
                     ]
                 })
                 .collect(),
@@ -788,20 +807,176 @@ fn monte_carlo_blocks(analysis: &Analysis) -> Vec<Block> {
     blocks
 }
 
-/// Histograms (as steps) and empirical CDFs of the main metrics over the trials, written as
-/// figures and returned as report blocks.
-fn distribution_plots(
-    s: &ShardFile,
-    set: &ToleranceSet,
-    analysis: &Analysis,
-    out: &OutputDir,
-    files: &mut Vec<String>,
-) -> crate::Result<Vec<Block>> {
+/// A metric's unit for the report (the leaks as bounded fractions).
+fn unit_of(metric: &str) -> String {
+    if crate::tolerance::summaries::is_fraction(metric) {
+        return "ratio P_wrong/P_own".into();
+    }
+    crate::transport::metrics::METRICS
+        .iter()
+        .find(|m| m.0 == metric)
+        .map_or_else(
+            || {
+                if metric.ends_with("_db") {
+                    "dB".into()
+                } else {
+                    String::new()
+                }
+            },
+            |m| m.1.to_string(),
+        )
+}
+
+/// The tail that matters of each metric: where the worst 10 % and 2.3 % of built benches lie.
+fn tail_block(analysis: &Analysis) -> Option<Block> {
+    use crate::tolerance::summaries::Tail;
+    if analysis.tails.is_empty() {
+        return None;
+    }
+    Some(Block::Table {
+        caption: Some(
+            "The tail that matters: for k', k±, powers, CMRR and image scores the low values \
+             (10th and 2.3rd percentiles, the lowest trial), for the imbalance, offsets and \
+             leaks the large |values| (90th and 97.7th percentiles of |·|, the largest); the \
+             leaks as the bounded fraction P_wrong/(P_own + P_wrong), 0 … 1; the fraction of \
+             trials beyond the file's limits on the metric"
+                .into(),
+        ),
+        header: [
+            "metric",
+            "unit",
+            "tail",
+            "worst 10 % beyond",
+            "worst 2.3 % beyond",
+            "worst trial",
+            "beyond the limits",
+        ]
+        .map(String::from)
+        .to_vec(),
+        rows: analysis
+            .tails
+            .iter()
+            .map(|t| {
+                vec![
+                    t.metric.clone(),
+                    if crate::tolerance::summaries::is_fraction(&t.metric) {
+                        "fraction, 0–1".into()
+                    } else {
+                        unit_of(&t.metric)
+                    },
+                    match t.tail {
+                        Tail::Lower => "lower".into(),
+                        Tail::UpperAbs => "upper of |·|".into(),
+                    },
+                    format!("{:.4e}", t.worst_10_percent),
+                    format!("{:.4e}", t.worst_2_3_percent),
+                    format!("{:.4e}", t.worst),
+                    t.beyond_limits
+                        .map_or_else(|| "–".into(), |f| format!("{:.1} %", 100.0 * f)),
+                ]
+            })
+            .collect(),
+    })
+}
+
+/// The compensators' settled moves.
+fn compensator_block(analysis: &Analysis) -> Option<Block> {
+    if analysis.compensators.is_empty() {
+        return None;
+    }
+    Some(Block::Table {
+        caption: Some(format!(
+            "Compensator moves over the trials (from the value after the tolerances are \
+             applied); at a bound: within {} of the range of min or max, where the compensator \
+             ran out of travel",
+            crate::tolerance::summaries::AT_BOUND_FRACTION
+        )),
+        header: [
+            "compensator",
+            "range",
+            "mean",
+            "SD",
+            "lowest",
+            "highest",
+            "at min / at max",
+            "at a bound",
+        ]
+        .map(String::from)
+        .to_vec(),
+        rows: analysis
+            .compensators
+            .iter()
+            .map(|c| {
+                vec![
+                    c.path.clone(),
+                    format!("{} … {}", c.min, c.max),
+                    format!("{:+.4e}", c.mean),
+                    format!("{:.4e}", c.std_dev),
+                    format!("{:+.4e}", c.lowest),
+                    format!("{:+.4e}", c.highest),
+                    format!("{} / {}", c.at_min, c.at_max),
+                    format!("{:.1} % of {}", 100.0 * c.at_bound_fraction, c.trials),
+                ]
+            })
+            .collect(),
+    })
+}
+
+/// The file's limits on `metric` as vertical lines from 0 to `top`: on a plot of |value|
+/// (`abs`) the `abs_max` limits, on a plot of the value the `min` and `max` ones and ±`abs_max`.
+fn limit_lines(limits: &[(String, f64)], top: f64) -> Vec<Series> {
+    limits
+        .iter()
+        .map(|(label, x)| Series {
+            label: label.clone(),
+            x: vec![*x, *x],
+            y: vec![0.0, top],
+            y_err: None,
+        })
+        .collect()
+}
+
+/// The limits of the file (and the quality limit) on `metric`, as (label, x) on a plot of
+/// |value| (`abs`) or of the value.
+fn limits_on(set: &ToleranceSet, metric: &str, abs: bool) -> Vec<(String, f64)> {
+    let mut out = Vec::new();
+    for l in set.limits.iter().filter(|l| l.metric == metric) {
+        if let Some(m) = l.abs_max {
+            out.push((format!("limit |{metric}| ≤ {m}"), m));
+            if !abs {
+                out.push((format!("limit |{metric}| ≥ −{m}"), -m));
+            }
+        }
+        for (v, op) in [(l.min, "≥"), (l.max, "≤")] {
+            if let Some(v) = v
+                && (!abs || v > 0.0)
+            {
+                out.push((format!("limit {metric} {op} {v}"), v));
+            }
+        }
+    }
+    if let Some(q) = set.quality
+        && metric.ends_with(&format!("_{}_mssim", q.ratio_percent))
+    {
+        out.push((format!("limit MSSIM ≥ {}", q.min_mssim), q.min_mssim));
+    }
+    out
+}
+
+/// The metrics plotted (key, axis label).
+fn plotted_metrics(set: &ToleranceSet, analysis: &Analysis) -> Vec<(String, String)> {
     let mut plotted: Vec<(String, String)> = [
         ("imbalance", "imbalance (k₊ − k₋)/(k₊ + k₋)"),
         ("k_prime", "k' = k₊ + k₋ (A/W)"),
         ("b_minus_minus_b_plus", "b₋ − b₊ (A)"),
-        ("leak_plus", "off-arm leak, all units +"),
+        (
+            "leak_plus",
+            "off-arm leak, all units +: P₋/(P₊ + P₋) (fraction, 0–1)",
+        ),
+        (
+            "leak_minus",
+            "off-arm leak, all units −: P₊/(P₊ + P₋) (fraction, 0–1)",
+        ),
     ]
     .map(|(a, b)| (a.to_string(), b.to_string()))
     .to_vec();
@@ -813,12 +988,63 @@ fn distribution_plots(
             ));
         }
     }
+    plotted
+}
+
+/// A histogram as steps: `bins` equal bins over the values' range.
+fn histogram_series(v: &[f64], bins: usize) -> (Series, f64) {
+    let n = v.len();
+    let (lo, hi) = (v[0], v[n - 1]);
+    let w = if hi > lo {
+        (hi - lo) / bins as f64
+    } else {
+        1.0
+    };
+    let mut counts = vec![0usize; bins];
+    for x in v {
+        counts[(((x - lo) / w) as usize).min(bins - 1)] += 1;
+    }
+    let (mut hx, mut hy) = (vec![lo], vec![0.0]);
+    for (b, c) in counts.iter().enumerate() {
+        let (a, z) = (lo + b as f64 * w, lo + (b + 1) as f64 * w);
+        hx.extend([a, z]);
+        hy.extend([*c as f64, *c as f64]);
+    }
+    hx.push(lo + bins as f64 * w);
+    hy.push(0.0);
+    let top = counts.iter().copied().max().unwrap_or(1) as f64;
+    (
+        Series {
+            label: String::new(),
+            x: hx,
+            y: hy,
+            y_err: None,
+        },
+        top,
+    )
+}
+
+/// Histograms (as steps, Freedman–Diaconis bins with a floor) and empirical CDFs of the main
+/// metrics over the trials, with the file's limits drawn, written as figures and returned as
+/// report blocks. The CDF is of |value| on a log axis for the metrics whose upper |·| tail
+/// matters (imbalance, offsets, leaks), of the value for those whose lower tail matters (k',
+/// MSSIM).
+fn distribution_plots(
+    s: &ShardFile,
+    set: &ToleranceSet,
+    analysis: &Analysis,
+    out: &OutputDir,
+    files: &mut Vec<String>,
+) -> crate::Result<Vec<Block>> {
+    use crate::tolerance::summaries::{Tail, histogram_bins, shown, tail_of};
     let mut figs = Vec::new();
-    for (metric, label) in &plotted {
+    for (metric, label) in plotted_metrics(set, analysis) {
+        // Leaks as bounded fractions (summaries::leak_fraction), their limits too.
         let mut v: Vec<f64> = s
             .records
             .iter()
-            .filter_map(|r| r.value(metric))
+            .filter_map(|r| r.value(&metric))
+            .map(|v| shown(&metric, v))
             .filter(|v| v.is_finite())
             .collect();
         if v.len() < 2 {
@@ -826,50 +1052,66 @@ fn distribution_plots(
         }
         v.sort_by(f64::total_cmp);
         let n = v.len();
+        let upper = tail_of(&metric) == Tail::UpperAbs;
+        // |value| on a log axis: zeros cannot be drawn and are counted in the caption.
+        let mut cx: Vec<f64> = if upper {
+            v.iter().map(|x| x.abs()).filter(|x| *x > 0.0).collect()
+        } else {
+            v.clone()
+        };
+        cx.sort_by(f64::total_cmp);
+        let zeros = n - cx.len();
+        // Large magnitudes on a log axis; the lower tail of a value on a linear one.
+        let log_x = upper;
+        let mut cdf_series = vec![Series {
+            label: String::new(),
+            y: (0..cx.len())
+                .map(|i| (zeros + i + 1) as f64 / n as f64)
+                .collect(),
+            x: cx,
+            y_err: None,
+        }];
+        let limit_at = |abs: bool| -> Vec<(String, f64)> {
+            limits_on(set, &metric, abs)
+                .into_iter()
+                .map(|(l, x)| (l, shown(&metric, x)))
+                .collect()
+        };
+        cdf_series.extend(limit_lines(&limit_at(upper), 1.0));
         let cdf = LinePlot {
             title: String::new(),
-            x_label: label.clone(),
+            x_label: if upper {
+                format!("|{label}| (log scale)")
+            } else {
+                label.clone()
+            },
             y_label: "fraction of trials ≤ x".into(),
-            series: vec![Series {
-                label: String::new(),
-                x: v.clone(),
-                y: (0..n).map(|i| (i + 1) as f64 / n as f64).collect(),
-                y_err: None,
-            }],
-            log_x: false,
+            series: cdf_series,
+            log_x,
         };
-        let (lo, hi) = (v[0], v[n - 1]);
-        let bins = ((n as f64).sqrt().ceil() as usize).clamp(5, 40);
-        let w = if hi > lo {
-            (hi - lo) / bins as f64
-        } else {
-            1.0
-        };
-        let mut counts = vec![0usize; bins];
-        for x in &v {
-            counts[(((x - lo) / w) as usize).min(bins - 1)] += 1;
-        }
-        let (mut hx, mut hy) = (vec![lo], vec![0.0]);
-        for (b, c) in counts.iter().enumerate() {
-            let (a, z) = (lo + b as f64 * w, lo + (b + 1) as f64 * w);
-            hx.extend([a, z]);
-            hy.extend([*c as f64, *c as f64]);
-        }
-        hx.push(lo + bins as f64 * w);
-        hy.push(0.0);
+        let bins = histogram_bins(&v);
+        let (steps, top) = histogram_series(&v, bins);
+        let mut hist_series = vec![steps];
+        hist_series.extend(limit_lines(&limit_at(false), top));
         let hist = LinePlot {
             title: String::new(),
             x_label: label.clone(),
             y_label: "trials".into(),
-            series: vec![Series {
-                label: String::new(),
-                x: hx,
-                y: hy,
-                y_err: None,
-            }],
+            series: hist_series,
             log_x: false,
         };
-        for (kind, plot) in [("hist", hist), ("cdf", cdf)] {
+        let tail = if upper {
+            "the upper tail of |value| matters"
+        } else {
+            "the lower tail matters"
+        };
+        // Every trial at exactly 0 (a metric a symmetric bench holds at 0): no CDF on a log axis.
+        let plots = if cdf.series[0].x.is_empty() {
+            vec![("hist", hist)]
+        } else {
+            vec![("hist", hist), ("cdf", cdf)]
+        };
+        for (kind, plot) in plots {
             let (svg, png) = (
                 format!("{kind}_{metric}.svg"),
                 format!("{kind}_{metric}.png"),
@@ -878,14 +1120,23 @@ fn distribution_plots(
             let text = std::fs::read_to_string(out.path(&svg))
                 .map_err(|e| crate::Error::read(&out.path(&svg), e))?;
             figs.push(Block::Svg {
-                caption: format!(
-                    "{} of {label} over {n} trials",
-                    if kind == "hist" {
-                        "Histogram"
-                    } else {
-                        "Empirical CDF"
-                    }
-                ),
+                caption: if kind == "hist" {
+                    format!(
+                        "Histogram of {label} over {n} trials ({bins} bins: Freedman–Diaconis, \
+                         at least max(10, √n)); vertical lines: the file's limits"
+                    )
+                } else {
+                    format!(
+                        "Empirical CDF of {}{label} over {n} trials ({tail}){}; vertical lines: \
+                         the file's limits",
+                        if upper { "|·| of " } else { "" },
+                        if zeros > 0 {
+                            format!("; {zeros} trial(s) at exactly 0 are counted but not drawn")
+                        } else {
+                            String::new()
+                        }
+                    )
+                },
                 svg: text,
             });
             files.extend([svg, png]);

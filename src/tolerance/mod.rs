@@ -30,6 +30,8 @@ use crate::scene::tolerance::{SensitivityRecord, ToleranceSet, TrialRecord, valu
 use crate::transport::metrics::METRICS;
 
 pub use crate::pipeline::evaluate::{is_metric, quality_key, values};
+
+pub mod summaries;
 pub use crate::pipeline::perturb::{TrialBench, draw, trial_doc};
 
 /// The metrics of the sensitivity table, in its column order.
@@ -294,6 +296,10 @@ pub struct RssRow {
     /// The tolerance contributing most to the RSS, and its share of the RSS variance.
     pub dominant: String,
     pub dominant_share: f64,
+    /// Why the RSS's linear, two-sided model may not hold for this metric (one reason per
+    /// relevant tolerance: `summaries::linearity_flags`); empty when every relevant response
+    /// is linear within the stated threshold.
+    pub linearity_flags: Vec<String>,
 }
 
 /// Everything computed from the records.
@@ -304,6 +310,11 @@ pub struct Analysis {
     /// With `--quality` and a `quality` limit: per scheme, the fraction meeting it.
     pub quality_yields: Vec<(String, YieldRow)>,
     pub rss: Vec<RssRow>,
+    /// The tail that matters of each reported metric (the lower tail for k', the upper tail
+    /// of |imbalance|, …).
+    pub tails: Vec<summaries::TailRow>,
+    /// Each compensator's settled moves: mean, SD, extremes, how often at a bound.
+    pub compensators: Vec<summaries::CompensatorRow>,
     pub failed_trials: usize,
 }
 
@@ -348,7 +359,9 @@ pub fn analyse(
             .collect()
     };
     let mut percentiles = Vec::new();
-    for name in reported(records) {
+    let names = reported(records);
+    let tails = summaries::tails(&names, &ok, &set.limits);
+    for name in names {
         let mut v = column(&name);
         if v.is_empty() {
             continue;
@@ -449,6 +462,7 @@ pub fn analyse(
                 monte_carlo_std_dev: if mc.len() >= 2 { sd } else { f64::NAN },
                 dominant: dominant.0,
                 dominant_share: if total > 0.0 { dominant.1 / total } else { 0.0 },
+                linearity_flags: summaries::linearity_flags(m, sens),
             });
         }
     }
@@ -457,6 +471,8 @@ pub fn analyse(
         yields,
         quality_yields,
         rss,
+        tails,
+        compensators: summaries::compensators(&set.compensators, &ok),
         failed_trials: records.len() - ok.len(),
     }
 }

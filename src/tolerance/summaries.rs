@@ -1,0 +1,395 @@
+//! Summaries of a tolerance run that say what the distributions mean for a builder: the tail of
+//! each metric that matters, the compensators' moves, histogram bins, and whether the RSS
+//! estimate can be trusted (a linear, two-sided response) for each metric.
+
+use serde::Serialize;
+
+use crate::scene::tolerance::{Compensator, Limit, SensitivityRecord, TrialRecord};
+
+/// Which end of a metric's distribution hurts a bench.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Tail {
+    /// Low values hurt (a weak signal: k', k±, powers, CMRR, image scores).
+    Lower,
+    /// Large |values| hurt (imbalance, offsets, leaks).
+    UpperAbs,
+}
+
+/// The tail that matters for `metric`.
+pub fn tail_of(metric: &str) -> Tail {
+    let lower = [
+        "k_prime",
+        "k_plus",
+        "k_minus",
+        "power_plus_w",
+        "power_minus_w",
+        "x_total_w",
+        "cmrr_db",
+        "cmrr_electronics_db",
+    ];
+    if lower.contains(&metric)
+        || metric.ends_with("_mssim")
+        || metric.ends_with("_psnr_db")
+        || metric.ends_with("_finest_lp_per_mm")
+    {
+        Tail::Lower
+    } else {
+        Tail::UpperAbs
+    }
+}
+
+/// Whether `metric` is an off-arm leak. Recorded as the ratio r = P_wrong/P_own of the two
+/// diodes' powers (crate::transport::metrics), it is unbounded: a part that blinds the own
+/// arm sends r far above 1 (41 in a trial of the paper bench's tolerances). The tails and
+/// figures therefore show the bounded fraction [`leak_fraction`].
+pub fn is_fraction(metric: &str) -> bool {
+    metric.starts_with("leak_")
+}
+
+/// A leak ratio r = P_wrong/P_own as the bounded fraction P_wrong/(P_own + P_wrong) = r/(1 + r):
+/// the share of the light of one world that reaches the wrong diode, 0 … 1 (≈ r for small
+/// leaks; ½ where both diodes see the same power).
+pub fn leak_fraction(r: f64) -> f64 {
+    if r.is_infinite() && r > 0.0 {
+        1.0
+    } else {
+        r / (1.0 + r)
+    }
+}
+
+/// The value of `metric` as the summaries read it: a leak as its bounded fraction, any other
+/// metric as recorded.
+pub fn shown(metric: &str, v: f64) -> f64 {
+    if is_fraction(metric) {
+        leak_fraction(v)
+    } else {
+        v
+    }
+}
+
+/// One metric's tail over the trials.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct TailRow {
+    pub metric: String,
+    pub tail: Tail,
+    /// The 90th and 97.7th percentiles of |value| (upper tail), or the 10th and 2.3rd of the
+    /// value (lower tail): the values 10 % and 2.3 % of built benches are worse than. Leaks as
+    /// their bounded fraction ([`leak_fraction`]).
+    pub worst_10_percent: f64,
+    pub worst_2_3_percent: f64,
+    /// The worst trial.
+    pub worst: f64,
+    /// The fraction of trials beyond the file's limits on this metric (null without one).
+    pub beyond_limits: Option<f64>,
+}
+
+/// The tail rows of `metrics` (each metric's finite values over the good trials).
+pub fn tails(metrics: &[String], ok: &[&TrialRecord], limits: &[Limit]) -> Vec<TailRow> {
+    let mut rows = Vec::new();
+    for m in metrics {
+        let tail = tail_of(m);
+        let mut v: Vec<f64> = ok
+            .iter()
+            .filter_map(|r| r.value(m))
+            .map(|v| shown(m, v))
+            .filter(|v| v.is_finite())
+            .map(|v| if tail == Tail::UpperAbs { v.abs() } else { v })
+            .collect();
+        if v.is_empty() {
+            continue;
+        }
+        v.sort_by(f64::total_cmp);
+        let (p10, p2, worst) = match tail {
+            Tail::UpperAbs => (
+                super::percentile(&v, 90.0),
+                super::percentile(&v, 97.7),
+                v[v.len() - 1],
+            ),
+            Tail::Lower => (
+                super::percentile(&v, 10.0),
+                super::percentile(&v, 2.3),
+                v[0],
+            ),
+        };
+        let mine: Vec<&Limit> = limits.iter().filter(|l| &l.metric == m).collect();
+        let beyond_limits = (!mine.is_empty()).then(|| {
+            let bad = ok
+                .iter()
+                .filter(|r| !r.value(m).is_some_and(|x| mine.iter().all(|l| l.holds(x))))
+                .count();
+            bad as f64 / ok.len().max(1) as f64
+        });
+        rows.push(TailRow {
+            metric: m.clone(),
+            tail,
+            worst_10_percent: p10,
+            worst_2_3_percent: p2,
+            worst,
+            beyond_limits,
+        });
+    }
+    rows
+}
+
+/// A compensator at its bound: within this fraction of its range of min or max.
+pub const AT_BOUND_FRACTION: f64 = 1e-3;
+
+/// One compensator's settled moves over the trials.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct CompensatorRow {
+    pub path: String,
+    /// Its allowed moves.
+    pub min: f64,
+    pub max: f64,
+    pub trials: usize,
+    pub mean: f64,
+    pub std_dev: f64,
+    /// The smallest and largest move.
+    pub lowest: f64,
+    pub highest: f64,
+    /// Trials that ended within [`AT_BOUND_FRACTION`] of the range at min, at max.
+    pub at_min: usize,
+    pub at_max: usize,
+    /// (at_min + at_max) / trials: how often the compensator ran out of range.
+    pub at_bound_fraction: f64,
+}
+
+/// The compensators' moves over the good trials.
+pub fn compensators(set: &[Compensator], ok: &[&TrialRecord]) -> Vec<CompensatorRow> {
+    set.iter()
+        .filter_map(|c| {
+            let v: Vec<f64> = ok
+                .iter()
+                .filter_map(|r| r.compensators.iter().find(|(p, _)| *p == c.path))
+                .map(|(_, v)| *v)
+                .filter(|v| v.is_finite())
+                .collect();
+            if v.is_empty() {
+                return None;
+            }
+            let n = v.len() as f64;
+            let mean = v.iter().sum::<f64>() / n;
+            let var = v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1.0).max(1.0);
+            let tol = AT_BOUND_FRACTION * (c.max - c.min).abs();
+            let at_min = v.iter().filter(|&&x| x <= c.min + tol).count();
+            let at_max = v.iter().filter(|&&x| x >= c.max - tol).count();
+            Some(CompensatorRow {
+                path: c.path.clone(),
+                min: c.min,
+                max: c.max,
+                trials: v.len(),
+                mean,
+                std_dev: if v.len() > 1 { var.sqrt() } else { 0.0 },
+                lowest: v.iter().copied().fold(f64::INFINITY, f64::min),
+                highest: v.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+                at_min,
+                at_max,
+                at_bound_fraction: (at_min + at_max) as f64 / n,
+            })
+        })
+        .collect()
+}
+
+/// Histogram bins for `n` sorted values: the Freedman–Diaconis width 2·IQR·n^(−1/3) (Freedman
+/// and Diaconis 1981), but never fewer than max(10, ⌈√n⌉) bins nor more than 200.
+pub fn histogram_bins(sorted: &[f64]) -> usize {
+    let n = sorted.len();
+    let floor = ((n as f64).sqrt().ceil() as usize).max(10);
+    if n < 2 {
+        return floor;
+    }
+    let range = sorted[n - 1] - sorted[0];
+    let iqr = super::percentile(sorted, 75.0) - super::percentile(sorted, 25.0);
+    let fd = if iqr > 0.0 && range > 0.0 {
+        (range / (2.0 * iqr * (n as f64).powf(-1.0 / 3.0))).ceil()
+    } else {
+        0.0
+    };
+    (fd as usize).clamp(floor, 200)
+}
+
+/// A tolerance's response is called curved when, fitted as m = s·t + c·t² through the nominal
+/// bench and both ends, its quadratic term at the range's wider end exceeds this fraction of
+/// the linear term (and c is beyond 2 standard errors).
+pub const CURVATURE_LIMIT: f64 = 0.25;
+
+/// A tolerance is checked for a metric when its change at either end is at least this
+/// fraction of the largest change any tolerance makes.
+pub const RELEVANT_FRACTION: f64 = 0.1;
+
+/// Why the RSS's linear model may not hold for `metric`: one reason per relevant tolerance
+/// whose response is one-sided (range on one side of nominal, or both ends moving the metric
+/// the same way) or curved beyond [`CURVATURE_LIMIT`].
+pub fn linearity_flags(metric: &str, sens: &[SensitivityRecord]) -> Vec<String> {
+    let d = format!("{metric}_diff");
+    let se = format!("{metric}_diff_stderr");
+    let largest = sens
+        .iter()
+        .flat_map(|r| [r.at(false, &d).abs(), r.at(true, &d).abs()])
+        .filter(|v| v.is_finite())
+        .fold(0.0, f64::max);
+    let mut flags = Vec::new();
+    if largest <= 0.0 {
+        return flags;
+    }
+    for r in sens {
+        let (da, db) = (r.at(false, &d), r.at(true, &d));
+        let (sa, sb) = (r.at(false, &se), r.at(true, &se));
+        if !(da.is_finite() && db.is_finite())
+            || da.abs().max(db.abs()) < RELEVANT_FRACTION * largest
+        {
+            continue;
+        }
+        let (a, b) = (r.min, r.max);
+        if a >= 0.0 || b <= 0.0 {
+            flags.push(format!(
+                "{}: one-sided range {a} … {b}: the response is seen on one side of the nominal \
+                 bench only, so its curvature is untested and the mean shift it causes is not \
+                 in the RSS σ",
+                r.path
+            ));
+            continue;
+        }
+        let significant = |v: f64, s: f64| !s.is_finite() || v.abs() > 2.0 * s;
+        if da.signum() == db.signum() && significant(da, sa) && significant(db, sb) {
+            flags.push(format!(
+                "{}: both ends move {metric} the same way ({da:+.3e} at {a}, {db:+.3e} at {b}): \
+                 a one-sided response the secant slope of the RSS misses",
+                r.path
+            ));
+            continue;
+        }
+        let c = (db / b - da / a) / (b - a);
+        let s = db / b - c * b;
+        let c_se = ((sb / b).powi(2) + (sa / a).powi(2)).sqrt() / (b - a);
+        let w = a.abs().max(b.abs());
+        let ratio = (c * w).abs() / s.abs();
+        if ratio > CURVATURE_LIMIT && (!c_se.is_finite() || c.abs() > 2.0 * c_se) {
+            flags.push(format!(
+                "{}: curved response (quadratic term {:.0} % of the linear at ±{w}; \
+                 {da:+.3e} at {a}, {db:+.3e} at {b})",
+                r.path,
+                100.0 * ratio.min(1e4)
+            ));
+        }
+    }
+    flags
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sens(path: &str, min: f64, max: f64, at_min: f64, at_max: f64) -> SensitivityRecord {
+        let row = |v: f64| {
+            vec![
+                ("imbalance_diff".to_string(), v),
+                ("imbalance_diff_stderr".to_string(), 1e-5),
+            ]
+        };
+        SensitivityRecord {
+            path: path.into(),
+            min,
+            max,
+            rays: [1000, 1000],
+            at_min: row(at_min),
+            at_max: row(at_max),
+        }
+    }
+
+    /// A linear response is not flagged; an even one (both ends the same way), a curved one and
+    /// a one-sided range are; a tolerance too small to matter is skipped.
+    #[test]
+    fn rss_flags_one_sided_and_curved_responses() {
+        let linear = sens("a", -1.0, 1.0, -0.01, 0.01);
+        let even = sens("b", -1.0, 1.0, 0.008, 0.009);
+        let curved = sens("c", -1.0, 1.0, -0.002, 0.01);
+        let one_sided = sens("d", 0.0, 0.2, 0.0, 0.009);
+        let tiny = sens("e", -1.0, 1.0, 1e-4, 1e-4);
+        let flags = linearity_flags("imbalance", &[linear, even, curved, one_sided, tiny]);
+        let paths: Vec<&str> = flags.iter().map(|f| &f[..1]).collect();
+        assert_eq!(paths, ["b", "c", "d"], "{flags:#?}");
+        assert!(flags[0].contains("same way"));
+        assert!(flags[1].contains("curved"));
+        assert!(flags[2].contains("one-sided range"));
+    }
+
+    #[test]
+    fn bins_follow_freedman_diaconis_with_a_floor() {
+        // 10 000 uniform values: IQR = 0.5, width 2·0.5·10000^(−1/3) = 0.0464: 22 bins, but the
+        // floor √n = 100 wins.
+        let v: Vec<f64> = (0..10_000).map(|i| i as f64 / 9_999.0).collect();
+        assert_eq!(histogram_bins(&v), 100);
+        // 100 values with one far outlier: Freedman–Diaconis asks for many narrow bins.
+        let mut v: Vec<f64> = (0..99).map(|i| i as f64 / 98.0).collect();
+        v.push(50.0);
+        let b = histogram_bins(&v);
+        assert!((41..=200).contains(&b), "{b}");
+        assert_eq!(histogram_bins(&[1.0; 30]), 10);
+    }
+
+    #[test]
+    fn compensator_moves_count_their_bounds() {
+        let rec = |v: f64| TrialRecord {
+            index: 0,
+            deviations: Vec::new(),
+            compensators: vec![("d.x".into(), v)],
+            values: Vec::new(),
+            error: None,
+        };
+        let recs = [rec(-1.0), rec(0.2), rec(1.0), rec(0.99)];
+        let ok: Vec<&TrialRecord> = recs.iter().collect();
+        let c = Compensator {
+            path: "d.x".into(),
+            min: -1.0,
+            max: 1.0,
+            objective: crate::scene::tolerance::CompensatorObjective::Balance,
+        };
+        let rows = compensators(&[c], &ok);
+        assert_eq!((rows[0].at_min, rows[0].at_max), (1, 1));
+        assert_eq!(rows[0].at_bound_fraction, 0.5);
+        assert_eq!((rows[0].lowest, rows[0].highest), (-1.0, 1.0));
+    }
+
+    /// A leak ratio of 41 (an arm blinded) is the fraction 41/42; small leaks stay as they are.
+    #[test]
+    fn leaks_are_bounded_fractions() {
+        assert!((leak_fraction(41.0) - 41.0 / 42.0).abs() < 1e-15);
+        assert!((leak_fraction(1e-4) - 1e-4).abs() < 1e-8);
+        assert_eq!(leak_fraction(f64::INFINITY), 1.0);
+        assert_eq!(shown("leak_plus", 1.0), 0.5);
+        assert_eq!(shown("imbalance", 1.0), 1.0);
+    }
+
+    #[test]
+    fn tails_read_the_end_that_matters() {
+        assert_eq!(tail_of("k_prime"), Tail::Lower);
+        assert_eq!(tail_of("scb_40_mssim"), Tail::Lower);
+        assert_eq!(tail_of("imbalance"), Tail::UpperAbs);
+        let rec = |v: f64| TrialRecord {
+            index: 0,
+            deviations: Vec::new(),
+            compensators: Vec::new(),
+            values: vec![("imbalance".into(), v), ("k_prime".into(), 1.0 + v)],
+            error: None,
+        };
+        let recs: Vec<TrialRecord> = (0..101).map(|i| rec((i as f64 - 50.0) / 1000.0)).collect();
+        let ok: Vec<&TrialRecord> = recs.iter().collect();
+        let limit = Limit {
+            metric: "imbalance".into(),
+            min: None,
+            max: None,
+            abs_max: Some(0.04),
+        };
+        let rows = tails(&["imbalance".into(), "k_prime".into()], &ok, &[limit]);
+        // |imbalance| runs 0 … 0.05, two values per step: worst 10 % beyond 0.045.
+        assert!((rows[0].worst_10_percent - 0.045).abs() < 1e-12);
+        assert_eq!(rows[0].worst, 0.05);
+        // 20 of 101 beyond 0.04.
+        assert!((rows[0].beyond_limits.unwrap() - 20.0 / 101.0).abs() < 1e-12);
+        assert!((rows[1].worst_10_percent - 0.96).abs() < 1e-12);
+        assert_eq!(rows[1].worst, 0.95);
+        assert_eq!(rows[1].beyond_limits, None);
+    }
+}
