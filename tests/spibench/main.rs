@@ -12,6 +12,7 @@ mod cli_sweep;
 mod cli_tolerance;
 mod common;
 mod fuzz;
+mod kernel_se;
 mod layering;
 mod output_dirs;
 mod outputs_schema;
