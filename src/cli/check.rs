@@ -339,7 +339,8 @@ pub fn check_bench(scene: &str, bench: &Bench, wl: f64) -> Result<CheckReport> {
             let l = &prescriptions[i];
             let (f, ..) = cardinal(l, l.glass.index(wl));
             let e = &mut entries[i];
-            if let (Some(arm), Some(s), Some((_, a, pl))) = (&mut e.arm, e.object_distance_m, &pupil_to_dmd)
+            if let (Some(arm), Some(s), Some((_, a, pl))) =
+                (&mut e.arm, e.object_distance_m, &pupil_to_dmd)
             {
                 let (_, _, spot) = arm_beam(f, s, *a, *pl, half_diagonal, Some(z));
                 arm.diode = Some(["pd_plus", "pd_minus"][d].to_string());
@@ -515,14 +516,23 @@ fn print_report(r: &CheckReport) {
                 mm(a.dmd_image_distance_m),
                 mm(a.dmd_image_diagonal_m)
             );
-            match (&a.diode, a.diode_distance_m, a.spot_diameter_m, a.diode_fill) {
+            match (
+                &a.diode,
+                a.diode_distance_m,
+                a.spot_diameter_m,
+                a.diode_fill,
+            ) {
                 (Some(d), Some(z), Some(spot), Some(fill)) => println!(
                     "  {:<22} on {d} ({} mm along the chief ray): beam Ø {} mm, {:.0} % of the diode's diameter{}",
                     "",
                     mm(z),
                     mm(spot),
                     100.0 * fill,
-                    if fill > 1.0 { " (overfilled: the diode clips the beam)" } else { "" }
+                    if fill > 1.0 {
+                        " (overfilled: the diode clips the beam)"
+                    } else {
+                        ""
+                    }
                 ),
                 _ => println!("  {:<22} the arm's chief ray reaches no diode", ""),
             }
@@ -667,7 +677,10 @@ mod tests {
         // at 300 mm −0.0 mm; chief ray y = 5 + 0.025·150 = 8.75 mm, slope 0.025 − 0.0875, at
         // 300 mm −10 mm; beam Ø 2·(0 + 10) = 20 mm. The pupil (350 mm) is imaged at 140 mm.
         let (sp, mp, d) = arm_beam(0.1, 0.15, 0.01, 0.2, 0.005, Some(0.3));
-        assert!((sp - 0.14).abs() < 1e-12 && (mp + 0.4).abs() < 1e-12, "{sp} {mp}");
+        assert!(
+            (sp - 0.14).abs() < 1e-12 && (mp + 0.4).abs() < 1e-12,
+            "{sp} {mp}"
+        );
         assert!((d.unwrap() - 0.02).abs() < 1e-12, "{d:?}");
     }
 }

@@ -698,7 +698,12 @@ fn noise_null(
     let [x0, y0, x1, y1] = triplet_box(bars);
     let corners = [(x0, y0), (x0, y1), (x1, y0), (x1, y1)].map(|(x, y)| map.apply(x, y));
     let lo = |k: usize| corners.iter().map(|p| p[k]).fold(f64::INFINITY, f64::min);
-    let hi = |k: usize| corners.iter().map(|p| p[k]).fold(f64::NEG_INFINITY, f64::max);
+    let hi = |k: usize| {
+        corners
+            .iter()
+            .map(|p| p[k])
+            .fold(f64::NEG_INFINITY, f64::max)
+    };
     let size = [residual.width as f64, residual.height as f64];
     let range = |k: usize| (-lo(k), size[k] - hi(k));
     let steps = |(a, z): (f64, f64)| -> Vec<f64> {
@@ -903,7 +908,8 @@ mod tests {
             let sd = (blotches.data.iter().map(|v| v * v).sum::<f64>() / (n * n) as f64).sqrt();
             let noise = blotches.map(|v| 80.0 * v / sd);
             // Visibly noise: a faint copy of the chart under the blotches.
-            let image = Raster::from_fn(n, n, |r, c| 20.0 + 0.1 * truth.get(r, c) + noise.get(r, c));
+            let image =
+                Raster::from_fn(n, n, |r, c| 20.0 + 0.1 * truth.get(r, c) + noise.get(r, c));
             let residual = Raster::from_fn(n, n, |r, c| image.get(r, c) - truth.get(r, c));
             let plain = read_resolution(&image, &chart, &map, &opts).unwrap();
             let tested =
@@ -911,7 +917,12 @@ mod tests {
             let count = |o: &ResolutionReadout| o.elements.iter().filter(|e| e.resolved).count();
             without += count(&plain);
             with += count(&tested);
-            assert!(tested.elements.iter().all(|e| e.noise_contrast_vertical.is_some()));
+            assert!(
+                tested
+                    .elements
+                    .iter()
+                    .all(|e| e.noise_contrast_vertical.is_some())
+            );
         }
         eprintln!("noise: {without} elements resolved without the null, {with} with it");
         assert!(without >= 5, "{without}");
@@ -926,7 +937,10 @@ mod tests {
         let residual = Raster::from_fn(n, n, |r, c| clean.get(r, c) - truth.get(r, c));
         let plain = read_resolution(&clean, &chart, &map, &opts).unwrap();
         let tested = read_resolution_against(&clean, Some(&residual), &chart, &map, &opts).unwrap();
-        eprintln!("clean: {:?} vs {:?}", plain.finest_resolved, tested.finest_resolved);
+        eprintln!(
+            "clean: {:?} vs {:?}",
+            plain.finest_resolved, tested.finest_resolved
+        );
         assert!(plain.finest_resolved.is_some());
         assert_eq!(tested.finest_resolved, plain.finest_resolved);
         let wrong = Raster::zeros(n - 1, n);

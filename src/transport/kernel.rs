@@ -20,11 +20,7 @@ impl Transport {
     /// [`Transport::from_kernel`] through the kernel's linear part ([`Kernel::apply_linear`]:
     /// paths that met the chart more than once weighted by their first pixel alone), the model
     /// of the linear operator `pipeline::operator`.
-    pub fn from_kernel_linear(
-        bench: &Bench,
-        kernel: &Kernel,
-        object: &[f64],
-    ) -> Result<Transport> {
+    pub fn from_kernel_linear(bench: &Bench, kernel: &Kernel, object: &[f64]) -> Result<Transport> {
         Transport::from_kernel_with(bench, kernel, object, true)
     }
 

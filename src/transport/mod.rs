@@ -349,11 +349,12 @@ impl Transport {
             Some(f) => (centred(sq, v).max(0.0) * f).sqrt(),
             None => f64::INFINITY,
         };
-        let g_map_stderr =
-            Arm::ALL.map(|arm| (0..units).map(|j| unit_se(m.g2[arm][j], g_a[arm][j])).collect());
-        let x_map_stderr = (0..units)
-            .map(|j| unit_se(m.x2[j], parts.x_w[j]))
-            .collect();
+        let g_map_stderr = Arm::ALL.map(|arm| {
+            (0..units)
+                .map(|j| unit_se(m.g2[arm][j], g_a[arm][j]))
+                .collect()
+        });
+        let x_map_stderr = (0..units).map(|j| unit_se(m.x2[j], parts.x_w[j])).collect();
         let ambient_a = Arm::ALL.map(|arm| bench.detectors()[arm].ambient_current_a);
         let dark_a = Arm::ALL.map(|arm| bench.detectors()[arm].dark_current_a);
         let c_traced = parts.c_traced;

@@ -70,7 +70,10 @@ fn objects() -> [(&'static str, Raster); 2] {
         let mut data = vec![0.0; GRID * GRID];
         for y in 0..GRID {
             for x in 0..GRID {
-                let (u, v) = (x as f64 + 0.5 - 0.5 * GRID as f64, y as f64 + 0.5 - 0.5 * GRID as f64);
+                let (u, v) = (
+                    x as f64 + 0.5 - 0.5 * GRID as f64,
+                    y as f64 + 0.5 - 0.5 * GRID as f64,
+                );
                 if f(u, v) {
                     data[y * GRID + x] = 1.0;
                 }
@@ -148,7 +151,8 @@ fn reported_standard_errors_match_the_replicate_spread() {
         None => rows.push((label, vec![e])),
     };
     for seed in 0..REPLICATES {
-        let kernel = trace_kernel(&kernel_bench, grid, &TraceOptions::new(RAYS, 1000 + seed)).unwrap();
+        let kernel =
+            trace_kernel(&kernel_bench, grid, &TraceOptions::new(RAYS, 1000 + seed)).unwrap();
         for ((name, object), bench) in objects.iter().zip(&direct) {
             let tk = Transport::from_kernel(&kernel_bench, &kernel, &object.data).unwrap();
             for (q, e) in quantities(&tk) {

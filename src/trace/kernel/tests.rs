@@ -198,23 +198,6 @@ fn kernel_matches_direct_traces() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
-/// Bars over the whole field (to its edges) and a disk: mean transmittance about 0.22.
-fn bars_and_disk() -> Raster {
-    let mut r = Raster::new(GRID, GRID, vec![0.0; GRID * GRID]).unwrap();
-    let c = 0.5 * GRID as f64;
-    for y in 0..GRID {
-        for x in 0..GRID {
-            let bar = (x % 16) < 3;
-            let (dx, dy) = (x as f64 + 0.5 - c, y as f64 + 0.5 - c - 20.0);
-            let disk = dx * dx + dy * dy < 14.0 * 14.0;
-            if bar || disk {
-                r.data[y * GRID + x] = 1.0;
-            }
-        }
-    }
-    r
-}
-
 /// The paper bench's lamp without chart guiding (its field sampling aims at the chart's clear
 /// areas, so it differs between a clear chart and an object), for traces with common random
 /// numbers.
@@ -273,7 +256,10 @@ fn kernel_product_is_the_direct_trace_path_by_path() {
     let close = |a: f64, b: f64, scale: f64| (a - b).abs() <= 1e-7 * scale;
     let scale_t = td.t_a.iter().fold(0.0f64, |m, v| m.max(v.abs()));
     for (j, (a, b)) in tk.t_a.iter().zip(&td.t_a).enumerate() {
-        assert!(close(*a, *b, scale_t), "T entry {j}: kernel {a:e}, direct {b:e}");
+        assert!(
+            close(*a, *b, scale_t),
+            "T entry {j}: kernel {a:e}, direct {b:e}"
+        );
     }
     let scale_x = td.x_w.iter().fold(0.0f64, |m, v| m.max(v.abs()));
     for (a, b) in tk.x_w.iter().zip(&td.x_w) {
@@ -282,7 +268,10 @@ fn kernel_product_is_the_direct_trace_path_by_path() {
     for arm in Arm::ALL {
         let (a, b) = (tk.c_traced[arm].value, td.c_traced[arm].value);
         eprintln!("c{arm:?}: kernel {a:.6e}, direct {b:.6e}");
-        assert!(close(a, b, b.abs()), "c {arm:?}: kernel {a:e}, direct {b:e}");
+        assert!(
+            close(a, b, b.abs()),
+            "c {arm:?}: kernel {a:e}, direct {b:e}"
+        );
     }
     // The first meeting's weight alone over-counts: more light than the direct trace in T
     // (the currents per unit and state) and in c₋.
@@ -297,5 +286,8 @@ fn kernel_product_is_the_direct_trace_path_by_path() {
         kernel.ghosts.len()
     );
     assert!(excess_t > 1e-6 * scale_t, "{excess_t:e}");
-    assert!(c_minus >= direct_c);
+    assert!(
+        c_minus >= direct_c * (1.0 - 1e-9),
+        "{c_minus:e} vs {direct_c:e}"
+    );
 }
