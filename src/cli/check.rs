@@ -85,8 +85,10 @@ pub struct LensEntry {
 /// no vignetting; see [`arm_beam`]).
 #[derive(Debug, Clone, Serialize)]
 pub struct ArmLensEntry {
-    /// The pupil: the imaging lens's aperture (its back principal plane and semi-diameter),
-    /// `pupil_to_dmd_m` before the DMD along the chief ray.
+    /// The pupil: the imaging lens's whole clear aperture (its back principal plane and
+    /// semi-diameter), `pupil_to_dmd_m` before the DMD along the chief ray. The lit part of it
+    /// (the filament's image in a Köhler-like bench) is smaller, so the beam and fill below are
+    /// upper bounds: what the arm must accept if the imaging lens's aperture is filled.
     pub pupil: String,
     pub pupil_diameter_m: f64,
     pub pupil_to_dmd_m: f64,
@@ -523,13 +525,13 @@ fn print_report(r: &CheckReport) {
                 a.diode_fill,
             ) {
                 (Some(d), Some(z), Some(spot), Some(fill)) => println!(
-                    "  {:<22} on {d} ({} mm along the chief ray): beam Ø {} mm, {:.0} % of the diode's diameter{}",
+                    "  {:<22} on {d} ({} mm along the chief ray): beam Ø ≤ {} mm (whole pupil filled), ≤ {:.0} % of the diode's diameter{}",
                     "",
                     mm(z),
                     mm(spot),
                     100.0 * fill,
                     if fill > 1.0 {
-                        " (overfilled: the diode clips the beam)"
+                        " (a filled pupil would overfill the diode)"
                     } else {
                         ""
                     }
