@@ -506,14 +506,22 @@ fn print_report(r: &CheckReport) {
             None => println!("  {:<22} on no chief ray: no conjugates", ""),
         }
         if let Some(a) = &l.arm {
+            // One short line per item: the tables fit 100 columns.
             println!(
-                "  {:<22} pupil: {} (Ø {} mm, {} mm before the DMD) imaged at s' = {} mm, Ø {} mm\n  {:<22} DMD pattern imaged at s' = {} mm, diagonal {} mm",
+                "  {:<22} pupil: {} (Ø {} mm,",
                 "",
                 a.pupil,
-                mm(a.pupil_diameter_m),
-                mm(a.pupil_to_dmd_m),
+                mm(a.pupil_diameter_m)
+            );
+            println!("  {:<22}   {} mm before the DMD)", "", mm(a.pupil_to_dmd_m));
+            println!(
+                "  {:<22} pupil image s' = {} mm, Ø {} mm",
+                "",
                 mm(a.pupil_image_distance_m),
-                mm(a.pupil_image_diameter_m),
+                mm(a.pupil_image_diameter_m)
+            );
+            println!(
+                "  {:<22} DMD image s' = {} mm, diagonal {} mm",
                 "",
                 mm(a.dmd_image_distance_m),
                 mm(a.dmd_image_diagonal_m)
@@ -525,16 +533,11 @@ fn print_report(r: &CheckReport) {
                 a.diode_fill,
             ) {
                 (Some(d), Some(z), Some(spot), Some(fill)) => println!(
-                    "  {:<22} on {d} ({} mm along the chief ray): beam Ø ≤ {} mm (whole pupil filled), ≤ {:.0} % of the diode's diameter{}",
+                    "  {:<22} {d} at {} mm: beam Ø ≤ {} mm, fill ≤ {:.0} % (pupil filled)",
                     "",
                     mm(z),
                     mm(spot),
-                    100.0 * fill,
-                    if fill > 1.0 {
-                        " (a filled pupil would overfill the diode)"
-                    } else {
-                        ""
-                    }
+                    100.0 * fill
                 ),
                 _ => println!("  {:<22} the arm's chief ray reaches no diode", ""),
             }
