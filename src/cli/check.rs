@@ -77,6 +77,56 @@ pub struct LensEntry {
     pub image_distance_m: Option<f64>,
     /// Lateral magnification −s'/s.
     pub magnification: Option<f64>,
+    /// For an arm lens (object: the DMD), what it does with the beam; null for other lenses.
+    pub arm: Option<ArmLensEntry>,
+}
+
+/// What an arm lens does with the beam from the DMD (paraxial, unfolded along the chief ray,
+/// no vignetting; see [`arm_beam`]).
+#[derive(Debug, Clone, Serialize)]
+pub struct ArmLensEntry {
+    /// The pupil: the imaging lens's whole clear aperture (its back principal plane and
+    /// semi-diameter), `pupil_to_dmd_m` before the DMD along the chief ray. The lit part of it
+    /// (the filament's image in a Köhler-like bench) is smaller, so the beam and fill below are
+    /// upper bounds: what the arm must accept if the imaging lens's aperture is filled.
+    pub pupil: String,
+    pub pupil_diameter_m: f64,
+    pub pupil_to_dmd_m: f64,
+    /// Where this lens images the pupil (from its back principal plane, along the light) and
+    /// the pupil image's diameter.
+    pub pupil_image_distance_m: f64,
+    pub pupil_image_diameter_m: f64,
+    /// Where it images the DMD's pattern area (= `image_distance_m`) and that image's diagonal.
+    pub dmd_image_distance_m: f64,
+    pub dmd_image_diagonal_m: f64,
+    /// The diode the arm's chief ray reaches, its distance from the back principal plane along
+    /// the chief ray (fold mirrors included), the beam's diameter there (every point of the
+    /// pattern area through the whole pupil) and its fill of the diode's diameter (> 1: the
+    /// diode clips the beam).
+    pub diode: Option<String>,
+    pub diode_distance_m: Option<f64>,
+    pub spot_diameter_m: Option<f64>,
+    pub diode_fill: Option<f64>,
+}
+
+/// The beam of an arm lens of focal length `f` at `s` from the DMD (object distance), for a
+/// pupil of semi-diameter `a` at `l` before the DMD and a pattern area of half-diagonal `h`:
+/// (pupil image distance, pupil magnification, beam diameter at `z` behind the lens). Paraxial
+/// ray heights y and slopes u through a thin lens at the principal planes (u' = u − y/f; e.g.
+/// Hecht, *Optics*, §6.1): the marginal ray leaves the DMD's centre with slope a/l, the chief
+/// ray leaves the pattern's corner at height h with slope h/l (it comes through the pupil's
+/// centre); the beam's radius at z is |y_marginal| + |y_chief|.
+pub fn arm_beam(f: f64, s: f64, a: f64, l: f64, h: f64, z: Option<f64>) -> (f64, f64, Option<f64>) {
+    let sp = l + s;
+    let sp_img = 1.0 / (1.0 / f - 1.0 / sp);
+    let mp = -sp_img / sp;
+    let height = |y0: f64, u0: f64, z: f64| {
+        let y = y0 + u0 * s;
+        let u = u0 - y / f;
+        y + u * z
+    };
+    let d = z.map(|z| 2.0 * (height(0.0, a / l, z).abs() + height(h, h / l, z).abs()));
+    (sp_img, mp, d)
 }
 
 /// A photodiode's numerical aperture.
@@ -171,10 +221,18 @@ pub fn check_bench(scene: &str, bench: &Bench, wl: f64) -> Result<CheckReport> {
                 object_distance_m: None,
                 image_distance_m: None,
                 magnification: None,
+                arm: None,
             }
         })
         .collect();
 
+    let pattern_on_dmd = bench.dmd().map(|s| {
+        let d = &s.dmd;
+        let p = d.pattern;
+        let side = p.mirrors_per_unit as f64 * d.pitch;
+        [p.units_across as f64 * side, p.units_down as f64 * side]
+    });
+    let half_diagonal = pattern_on_dmd.map_or(0.0, |[w, h]| 0.5 * w.hypot(h));
     // Walk the two chief rays from the lamp: objects, lens conjugates, the chart → DMD chain.
     let lamp = &bench.lamp().frame;
     let mut chart_to_dmd = None;
@@ -184,10 +242,25 @@ pub fn check_bench(scene: &str, bench: &Bench, wl: f64) -> Result<CheckReport> {
         // Magnification accumulated since the last chart.
         let mut since_chart: Option<f64> = None;
         let mut last: Option<usize> = None;
+        // The pupil (name, semi-diameter) and the path from it; the arm lens (entry, its back
+        // principal plane's path) and the path from it to the ray's end.
+        let mut pupil: Option<(String, f64, f64)> = None;
+        let mut pupil_to_dmd: Option<(String, f64, f64)> = None;
+        let mut arm_lens: Option<(usize, f64)> = None;
+        let mut trail = ray.points[0];
         for (k, el) in ray.elements.iter().enumerate() {
             let p = ray.points[k + 1];
+            let step = (p - trail).length();
+            trail = p;
+            if let Some(pp) = &mut pupil {
+                pp.2 += step;
+            }
+            if let Some(a) = &mut arm_lens {
+                a.1 += step;
+            }
             match el {
                 None => {
+                    pupil_to_dmd = pupil.take();
                     if chart_to_dmd.is_none() {
                         chart_to_dmd = since_chart;
                     }
@@ -221,26 +294,65 @@ pub fn check_bench(scene: &str, bench: &Bench, wl: f64) -> Result<CheckReport> {
                     let s = (front_h - object.0).dot(l.axis);
                     let s_img = 1.0 / (1.0 / f - 1.0 / s);
                     let m = -s_img / s;
+                    let is_dmd_object = object.1 == "DMD pattern centre";
+                    let images_chart = object.1.starts_with("chart");
                     let e = &mut entries[i];
                     if e.object.is_none() {
                         e.object = Some(object.1.clone());
                         e.object_distance_m = Some(s);
                         e.image_distance_m = Some(s_img);
                         e.magnification = Some(m);
+                        if let (true, Some((name, a, l))) = (is_dmd_object, &pupil_to_dmd) {
+                            let (pupil_img, pupil_m, _) =
+                                arm_beam(f, s, *a, *l, half_diagonal, None);
+                            e.arm = Some(ArmLensEntry {
+                                pupil: format!("aperture of `{name}`"),
+                                pupil_diameter_m: 2.0 * a,
+                                pupil_to_dmd_m: *l,
+                                pupil_image_distance_m: pupil_img,
+                                pupil_image_diameter_m: 2.0 * a * pupil_m.abs(),
+                                dmd_image_distance_m: s_img,
+                                dmd_image_diagonal_m: 2.0 * half_diagonal * m.abs(),
+                                diode: None,
+                                diode_distance_m: None,
+                                spot_diameter_m: None,
+                                diode_fill: None,
+                            });
+                            // The path from the back principal plane to this surface point.
+                            arm_lens = Some((i, -(back_h - p).length()));
+                        }
+                    }
+                    if images_chart {
+                        // The pupil of the light on the DMD: this lens's aperture, from its
+                        // back principal plane (the path from there to the surface point).
+                        pupil = Some((l.name.clone(), l.semi_diameter, -(p - back_h).length()));
                     }
                     since_chart = since_chart.map(|x| x * m);
                     object = (back_h + s_img * l.axis, format!("image by `{name}`"));
                 }
             }
         }
+        if let (Some(a), Some(end)) = (&mut arm_lens, ray.points.last()) {
+            // The ray's last point (on the diode) if the walk above did not reach it.
+            a.1 += (*end - trail).length();
+        }
+        if let (Some((i, z)), ChiefEnd::Detector(d)) = (arm_lens, ray.end) {
+            let det = &bench.detectors()[d];
+            let l = &prescriptions[i];
+            let (f, ..) = cardinal(l, l.glass.index(wl));
+            let e = &mut entries[i];
+            if let (Some(arm), Some(s), Some((_, a, pl))) =
+                (&mut e.arm, e.object_distance_m, &pupil_to_dmd)
+            {
+                let (_, _, spot) = arm_beam(f, s, *a, *pl, half_diagonal, Some(z));
+                arm.diode = Some(["pd_plus", "pd_minus"][d].to_string());
+                arm.diode_distance_m = Some(z);
+                arm.spot_diameter_m = spot;
+                arm.diode_fill = spot.map(|v| v / (2.0 * det.radius));
+            }
+        }
     }
 
-    let pattern_on_dmd = bench.dmd().map(|s| {
-        let d = &s.dmd;
-        let p = d.pattern;
-        let side = p.mirrors_per_unit as f64 * d.pitch;
-        [p.units_across as f64 * side, p.units_down as f64 * side]
-    });
     let pattern_on_chart = match (pattern_on_dmd, chart_to_dmd) {
         (Some([w, h]), Some(m)) if m != 0.0 => Some([w / m.abs(), h / m.abs()]),
         _ => None,
@@ -393,6 +505,43 @@ fn print_report(r: &CheckReport) {
             ),
             None => println!("  {:<22} on no chief ray: no conjugates", ""),
         }
+        if let Some(a) = &l.arm {
+            // One short line per item: the tables fit 100 columns.
+            println!(
+                "  {:<22} pupil: {} (Ø {} mm,",
+                "",
+                a.pupil,
+                mm(a.pupil_diameter_m)
+            );
+            println!("  {:<22}   {} mm before the DMD)", "", mm(a.pupil_to_dmd_m));
+            println!(
+                "  {:<22} pupil image s' = {} mm, Ø {} mm",
+                "",
+                mm(a.pupil_image_distance_m),
+                mm(a.pupil_image_diameter_m)
+            );
+            println!(
+                "  {:<22} DMD image s' = {} mm, diagonal {} mm",
+                "",
+                mm(a.dmd_image_distance_m),
+                mm(a.dmd_image_diagonal_m)
+            );
+            match (
+                &a.diode,
+                a.diode_distance_m,
+                a.spot_diameter_m,
+                a.diode_fill,
+            ) {
+                (Some(d), Some(z), Some(spot), Some(fill)) => println!(
+                    "  {:<22} {d} at {} mm: beam Ø ≤ {} mm, fill ≤ {:.0} % (pupil filled)",
+                    "",
+                    mm(z),
+                    mm(spot),
+                    100.0 * fill
+                ),
+                _ => println!("  {:<22} the arm's chief ray reaches no diode", ""),
+            }
+        }
     }
     match r.chart_to_dmd_magnification {
         Some(m) => println!("chart → DMD magnification: {m:.4}"),
@@ -497,5 +646,46 @@ mod tests {
             assert!(d.last_optic.as_deref().unwrap().ends_with("_fold"));
         }
         assert!(check_bench("paper", &bench, 200e-9).is_err());
+    }
+
+    /// The arm lenses of the paper bench: the pupil (the imaging lens's aperture, 2f = 202 mm
+    /// before the DMD) and the DMD imaged by each arm lens, and the beam on the 5 mm diode
+    /// against the paraxial formula by hand.
+    #[test]
+    fn arm_lens_pupil_dmd_image_and_diode_fill() {
+        let bench = crate::trace::testing::paper_bench_with_mask();
+        let r = check_bench("paper", &bench, 850e-9).unwrap();
+        for name in ["arm_plus_lens", "arm_minus_lens"] {
+            let l = r.lenses.iter().find(|l| l.name == name).unwrap();
+            let a = l.arm.as_ref().unwrap_or_else(|| panic!("{name}: {l:?}"));
+            eprintln!("{name}: {a:?}");
+            assert!(a.pupil.contains("imaging_lens"), "{a:?}");
+            assert!((a.pupil_to_dmd_m - 0.202).abs() < 0.01, "{a:?}");
+            assert_eq!(a.dmd_image_distance_m, l.image_distance_m.unwrap());
+            let (f, s) = (l.focal_length_m, l.object_distance_m.unwrap());
+            // Gaussian conjugate of the pupil at l + s.
+            let sp = a.pupil_to_dmd_m + s;
+            let expect = sp * f / (sp - f);
+            assert!((a.pupil_image_distance_m - expect).abs() < 1e-9, "{a:?}");
+            let d = a.diode.as_deref().unwrap();
+            assert!(name.contains(if d == "pd_plus" { "plus" } else { "minus" }));
+            let (z, spot, fill) = (
+                a.diode_distance_m.unwrap(),
+                a.spot_diameter_m.unwrap(),
+                a.diode_fill.unwrap(),
+            );
+            assert!(z > 0.0 && spot > 0.0);
+            assert!((fill - spot / 5e-3).abs() < 1e-12, "{a:?}");
+        }
+        // By hand: f = 100 mm, DMD at 150 mm, pupil Ø 20 mm at 200 mm, pattern half-diagonal
+        // 5 mm, diode 300 mm behind: marginal ray y = 0.05·150 = 7.5 mm, slope 0.05 − 0.075,
+        // at 300 mm −0.0 mm; chief ray y = 5 + 0.025·150 = 8.75 mm, slope 0.025 − 0.0875, at
+        // 300 mm −10 mm; beam Ø 2·(0 + 10) = 20 mm. The pupil (350 mm) is imaged at 140 mm.
+        let (sp, mp, d) = arm_beam(0.1, 0.15, 0.01, 0.2, 0.005, Some(0.3));
+        assert!(
+            (sp - 0.14).abs() < 1e-12 && (mp + 0.4).abs() < 1e-12,
+            "{sp} {mp}"
+        );
+        assert!((d.unwrap() - 0.02).abs() < 1e-12, "{d:?}");
     }
 }

@@ -52,6 +52,9 @@ pub fn maps(t: &Transport) -> Vec<(&'static str, Vec<f64>)> {
         ("k_minus_a_per_w", t.k_map[1].clone()),
         ("k_plus_stderr", t.k_map_stderr[0].clone()),
         ("k_minus_stderr", t.k_map_stderr[1].clone()),
+        ("x_stderr_w", t.x_map_stderr.clone()),
+        ("g_plus_stderr_a", t.g_map_stderr[0].clone()),
+        ("g_minus_stderr_a", t.g_map_stderr[1].clone()),
     ]
 }
 
@@ -420,11 +423,20 @@ mod tests {
         let img = image::open(out.join("k_plus.png")).unwrap();
         assert!(img.width() >= 480 && img.height() >= 480);
         assert!(out.join("k_plus.svg").is_file());
-        // The EXR holds the seven channels at 4 × 4.
+        // The EXR holds the ten channels at 4 × 4: the maps and their standard errors.
         let exr = exr::prelude::read_all_data_from_file(out.join("maps.exr")).unwrap();
         let layer = &exr.layer_data[0];
         assert_eq!(layer.size, exr::prelude::Vec2(4, 4));
-        assert_eq!(layer.channel_data.list.len(), 7);
+        assert_eq!(layer.channel_data.list.len(), 10);
+        let names: Vec<String> = layer
+            .channel_data
+            .list
+            .iter()
+            .map(|c| c.name.to_string())
+            .collect();
+        for n in ["x_stderr_w", "g_plus_stderr_a", "g_minus_stderr_a"] {
+            assert!(names.iter().any(|c| c == n), "{n} in {names:?}");
+        }
         // Running again over an existing directory replaces the files and leaves no staging.
         run(&args).unwrap();
         let leftovers: Vec<_> = std::fs::read_dir(out.parent().unwrap())

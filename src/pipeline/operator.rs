@@ -24,7 +24,10 @@
 //! the clear object (t = 1) instead, so that A t + y₀ equals its measurement for objects of the
 //! clear object's totals and scales with them otherwise.
 //!
-//! What the operator leaves out, and the simulated measurement keeps: the single pole's
+//! What the operator leaves out, and the simulated measurement keeps: the light of paths that
+//! met the chart more than once, weighted here by the first pixel they met instead of the
+//! product of every pixel met (`Kernel::apply_linear` against `Kernel::apply`; about 1 % of
+//! the offset c₋ on the paper bench, trace::kernel), the single pole's
 //! transient from the previous frame (e^{−2πB·t_settle}, below 10⁻³⁰ at the paper's settings),
 //! clipping at the output swing and the oscilloscope's window, lamp and ambient drift, and the
 //! noise.

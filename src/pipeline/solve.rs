@@ -8,7 +8,9 @@ use super::{Progress, Recorded, Stage};
 use crate::acquisition::{PatternSet, Scheme, patterns_for_ratio};
 use crate::error::Result;
 use crate::metrics;
-use crate::metrics::resolution::{ChartToImage, ResolutionOptions, read_resolution};
+use crate::metrics::resolution::{
+    ChartToImage, ResolutionOptions, read_resolution, read_resolution_against,
+};
 use crate::objects::usaf::UsafChart;
 use crate::raster::Raster;
 use crate::reconstruction::Solver;
@@ -108,11 +110,27 @@ fn finest(
     options: &ResolutionOptions,
 ) -> Result<Option<Resolved>> {
     let r = read_resolution(image, chart, map, options)?;
-    Ok(r.finest_resolved.map(|e| Resolved {
+    Ok(resolved_of(&r))
+}
+
+/// The finest element resolved in `image` with its noise known from `residual`.
+fn finest_against(
+    image: &Raster,
+    residual: Option<&Raster>,
+    chart: &UsafChart,
+    map: &ChartToImage,
+) -> Result<Option<Resolved>> {
+    let options = ResolutionOptions::default();
+    let r = read_resolution_against(image, residual, chart, map, &options)?;
+    Ok(resolved_of(&r))
+}
+
+fn resolved_of(r: &metrics::resolution::ResolutionReadout) -> Option<Resolved> {
+    r.finest_resolved.map(|e| Resolved {
         group: e.group,
         element: e.element,
         lp_per_mm: metrics::resolution::usaf_lp_per_mm(e.group, e.element),
-    }))
+    })
 }
 
 /// One scheme at one sampling ratio.
@@ -209,12 +227,14 @@ pub fn solve_stage(
             };
             let scores = metrics::score(truth, &sol.image)?;
             let finest_resolved = match resolution {
-                Some(c) => finest(
-                    &scores.image,
-                    &c.chart,
-                    &c.map,
-                    &ResolutionOptions::default(),
-                )?,
+                Some(c) => {
+                    // The image's noise from its residual against the truth (the resolution
+                    // read-out's null, metrics::resolution).
+                    let residual = Raster::from_fn(across, down, |r, col| {
+                        scores.image.get(r, col) - truth.get(r, col)
+                    });
+                    finest_against(&scores.image, Some(&residual), &c.chart, &c.map)?
+                }
                 None => None,
             };
             let out = SchemeResult {

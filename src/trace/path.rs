@@ -76,8 +76,9 @@ struct Path {
     arrived: bool,
     /// Set on arrival: the next mirror hit books the incident power to x of `unit`.
     x_pending: bool,
-    /// The object pixel of the path's first meeting with the chart face, for a recorder that
-    /// tracks an object grid ([`NO_PIXEL`] otherwise or before the chart).
+    /// The object pixels the path has met on the chart face, as the key a recorder that
+    /// tracks an object grid gave at the last meeting ([`NO_PIXEL`] otherwise or before the
+    /// chart).
     pixel: u32,
     /// How many times the path has met a chart face (reflections included).
     chart_hits: u16,
@@ -91,7 +92,9 @@ pub const NO_PIXEL: u32 = u32::MAX;
 pub(super) enum ChartCrossing {
     /// Not tracked: the chart's own mask decides, as in an ordinary trace.
     Untracked,
-    /// Inside the object grid, at this pixel (row-major).
+    /// Inside the object grid: the path's new key (the pixel, row-major, at a first meeting;
+    /// the recorder's key for the pixels met so far after that), given back at the next
+    /// meeting and in every detection and incidence.
     Pixel(u32),
     /// Outside the object grid, which is opaque and black: the path is absorbed.
     Outside,
@@ -198,15 +201,22 @@ pub(super) fn run_batch_sampled<R: Recorder>(
 /// lamp ray with the batch's tally so far.
 ///
 /// The object-kernel trace (`trace::kernel`) also uses `chart_crossing` (where a path meets a
-/// chart face, in the face's local coordinates), `detected` (every photocurrent tallied, with
-/// the path's mirror-state world, unit, object pixel and number of chart meetings) and
+/// chart face, in the face's local coordinates, with the path's key so far), `detected` (every
+/// photocurrent tallied, with the path's mirror-state world, unit, pixel key and number of chart
+/// meetings) and
 /// `incident` (every booking of x_j); the spectral collection (`trace::collection`) uses
 /// `wavelength`. The defaults do nothing.
 pub(super) trait Recorder {
     fn segment(&mut self, o: DVec3, d: DVec3, t: f64);
     fn ray_done(&mut self, tally: &BatchTally);
     #[inline(always)]
-    fn chart_crossing(&mut self, _chart: usize, _x_m: f64, _y_m: f64) -> ChartCrossing {
+    fn chart_crossing(
+        &mut self,
+        _chart: usize,
+        _x_m: f64,
+        _y_m: f64,
+        _pixel: u32,
+    ) -> ChartCrossing {
         ChartCrossing::Untracked
     }
     #[inline(always)]
@@ -550,15 +560,11 @@ fn cross_chart<R: Recorder>(
     let plate = &ctx.bench.charts()[chart];
     let local = plate.frame.to_local(hit);
     p.chart_hits = p.chart_hits.saturating_add(1);
-    match rec.chart_crossing(chart, local.x, local.y) {
+    match rec.chart_crossing(chart, local.x, local.y, p.pixel) {
         ChartCrossing::Untracked => {}
-        ChartCrossing::Pixel(i) => {
-            // The first meeting names the pixel; later ones (ghosts that come back to the
-            // chart) are what the kernel neglects.
-            if p.pixel == NO_PIXEL {
-                p.pixel = i;
-            }
-        }
+        // The recorder names the path's meetings so far (its pixel, or for a path that meets
+        // the chart again, a key of its own for the list of pixels met).
+        ChartCrossing::Pixel(i) => p.pixel = i,
         ChartCrossing::Outside => {
             book(tally, p.world, element, p.w);
             return Flow::End;

@@ -14,6 +14,22 @@ impl Transport {
     /// guards are those of [`Transport::from_tallies`] (`Transport::assemble`), except that the
     /// kernel's centred moments cannot show a unit lit in one batch alone.
     pub fn from_kernel(bench: &Bench, kernel: &Kernel, object: &[f64]) -> Result<Transport> {
+        Transport::from_kernel_with(bench, kernel, object, false)
+    }
+
+    /// [`Transport::from_kernel`] through the kernel's linear part ([`Kernel::apply_linear`]:
+    /// paths that met the chart more than once weighted by their first pixel alone), the model
+    /// of the linear operator `pipeline::operator`.
+    pub fn from_kernel_linear(bench: &Bench, kernel: &Kernel, object: &[f64]) -> Result<Transport> {
+        Transport::from_kernel_with(bench, kernel, object, true)
+    }
+
+    fn from_kernel_with(
+        bench: &Bench,
+        kernel: &Kernel,
+        object: &[f64],
+        linear: bool,
+    ) -> Result<Transport> {
         if object.len() != kernel.grid.pixels() {
             return Err(Error::field(
                 "object",
@@ -31,7 +47,11 @@ impl Transport {
                 "the kernel was traced for another pattern area",
             ));
         }
-        let p = kernel.apply(object);
+        let p = if linear {
+            kernel.apply_linear(object)
+        } else {
+            kernel.apply(object)
+        };
         // A single batch has no spread to measure (see `batch_factor`): NaN, as the batch-means
         // estimates of a trace's tallies give.
         let resolved = batch_factor(p.batches).is_some();

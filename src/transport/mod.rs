@@ -188,6 +188,10 @@ pub struct Transport {
     /// two identical transports compare equal. A transport from an object kernel shows this only
     /// for a single-batch trace (its moments are centred and summed over pixels).
     pub k_map_stderr: [Vec<f64>; 2],
+    /// Standard errors of g±_j (A) and of x_j (W), batch means (the spread of the unit's batch
+    /// sums); +∞ for a single-batch trace, 0 where no light reached the unit.
+    pub g_map_stderr: [Vec<f64>; 2],
+    pub x_map_stderr: Vec<f64>,
     /// c± (A) = traced pattern-independent current + ambient + dark.
     pub c_a: [f64; 2],
     /// The traced part of c± (A) with its standard error.
@@ -336,6 +340,21 @@ impl Transport {
                 }
             }
         }
+        // Σ_b (v_b − v̄)² from the moments: raw sums less B·v̄², or already centred.
+        let centred = |sq: f64, v: f64| {
+            let nb = parts.batches as f64;
+            if m.raw { sq - v * v / nb } else { sq }
+        };
+        let unit_se = |sq: f64, v: f64| match bfac {
+            Some(f) => (centred(sq, v).max(0.0) * f).sqrt(),
+            None => f64::INFINITY,
+        };
+        let g_map_stderr = Arm::ALL.map(|arm| {
+            (0..units)
+                .map(|j| unit_se(m.g2[arm][j], g_a[arm][j]))
+                .collect()
+        });
+        let x_map_stderr = (0..units).map(|j| unit_se(m.x2[j], parts.x_w[j])).collect();
         let ambient_a = Arm::ALL.map(|arm| bench.detectors()[arm].ambient_current_a);
         let dark_a = Arm::ALL.map(|arm| bench.detectors()[arm].dark_current_a);
         let c_traced = parts.c_traced;
@@ -354,6 +373,8 @@ impl Transport {
             g_a,
             k_map,
             k_map_stderr,
+            g_map_stderr,
+            x_map_stderr,
             c_a,
             c_traced,
             ambient_a,

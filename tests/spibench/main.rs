@@ -15,6 +15,7 @@ mod dataset_provenance;
 mod dmd;
 mod findings;
 mod fuzz;
+mod kernel_se;
 mod layering;
 mod output_dirs;
 mod outputs_schema;

@@ -68,7 +68,7 @@ fn operator_matches_the_noise_free_record() {
         } else {
             &object
         };
-        let transport = Transport::from_kernel(&scene.bench, &kernel, t).unwrap();
+        let transport = Transport::from_kernel_linear(&scene.bench, &kernel, t).unwrap();
         let rec = evaluate::acquire(&scene, &transport, &patterns, 9, &|_, _, _| {}).unwrap();
         let frames = &rec.record(scheme.sequence()).unwrap().frames;
         let y = scheme.measurements(frames, m);
@@ -89,7 +89,7 @@ fn kernel_matrices_give_the_kernel_product_exactly() {
     let (_, kernel) = setup();
     let mats = KernelMatrices::new(&kernel);
     let t = random(kernel.grid.pixels(), 7);
-    let p = kernel.apply(&t);
+    let p = kernel.apply_linear(&t);
     let units = kernel.units();
     let bits = |v: &[f64], v0: &[f64]| -> Vec<u64> {
         v.iter().zip(v0).map(|(a, b)| (a + b).to_bits()).collect()

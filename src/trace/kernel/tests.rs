@@ -197,3 +197,97 @@ fn kernel_matches_direct_traces() {
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// The paper bench's lamp without chart guiding (its field sampling aims at the chart's clear
+/// areas, so it differs between a clear chart and an object), for traces with common random
+/// numbers.
+const UNGUIDED: (&str, &str) = (
+    "chart_guided: (chart: \"chart\", share: 0.85, region_mm: (11.0, 11.0)),",
+    "",
+);
+
+/// The kernel's product is the direct trace of the same object, path by path: with the lamp
+/// unguided, the same seed and a binary object on chrome that passes nothing (OD 10, no
+/// reflectance), every path that survives the object in the direct trace is the kernel path of
+/// the same random numbers, with weight Π tᵢ = 1, and every other kernel path has a pixel of
+/// t = 0 among those it met (weight 0). So the products agree to rounding (and the 10⁻¹⁰ leak
+/// of the chrome), with structure at the field's edge (bars to the border) and for paths that
+/// meet the chart more than once. The first meeting's weight alone (the kernel before it kept
+/// ghosts apart) over-counts the light of paths that met a clear pixel, then an opaque one.
+#[test]
+fn kernel_product_is_the_direct_trace_path_by_path() {
+    let rays = 160 * crate::trace::RAYS_PER_BATCH;
+    let mut edits = CHART_EDITS_COMMON.to_vec();
+    edits.push(UNGUIDED);
+    edits.push((
+        "pattern: Usaf(min_group: -2, max_group: 7),",
+        "pattern: Clear,",
+    ));
+    let bench = bench_with("paper_bench.ron", &edits);
+    let grid = ObjectGrid {
+        chart: 0,
+        width_px: GRID,
+        height_px: GRID,
+        width_m: FIELD_MM * 1e-3,
+        height_m: FIELD_MM * 1e-3,
+    };
+    let kernel = trace_kernel(&bench, grid, &TraceOptions::new(rays, 5)).unwrap();
+    assert!(!kernel.ghosts.is_empty());
+    let dir = std::env::temp_dir().join(format!("spibench-kernel-crn-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    // A checkerboard of single pixels: structure everywhere, the field's edges included, so
+    // that a path meeting the chart again at another pixel likely meets the other colour.
+    let object = Raster::from_fn(GRID, GRID, |r, c| ((r + c) % 2) as f64);
+    let file = dir.join("checker.png");
+    crate::report::png::write_gray16(&file, &object, 0.0, 1.0).unwrap();
+    let pattern = format!(
+        "pattern: Image(path: {:?}, width_mm: {FIELD_MM}, height_mm: {FIELD_MM}),",
+        file.display().to_string()
+    );
+    let mut edits = CHART_EDITS_COMMON.to_vec();
+    edits.push(UNGUIDED);
+    edits.push(("pattern: Usaf(min_group: -2, max_group: 7),", &pattern));
+    let direct = bench_with("paper_bench.ron", &edits);
+    let tallies = trace(&direct, &TraceOptions::new(rays, 5)).unwrap();
+    let _ = std::fs::remove_dir_all(&dir);
+    let td = Transport::from_tallies(&direct, &tallies);
+    let x = &object.data;
+    let tk = Transport::from_kernel(&bench, &kernel, x).unwrap();
+    let close = |a: f64, b: f64, scale: f64| (a - b).abs() <= 1e-7 * scale;
+    let scale_t = td.t_a.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    for (j, (a, b)) in tk.t_a.iter().zip(&td.t_a).enumerate() {
+        assert!(
+            close(*a, *b, scale_t),
+            "T entry {j}: kernel {a:e}, direct {b:e}"
+        );
+    }
+    let scale_x = td.x_w.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    for (a, b) in tk.x_w.iter().zip(&td.x_w) {
+        assert!(close(*a, *b, scale_x), "x: kernel {a:e}, direct {b:e}");
+    }
+    for arm in Arm::ALL {
+        let (a, b) = (tk.c_traced[arm].value, td.c_traced[arm].value);
+        eprintln!("c{arm:?}: kernel {a:.6e}, direct {b:.6e}");
+        assert!(
+            close(a, b, b.abs()),
+            "c {arm:?}: kernel {a:e}, direct {b:e}"
+        );
+    }
+    // The first meeting's weight alone over-counts: more light than the direct trace in T
+    // (the currents per unit and state) and in c₋.
+    let first = kernel.apply_linear(x);
+    let excess_t: f64 = first.t.iter().zip(&td.t_a).map(|(a, b)| a - b).sum();
+    let c_minus = first.sums[super::pv_c(Arm::Minus)];
+    let direct_c = td.c_traced[Arm::Minus].value;
+    eprintln!(
+        "first-meeting weighting: Σ T {excess_t:+.3e} A over the direct trace's {:.3e}; c- {c_minus:.6e} ({:+.4} %); {} ghosts",
+        td.t_a.iter().sum::<f64>(),
+        100.0 * (c_minus / direct_c - 1.0),
+        kernel.ghosts.len()
+    );
+    assert!(excess_t > 1e-6 * scale_t, "{excess_t:e}");
+    assert!(
+        c_minus >= direct_c * (1.0 - 1e-9),
+        "{c_minus:e} vs {direct_c:e}"
+    );
+}
