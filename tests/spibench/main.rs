@@ -11,6 +11,7 @@ mod cli_simulate;
 mod cli_sweep;
 mod cli_tolerance;
 mod common;
+mod figures;
 mod fuzz;
 mod layering;
 mod output_dirs;
