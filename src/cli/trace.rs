@@ -234,7 +234,9 @@ fn collection_plot(c: &[Collection; 2], bench: &Bench) -> (LinePlot, PlotOptions
     // The shaded curves on a finer grid than the bins, so that their shapes show.
     let fine: Vec<f64> = {
         let (lo, hi) = (geometric.band_m.0 * 1e9, geometric.band_m.1 * 1e9);
-        (0..=200).map(|k| lo + (hi - lo) * f64::from(k) / 200.0).collect()
+        (0..=200)
+            .map(|k| lo + (hi - lo) * f64::from(k) / 200.0)
+            .collect()
     };
     let mut areas = vec![Area {
         label: "lamp light on the pattern".into(),

@@ -370,7 +370,7 @@ pub fn unit_map_svg(m: &UnitMap) -> Result<String> {
     let bar_x = left + mw + MAP_BAR_GAP;
     let bar_h = mh.max(160.0);
     let total_w = MAP_FIGURE_W;
-    let notes_y = top + bar_h + 58.0;
+    let notes_y = top + bar_h + 70.0;
     let total_h = (notes_y + 2.0 * 20.0 + 4.0).ceil();
     let mut out = String::new();
     let _ = writeln!(
@@ -460,7 +460,10 @@ pub fn unit_map_svg(m: &UnitMap) -> Result<String> {
     let _ = writeln!(out, "</g>");
     // The colour bar with ticks in the map's unit.
     let steps = 64;
-    let _ = writeln!(out, r##"<g class="colour-bar" shape-rendering="crispEdges">"##);
+    let _ = writeln!(
+        out,
+        r##"<g class="colour-bar" shape-rendering="crispEdges">"##
+    );
     for k in 0..steps {
         let y0 = top + bar_h * (1.0 - (k + 1) as f64 / steps as f64);
         let _ = writeln!(
@@ -624,13 +627,27 @@ mod tests {
             .descendants()
             .filter_map(|n| n.attribute("aria-label"))
             .collect();
-        for l in ["unit column", "unit row (0 = top)", "x_j (10⁻⁶ W)", "0", "40", "7"] {
+        for l in [
+            "unit column",
+            "unit row (0 = top)",
+            "x_j (10⁻⁶ W)",
+            "0",
+            "40",
+            "7",
+        ] {
             assert!(labels.contains(&l), "{l} missing from {labels:?}");
         }
-        for n in doc.descendants().filter(|n| n.attribute("aria-label").is_some()) {
+        for n in doc
+            .descendants()
+            .filter(|n| n.attribute("aria-label").is_some())
+        {
             let size: f64 = n.attribute("font-size").unwrap().parse().unwrap();
             // Two units per point.
-            assert!((16.0..=18.0).contains(&size), "{:?}", n.attribute("aria-label"));
+            assert!(
+                (16.0..=18.0).contains(&size),
+                "{:?}",
+                n.attribute("aria-label")
+            );
         }
         assert!(svg.contains(r#"class="colour-bar""#));
         let dir = std::env::temp_dir().join(format!("spibench-maps-{}", std::process::id()));

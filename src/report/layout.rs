@@ -155,64 +155,76 @@ struct Panel {
     top_m: f64,
 }
 
-/// The views laid out at one scale (SVG units per metre): the side view with the top view
-/// under it, sharing its x range and aligned with it (as in an engineering drawing), and the
-/// arm plane beside them. Returns the panels (in `views` order: top, side, arms), the scale
-/// and the drawing's height.
+/// Width kept right of the arm-plane view for the elements' names.
+const LABEL_COLUMN: f64 = 170.0;
+
+/// The views laid out at one scale (SVG units per metre), whichever of two arrangements draws
+/// them larger within the page's width and [`MAX_DRAW_HEIGHT`]: the three side by side (side,
+/// top, arm plane; for tall benches), or the side view with the top view under it, sharing its
+/// x range and aligned with it as in an engineering drawing, and the arm plane beside them (for
+/// flat ones). The arm plane is always rightmost, with the names' column after it. Returns the
+/// panels (in `views` order: top, side, arms), the scale and the drawing's height.
 fn arrange(ext: &[Extent; 3]) -> ([Panel; 3], f64, f64) {
     let (top, side, arms) = (ext[0], ext[1], ext[2]);
-    // Column A: the side and top views share the x range.
-    let xa = (top.0.0.min(side.0.0), top.1.0.max(side.1.0));
-    let col_a = xa.1 - xa.0;
-    let col_b = arms.1.0 - arms.0.0;
-    let (h_side, h_top, h_arms) = (
-        side.1.1 - side.0.1,
-        top.1.1 - top.0.1,
-        arms.1.1 - arms.0.1,
-    );
+    let w = |e: &Extent| e.1.0 - e.0.0;
+    let h = |e: &Extent| e.1.1 - e.0.1;
     let bands = VIEW_TITLE + VIEW_FOOT;
-    let avail_w = TOTAL_WIDTH - 3.0 * MARGIN;
-    let mut scale = avail_w / (col_a + col_b);
-    // Fit the taller column in MAX_DRAW_HEIGHT (the top view may need its minimum height).
-    let height = |k: f64| {
-        let a = h_side * k + (h_top * k).max(MIN_VIEW_HEIGHT) + 2.0 * bands;
-        let b = h_arms * k + bands;
-        a.max(b)
+    let avail_w = TOTAL_WIDTH - 4.0 * MARGIN - LABEL_COLUMN;
+    let fit = |k0: f64, height: &dyn Fn(f64) -> f64| {
+        let mut k = k0;
+        while height(k) > MAX_DRAW_HEIGHT && k > 1e-6 {
+            k *= 0.97;
+        }
+        k
     };
-    while height(scale) > MAX_DRAW_HEIGHT && scale > 1e-6 {
-        scale *= 0.95;
-    }
-    let x_a = MARGIN;
-    let x_b = MARGIN + col_a * scale + MARGIN;
+    // Side by side.
+    let row_h = |k: f64| {
+        (h(&side) * k)
+            .max((h(&top) * k).max(MIN_VIEW_HEIGHT))
+            .max(h(&arms) * k)
+            + bands
+    };
+    let k_row = fit(avail_w / (w(&side) + w(&top) + w(&arms)), &row_h);
+    // Side over top, sharing x.
+    let xa = (top.0.0.min(side.0.0), top.1.0.max(side.1.0));
+    let col_h = |k: f64| {
+        let a = h(&side) * k + (h(&top) * k).max(MIN_VIEW_HEIGHT) + 2.0 * bands;
+        a.max(h(&arms) * k + bands)
+    };
+    let k_col = fit((avail_w + MARGIN) / (xa.1 - xa.0 + w(&arms)), &col_h);
     let y0 = HEAD_BAND + VIEW_TITLE;
-    let side_p = Panel {
-        x: x_a,
-        y: y0,
-        w: col_a * scale,
-        h: h_side * scale,
-        left_m: xa.0,
-        top_m: side.1.1,
-    };
-    let top_h = (h_top * scale).max(MIN_VIEW_HEIGHT);
-    // A short top view is centred in its panel.
-    let top_p = Panel {
-        x: x_a,
-        y: y0 + side_p.h + bands,
-        w: col_a * scale,
-        h: top_h,
-        left_m: xa.0,
-        top_m: top.1.1 + 0.5 * (top_h / scale - h_top),
-    };
-    let arms_p = Panel {
-        x: x_b,
-        y: y0,
-        w: col_b * scale,
-        h: h_arms * scale,
-        left_m: arms.0.0,
-        top_m: arms.1.1,
-    };
-    let total_h = HEAD_BAND + height(scale);
-    ([top_p, side_p, arms_p], scale, total_h)
+    // `min_h`: the top view's minimum height, 0 for the others.
+    let panel =
+        |(x, y): (f64, f64), e: &Extent, k: f64, (left_m, width_m): (f64, f64), min_h: f64| {
+            let ph = (h(e) * k).max(min_h);
+            Panel {
+                x,
+                y,
+                w: width_m * k,
+                h: ph,
+                left_m,
+                // A short view is centred in its panel.
+                top_m: e.1.1 + 0.5 * (ph / k - h(e)),
+            }
+        };
+    if k_row >= k_col {
+        let k = k_row;
+        let side_p = panel((MARGIN, y0), &side, k, (side.0.0, w(&side)), 0.0);
+        let top_x = side_p.x + side_p.w + MARGIN;
+        let top_p = panel((top_x, y0), &top, k, (top.0.0, w(&top)), MIN_VIEW_HEIGHT);
+        let arms_x = top_p.x + top_p.w + MARGIN;
+        let arms_p = panel((arms_x, y0), &arms, k, (arms.0.0, w(&arms)), 0.0);
+        ([top_p, side_p, arms_p], k, HEAD_BAND + row_h(k))
+    } else {
+        let k = k_col;
+        let shared = (xa.0, xa.1 - xa.0);
+        let side_p = panel((MARGIN, y0), &side, k, shared, 0.0);
+        let top_y = y0 + side_p.h + bands;
+        let top_p = panel((MARGIN, top_y), &top, k, shared, MIN_VIEW_HEIGHT);
+        let arms_x = side_p.x + side_p.w + MARGIN;
+        let arms_p = panel((arms_x, y0), &arms, k, (arms.0.0, w(&arms)), 0.0);
+        ([top_p, side_p, arms_p], k, HEAD_BAND + col_h(k))
+    }
 }
 
 /// The SVG of the bench's layout with a traced ray fan (see the module notes), 7.2 in wide
@@ -275,7 +287,9 @@ pub fn layout_svg(bench: &Bench, fan: &RayFan, title: &str) -> Result<String> {
     );
     for (k, v) in views.iter().enumerate() {
         let labels = v.key == "arms";
-        draw_view(&mut s, v, &panels[k], scale, fan, &outlines, &chiefs, labels);
+        draw_view(
+            &mut s, v, &panels[k], scale, fan, &outlines, &chiefs, labels,
+        );
     }
     draw_legend(&mut s, &legend_rows, draw_h + MARGIN);
     let _ = writeln!(s, "</svg>");
@@ -400,63 +414,65 @@ fn draw_view(
     let _ = writeln!(s, "</g>");
 }
 
-/// Each element's name beside its outline in the panel: right of the outline's box at its
-/// middle height, moved down past labels already placed (with a leader line to the outline
-/// when moved), and kept inside the panel.
+/// Each element's name in a column right of the panel, at the height of the element's middle
+/// (pushed apart so that names do not overlap), joined to the element's right edge by a thin
+/// leader line.
 fn draw_element_labels(
     s: &mut String,
     p: &Panel,
     outlines: &[crate::optics::outline::ElementOutline],
     px: &dyn Fn(DVec3) -> (f64, f64),
 ) {
-    let line = TEXT_FONT + 4.0;
-    let mut placed: Vec<(f64, f64, f64, f64)> = Vec::new();
-    let _ = writeln!(s, r##"<g class="element-labels">"##);
-    for o in outlines {
-        let pts: Vec<(f64, f64)> = o.polylines.iter().flatten().map(|q| px(*q)).collect();
-        if pts.is_empty() {
-            continue;
-        }
-        let (x_lo, x_hi, y_lo, y_hi) = pts.iter().fold(
-            (f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY),
-            |(a, b, c, d), &(x, y)| (a.min(x), b.max(x), c.min(y), d.max(y)),
-        );
-        let w = text_width(&o.name, TEXT_FONT);
-        let anchor = (x_hi, 0.5 * (y_lo + y_hi));
-        // Right of the element, or left of it when the panel's right edge is too close.
-        let mut x = x_hi + 6.0;
-        if x + w > p.x + p.w {
-            x = (x_lo - 6.0 - w).max(p.x + 2.0);
-        }
-        let mut y = anchor.1.clamp(p.y + line, p.y + p.h - 4.0);
-        let overlaps = |x: f64, y: f64, placed: &[(f64, f64, f64, f64)]| {
-            placed
+    let line = TEXT_FONT + 3.0;
+    // (anchor x, anchor y, name) of every element with an outline.
+    let mut items: Vec<(f64, f64, &str)> = outlines
+        .iter()
+        .filter_map(|o| {
+            let pts: Vec<(f64, f64)> = o.polylines.iter().flatten().map(|q| px(*q)).collect();
+            let x_hi = pts.iter().map(|q| q.0).fold(f64::NEG_INFINITY, f64::max);
+            let (y_lo, y_hi) = pts
                 .iter()
-                .any(|&(a, b, c, d)| x < c && x + w > a && y - TEXT_FONT < d && y + 4.0 > b)
-        };
-        let mut tries = 0;
-        while overlaps(x, y, &placed) && tries < 60 {
-            y += line;
-            if y > p.y + p.h - 4.0 {
-                y = p.y + line;
-            }
-            tries += 1;
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), q| {
+                    (a.min(q.1), b.max(q.1))
+                });
+            x_hi.is_finite().then(|| {
+                let x = x_hi.clamp(p.x, p.x + p.w);
+                (
+                    x,
+                    (0.5 * (y_lo + y_hi)).clamp(p.y, p.y + p.h),
+                    o.name.as_str(),
+                )
+            })
+        })
+        .collect();
+    items.sort_by(|a, b| a.1.total_cmp(&b.1));
+    // Baselines: each at its anchor, at least a line below the previous; then the whole column
+    // moved up if it runs past the panel's bottom.
+    let mut ys: Vec<f64> = Vec::with_capacity(items.len());
+    for it in &items {
+        let want = it.1 + 0.35 * TEXT_FONT;
+        let y = ys.last().map_or(want, |&prev: &f64| want.max(prev + line));
+        ys.push(y);
+    }
+    let bottom = p.y + p.h + VIEW_FOOT - 8.0;
+    if let Some(&last) = ys.last()
+        && last > bottom
+    {
+        let shift = last - bottom;
+        for y in &mut ys {
+            *y -= shift;
         }
-        placed.push((x, y - TEXT_FONT, x + w, y + 4.0));
-        if (y - anchor.1).abs() > line {
-            let lx = if x > anchor.0 { x - 2.0 } else { x + w + 2.0 };
-            let _ = writeln!(
-                s,
-                r##"<path d="M{ax:.2} {ay:.2} L{lx:.2} {ly:.2}" stroke="#888888" stroke-width="0.6" fill="none"/>"##,
-                ax = if x > anchor.0 { anchor.0 } else { x_lo },
-                ay = anchor.1,
-                ly = y - 0.35 * TEXT_FONT
-            );
-        }
+    }
+    let x_text = p.x + p.w + 14.0;
+    let _ = writeln!(s, r##"<g class="element-labels">"##);
+    for ((ax, ay, name), y) in items.iter().zip(&ys) {
         let _ = writeln!(
             s,
-            r##"<text class="element-label" x="{x:.2}" y="{y:.2}" font-size="{TEXT_FONT}" fill="#222">{n}</text>"##,
-            n = escape(&o.name)
+            r##"<path d="M{ax:.2} {ay:.2} L{bx:.2} {ay:.2} L{cx:.2} {cy:.2}" stroke="#999999" stroke-width="0.6" fill="none"/><text class="element-label" x="{x_text:.2}" y="{y:.2}" font-size="{TEXT_FONT}" fill="#222">{n}</text>"##,
+            bx = p.x + p.w + 2.0,
+            cx = x_text - 3.0,
+            cy = y - 0.35 * TEXT_FONT,
+            n = escape(name)
         );
     }
     let _ = writeln!(s, "</g>");
@@ -473,7 +489,7 @@ fn legend_lines(fan: &RayFan) -> Vec<Vec<(&'static str, String)>> {
         .collect();
     entries.push((
         "#555555",
-        "element outlines (black: DMD and photodiodes; names in the arm plane)".into(),
+        "element outlines (black: DMD and photodiodes; names beside the arm plane)".into(),
     ));
     let mut lines: Vec<Vec<(&'static str, String)>> = vec![Vec::new()];
     let mut used = 0.0;
@@ -586,7 +602,10 @@ mod tests {
             })
             .collect();
         assert_eq!(per_mm.len(), 3);
-        assert!(per_mm.iter().all(|k| (k - per_mm[0]).abs() < 1e-3), "{per_mm:?}");
+        assert!(
+            per_mm.iter().all(|k| (k - per_mm[0]).abs() < 1e-3),
+            "{per_mm:?}"
+        );
         // Every element is labelled by name once, in the arm plane.
         let names: Vec<String> = crate::optics::outline::element_outlines(&bench)
             .into_iter()

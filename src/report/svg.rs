@@ -106,8 +106,8 @@ pub fn at_print_size(svg: &str) -> Result<String> {
         let len = tag[at..].find('"')?;
         Some((at, at + len))
     };
-    let (vb0, vb1) = attr("viewBox")
-        .ok_or_else(|| Error::Numerical("a figure's SVG has no viewBox".into()))?;
+    let (vb0, vb1) =
+        attr("viewBox").ok_or_else(|| Error::Numerical("a figure's SVG has no viewBox".into()))?;
     let vb: Vec<f64> = tag[vb0..vb1]
         .split([' ', ','])
         .filter(|t| !t.is_empty())
@@ -402,13 +402,20 @@ pub(crate) mod tests {
     fn print_size_from_the_view_box() {
         let svg = r#"<svg width="504" height="288" viewBox="0 0 504 288" xmlns="http://www.w3.org/2000/svg"><rect x="10" y="10" width="20" height="20"/></svg>"#;
         let out = at_print_size(svg).unwrap();
-        assert!(out.starts_with(r#"<svg width="3.5in" height="2in" viewBox="0 0 504 288""#), "{out}");
+        assert!(
+            out.starts_with(r#"<svg width="3.5in" height="2in" viewBox="0 0 504 288""#),
+            "{out}"
+        );
         assert_eq!(at_print_size(&out).unwrap(), out);
         let (w, h, _) = print_to_rgb(&out).unwrap();
         assert_eq!((w, h), (1008, 576));
         assert_eq!(pdf_page_pt(&svg_to_pdf(&out).unwrap()), (252.0, 144.0));
         let bare = r#"<svg viewBox="0 0 1037 144" xmlns="http://www.w3.org/2000/svg"/>"#;
-        assert!(at_print_size(bare).unwrap().starts_with(r#"<svg width="7.2014in" height="1in""#));
+        assert!(
+            at_print_size(bare)
+                .unwrap()
+                .starts_with(r#"<svg width="7.2014in" height="1in""#)
+        );
         assert!(at_print_size("<svg width=\"3\">").is_err());
         assert!(FigureSize::new(0.5, 2.0).is_err());
         assert_eq!(FigureSize::SINGLE.units(), (504, 374));
