@@ -1247,7 +1247,7 @@ mod tests {
             write_plot_with(&example(), &opts, &svg_path, &dir.join("s.png")).unwrap();
             let svg = std::fs::read_to_string(&svg_path).unwrap();
             let ((w_in, h_in), _) = print_size(&svg);
-            assert!((w_in - size.width_in).abs() < 1e-3 && (h_in - size.height_in).abs() < 0.01);
+            assert!((w_in - size.width_in).abs() < 0.01 && (h_in - size.height_in).abs() < 0.01);
             let pdf = std::fs::read(svg_path.with_extension("pdf")).unwrap();
             let (pw, ph) = crate::report::svg::tests::pdf_page_pt(&pdf);
             assert!((pw - width_pt).abs() < 0.5, "PDF page {pw} pt wide");
