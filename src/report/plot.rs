@@ -494,7 +494,7 @@ where
                         .map_err(|e| e.to_string())?;
                     }
                 }
-                if (k + i) % step == 0 {
+                if (k + i).is_multiple_of(step) {
                     draw_marker(area, (x, y), i, color)?;
                 }
                 k += 1;
