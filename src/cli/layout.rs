@@ -1,14 +1,16 @@
 //! `spibench layout BENCH [--rays N] [--seed S] [--out DIR]`: draws the bench as a lens
 //! designer's 2-D layout (top view, side view, the plane of the two arms) with a fan of traced
-//! rays coloured by fate, and writes `DIR/layout.svg` and `DIR/layout.png` (the same drawing,
-//! rendered by resvg) through a staged output directory.
+//! rays coloured by fate, and writes `DIR/layout.svg`, `DIR/layout.png` (the same drawing,
+//! rendered by resvg at 288 dpi) and `DIR/layout.pdf`, 7.2 in wide (a double-column figure),
+//! through a staged output directory.
 
 use std::path::PathBuf;
 
 use crate::error::Error;
-use crate::report::layout::{layout_svg, svg_to_png};
+use crate::report::layout::layout_svg;
 use crate::report::outline::outline_text;
 use crate::report::output::OutputDir;
+use crate::report::svg::{at_print_size, write_figure};
 use crate::scene::bench::read_bench;
 use crate::trace::fan::{DEFAULT_FAN_RAYS, Fate, ray_fan};
 
@@ -54,15 +56,8 @@ pub fn run(args: &LayoutArgs) -> anyhow::Result<()> {
     let svg = layout_svg(&bench, &fan, &title)
         .and_then(|svg| outline_text(&svg))
         .map_err(|e| e.in_file(&args.scene))?;
-    let png = svg_to_png(&svg)?;
     let dir = OutputDir::create(&out)?;
-    for (name, bytes) in [
-        ("layout.svg", svg.as_bytes()),
-        ("layout.png", png.as_slice()),
-    ] {
-        let path = dir.path(name);
-        std::fs::write(&path, bytes).map_err(|e| Error::write(&path, e))?;
-    }
+    write_figure(&svg, &dir.path("layout.svg"), &dir.path("layout.png"), true)?;
     dir.commit()?;
     let counts = fan.counts();
     let fates: Vec<String> = Fate::ALL
@@ -72,7 +67,7 @@ pub fn run(args: &LayoutArgs) -> anyhow::Result<()> {
         .map(|(f, n)| format!("{} {n}", f.label()))
         .collect();
     println!(
-        "{}: {} rays ({}); wrote {}/layout.svg and layout.png",
+        "{}: {} rays ({}); wrote {}/layout.svg, layout.png and layout.pdf",
         args.scene.display(),
         fan.rays.len(),
         fates.join(", "),
@@ -88,7 +83,7 @@ pub(super) fn layout_block(
     title: &str,
 ) -> crate::Result<(crate::report::html::Block, String)> {
     let fan = ray_fan(bench, DEFAULT_FAN_RAYS, 1)?;
-    let svg = outline_text(&layout_svg(bench, &fan, title)?)?;
+    let svg = at_print_size(&outline_text(&layout_svg(bench, &fan, title)?)?)?;
     Ok((
         crate::report::html::Block::Svg {
             caption: format!(

@@ -3,11 +3,13 @@
 //!
 //! Output (DIR): `summary.json` (keys documented on [`TraceSummary`]), `maps.exr` (one
 //! multi-channel EXR of the per-unit maps, f32, row-major, row 0 = the top row of the pattern
-//! area) and one figure per map (`NAME.svg` and its rendering `NAME.png`: one square per unit,
-//! a colour bar in the map's unit, dark units hatched, `report::heatmap::UnitMap`). With the
-//! diffractive DMD model (docs/dmd_diffraction.md) it also traces the collection of the DMD's
-//! reflected light with and without diffraction: `summary.json` gains `dmd_diffraction`, and
-//! `collection.svg`/`.png` plot each arm's collection against wavelength. Everything is computed in memory and written into a staging
+//! area) and one figure per map (`NAME.svg`, its rendering `NAME.png` and `NAME.pdf`: one square
+//! per unit, axes of unit indices, a colour bar in the map's unit, dark units hatched,
+//! `report::heatmap::UnitMap`). With the diffractive DMD model (docs/dmd_diffraction.md) it also
+//! traces the collection of the DMD's reflected light with and without diffraction:
+//! `summary.json` gains `dmd_diffraction`, and `collection.svg`/`.png`/`.pdf` plot each arm's
+//! collection against wavelength, the lamp's light and the diodes' responsivity shaded behind.
+//! Everything is computed in memory and written into a staging
 //! directory that is renamed into place at the end, so bad input or a failed write leaves no
 //! partial output.
 
@@ -20,7 +22,7 @@ use crate::pipeline::{TraceRequest, trace_stage};
 use crate::report::exr::write_channels;
 use crate::report::heatmap::{UnitMap, write_unit_map};
 use crate::report::output::OutputDir;
-use crate::report::plot::{LinePlot, Series, write_plot};
+use crate::report::plot::{Area, LinePlot, PlotOptions, Series, write_plot_with};
 use crate::scene::bench::read_bench;
 use crate::trace::collection::{Collection, collection};
 use crate::transport::Transport;
@@ -120,7 +122,7 @@ pub fn run(args: &TraceArgs) -> anyhow::Result<()> {
     // The folder and a count: the file list is in summary.json (`files`), and a line per file
     // would not fit a terminal.
     println!(
-        "wrote {} ({} files: summary.json, maps.exr and the per-unit maps x, g±, k± as SVG and PNG)",
+        "wrote {} ({} files: summary.json, maps.exr and the per-unit maps x, g±, k± as SVG, PNG and PDF)",
         out.display(),
         summary.files.len() + 1
     );
@@ -207,9 +209,10 @@ fn print_diffraction(d: &DiffractionSummary) {
 }
 
 /// The figure of each arm's collection against wavelength, both models, with the spectrum of
-/// the light on the pattern and each diode's responsivity (each scaled to a peak of 1) drawn
-/// as lines for reference.
-fn collection_plot(c: &[Collection; 2], bench: &Bench) -> LinePlot {
+/// the light on the pattern (the lamp's, after the optics before the DMD) and each diode's
+/// responsivity shaded behind the curves, each normalised to a peak of 1 on the right-hand
+/// scale. Diodes with one responsivity curve share one shaded area.
+fn collection_plot(c: &[Collection; 2], bench: &Bench) -> (LinePlot, PlotOptions) {
     let [geometric, diffractive] = c;
     let x: Vec<f64> = (0..geometric.bins)
         .map(|b| geometric.wavelength_m(b) * 1e9)
@@ -231,28 +234,53 @@ fn collection_plot(c: &[Collection; 2], bench: &Bench) -> LinePlot {
             .map(|y| if peak > 0.0 { y / peak } else { 0.0 })
             .collect::<Vec<f64>>()
     };
-    series.push(Series {
-        label: "light on the pattern (relative)".into(),
+    // The shaded curves on a finer grid than the bins, so that their shapes show.
+    let fine: Vec<f64> = {
+        let (lo, hi) = (geometric.band_m.0 * 1e9, geometric.band_m.1 * 1e9);
+        (0..=200)
+            .map(|k| lo + (hi - lo) * f64::from(k) / 200.0)
+            .collect()
+    };
+    let mut areas = vec![Area {
+        label: "lamp light on the pattern".into(),
         x: x.clone(),
         y: scaled(diffractive.incident_w.clone()),
-        y_err: None,
-    });
-    for arm in Arm::ALL {
-        let r = &bench.detectors()[arm].responsivity;
-        series.push(Series {
-            label: format!("diode {} responsivity (relative)", arm.label()),
-            x: x.clone(),
-            y: scaled(x.iter().map(|nm| r.at(nm * 1e-9)).collect()),
-            y_err: None,
+    }];
+    let resp: Vec<Vec<f64>> = Arm::ALL
+        .iter()
+        .map(|&arm| {
+            let r = &bench.detectors()[arm].responsivity;
+            scaled(fine.iter().map(|nm| r.at(nm * 1e-9)).collect())
+        })
+        .collect();
+    if resp[0] == resp[1] {
+        areas.push(Area {
+            label: "diode responsivity".into(),
+            x: fine.clone(),
+            y: resp[0].clone(),
         });
+    } else {
+        for (arm, y) in Arm::ALL.iter().zip(resp) {
+            areas.push(Area {
+                label: format!("diode {} responsivity", arm.label()),
+                x: fine.clone(),
+                y,
+            });
+        }
     }
-    LinePlot {
+    let plot = LinePlot {
         title: "Each arm's collection of the DMD-reflected light against wavelength".into(),
         x_label: "wavelength (nm)".into(),
-        y_label: "share of the reflected power on the arm's diode".into(),
+        y_label: "share on the arm's diode".into(),
         series,
         log_x: false,
-    }
+    };
+    let opts = PlotOptions {
+        size: None,
+        areas,
+        area_label: "relative (peak = 1)".into(),
+    };
+    (plot, opts)
 }
 
 /// Writes every output into a staging directory beside `out` ([`OutputDir`]) and moves it into
@@ -300,16 +328,19 @@ fn write_outputs(
         write_unit_map(&map, &dir.path(&svg), &dir.path(&png))?;
         files.push(svg);
         files.push(png);
+        files.push(format!("{stem}.pdf"));
     }
     if let Some(c) = collections {
-        let plot = collection_plot(c, bench);
-        write_plot(
+        let (plot, opts) = collection_plot(c, bench);
+        write_plot_with(
             &plot,
+            &opts,
             &dir.path("collection.svg"),
             &dir.path("collection.png"),
         )?;
-        files.push("collection.svg".to_string());
-        files.push("collection.png".to_string());
+        for ext in ["svg", "png", "pdf"] {
+            files.push(format!("collection.{ext}"));
+        }
     }
     summary.files = files;
     super::provenance::write_summary(&dir, &*summary, provenance)?;
@@ -366,7 +397,18 @@ mod tests {
             }
         }
         assert!(d["geometric"]["plus_from_plus"].as_f64().unwrap() > 0.5);
-        assert!(out.join("collection.png").is_file() && out.join("collection.svg").is_file());
+        assert!(out.join("collection.png").is_file() && out.join("collection.pdf").is_file());
+        // The lamp's light and the responsivity are shaded, with their scale on the right.
+        let svg = std::fs::read_to_string(out.join("collection.svg")).unwrap();
+        for label in [
+            "lamp light on the pattern",
+            "diode responsivity",
+            "relative (peak = 1)",
+            "arm + (diffractive)",
+        ] {
+            assert!(svg.contains(&format!(r#"aria-label="{label}""#)), "{label}");
+        }
+        assert!(svg.contains("<polygon"), "no filled area");
         let _ = std::fs::remove_dir_all(&dir);
     }
 

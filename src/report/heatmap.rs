@@ -8,7 +8,6 @@ use std::path::Path;
 use plotters::prelude::*;
 
 use super::font::{self, FAMILY};
-use super::npy::write_atomic;
 use crate::error::{Error, Result};
 
 /// A quantity on a grid: `values[i * ys.len() + j]` at (`xs[i]`, `ys[j]`).
@@ -25,10 +24,17 @@ pub struct Heatmap {
     pub mark: Option<(f64, f64)>,
 }
 
-const WIDTH: u32 = 900;
-const HEIGHT: u32 = 680;
-const TICK_SIZE: f64 = 17.0;
-const DESC_SIZE: f64 = 21.0;
+/// A single-column figure (3.5 × 2.8 in, SVG units of half a point, `report::svg`).
+const WIDTH: u32 = 504;
+const HEIGHT: u32 = 403;
+/// Text at print size in plotters' whole size units (1.24 × the SVG font size, two SVG units
+/// per point): 8.06 pt ticks, 8.87 pt axis descriptions.
+const TICK_SIZE: f64 = 20.0;
+const DESC_SIZE: f64 = 22.0;
+/// Width of the colour bar's column (bar, ticks and label).
+const BAR_AREA: i32 = 150;
+const MARGIN: i32 = 14;
+const X_LABEL_AREA: i32 = 48;
 
 /// The viridis colour map (van der Walt and Smith, matplotlib 2015), sampled at nine stops and
 /// interpolated linearly: perceptually uniform and readable in grayscale.
@@ -104,14 +110,14 @@ fn draw<DB: DrawingBackend>(
         return Err(font::unavailable().to_string());
     }
     root.fill(&WHITE).map_err(|e| e.to_string())?;
-    let (main, bar) = root.split_horizontally(WIDTH as i32 - 190);
+    let (main, bar) = root.split_horizontally(WIDTH as i32 - BAR_AREA);
     let (ex, ey) = (edges(&h.xs), edges(&h.ys));
     let xr = ex[0].min(ex[ex.len() - 1])..ex[0].max(ex[ex.len() - 1]);
     let yr = ey[0].min(ey[ey.len() - 1])..ey[0].max(ey[ey.len() - 1]);
     let mut chart = ChartBuilder::on(&main)
-        .margin(18)
-        .x_label_area_size(58)
-        .y_label_area_size(90)
+        .margin(MARGIN)
+        .x_label_area_size(X_LABEL_AREA)
+        .y_label_area_size(76)
         .build_cartesian_2d(xr.clone(), yr.clone())
         .map_err(|e| e.to_string())?;
     chart
@@ -145,22 +151,22 @@ fn draw<DB: DrawingBackend>(
         let style = ShapeStyle::from(&WHITE).stroke_width(3);
         chart
             .draw_series(std::iter::once(
-                EmptyElement::at((mx, my)) + Cross::new((0, 0), 9, style),
+                EmptyElement::at((mx, my)) + Cross::new((0, 0), 7, style),
             ))
             .map_err(|e| e.to_string())?;
         chart
             .draw_series(std::iter::once(
                 EmptyElement::at((mx, my))
-                    + Cross::new((0, 0), 7, ShapeStyle::from(&BLACK).stroke_width(1)),
+                    + Cross::new((0, 0), 6, ShapeStyle::from(&BLACK).stroke_width(1)),
             ))
             .map_err(|e| e.to_string())?;
     }
     // The colour bar: a column of 100 steps from lo to hi, with its own value axis.
     let mut cb = ChartBuilder::on(&bar)
-        .margin_top(18)
-        .margin_bottom(76)
-        .margin_right(8)
-        .y_label_area_size(110)
+        .margin_top(MARGIN)
+        .margin_bottom(MARGIN + X_LABEL_AREA)
+        .margin_right(4)
+        .y_label_area_size(BAR_AREA - 40)
         .build_cartesian_2d(0.0..1.0, lo..hi)
         .map_err(|e| e.to_string())?;
     cb.configure_mesh()
@@ -192,28 +198,29 @@ fn draw<DB: DrawingBackend>(
     root.present().map_err(|e| e.to_string())
 }
 
-/// The SVG text and the PNG bytes of a heatmap.
-pub fn render(h: &Heatmap) -> Result<(String, Vec<u8>)> {
+/// The SVG text (print size, text as outlines) of a heatmap.
+pub fn heatmap_svg(h: &Heatmap) -> Result<String> {
     let range = check(h)?;
     let mut svg = String::new();
     {
         let root = SVGBackend::with_string(&mut svg, (WIDTH, HEIGHT)).into_drawing_area();
         draw(&root, h, range).map_err(Error::Numerical)?;
     }
-    let mut rgb = vec![255u8; (WIDTH * HEIGHT * 3) as usize];
-    {
-        let root = BitMapBackend::with_buffer(&mut rgb, (WIDTH, HEIGHT)).into_drawing_area();
-        draw(&root, h, range).map_err(Error::Numerical)?;
-    }
-    let png = super::png::encode_rgb8(WIDTH, HEIGHT, &rgb)?;
+    super::svg::at_print_size(&super::outline::outline_text(&svg)?)
+}
+
+/// The SVG text and the PNG bytes (the SVG rendered, `report::svg::PNG_DPI`) of a heatmap.
+pub fn render(h: &Heatmap) -> Result<(String, Vec<u8>)> {
+    let svg = heatmap_svg(h)?;
+    let (w, hh, rgb) = super::svg::print_to_rgb(&svg)?;
+    let png = super::png::encode_rgb8(w, hh, &rgb)?;
     Ok((svg, png))
 }
 
-/// Writes the heatmap as SVG and PNG.
+/// Writes the heatmap as SVG, its PNG rendering and PDF (beside the SVG).
 pub fn write_heatmap(h: &Heatmap, svg_path: &Path, png_path: &Path) -> Result<()> {
-    let (svg, png) = render(h)?;
-    write_atomic(svg_path, svg.as_bytes())?;
-    write_atomic(png_path, &png)
+    let svg = heatmap_svg(h).map_err(|e| e.in_file(svg_path))?;
+    super::svg::write_figure(&svg, svg_path, png_path, true)
 }
 
 /// Units whose incident power x_j is below this fraction of the mean x_j are "dark": they are
@@ -316,10 +323,31 @@ fn esc(s: &str) -> String {
         .replace('>', "&gt;")
 }
 
-/// Per-unit maps are enlarged to at least this many pixels across their longer side.
-const UNIT_MAP_MIN_PX: usize = 480;
+/// The per-unit map's layout in SVG units (half points, `report::svg`): a single-column
+/// figure, 3.5 in wide. The map takes what the axes and the colour bar leave.
+const MAP_FIGURE_W: f64 = 504.0;
+const MAP_LEFT: f64 = 72.0;
+const MAP_TOP: f64 = 14.0;
+const MAP_BAR_GAP: f64 = 12.0;
+const MAP_BAR_W: f64 = 16.0;
+/// Room right of the bar for its tick labels and rotated label.
+const MAP_BAR_TEXT: f64 = 86.0;
+/// 8 pt tick labels and notes, 9 pt axis descriptions.
+const MAP_TICK_FONT: f64 = 16.0;
+const MAP_DESC_FONT: f64 = 18.0;
 
-/// The SVG of a per-unit map (see [`UnitMap`]).
+/// Whole-number ticks over unit indices `0 ..= n − 1`.
+fn index_ticks(n: usize) -> Vec<usize> {
+    super::plot::linear_ticks(0.0, n.saturating_sub(1) as f64)
+        .into_iter()
+        .filter(|t| t.fract() == 0.0 && *t >= 0.0)
+        .map(|t| t as usize)
+        .collect()
+}
+
+/// The SVG of a per-unit map (see [`UnitMap`]) at print size: one square per unit, axes of
+/// unit column (left to right) and unit row (top to bottom, row 0 the top row of the pattern)
+/// and a colour bar in the map's unit.
 pub fn unit_map_svg(m: &UnitMap) -> Result<String> {
     use std::fmt::Write as _;
     let n = m.width * m.height;
@@ -334,13 +362,16 @@ pub fn unit_map_svg(m: &UnitMap) -> Result<String> {
     }
     let lit = lit_units(&m.light_w, DARK_FRACTION);
     let (lo, hi) = unit_range(&m.values, &lit, m.from_zero);
-    // Nearest-neighbour enlargement: every unit is an s × s square.
-    let s = UNIT_MAP_MIN_PX.div_ceil(m.width.max(m.height)).max(1);
-    let (mw, mh) = (m.width * s, m.height * s);
-    let (left, top) = (20usize, 20usize);
-    let bar_x = left + mw + 30;
-    let total_w = bar_x + 24 + 130;
-    let total_h = top + mh.max(240) + 70;
+    // Every unit is an s × s square, the map as wide as the column allows.
+    let avail = MAP_FIGURE_W - MAP_LEFT - MAP_BAR_GAP - MAP_BAR_W - MAP_BAR_TEXT;
+    let s = avail / m.width.max(m.height) as f64;
+    let (mw, mh) = (m.width as f64 * s, m.height as f64 * s);
+    let (left, top) = (MAP_LEFT, MAP_TOP);
+    let bar_x = left + mw + MAP_BAR_GAP;
+    let bar_h = mh.max(160.0);
+    let total_w = MAP_FIGURE_W;
+    let notes_y = top + bar_h + 70.0;
+    let total_h = (notes_y + 2.0 * 20.0 + 4.0).ceil();
     let mut out = String::new();
     let _ = writeln!(
         out,
@@ -348,7 +379,7 @@ pub fn unit_map_svg(m: &UnitMap) -> Result<String> {
     );
     let _ = writeln!(
         out,
-        r##"<defs><pattern id="dark" patternUnits="userSpaceOnUse" width="6" height="6"><rect width="6" height="6" fill="#e6e6e6"/><path d="M-1,1 l2,-2 M0,6 l6,-6 M5,7 l2,-2" stroke="#8c8c8c" stroke-width="1"/></pattern></defs>"##
+        r##"<defs><pattern id="dark" patternUnits="userSpaceOnUse" width="5" height="5"><rect width="5" height="5" fill="#e6e6e6"/><path d="M-1,1 l2,-2 M0,5 l5,-5 M4,6 l2,-2" stroke="#8c8c8c" stroke-width="0.8"/></pattern></defs>"##
     );
     let _ = writeln!(
         out,
@@ -357,20 +388,20 @@ pub fn unit_map_svg(m: &UnitMap) -> Result<String> {
     // Each row: runs of units of the same colour as one rectangle (crisp edges, small file).
     let _ = writeln!(
         out,
-        r##"<g shape-rendering="crispEdges" transform="translate({left},{top})">"##
+        r##"<g class="units" shape-rendering="crispEdges" transform="translate({left},{top})">"##
     );
     let mut dark = 0usize;
+    let fill = |j: usize| -> String {
+        if !lit[j] {
+            "url(#dark)".into()
+        } else {
+            hex(colour((m.values[j] - lo) / (hi - lo)))
+        }
+    };
     for r in 0..m.height {
         let mut c = 0;
         while c < m.width {
             let j = r * m.width + c;
-            let fill = |j: usize| -> String {
-                if !lit[j] {
-                    "url(#dark)".into()
-                } else {
-                    hex(colour((m.values[j] - lo) / (hi - lo)))
-                }
-            };
             let f = fill(j);
             let mut e = c + 1;
             while e < m.width && fill(r * m.width + e) == f {
@@ -381,34 +412,70 @@ pub fn unit_map_svg(m: &UnitMap) -> Result<String> {
             }
             let _ = writeln!(
                 out,
-                r##"<rect x="{}" y="{}" width="{}" height="{s}" fill="{f}"/>"##,
-                c * s,
-                r * s,
-                (e - c) * s
+                r##"<rect x="{:.3}" y="{:.3}" width="{:.3}" height="{s:.3}" fill="{f}"/>"##,
+                c as f64 * s,
+                r as f64 * s,
+                (e - c) as f64 * s
             );
             c = e;
         }
     }
     let _ = writeln!(
         out,
-        r##"<rect width="{mw}" height="{mh}" fill="none" stroke="#000000" stroke-width="1"/></g>"##
+        r##"<rect width="{mw:.3}" height="{mh:.3}" fill="none" stroke="#000000" stroke-width="1"/></g>"##
     );
-    // The colour bar with ticks in the map's unit.
-    let bar_h = mh.max(240);
-    let steps = 64;
-    let _ = writeln!(out, r##"<g shape-rendering="crispEdges">"##);
-    for k in 0..steps {
-        let y0 = top as f64 + bar_h as f64 * (1.0 - (k + 1) as f64 / steps as f64);
+    // The axes: unit indices at the centres of their units.
+    let _ = writeln!(out, r##"<g class="axes">"##);
+    for c in index_ticks(m.width) {
+        let x = left + (c as f64 + 0.5) * s;
         let _ = writeln!(
             out,
-            r##"<rect x="{bar_x}" y="{y0:.2}" width="24" height="{:.2}" fill="{}"/>"##,
-            bar_h as f64 / steps as f64 + 0.5,
+            r##"<line x1="{x:.2}" y1="{y0:.2}" x2="{x:.2}" y2="{y1:.2}" stroke="#000000"/><text x="{x:.2}" y="{ty:.2}" text-anchor="middle" font-size="{MAP_TICK_FONT}">{c}</text>"##,
+            y0 = top + mh,
+            y1 = top + mh + 5.0,
+            ty = top + mh + 5.0 + MAP_TICK_FONT
+        );
+    }
+    for r in index_ticks(m.height) {
+        let y = top + (r as f64 + 0.5) * s;
+        let _ = writeln!(
+            out,
+            r##"<line x1="{x0:.2}" y1="{y:.2}" x2="{left:.2}" y2="{y:.2}" stroke="#000000"/><text x="{tx:.2}" y="{y:.2}" dy="0.35em" text-anchor="end" font-size="{MAP_TICK_FONT}">{r}</text>"##,
+            x0 = left - 5.0,
+            tx = left - 8.0
+        );
+    }
+    let _ = writeln!(
+        out,
+        r##"<text x="{x:.2}" y="{y:.2}" text-anchor="middle" font-size="{MAP_DESC_FONT}">unit column</text>"##,
+        x = left + mw / 2.0,
+        y = top + mh + 5.0 + MAP_TICK_FONT + 22.0
+    );
+    let _ = writeln!(
+        out,
+        r##"<text transform="translate({x:.2},{y:.2}) rotate(-90)" text-anchor="middle" font-size="{MAP_DESC_FONT}">unit row (0 = top)</text>"##,
+        x = 22.0,
+        y = top + mh / 2.0
+    );
+    let _ = writeln!(out, "</g>");
+    // The colour bar with ticks in the map's unit.
+    let steps = 64;
+    let _ = writeln!(
+        out,
+        r##"<g class="colour-bar" shape-rendering="crispEdges">"##
+    );
+    for k in 0..steps {
+        let y0 = top + bar_h * (1.0 - (k + 1) as f64 / steps as f64);
+        let _ = writeln!(
+            out,
+            r##"<rect x="{bar_x:.2}" y="{y0:.2}" width="{MAP_BAR_W}" height="{:.2}" fill="{}"/>"##,
+            bar_h / steps as f64 + 0.5,
             hex(colour((k as f64 + 0.5) / steps as f64))
         );
     }
     let _ = writeln!(
         out,
-        r##"<rect x="{bar_x}" y="{top}" width="24" height="{bar_h}" fill="none" stroke="#000000"/></g>"##
+        r##"<rect x="{bar_x:.2}" y="{top}" width="{MAP_BAR_W}" height="{bar_h:.2}" fill="none" stroke="#000000"/></g>"##
     );
     let ticks = super::plot::linear_ticks(lo, hi);
     let scale = ticks
@@ -423,14 +490,14 @@ pub fn unit_map_svg(m: &UnitMap) -> Result<String> {
         0
     };
     let div = 10f64.powi(exp);
+    let bar_r = bar_x + MAP_BAR_W;
     for t in &ticks {
-        let y = top as f64 + bar_h as f64 * (1.0 - (t - lo) / (hi - lo));
+        let y = top + bar_h * (1.0 - (t - lo) / (hi - lo));
         let _ = writeln!(
             out,
-            r##"<line x1="{}" y1="{y:.2}" x2="{}" y2="{y:.2}" stroke="#000000"/><text x="{}" y="{y:.2}" dy="0.35em" font-size="14">{}</text>"##,
-            bar_x + 24,
-            bar_x + 29,
-            bar_x + 32,
+            r##"<line x1="{bar_r:.2}" y1="{y:.2}" x2="{:.2}" y2="{y:.2}" stroke="#000000"/><text x="{:.2}" y="{y:.2}" dy="0.35em" font-size="{MAP_TICK_FONT}">{}</text>"##,
+            bar_r + 4.0,
+            bar_r + 6.0,
             esc(&super::plot::format_tick(t / div).replace('-', "−"))
         );
     }
@@ -441,15 +508,15 @@ pub fn unit_map_svg(m: &UnitMap) -> Result<String> {
     };
     let _ = writeln!(
         out,
-        r##"<text transform="translate({},{}) rotate(-90)" text-anchor="middle" font-size="15">{} ({})</text>"##,
-        bar_x + 118,
-        top + bar_h / 2,
+        r##"<text transform="translate({:.2},{:.2}) rotate(-90)" text-anchor="middle" font-size="{MAP_DESC_FONT}">{} ({})</text>"##,
+        total_w - 10.0,
+        top + bar_h / 2.0,
         esc(&m.label),
         esc(&unit)
     );
     let notes = [
         format!(
-            "hatched: {dark} of {n} units with x_j below {:.0} % of the mean x_j",
+            "hatched: {dark} of {n} units with x_j < {:.0} % of the mean x_j",
             DARK_FRACTION * 100.0
         ),
         format!(
@@ -460,21 +527,19 @@ pub fn unit_map_svg(m: &UnitMap) -> Result<String> {
     for (k, note) in notes.iter().enumerate() {
         let _ = writeln!(
             out,
-            r##"<text x="{left}" y="{}" font-size="13">{}</text>"##,
-            top + bar_h + 24 + 18 * k,
+            r##"<text x="14" y="{:.2}" font-size="{MAP_TICK_FONT}">{}</text>"##,
+            notes_y + 20.0 * k as f64,
             esc(note)
         );
     }
     let _ = writeln!(out, "</svg>");
-    super::outline::outline_text(&out)
+    super::svg::at_print_size(&super::outline::outline_text(&out)?)
 }
 
-/// Writes a per-unit map as SVG and as its PNG rendering.
+/// Writes a per-unit map as SVG, its PNG rendering and PDF (beside the SVG).
 pub fn write_unit_map(m: &UnitMap, svg_path: &Path, png_path: &Path) -> Result<()> {
-    let svg = unit_map_svg(m)?;
-    let png = super::svg::svg_to_png(&svg)?;
-    write_atomic(svg_path, svg.as_bytes())?;
-    write_atomic(png_path, &png)
+    let svg = unit_map_svg(m).map_err(|e| e.in_file(svg_path))?;
+    super::svg::write_figure(&svg, svg_path, png_path, true)
 }
 
 #[cfg(test)]
@@ -535,7 +600,76 @@ mod tests {
         let svg = unit_map_svg(&m).unwrap();
         assert!(svg.contains("k₊_j (A/W)"));
         assert_eq!(svg.matches("url(#dark)").count(), 2); // a run of 3 and a single unit
-        let (pw, ph, _) = crate::report::svg::svg_to_rgb(&svg).unwrap();
+        let (pw, ph, _) = crate::report::svg::print_to_rgb(&svg).unwrap();
         assert!(pw >= 480 && ph >= 480, "{pw}×{ph}");
+    }
+
+    /// A per-unit map is a single-column figure with 8–9 pt text, axes of unit indices (0 and
+    /// the last index of a 48 × 48 map among the ticks) and a colour bar with its label; the
+    /// heatmap too, and both are written with a PDF.
+    #[test]
+    fn maps_have_axes_a_colour_bar_and_print_size() {
+        let (w, h) = (48, 48);
+        let m = UnitMap {
+            label: "x_j".into(),
+            unit: "W".into(),
+            width: w,
+            height: h,
+            values: (0..w * h).map(|j| 1e-6 * (1.0 + (j % 7) as f64)).collect(),
+            light_w: vec![1e-6; w * h],
+            from_zero: true,
+        };
+        let svg = unit_map_svg(&m).unwrap();
+        let doc = roxmltree::Document::parse(&svg).unwrap();
+        let root = doc.root_element();
+        assert_eq!(root.attribute("width"), Some("3.5in"));
+        let labels: Vec<&str> = doc
+            .descendants()
+            .filter_map(|n| n.attribute("aria-label"))
+            .collect();
+        for l in [
+            "unit column",
+            "unit row (0 = top)",
+            "x_j (10⁻⁶ W)",
+            "0",
+            "40",
+            "7",
+        ] {
+            assert!(labels.contains(&l), "{l} missing from {labels:?}");
+        }
+        for n in doc
+            .descendants()
+            .filter(|n| n.attribute("aria-label").is_some())
+        {
+            let size: f64 = n.attribute("font-size").unwrap().parse().unwrap();
+            // Two units per point.
+            assert!(
+                (16.0..=18.0).contains(&size),
+                "{:?}",
+                n.attribute("aria-label")
+            );
+        }
+        assert!(svg.contains(r#"class="colour-bar""#));
+        let dir = std::env::temp_dir().join(format!("spibench-maps-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        write_unit_map(&m, &dir.join("x.svg"), &dir.join("x.png")).unwrap();
+        let hm = Heatmap {
+            x_label: "x (mm)".into(),
+            y_label: "y (mm)".into(),
+            value_label: "imbalance".into(),
+            xs: vec![-1.0, 0.0, 1.0],
+            ys: vec![0.0, 2.0],
+            values: vec![0.1, 0.2, 0.3, 0.4, 0.5, 0.6],
+            mark: None,
+        };
+        write_heatmap(&hm, &dir.join("h.svg"), &dir.join("h.png")).unwrap();
+        for stem in ["x", "h"] {
+            let pdf = std::fs::read(dir.join(format!("{stem}.pdf"))).unwrap();
+            let (pw, _) = crate::report::svg::tests::pdf_page_pt(&pdf);
+            assert!((pw - 252.0).abs() < 0.5, "{stem}: {pw} pt");
+            let png = image::open(dir.join(format!("{stem}.png"))).unwrap();
+            assert_eq!(png.width(), 1008);
+        }
+        let _ = std::fs::remove_dir_all(&dir);
     }
 }

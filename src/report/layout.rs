@@ -94,12 +94,22 @@ const DRAW_ORDER: [Fate; 5] = [
     Fate::DetectedPlus,
 ];
 
-/// Largest drawing height and total drawing width (px) of the three views.
-const MAX_VIEW_HEIGHT: f64 = 760.0;
-const MAX_TOTAL_WIDTH: f64 = 1700.0;
-const MARGIN: f64 = 24.0;
-const TITLE_BAND: f64 = 56.0;
-const FOOT_BAND: f64 = 116.0;
+/// The drawing's width: the page's (7.2 in at 144 SVG units per inch, half points; see
+/// `report::svg`), and the tallest the views may be drawn.
+const TOTAL_WIDTH: f64 = 1037.0;
+const MAX_DRAW_HEIGHT: f64 = 1150.0;
+const MARGIN: f64 = 14.0;
+/// Above the views: the title (9 pt) and a note line (8 pt).
+const HEAD_BAND: f64 = 60.0;
+/// Above each view its name; below it the scale bar and the axis names.
+const VIEW_TITLE: f64 = 24.0;
+const VIEW_FOOT: f64 = 52.0;
+/// The top view is drawn at least this high (SVG units), so that a flat bench stays legible
+/// at the common scale: the view is centred in it.
+const MIN_VIEW_HEIGHT: f64 = 120.0;
+/// Text sizes (SVG units: 18 = 9 pt, 16 = 8 pt).
+const TITLE_FONT: f64 = 18.0;
+const TEXT_FONT: f64 = 16.0;
 
 /// 1, 2 or 5 × 10^k, the largest not above `x` (x > 0).
 fn nice_below(x: f64) -> f64 {
@@ -118,9 +128,109 @@ fn escape(s: &str) -> String {
         .replace('"', "&quot;")
 }
 
-/// The SVG of the bench's layout with a traced ray fan (see the module notes). `title` heads
-/// the drawing (e.g. the bench file's name). Fails (bad input) when the bench has no DMD or the
-/// chief ray from the lamp does not reach it, since the arm plane needs both.
+/// The width of `text` at `font` SVG units, from the embedded font's advances.
+fn text_width(text: &str, font: f64) -> f64 {
+    #[cfg(feature = "figures")]
+    {
+        f64::from(super::font::text_width(text, font * 1.24))
+    }
+    #[cfg(not(feature = "figures"))]
+    {
+        0.6 * font * text.chars().count() as f64
+    }
+}
+
+/// A view's data extent (m): ((min e1, min e2), (max e1, max e2)).
+type Extent = ((f64, f64), (f64, f64));
+
+/// Where a view is drawn: its panel (SVG units) and the data point at the panel's top-left.
+#[derive(Debug, Clone, Copy)]
+struct Panel {
+    x: f64,
+    y: f64,
+    w: f64,
+    h: f64,
+    /// Data coordinates (m) shown at the panel's left edge and top edge.
+    left_m: f64,
+    top_m: f64,
+}
+
+/// Width kept right of the arm-plane view for the elements' names.
+const LABEL_COLUMN: f64 = 170.0;
+
+/// The views laid out at one scale (SVG units per metre), whichever of two arrangements draws
+/// them larger within the page's width and [`MAX_DRAW_HEIGHT`]: the three side by side (side,
+/// top, arm plane; for tall benches), or the side view with the top view under it, sharing its
+/// x range and aligned with it as in an engineering drawing, and the arm plane beside them (for
+/// flat ones). The arm plane is always rightmost, with the names' column after it. Returns the
+/// panels (in `views` order: top, side, arms), the scale and the drawing's height.
+fn arrange(ext: &[Extent; 3]) -> ([Panel; 3], f64, f64) {
+    let (top, side, arms) = (ext[0], ext[1], ext[2]);
+    let w = |e: &Extent| e.1.0 - e.0.0;
+    let h = |e: &Extent| e.1.1 - e.0.1;
+    let bands = VIEW_TITLE + VIEW_FOOT;
+    let avail_w = TOTAL_WIDTH - 4.0 * MARGIN - LABEL_COLUMN;
+    let fit = |k0: f64, height: &dyn Fn(f64) -> f64| {
+        let mut k = k0;
+        while height(k) > MAX_DRAW_HEIGHT && k > 1e-6 {
+            k *= 0.97;
+        }
+        k
+    };
+    // Side by side.
+    let row_h = |k: f64| {
+        (h(&side) * k)
+            .max((h(&top) * k).max(MIN_VIEW_HEIGHT))
+            .max(h(&arms) * k)
+            + bands
+    };
+    let k_row = fit(avail_w / (w(&side) + w(&top) + w(&arms)), &row_h);
+    // Side over top, sharing x.
+    let xa = (top.0.0.min(side.0.0), top.1.0.max(side.1.0));
+    let col_h = |k: f64| {
+        let a = h(&side) * k + (h(&top) * k).max(MIN_VIEW_HEIGHT) + 2.0 * bands;
+        a.max(h(&arms) * k + bands)
+    };
+    let k_col = fit((avail_w + MARGIN) / (xa.1 - xa.0 + w(&arms)), &col_h);
+    let y0 = HEAD_BAND + VIEW_TITLE;
+    // `min_h`: the top view's minimum height, 0 for the others.
+    let panel =
+        |(x, y): (f64, f64), e: &Extent, k: f64, (left_m, width_m): (f64, f64), min_h: f64| {
+            let ph = (h(e) * k).max(min_h);
+            Panel {
+                x,
+                y,
+                w: width_m * k,
+                h: ph,
+                left_m,
+                // A short view is centred in its panel.
+                top_m: e.1.1 + 0.5 * (ph / k - h(e)),
+            }
+        };
+    if k_row >= k_col {
+        let k = k_row;
+        let side_p = panel((MARGIN, y0), &side, k, (side.0.0, w(&side)), 0.0);
+        let top_x = side_p.x + side_p.w + MARGIN;
+        let top_p = panel((top_x, y0), &top, k, (top.0.0, w(&top)), MIN_VIEW_HEIGHT);
+        let arms_x = top_p.x + top_p.w + MARGIN;
+        let arms_p = panel((arms_x, y0), &arms, k, (arms.0.0, w(&arms)), 0.0);
+        ([top_p, side_p, arms_p], k, HEAD_BAND + row_h(k))
+    } else {
+        let k = k_col;
+        let shared = (xa.0, xa.1 - xa.0);
+        let side_p = panel((MARGIN, y0), &side, k, shared, 0.0);
+        let top_y = y0 + side_p.h + bands;
+        let top_p = panel((MARGIN, top_y), &top, k, shared, MIN_VIEW_HEIGHT);
+        let arms_x = side_p.x + side_p.w + MARGIN;
+        let arms_p = panel((arms_x, y0), &arms, k, (arms.0.0, w(&arms)), 0.0);
+        ([top_p, side_p, arms_p], k, HEAD_BAND + col_h(k))
+    }
+}
+
+/// The SVG of the bench's layout with a traced ray fan (see the module notes), 7.2 in wide
+/// (the page's width) with 8–9 pt text. `title` heads the drawing (e.g. the bench file's name).
+/// Fails (bad input) when the bench has no DMD or the chief ray from the lamp does not reach
+/// it, since the arm plane needs both.
 pub fn layout_svg(bench: &Bench, fan: &RayFan, title: &str) -> Result<String> {
     let axes = dmd_axes(bench, DESIGN_WAVELENGTH_M)
         .map_err(|m| Error::field("dmd", format!("cannot draw the arm plane: {m}")))?;
@@ -133,8 +243,8 @@ pub fn layout_svg(bench: &Bench, fan: &RayFan, title: &str) -> Result<String> {
         .collect();
 
     // Extents of every view over outlines and rays (m), then one scale for all.
-    let mut ext = Vec::new();
-    for v in &views {
+    let ext: [Extent; 3] = std::array::from_fn(|k| {
+        let v = &views[k];
         let mut lo = (f64::INFINITY, f64::INFINITY);
         let mut hi = (f64::NEG_INFINITY, f64::NEG_INFINITY);
         let all = outlines
@@ -148,191 +258,281 @@ pub fn layout_svg(bench: &Bench, fan: &RayFan, title: &str) -> Result<String> {
         }
         // A 4 % border, and at least 10 mm across.
         let pad = 0.04 * (hi.0 - lo.0).max(hi.1 - lo.1).max(0.01);
-        ext.push(((lo.0 - pad, lo.1 - pad), (hi.0 + pad, hi.1 + pad)));
-    }
-    let widths: Vec<f64> = ext.iter().map(|(l, h)| h.0 - l.0).collect();
-    let heights: Vec<f64> = ext.iter().map(|(l, h)| h.1 - l.1).collect();
-    let max_h = heights.iter().copied().fold(0.0, f64::max);
-    let scale = (MAX_VIEW_HEIGHT / max_h).min(MAX_TOTAL_WIDTH / widths.iter().sum::<f64>());
-    let panel_w: Vec<f64> = widths.iter().map(|w| (w * scale).max(220.0)).collect();
-    let draw_h = max_h * scale;
-    let total_w = panel_w.iter().sum::<f64>() + MARGIN * (views.len() as f64 + 1.0);
-    let total_h = TITLE_BAND + draw_h + FOOT_BAND + 2.0 * MARGIN;
+        ((lo.0 - pad, lo.1 - pad), (hi.0 + pad, hi.1 + pad))
+    });
+    let (panels, scale, draw_h) = arrange(&ext);
+    let legend_rows = legend_lines(fan);
+    let total_w = TOTAL_WIDTH;
+    let total_h = (draw_h + MARGIN + 22.0 * legend_rows.len() as f64 + 24.0).ceil();
 
     let mut s = String::new();
     let _ = writeln!(
         s,
-        r##"<svg xmlns="http://www.w3.org/2000/svg" width="{w:.0}" height="{h:.0}" viewBox="0 0 {w:.0} {h:.0}" font-family="DejaVu Sans, sans-serif">"##,
-        w = total_w.ceil(),
-        h = total_h.ceil()
+        r##"<svg xmlns="http://www.w3.org/2000/svg" width="{total_w:.0}" height="{total_h:.0}" viewBox="0 0 {total_w:.0} {total_h:.0}" font-family="DejaVu Sans, sans-serif">"##
     );
     let _ = writeln!(s, r##"<rect width="100%" height="100%" fill="#ffffff"/>"##);
-    let counts = fan.counts();
     let _ = writeln!(
         s,
-        r##"<text x="{MARGIN}" y="{y:.1}" font-size="18">{t}</text>"##,
-        y = MARGIN + 12.0,
+        r##"<text x="{MARGIN}" y="{y:.1}" font-size="{TITLE_FONT}">{t}</text>"##,
+        y = MARGIN + TITLE_FONT,
         t = escape(title)
     );
     let _ = writeln!(
         s,
-        r##"<text x="{MARGIN}" y="{y:.1}" font-size="12" fill="#444">{n} lamp rays (seed {seed}): half with every pattern unit in state +, half in state −; dashed: chief rays at {wl:.0} nm</text>"##,
-        y = MARGIN + 32.0,
+        r##"<text x="{MARGIN}" y="{y:.1}" font-size="{TEXT_FONT}" fill="#444">{n} lamp rays (seed {seed}): half with every pattern unit in state +, half in state −; dashed: chief rays at {wl:.0} nm</text>"##,
+        y = MARGIN + TITLE_FONT + 22.0,
         n = fan.rays.len(),
         seed = fan.seed,
         wl = DESIGN_WAVELENGTH_M * 1e9
     );
-
-    let mut x0 = MARGIN;
-    let y0 = MARGIN + TITLE_BAND;
     for (k, v) in views.iter().enumerate() {
-        let ((min1, _), (_, max2)) = ext[k];
-        let pw = panel_w[k];
-        // Centre narrow views in their panel.
-        let off = 0.5 * (pw - widths[k] * scale);
-        let px = |p: DVec3| {
-            let (a, b) = v.project(p);
-            (x0 + off + (a - min1) * scale, y0 + (max2 - b) * scale)
-        };
-        let path_of = |lines: &mut dyn Iterator<Item = &Vec<DVec3>>| {
-            let mut d = String::new();
-            for line in lines {
-                for (i, p) in line.iter().enumerate() {
-                    let (x, y) = px(*p);
-                    let _ = write!(d, "{}{x:.2} {y:.2}", if i == 0 { "M" } else { " L" });
-                }
-            }
-            d
-        };
-        let _ = writeln!(s, r##"<g class="view" id="view-{}">"##, v.key);
-        let _ = writeln!(
-            s,
-            r##"<clipPath id="clip-{key}"><rect x="{x:.2}" y="{y:.2}" width="{w:.2}" height="{h:.2}"/></clipPath>"##,
-            key = v.key,
-            x = x0,
-            y = y0,
-            w = pw,
-            h = draw_h
+        let labels = v.key == "arms";
+        draw_view(
+            &mut s, v, &panels[k], scale, fan, &outlines, &chiefs, labels,
         );
-        let _ = writeln!(
-            s,
-            r##"<text x="{x:.2}" y="{y:.2}" font-size="14">{t}</text>"##,
-            x = x0,
-            y = y0 - 8.0,
-            t = escape(&v.title)
-        );
-        let _ = writeln!(
-            s,
-            r##"<rect x="{x:.2}" y="{y:.2}" width="{w:.2}" height="{h:.2}" fill="none" stroke="#cccccc"/>"##,
-            x = x0,
-            y = y0,
-            w = pw,
-            h = draw_h
-        );
-        let _ = writeln!(s, r##"<g clip-path="url(#clip-{})">"##, v.key);
-        for fate in DRAW_ORDER {
-            for r in fan.rays.iter().filter(|r| r.fate == fate) {
-                let d = path_of(&mut std::iter::once(&r.points));
-                let _ = writeln!(
-                    s,
-                    r##"<path class="ray {c}" d="{d}" fill="none" stroke="{col}" stroke-width="0.7" stroke-opacity="0.6"/>"##,
-                    c = fate.key(),
-                    col = fate_colour(fate)
-                );
-            }
-        }
-        for o in &outlines {
-            let strong = matches!(o.kind, ElementKind::Dmd | ElementKind::Photodiode);
-            let d = path_of(&mut o.polylines.iter());
-            let _ = writeln!(
-                s,
-                r##"<path class="element {kind}" d="{d}" fill="none" stroke="{col}" stroke-width="{sw}"><title>{name} ({kn})</title></path>"##,
-                kind = o.kind.name().to_lowercase(),
-                col = if strong { "#000000" } else { "#555555" },
-                sw = if strong { 1.2 } else { 0.9 },
-                name = escape(&o.name),
-                kn = o.kind.name()
-            );
-        }
-        for c in &chiefs {
-            let d = path_of(&mut std::iter::once(c));
-            let _ = writeln!(
-                s,
-                r##"<path class="chief" d="{d}" fill="none" stroke="#000000" stroke-width="0.6" stroke-dasharray="6 4"/>"##
-            );
-        }
-        let _ = writeln!(s, "</g>");
-        // Scale bar (about a quarter of the panel) and the axis names.
-        let bar_m = nice_below(0.25 * pw / scale * 1e3) * 1e-3;
-        let by = y0 + draw_h + 22.0;
-        let _ = writeln!(
-            s,
-            r##"<path class="scale-bar" d="M{a:.2} {by:.2} L{b:.2} {by:.2} M{a:.2} {t:.2} L{a:.2} {u:.2} M{b:.2} {t:.2} L{b:.2} {u:.2}" stroke="#000000" stroke-width="1.5"/>"##,
-            a = x0,
-            b = x0 + bar_m * scale,
-            t = by - 4.0,
-            u = by + 4.0
-        );
-        let _ = writeln!(
-            s,
-            r##"<text x="{x:.2}" y="{y:.2}" font-size="12">{mm} mm</text>"##,
-            x = x0 + bar_m * scale + 8.0,
-            y = by + 4.0,
-            mm = bar_m * 1e3
-        );
-        let _ = writeln!(
-            s,
-            r##"<text x="{x:.2}" y="{y:.2}" font-size="11" fill="#444">→ {h}, ↑ {v}</text>"##,
-            x = x0,
-            y = by + 22.0,
-            h = escape(&v.labels.0),
-            v = escape(&v.labels.1)
-        );
-        let _ = writeln!(s, "</g>");
-        x0 += pw + MARGIN;
     }
-
-    // Legend: the fates that occur, with their counts.
-    let ly = y0 + draw_h + 70.0;
-    let mut lx = MARGIN;
-    let _ = writeln!(s, r##"<g class="legend">"##);
-    for (i, fate) in Fate::ALL.iter().enumerate() {
-        if counts[i] == 0 {
-            continue;
-        }
-        let label = format!("{} ({})", fate.label(), counts[i]);
-        let _ = writeln!(
-            s,
-            r##"<path d="M{a:.2} {ly:.2} L{b:.2} {ly:.2}" stroke="{col}" stroke-width="3"/><text x="{t:.2}" y="{y:.2}" font-size="12">{label}</text>"##,
-            a = lx,
-            b = lx + 24.0,
-            t = lx + 30.0,
-            y = ly + 4.0,
-            col = fate_colour(*fate)
-        );
-        lx += 60.0 + 7.0 * label.chars().count() as f64;
-    }
-    // The outline key on a line of its own, so that the legend fits the narrowest drawing.
-    let _ = lx;
-    let _ = writeln!(
-        s,
-        r##"<path d="M{a:.2} {ly:.2} L{b:.2} {ly:.2}" stroke="#555555" stroke-width="1"/><text x="{t:.2}" y="{y:.2}" font-size="12">element outlines (black: DMD and photodiodes; hover an outline in a browser for its name)</text>"##,
-        a = MARGIN,
-        b = MARGIN + 24.0,
-        t = MARGIN + 30.0,
-        ly = ly + 20.0,
-        y = ly + 24.0
-    );
-    let _ = writeln!(s, "</g>");
+    draw_legend(&mut s, &legend_rows, draw_h + MARGIN);
     let _ = writeln!(s, "</svg>");
     Ok(s)
 }
 
-/// Renders SVG text to PNG bytes at its own size (1 px per SVG unit) with resvg, text set in the
-/// embedded DejaVu Sans (no system fonts are consulted); see `report::svg`.
+/// Draws one view in its panel: the rays by fate, the element outlines, the chief rays, the
+/// scale bar and the axis names; with `labels`, each element's name beside it.
+#[allow(clippy::too_many_arguments)]
+fn draw_view(
+    s: &mut String,
+    v: &View,
+    p: &Panel,
+    scale: f64,
+    fan: &RayFan,
+    outlines: &[crate::optics::outline::ElementOutline],
+    chiefs: &[Vec<DVec3>],
+    labels: bool,
+) {
+    let px = |q: DVec3| {
+        let (a, b) = v.project(q);
+        (p.x + (a - p.left_m) * scale, p.y + (p.top_m - b) * scale)
+    };
+    let path_of = |lines: &mut dyn Iterator<Item = &Vec<DVec3>>| {
+        let mut d = String::new();
+        for line in lines {
+            for (i, q) in line.iter().enumerate() {
+                let (x, y) = px(*q);
+                let _ = write!(d, "{}{x:.2} {y:.2}", if i == 0 { "M" } else { " L" });
+            }
+        }
+        d
+    };
+    let _ = writeln!(s, r##"<g class="view" id="view-{}">"##, v.key);
+    let _ = writeln!(
+        s,
+        r##"<clipPath id="clip-{key}"><rect x="{x:.2}" y="{y:.2}" width="{w:.2}" height="{h:.2}"/></clipPath>"##,
+        key = v.key,
+        x = p.x,
+        y = p.y,
+        w = p.w,
+        h = p.h
+    );
+    let _ = writeln!(
+        s,
+        r##"<text x="{x:.2}" y="{y:.2}" font-size="{TITLE_FONT}">{t}</text>"##,
+        x = p.x,
+        y = p.y - 7.0,
+        t = escape(&v.title)
+    );
+    let _ = writeln!(
+        s,
+        r##"<rect x="{x:.2}" y="{y:.2}" width="{w:.2}" height="{h:.2}" fill="none" stroke="#cccccc"/>"##,
+        x = p.x,
+        y = p.y,
+        w = p.w,
+        h = p.h
+    );
+    let _ = writeln!(s, r##"<g clip-path="url(#clip-{})">"##, v.key);
+    for fate in DRAW_ORDER {
+        for r in fan.rays.iter().filter(|r| r.fate == fate) {
+            let d = path_of(&mut std::iter::once(&r.points));
+            let _ = writeln!(
+                s,
+                r##"<path class="ray {c}" d="{d}" fill="none" stroke="{col}" stroke-width="0.7" stroke-opacity="0.6"/>"##,
+                c = fate.key(),
+                col = fate_colour(fate)
+            );
+        }
+    }
+    for o in outlines {
+        let strong = matches!(o.kind, ElementKind::Dmd | ElementKind::Photodiode);
+        let d = path_of(&mut o.polylines.iter());
+        let _ = writeln!(
+            s,
+            r##"<path class="element {kind}" d="{d}" fill="none" stroke="{col}" stroke-width="{sw}"><title>{name} ({kn})</title></path>"##,
+            kind = o.kind.name().to_lowercase(),
+            col = if strong { "#000000" } else { "#555555" },
+            sw = if strong { 1.6 } else { 1.1 },
+            name = escape(&o.name),
+            kn = o.kind.name()
+        );
+    }
+    for c in chiefs {
+        let d = path_of(&mut std::iter::once(c));
+        let _ = writeln!(
+            s,
+            r##"<path class="chief" d="{d}" fill="none" stroke="#000000" stroke-width="0.8" stroke-dasharray="6 4"/>"##
+        );
+    }
+    let _ = writeln!(s, "</g>");
+    if labels {
+        draw_element_labels(s, p, outlines, &px);
+    }
+    // Scale bar (about a quarter of the panel, at most 100 mm) and the axis names.
+    let bar_m = nice_below((0.25 * p.w / scale * 1e3).min(100.0)) * 1e-3;
+    let by = p.y + p.h + 16.0;
+    let _ = writeln!(
+        s,
+        r##"<path class="scale-bar" data-mm="{mm}" d="M{a:.3} {by:.2} L{b:.3} {by:.2} M{a:.3} {t:.2} L{a:.3} {u:.2} M{b:.3} {t:.2} L{b:.3} {u:.2}" stroke="#000000" stroke-width="1.5"/>"##,
+        mm = bar_m * 1e3,
+        a = p.x,
+        b = p.x + bar_m * scale,
+        t = by - 4.0,
+        u = by + 4.0
+    );
+    let _ = writeln!(
+        s,
+        r##"<text x="{x:.2}" y="{y:.2}" font-size="{TEXT_FONT}">{mm} mm</text>"##,
+        x = p.x + bar_m * scale + 8.0,
+        y = by + 5.0,
+        mm = bar_m * 1e3
+    );
+    let _ = writeln!(
+        s,
+        r##"<text x="{x:.2}" y="{y:.2}" font-size="{TEXT_FONT}" fill="#444">→ {h}, ↑ {v}</text>"##,
+        x = p.x,
+        y = by + 26.0,
+        h = escape(&v.labels.0),
+        v = escape(&v.labels.1)
+    );
+    let _ = writeln!(s, "</g>");
+}
+
+/// Each element's name in a column right of the panel, at the height of the element's middle
+/// (pushed apart so that names do not overlap), joined to the element's right edge by a thin
+/// leader line.
+fn draw_element_labels(
+    s: &mut String,
+    p: &Panel,
+    outlines: &[crate::optics::outline::ElementOutline],
+    px: &dyn Fn(DVec3) -> (f64, f64),
+) {
+    let line = TEXT_FONT + 3.0;
+    // (anchor x, anchor y, name) of every element with an outline.
+    let mut items: Vec<(f64, f64, &str)> = outlines
+        .iter()
+        .filter_map(|o| {
+            let pts: Vec<(f64, f64)> = o.polylines.iter().flatten().map(|q| px(*q)).collect();
+            let x_hi = pts.iter().map(|q| q.0).fold(f64::NEG_INFINITY, f64::max);
+            let (y_lo, y_hi) = pts
+                .iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), q| {
+                    (a.min(q.1), b.max(q.1))
+                });
+            x_hi.is_finite().then(|| {
+                let x = x_hi.clamp(p.x, p.x + p.w);
+                (
+                    x,
+                    (0.5 * (y_lo + y_hi)).clamp(p.y, p.y + p.h),
+                    o.name.as_str(),
+                )
+            })
+        })
+        .collect();
+    items.sort_by(|a, b| a.1.total_cmp(&b.1));
+    // Baselines: each at its anchor, at least a line below the previous; then the whole column
+    // moved up if it runs past the panel's bottom.
+    let mut ys: Vec<f64> = Vec::with_capacity(items.len());
+    for it in &items {
+        let want = it.1 + 0.35 * TEXT_FONT;
+        let y = ys.last().map_or(want, |&prev: &f64| want.max(prev + line));
+        ys.push(y);
+    }
+    let bottom = p.y + p.h + VIEW_FOOT - 8.0;
+    if let Some(&last) = ys.last()
+        && last > bottom
+    {
+        let shift = last - bottom;
+        for y in &mut ys {
+            *y -= shift;
+        }
+    }
+    let x_text = p.x + p.w + 14.0;
+    let _ = writeln!(s, r##"<g class="element-labels">"##);
+    for ((ax, ay, name), y) in items.iter().zip(&ys) {
+        let _ = writeln!(
+            s,
+            r##"<path d="M{ax:.2} {ay:.2} L{bx:.2} {ay:.2} L{cx:.2} {cy:.2}" stroke="#999999" stroke-width="0.6" fill="none"/><text class="element-label" x="{x_text:.2}" y="{y:.2}" font-size="{TEXT_FONT}" fill="#222">{n}</text>"##,
+            bx = p.x + p.w + 2.0,
+            cx = x_text - 3.0,
+            cy = y - 0.35 * TEXT_FONT,
+            n = escape(name)
+        );
+    }
+    let _ = writeln!(s, "</g>");
+}
+
+/// The legend's entries (colour, text) in lines that fit the drawing's width.
+fn legend_lines(fan: &RayFan) -> Vec<Vec<(&'static str, String)>> {
+    let counts = fan.counts();
+    let mut entries: Vec<(&'static str, String)> = Fate::ALL
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| counts[*i] > 0)
+        .map(|(i, f)| (fate_colour(*f), format!("{} ({})", f.label(), counts[i])))
+        .collect();
+    entries.push((
+        "#555555",
+        "element outlines (black: DMD and photodiodes; names beside the arm plane)".into(),
+    ));
+    let mut lines: Vec<Vec<(&'static str, String)>> = vec![Vec::new()];
+    let mut used = 0.0;
+    for e in entries {
+        let w = 36.0 + text_width(&e.1, TEXT_FONT) + 20.0;
+        if used + w > TOTAL_WIDTH - 2.0 * MARGIN && !lines.last().is_some_and(Vec::is_empty) {
+            lines.push(Vec::new());
+            used = 0.0;
+        }
+        used += w;
+        lines.last_mut().expect("one line").push(e);
+    }
+    lines
+}
+
+fn draw_legend(s: &mut String, lines: &[Vec<(&'static str, String)>], top: f64) {
+    let _ = writeln!(s, r##"<g class="legend">"##);
+    for (r, line) in lines.iter().enumerate() {
+        let ly = top + 14.0 + 22.0 * r as f64;
+        let mut lx = MARGIN;
+        for (col, label) in line {
+            let _ = writeln!(
+                s,
+                r##"<path d="M{a:.2} {ly:.2} L{b:.2} {ly:.2}" stroke="{col}" stroke-width="3"/><text x="{t:.2}" y="{y:.2}" font-size="{TEXT_FONT}">{l}</text>"##,
+                a = lx,
+                b = lx + 28.0,
+                t = lx + 36.0,
+                y = ly + 5.5,
+                l = escape(label)
+            );
+            lx += 36.0 + text_width(label, TEXT_FONT) + 20.0;
+        }
+    }
+    let _ = writeln!(s, "</g>");
+}
+
+/// Renders the layout's SVG to PNG bytes at print size (`report::svg::PNG_DPI`) with resvg,
+/// text set as outlines of the embedded DejaVu Sans (no system fonts are consulted).
 #[cfg(feature = "figures")]
 pub fn svg_to_png(svg: &str) -> Result<Vec<u8>> {
-    super::svg::svg_to_png(svg)
+    let svg = super::svg::at_print_size(&super::outline::outline_text(svg)?)?;
+    let (w, h, rgb) = super::svg::print_to_rgb(&svg)?;
+    super::png::encode_rgb8(w, h, &rgb)
 }
 
 #[cfg(test)]
@@ -376,18 +576,62 @@ mod tests {
         assert!(svg.contains("&lt;arms&gt; &amp; co"));
         let png = svg_to_png(&svg).unwrap();
         let img = image::load_from_memory(&png).unwrap();
-        let w: f64 = svg
-            .split("width=\"")
-            .nth(1)
+        let doc = roxmltree::Document::parse(&svg).unwrap();
+        let vb: Vec<f64> = doc
+            .root_element()
+            .attribute("viewBox")
             .unwrap()
-            .split('"')
-            .next()
-            .unwrap()
-            .parse()
-            .unwrap();
-        assert_eq!(img.width() as f64, w);
-        // Not blank: some pixels carry ray colours.
+            .split(' ')
+            .map(|t| t.parse().unwrap())
+            .collect();
+        // The page's width (7.2 in) at 288 dpi: 2 px per unit.
+        assert_eq!(vb[2], 1037.0);
+        assert_eq!(f64::from(img.width()), 2.0 * vb[2]);
+        // One scale for all views: every scale bar is as long per millimetre.
+        let per_mm: Vec<f64> = doc
+            .descendants()
+            .filter(|n| n.attribute("class") == Some("scale-bar"))
+            .map(|n| {
+                let mm: f64 = n.attribute("data-mm").unwrap().parse().unwrap();
+                let d = n.attribute("d").unwrap();
+                let xs: Vec<f64> = d
+                    .split(['M', 'L'])
+                    .filter_map(|t| t.split_whitespace().next()?.parse().ok())
+                    .collect();
+                (xs[1] - xs[0]) / mm
+            })
+            .collect();
+        assert_eq!(per_mm.len(), 3);
+        assert!(
+            per_mm.iter().all(|k| (k - per_mm[0]).abs() < 1e-3),
+            "{per_mm:?}"
+        );
+        // Every element is labelled by name once, in the arm plane.
+        let names: Vec<String> = crate::optics::outline::element_outlines(&bench)
+            .into_iter()
+            .map(|o| o.name)
+            .collect();
+        let labels: Vec<&str> = doc
+            .descendants()
+            .filter(|n| n.attribute("class") == Some("element-label"))
+            .filter_map(|n| n.text())
+            .collect();
+        for name in &names {
+            assert_eq!(labels.iter().filter(|l| *l == name).count(), 1, "{name}");
+        }
+        // The top view is drawn at least MIN_VIEW_HEIGHT high.
+        let clip_h = |key: &str| -> f64 {
+            doc.descendants()
+                .find(|n| n.attribute("id") == Some(&format!("clip-{key}")))
+                .and_then(|n| n.first_element_child())
+                .and_then(|r| r.attribute("height"))
+                .unwrap()
+                .parse()
+                .unwrap()
+        };
+        assert!(clip_h("top") >= MIN_VIEW_HEIGHT - 1e-9);
         let rgb = img.to_rgb8();
+        // Not blank: some pixels carry ray colours.
         assert!(
             rgb.pixels().any(|p| p.0[2] > 150 && p.0[0] < 100),
             "no blue ray drawn"

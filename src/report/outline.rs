@@ -228,7 +228,13 @@ fn text_path(attrs: &[(&str, String)], content: &str) -> Result<String> {
             append_outline(&mut d, &outline.curves, at);
         }
     }
-    let mut path = format!(r#"<path aria-label="{}" d="{d}""#, escape(&text));
+    // The size stays on the path (no effect on its drawing) so that a reader of the file can
+    // tell the text size at print size.
+    let mut path = format!(
+        r#"<path aria-label="{}" font-size="{}" d="{d}""#,
+        escape(&text),
+        (font_size * 1000.0).round() / 1000.0
+    );
     path.push_str(&format!(
         r#" fill="{}""#,
         escape(get("fill").map_or("#000000", String::as_str))

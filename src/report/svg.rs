@@ -8,7 +8,169 @@
 //! Why not plotters' bitmap backend: it positions glyphs one by one from rounded pixel boxes,
 //! which breaks words apart ("bal ancing") and lifts the decimal point.
 
+use std::path::Path;
+
 use crate::error::{Error, Result};
+
+/// SVG user units per inch of the figures drawn at print size: one unit is half a point, so
+/// whole-unit stroke widths and marker sizes step in half points, and text of 16–18 units is
+/// 8–9 pt on paper.
+pub const UNITS_PER_IN: f64 = 144.0;
+
+/// Resolution of the PNG rendering of a print-size figure (2 pixels per SVG unit): a
+/// single-column figure is 1008 pixels wide.
+pub const PNG_DPI: f64 = 288.0;
+
+/// CSS pixels per inch: usvg, svg2pdf and browsers read an SVG's `in` lengths at this rate.
+const CSS_PX_PER_IN: f64 = 96.0;
+
+/// A figure's printed size in inches. Figures are drawn for the column widths of two-column
+/// journals: [`FigureSize::SINGLE`] (3.5 in) and [`FigureSize::DOUBLE`] (7.2 in), with 8–9 pt
+/// text at that size, so `\includegraphics` without a `width=` prints them as drawn.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FigureSize {
+    pub width_in: f64,
+    pub height_in: f64,
+}
+
+impl FigureSize {
+    /// One column of a two-column journal page.
+    pub const SINGLE_COLUMN_IN: f64 = 3.5;
+    /// The full text width of a two-column page.
+    pub const DOUBLE_COLUMN_IN: f64 = 7.2;
+    pub const SINGLE: FigureSize = FigureSize {
+        width_in: Self::SINGLE_COLUMN_IN,
+        height_in: 2.6,
+    };
+    pub const DOUBLE: FigureSize = FigureSize {
+        width_in: Self::DOUBLE_COLUMN_IN,
+        height_in: 3.4,
+    };
+
+    /// A checked size: each side from 1 to 40 inches.
+    pub fn new(width_in: f64, height_in: f64) -> Result<FigureSize> {
+        for (name, v) in [("width_in", width_in), ("height_in", height_in)] {
+            if !(1.0..=40.0).contains(&v) {
+                return Err(Error::field(
+                    name,
+                    format!("a figure side must be 1 to 40 inches, got {v}"),
+                ));
+            }
+        }
+        Ok(FigureSize {
+            width_in,
+            height_in,
+        })
+    }
+
+    /// The size of a drawing of `width × height` SVG units ([`UNITS_PER_IN`]).
+    pub fn of_units(width: u32, height: u32) -> FigureSize {
+        FigureSize {
+            width_in: f64::from(width) / UNITS_PER_IN,
+            height_in: f64::from(height) / UNITS_PER_IN,
+        }
+    }
+
+    /// The drawing's width and height in SVG user units.
+    pub fn units(self) -> (u32, u32) {
+        (
+            (self.width_in * UNITS_PER_IN).round() as u32,
+            (self.height_in * UNITS_PER_IN).round() as u32,
+        )
+    }
+
+    /// The same width with `extra_in` inches added to the height.
+    pub fn taller(self, extra_in: f64) -> FigureSize {
+        FigureSize {
+            height_in: self.height_in + extra_in,
+            ..self
+        }
+    }
+}
+
+/// `svg` with its root element's `width` and `height` stated in inches, from its `viewBox` at
+/// [`UNITS_PER_IN`]: the drawing is unchanged, and viewers, svg2pdf and LaTeX (via the PDF) show
+/// it at its print size.
+pub fn at_print_size(svg: &str) -> Result<String> {
+    let start = svg
+        .find("<svg")
+        .ok_or_else(|| Error::Numerical("a figure's SVG has no <svg> element".into()))?;
+    let end = start
+        + svg[start..]
+            .find('>')
+            .ok_or_else(|| Error::Numerical("a figure's <svg> tag is not closed".into()))?;
+    let tag = &svg[start..end];
+    let attr = |name: &str| -> Option<(usize, usize)> {
+        let key = format!(" {name}=\"");
+        let at = tag.find(&key)? + key.len();
+        let len = tag[at..].find('"')?;
+        Some((at, at + len))
+    };
+    let (vb0, vb1) =
+        attr("viewBox").ok_or_else(|| Error::Numerical("a figure's SVG has no viewBox".into()))?;
+    let vb: Vec<f64> = tag[vb0..vb1]
+        .split([' ', ','])
+        .filter(|t| !t.is_empty())
+        .filter_map(|t| t.parse().ok())
+        .collect();
+    if vb.len() != 4 || !(vb[2] > 0.0 && vb[3] > 0.0) {
+        return Err(Error::Numerical("a figure's viewBox is malformed".into()));
+    }
+    let mut new_tag = tag.to_string();
+    // Replace from the right so that earlier offsets stay valid.
+    let mut edits: Vec<((usize, usize), String)> = Vec::new();
+    let mut missing = String::new();
+    for (name, units) in [("width", vb[2]), ("height", vb[3])] {
+        let value = format!("{}in", trim_float(units / UNITS_PER_IN));
+        match attr(name) {
+            Some(span) => edits.push((span, value)),
+            None => missing.push_str(&format!(" {name}=\"{value}\"")),
+        }
+    }
+    // Missing attributes go right after `<svg`, before every other edit's offset.
+    edits.push((("<svg".len(), "<svg".len()), missing));
+    edits.sort_by_key(|((a, _), _)| std::cmp::Reverse(*a));
+    for ((a, b), v) in edits {
+        new_tag.replace_range(a..b, &v);
+    }
+    Ok(format!("{}{new_tag}{}", &svg[..start], &svg[end..]))
+}
+
+/// A length with at most four decimals and no trailing zeros.
+fn trim_float(v: f64) -> String {
+    let s = format!("{v:.4}");
+    s.trim_end_matches('0').trim_end_matches('.').to_string()
+}
+
+/// Renders a print-size SVG ([`at_print_size`]) at [`PNG_DPI`]: the width, the height and the
+/// RGB bytes. Other SVG renders at its own size ([`svg_to_rgb`]).
+pub fn print_to_rgb(svg: &str) -> Result<(u32, u32, Vec<u8>)> {
+    render_scaled(svg, PNG_DPI / CSS_PX_PER_IN)
+}
+
+/// Writes a figure: its SVG, its PNG rendering at [`PNG_DPI`] and, when `pdf`, its PDF beside
+/// the SVG (extension `.pdf`). `svg` is a drawing in [`UNITS_PER_IN`] units; its text is set as
+/// outlines and its size stated in inches first. Everything is rendered in memory before the
+/// first file is written, so a drawing failure writes nothing.
+pub fn write_figure(svg: &str, svg_path: &Path, png_path: &Path, pdf: bool) -> Result<()> {
+    let fail = |e: Error| match e {
+        Error::Numerical(msg) => Error::write(svg_path, std::io::Error::other(msg)),
+        other => other.in_file(svg_path),
+    };
+    let svg = at_print_size(&super::outline::outline_text(svg).map_err(fail)?).map_err(fail)?;
+    let (w, h, rgb) = print_to_rgb(&svg).map_err(fail)?;
+    let png = super::png::encode_rgb8(w, h, &rgb).map_err(fail)?;
+    let pdf = if pdf {
+        Some(svg_to_pdf(&svg).map_err(fail)?)
+    } else {
+        None
+    };
+    super::npy::write_atomic(svg_path, svg.as_bytes())?;
+    if let Some(pdf) = pdf {
+        super::npy::write_atomic(&svg_path.with_extension("pdf"), &pdf)?;
+    }
+    super::npy::write_atomic(png_path, &png)
+}
 
 /// Parses SVG text into a usvg tree, its text set as glyph outlines first.
 pub fn parse(svg: &str) -> Result<resvg::usvg::Tree> {
@@ -20,14 +182,27 @@ pub fn parse(svg: &str) -> Result<resvg::usvg::Tree> {
 /// Renders SVG text at its own size (1 px per SVG user unit) on a white background: the
 /// width, the height and the RGB bytes (row-major).
 pub fn svg_to_rgb(svg: &str) -> Result<(u32, u32, Vec<u8>)> {
+    render_scaled(svg, 1.0)
+}
+
+/// Renders SVG text at `scale` pixels per CSS pixel of its size on a white background.
+fn render_scaled(svg: &str, scale: f64) -> Result<(u32, u32, Vec<u8>)> {
     let tree = parse(svg)?;
-    let size = tree.size().to_int_size();
-    let mut pixmap = resvg::tiny_skia::Pixmap::new(size.width(), size.height())
+    let size = tree.size();
+    let (w, h) = (
+        (f64::from(size.width()) * scale).round() as u32,
+        (f64::from(size.height()) * scale).round() as u32,
+    );
+    let mut pixmap = resvg::tiny_skia::Pixmap::new(w, h)
         .ok_or_else(|| Error::Numerical("a figure's SVG has no area".into()))?;
     pixmap.fill(resvg::tiny_skia::Color::WHITE);
+    let (sx, sy) = (
+        w as f32 / size.width().max(f32::MIN_POSITIVE),
+        h as f32 / size.height().max(f32::MIN_POSITIVE),
+    );
     resvg::render(
         &tree,
-        resvg::tiny_skia::Transform::default(),
+        resvg::tiny_skia::Transform::from_scale(sx, sy),
         &mut pixmap.as_mut(),
     );
     let (w, h) = (pixmap.width(), pixmap.height());
@@ -74,8 +249,9 @@ pub fn svg_to_png(svg: &str) -> Result<Vec<u8>> {
     super::png::encode_rgb8(w, h, &rgb)
 }
 
-/// A one-page PDF of SVG text, one PDF point per SVG user unit (so a 960 × 600 figure is
-/// 13.3 × 8.3 in, to be scaled by `\includegraphics[width=…]`). Text is drawn as the glyph
+/// A one-page PDF of SVG text, the page of the size the SVG states (CSS units: 96 px per inch,
+/// so a figure whose width is "3.5in" gives a 252 pt page, and a unitless 960 × 600 one
+/// 10 × 6.25 in). Text is drawn as the glyph
 /// outlines of the SVG ([`parse`]), so the PDF needs no embedded font. The file holds no date,
 /// so the same figure gives the same bytes.
 pub fn svg_to_pdf(svg: &str) -> Result<Vec<u8>> {
@@ -84,7 +260,9 @@ pub fn svg_to_pdf(svg: &str) -> Result<Vec<u8>> {
     svg2pdf::to_pdf(
         &tree,
         svg2pdf::ConversionOptions::default(),
-        svg2pdf::PageOptions { dpi: 72.0 },
+        svg2pdf::PageOptions {
+            dpi: CSS_PX_PER_IN as f32,
+        },
     )
     .map(canonical_resource_order)
     .map_err(|e| Error::Numerical(format!("cannot convert a figure to PDF: {e}")))
@@ -172,6 +350,19 @@ pub(crate) mod tests {
         units * size / 2048.0
     }
 
+    /// The page size (width, height in points) of a one-page PDF: its `/MediaBox`.
+    pub(crate) fn pdf_page_pt(pdf: &[u8]) -> (f64, f64) {
+        let text = String::from_utf8_lossy(pdf);
+        let at = text.find("/MediaBox").expect("a MediaBox") + "/MediaBox".len();
+        let inside = &text[at..];
+        let (open, close) = (inside.find('[').unwrap(), inside.find(']').unwrap());
+        let v: Vec<f64> = inside[open + 1..close]
+            .split_whitespace()
+            .map(|t| t.parse().unwrap())
+            .collect();
+        (v[2] - v[0], v[3] - v[1])
+    }
+
     /// The widest run of blank columns between the first and last inked column.
     pub(crate) fn widest_inner_gap(cols: &[bool]) -> usize {
         let first = cols.iter().position(|&c| c).unwrap_or(0);
@@ -203,6 +394,31 @@ pub(crate) mod tests {
             assert!(svg_to_pdf(&svg).unwrap() == first, "the PDF bytes changed");
         }
         assert!(first.starts_with(b"%PDF-"));
+    }
+
+    /// A figure states its size in inches from its viewBox (half points), its PNG has 288 dpi
+    /// and its PDF page that size in points.
+    #[test]
+    fn print_size_from_the_view_box() {
+        let svg = r#"<svg width="504" height="288" viewBox="0 0 504 288" xmlns="http://www.w3.org/2000/svg"><rect x="10" y="10" width="20" height="20"/></svg>"#;
+        let out = at_print_size(svg).unwrap();
+        assert!(
+            out.starts_with(r#"<svg width="3.5in" height="2in" viewBox="0 0 504 288""#),
+            "{out}"
+        );
+        assert_eq!(at_print_size(&out).unwrap(), out);
+        let (w, h, _) = print_to_rgb(&out).unwrap();
+        assert_eq!((w, h), (1008, 576));
+        assert_eq!(pdf_page_pt(&svg_to_pdf(&out).unwrap()), (252.0, 144.0));
+        let bare = r#"<svg viewBox="0 0 1037 144" xmlns="http://www.w3.org/2000/svg"/>"#;
+        assert!(
+            at_print_size(bare)
+                .unwrap()
+                .starts_with(r#"<svg width="7.2014in" height="1in""#)
+        );
+        assert!(at_print_size("<svg width=\"3\">").is_err());
+        assert!(FigureSize::new(0.5, 2.0).is_err());
+        assert_eq!(FigureSize::SINGLE.units(), (504, 374));
     }
 
     #[test]

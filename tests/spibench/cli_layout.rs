@@ -96,13 +96,20 @@ fn layout_of_every_shipped_bench() {
             assert!(outlines >= 10, "{outlines} outlines");
         }
         assert!(counts[0] > 0 && counts[1] > 0, "both arms lit: {counts:?}");
+        // The PNG is the SVG at 288 dpi: 2 px per unit of its viewBox (half points).
         let png = image::open(out.join("layout.png")).unwrap();
         let svg = doc.root_element();
-        assert_eq!(
-            png.width().to_string(),
-            svg.attribute("width").unwrap(),
-            "PNG size"
-        );
+        let vb_w: f64 = svg
+            .attribute("viewBox")
+            .unwrap()
+            .split(' ')
+            .nth(2)
+            .unwrap()
+            .parse()
+            .unwrap();
+        assert_eq!(f64::from(png.width()), 2.0 * vb_w, "PNG size");
+        assert_eq!(svg.attribute("width"), Some("7.2014in"));
+        assert!(out.join("layout.pdf").is_file());
     }
 }
 

@@ -13,6 +13,7 @@ mod cli_tolerance;
 mod common;
 mod dataset_provenance;
 mod dmd;
+mod figures;
 mod findings;
 mod fuzz;
 mod kernel_se;
