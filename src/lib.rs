@@ -7,8 +7,8 @@
 
 pub mod acquisition;
 pub mod align;
-#[cfg(feature = "cli")]
 pub mod checked;
+#[cfg(feature = "cli")]
 pub mod cli;
 pub mod dataset;
 pub mod detector;
