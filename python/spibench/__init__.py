@@ -439,11 +439,17 @@ class Kernel:
         """(2,) object-independent pattern-independent current (A)."""
         return np.array([self._k.vector("c0", d)[0] for d in range(2)])
 
-    def dmd_light(self, objects, threads: Optional[int] = None) -> np.ndarray:
+    def dmd_light(self, objects, threads: Optional[int] = None,
+                  linear: bool = False) -> np.ndarray:
         """The light on the DMD units x_j (W) of each object (H, W) or (N, H, W), by the
-        library's own kernel product: (down, across) or (N, down, across)."""
+        library's own kernel product: (down, across) or (N, down, across).
+
+        ``linear=True`` gives the product's linear part, which the sparse matrices hold: light
+        that meets the chart more than once is then weighted by the first pixel it met only,
+        where the full product weights it by every pixel it met (a few tenths of a percent of
+        the chart's light on the paper bench; docs/object_kernels.md)."""
         x, single = _batch(objects, "objects", self.grid)
-        out, _ = self._k.product(x, _threads(threads))
+        out, _ = self._k.product(x, _threads(threads), bool(linear))
         out = out.reshape((-1,) + self.units)
         return out[0] if single else out
 
@@ -455,11 +461,12 @@ class Kernel:
             raise InputError("argument `object`: one object (H, W) is needed")
         return {n: Metric(v, se) for n, v, se in self._k.transport_metrics(x[0])}
 
-    def transport_a(self, objects, threads: Optional[int] = None) -> np.ndarray:
+    def transport_a(self, objects, threads: Optional[int] = None,
+                    linear: bool = False) -> np.ndarray:
         """T[d][s][j] (A) of each object by the library's kernel product: (2, 2, down,
-        across) or (N, 2, 2, down, across)."""
+        across) or (N, 2, 2, down, across); ``linear`` as in :meth:`dmd_light`."""
         x, single = _batch(objects, "objects", self.grid)
-        _, t = self._k.product(x, _threads(threads))
+        _, t = self._k.product(x, _threads(threads), bool(linear))
         t = t.reshape((-1, 2, 2) + self.units)
         return t[0] if single else t
 
@@ -560,8 +567,12 @@ class Acquisition:
         return np.packbits(p.astype(bool), axis=1)
 
     def forward(self, x, noise: bool = False, seed: Union[int, Sequence[int]] = 0,
-                threads: Optional[int] = None) -> np.ndarray:
+                threads: Optional[int] = None, linear: bool = False) -> np.ndarray:
         """Simulated measurements (M,) or (N, M) of objects (H, W) or (N, H, W).
+
+        ``linear=True`` measures through the kernel's linear part (see
+        :meth:`Kernel.dmd_light`), which ``apply(x) + offset`` equals; the default is the full
+        product, as ``spibench dataset`` measures.
 
         ``seed``: an int gives object n the record seed ``dataset_noise_seed(seed, n)`` (so the
         objects of samples 0…N−1 of a dataset with seed ``seed`` give its measurements); a
@@ -579,7 +590,7 @@ class Acquisition:
                 raise InputError("argument `seed`: an int or a sequence of ints is needed") from None
             if seeds.shape != (n,):
                 raise InputError(f"argument `seed`: {seeds.size} seeds for {n} objects")
-        y = self._a.forward(xb, bool(noise), seeds, _threads(threads))
+        y = self._a.forward(xb, bool(noise), seeds, _threads(threads), bool(linear))
         return y[0] if single else y
 
     def apply(self, x, threads: Optional[int] = None) -> np.ndarray:

@@ -67,8 +67,11 @@ class Kernel:
     ) -> Tuple[F64, npt.NDArray[np.uint32], npt.NDArray[np.uint64], Tuple[int, int]]: ...
     def vector(self, kind: str, index: int) -> F64: ...
     def transport_metrics(self, object: F64) -> List[Tuple[str, float, float]]: ...
-    def product(self, objects: F64, threads: Optional[int] = None) -> Tuple[F64, F64]:
-        """x_j (W) (N, units) and T (A) (N, 4·units) of each object row."""
+    def product(
+        self, objects: F64, threads: Optional[int] = None, linear: bool = False
+    ) -> Tuple[F64, F64]:
+        """x_j (W) (N, units) and T (A) (N, 4·units) of each object row (with `linear`, the
+        product's linear part)."""
 
 class Acquisition:
     scheme: str
@@ -90,9 +93,14 @@ class Acquisition:
     ) -> None: ...
     def patterns(self) -> npt.NDArray[np.uint8]: ...
     def forward(
-        self, objects: F64, noise: bool, seeds: npt.NDArray[np.uint64], threads: Optional[int] = None
+        self,
+        objects: F64,
+        noise: bool,
+        seeds: npt.NDArray[np.uint64],
+        threads: Optional[int] = None,
+        linear: bool = False,
     ) -> F64:
-        """Simulated measurements (V) (N, M)."""
+        """Simulated measurements (V) (N, M) (with `linear`, through the kernel's linear part)."""
     def apply(self, objects: F64, threads: Optional[int] = None) -> F64: ...
     def adjoint(self, y: F64, threads: Optional[int] = None) -> F64: ...
     def reconstruct(

@@ -456,14 +456,17 @@ impl Kernel {
     }
 
     /// The library's kernel product of each object (rows of `objects`): the power on each
-    /// unit x_j (W), and the four T blocks (A), as `Kernel::apply` computes them.
-    #[pyo3(signature = (objects, threads=None))]
+    /// unit x_j (W), and the four T blocks (A), as `Kernel::apply` computes them; with `linear`
+    /// its linear part (`Kernel::apply_linear`: light that meets the chart more than once
+    /// weighted by its first pixel only), which the sparse matrices hold.
+    #[pyo3(signature = (objects, threads=None, linear=false))]
     #[allow(clippy::type_complexity)]
     fn product<'py>(
         &self,
         py: Python<'py>,
         objects: PyReadonlyArray2<'py, f64>,
         threads: Option<usize>,
+        linear: bool,
     ) -> PyResult<(Bound<'py, PyArray2<f64>>, Bound<'py, PyArray2<f64>>)> {
         use rayon::prelude::*;
         let pixels = self.kernel.grid.pixels();
@@ -477,7 +480,11 @@ impl Kernel {
             let parts: Vec<(Vec<f64>, Vec<f64>)> = data
                 .par_chunks(pixels)
                 .map(|o| {
-                    let p = kernel.apply(o);
+                    let p = if linear {
+                        kernel.apply_linear(o)
+                    } else {
+                        kernel.apply(o)
+                    };
                     (p.x, p.t)
                 })
                 .collect();
@@ -526,8 +533,20 @@ impl Acquisition {
     }
 
     /// The simulated measurement of one object with record seed `seed`.
-    fn measure(&self, scene: &RunScene, object: &[f64], seed: u64) -> Result<Vec<f64>> {
-        let transport = Transport::from_kernel(&scene.bench, &self.kernel, object)?;
+    /// With `linear`, through the kernel's linear part (`Transport::from_kernel_linear`), the
+    /// part that `A x + y₀` describes exactly.
+    fn measure(
+        &self,
+        scene: &RunScene,
+        object: &[f64],
+        seed: u64,
+        linear: bool,
+    ) -> Result<Vec<f64>> {
+        let transport = if linear {
+            Transport::from_kernel_linear(&scene.bench, &self.kernel, object)?
+        } else {
+            Transport::from_kernel(&scene.bench, &self.kernel, object)?
+        };
         let rec = evaluate::acquire(scene, &transport, &self.patterns, seed, &|_, _, _| {})?;
         let scheme = self.op.scheme;
         let r = rec.record(scheme.sequence()).ok_or_else(|| {
@@ -648,8 +667,8 @@ impl Acquisition {
     }
 
     /// The simulated measurements (V) of each object, as `spibench dataset` forms them:
-    /// `seeds[n]` is object n's record seed.
-    #[pyo3(signature = (objects, noise, seeds, threads=None))]
+    /// `seeds[n]` is object n's record seed; with `linear`, through the kernel's linear part.
+    #[pyo3(signature = (objects, noise, seeds, threads=None, linear=false))]
     fn forward<'py>(
         &self,
         py: Python<'py>,
@@ -657,6 +676,7 @@ impl Acquisition {
         noise: bool,
         seeds: PyReadonlyArray1<'py, u64>,
         threads: Option<usize>,
+        linear: bool,
     ) -> PyResult<Bound<'py, PyArray2<f64>>> {
         use rayon::prelude::*;
         let pixels = self.op.pixels;
@@ -679,7 +699,7 @@ impl Acquisition {
             let parts: Vec<Vec<f64>> = data
                 .par_chunks(pixels)
                 .zip(seeds.par_iter())
-                .map(|(o, &s)| self.measure(&scene, o, s))
+                .map(|(o, &s)| self.measure(&scene, o, s, linear))
                 .collect::<Result<_>>()?;
             Ok(parts.concat())
         })?;

@@ -95,9 +95,15 @@ def test_adjointness(kernel, scheme):
 def test_linear_part_and_offset_give_the_noise_free_forward(kernel, scheme):
     acq = spibench.Acquisition(kernel, scheme, 0.1)
     x = np.random.default_rng(2).random((3,) + acq.grid)
-    y = acq.forward(x, noise=False)
+    # A x + y₀ is the measurement through the kernel's linear part, exactly.
+    y = acq.forward(x, noise=False, linear=True)
     model = acq.apply(x) + acq.offset
     assert np.max(np.abs(model - y)) <= 1e-9 * np.max(np.abs(y))
+    # The full measurement adds the light that meets the chart more than once (weighted by
+    # every pixel it met): small against the measurement's range.
+    full = acq.forward(x, noise=False)
+    rel = np.max(np.abs(full - y)) / np.max(np.abs(y))
+    assert 0 < rel < 3e-2, rel
 
 
 def test_calibrated_scheme_matches_on_the_clear_object(kernel):

@@ -19,8 +19,9 @@ CHROME = {
 
 def test_sparse_matrices_equal_the_kernel_product(kernel):
     x = np.random.default_rng(1).random((3,) + kernel.grid)
-    light = kernel.dmd_light(x)
-    t = kernel.transport_a(x)
+    # The matrices hold the product's linear part exactly.
+    light = kernel.dmd_light(x, linear=True)
+    t = kernel.transport_a(x, linear=True)
     assert light.shape == (3,) + kernel.units
     for n in range(3):
         v = x[n].ravel()
@@ -38,6 +39,15 @@ def test_sparse_matrices_equal_the_kernel_product(kernel):
         assert np.allclose(g, direct, rtol=1e-12, atol=1e-12 * np.max(np.abs(direct)))
         assert kernel.g_stderr_a[d].shape == kernel.g_a[d].shape
     assert kernel.c_a.shape == (2, 144) and kernel.c0_a.shape == (2,)
+    # The full product adds the light that meets the chart more than once, weighted by every
+    # pixel it met instead of the first: a small correction (docs/object_kernels.md).
+    # Compared on each block's total over the units (a unit of this small kernel holds few
+    # such paths, so its own share varies more).
+    full = kernel.transport_a(x)
+    totals = np.abs(t).sum(axis=(-2, -1))
+    lit = totals > 0
+    rel = np.max(np.abs((full - t).sum(axis=(-2, -1)))[lit] / totals[lit])
+    assert 0 < rel < 2e-2, rel
 
 
 def test_kernel_agrees_with_a_direct_trace(tmp_path):

@@ -4,7 +4,8 @@
 //! **Key.** SHA-256 of the canonical bench (its RON as [`crate::scene::doc::to_ron`] writes it:
 //! every field, defaults filled in; the `electronics:` and `run:` sections are left out because
 //! the trace does not read them), the bytes of every image the bench loads (a chart mask), the
-//! number of rays, the seed and the spibench version. Any change to one of them is a new key.
+//! number of rays, the seed, the spibench version and [`TRACER_REVISION`]. Any change to one of
+//! them is a new key.
 //!
 //! **Entry.** One file `KEY.trace`: a magic string, the format version, the key, the payload
 //! length, the payload's SHA-256 and the payload (the merged tallies, little-endian). It is
@@ -32,6 +33,11 @@ use crate::trace::{BatchScalars, Tallies};
 const MAGIC: &[u8; 8] = b"SPBTRACE";
 const FORMAT: u32 = 1;
 
+/// The tracer's revision, in every key: raise it with any change that alters the tallies traced
+/// for the same bench, rays and seed (a sampler, an intersection, a recorder, a tally), so that
+/// a cache filled by an earlier build of the same version is never served as this one's trace.
+pub const TRACER_REVISION: u32 = 2;
+
 /// A cache key: the hex SHA-256 of what determines a trace.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct CacheKey(String);
@@ -47,6 +53,7 @@ impl CacheKey {
         h.update(b"spibench trace cache\n");
         h.update(env!("CARGO_PKG_VERSION").as_bytes());
         h.update([0]);
+        h.update(TRACER_REVISION.to_le_bytes());
         h.update(crate::scene::doc::to_ron(&file)?.as_bytes());
         for el in &file.elements {
             if let ElementSpec::Chart {
