@@ -212,6 +212,152 @@ pub fn arm_spot(f: f64, s: f64, u_marginal: f64, chief_per_height: f64, h: f64, 
     2.0 * (height(0.0, u_marginal).abs() + height(h, h * chief_per_height).abs())
 }
 
+/// Walks the chief ray of mirror state `state` from the lamp (objects, lens conjugates, the
+/// chart → DMD chain, the lit pupil) and fills the lens entries it meets; sets `chart_to_dmd`
+/// to the chart → DMD magnification when it is first found.
+fn walk_chief_ray(
+    bench: &Bench,
+    prescriptions: &[LensPrescription],
+    entries: &mut [LensEntry],
+    state: MirrorState,
+    wl: f64,
+    half_diagonal: f64,
+    chart_to_dmd: &mut Option<f64>,
+) {
+    let lamp = &bench.lamp().frame;
+    let ray = chief_ray(bench, lamp.origin, lamp.w, wl, state);
+    let mut object: (DVec3, String) = (lamp.origin, "lamp filament".into());
+    // Magnification accumulated since the last chart.
+    let mut since_chart: Option<f64> = None;
+    let mut last: Option<usize> = None;
+    // The pupil (name, semi-diameter) and the path from it; the arm lens (entry, its back
+    // principal plane's path) and the path from it to the ray's end.
+    let mut pupil: Option<(String, f64, f64)> = None;
+    let mut pupil_to_dmd: Option<(String, f64, f64)> = None;
+    let mut arm_lens: Option<(usize, f64)> = None;
+    // The illumination's matrix up to the DMD, then the lit cone there.
+    let mut illum = Some(LitPupil::new(lamp.origin, bench.lamp().shape.reach()));
+    let mut lit: Option<LitPupil> = None;
+    let mut trail = ray.points[0];
+    for (k, el) in ray.elements.iter().enumerate() {
+        let p = ray.points[k + 1];
+        let step = (p - trail).length();
+        trail = p;
+        if let Some(pp) = &mut pupil {
+            pp.2 += step;
+        }
+        if let Some(a) = &mut arm_lens {
+            a.1 += step;
+        }
+        match el {
+            None => {
+                pupil_to_dmd = pupil.take();
+                lit = illum.take().map(|x| x.at(p));
+                if chart_to_dmd.is_none() {
+                    *chart_to_dmd = since_chart;
+                }
+                since_chart = None;
+                object = (p, "DMD pattern centre".into());
+                last = None;
+            }
+            Some(id) => {
+                let name = &bench.elements()[*id];
+                // The chart's object plane is its chrome face, whichever way it faces.
+                if ray.surfaces[k].is_some_and(|i| {
+                    matches!(bench.surfaces()[i].interaction, Interaction::Chart { .. })
+                }) {
+                    object = (p, format!("chart `{name}`"));
+                    since_chart = Some(1.0);
+                    last = Some(*id);
+                    continue;
+                }
+                if last == Some(*id) {
+                    continue;
+                }
+                last = Some(*id);
+                let Some(i) = prescriptions.iter().position(|l| &l.name == name) else {
+                    continue;
+                };
+                let l = &prescriptions[i];
+                let n = l.glass.index(wl);
+                let (f, _, h1, h2) = cardinal(l, n);
+                let front_h = l.vertex + h1 * l.axis;
+                let back_h = l.vertex + (l.thickness + h2) * l.axis;
+                let s = (front_h - object.0).dot(l.axis);
+                let s_img = 1.0 / (1.0 / f - 1.0 / s);
+                let m = -s_img / s;
+                if let Some(il) = &mut illum {
+                    il.lens(f, front_h, back_h, l.axis);
+                }
+                let is_dmd_object = object.1 == "DMD pattern centre";
+                let images_chart = object.1.starts_with("chart");
+                let e = &mut entries[i];
+                if e.object.is_none() {
+                    e.object = Some(object.1.clone());
+                    e.object_distance_m = Some(s);
+                    e.image_distance_m = Some(s_img);
+                    e.magnification = Some(m);
+                    if let (true, Some((name, a, l))) = (is_dmd_object, &pupil_to_dmd) {
+                        let (pupil_img, pupil_m, _) = arm_beam(f, s, *a, *l, half_diagonal, None);
+                        let (u, c, lit_by) = lit_cone(lit, *a / *l, 1.0 / *l);
+                        e.arm = Some(ArmLensEntry {
+                            pupil: format!("aperture of `{name}`"),
+                            pupil_diameter_m: 2.0 * a,
+                            pupil_to_dmd_m: *l,
+                            pupil_image_distance_m: pupil_img,
+                            pupil_image_diameter_m: 2.0 * a * pupil_m.abs(),
+                            dmd_image_distance_m: s_img,
+                            dmd_image_diagonal_m: 2.0 * half_diagonal * m.abs(),
+                            lit_half_angle_rad: u,
+                            lit_pupil_to_dmd_m: (c != 0.0).then(|| 1.0 / c),
+                            lit_pupil_diameter_m: (c != 0.0).then(|| 2.0 * u / c.abs()),
+                            lit_by: lit_by.to_string(),
+                            diode: None,
+                            diode_distance_m: None,
+                            spot_diameter_m: None,
+                            diode_fill: None,
+                            spot_bound_diameter_m: None,
+                            diode_fill_bound: None,
+                        });
+                        // The path from the back principal plane to this surface point.
+                        arm_lens = Some((i, -(back_h - p).length()));
+                    }
+                }
+                if images_chart {
+                    // The pupil of the light on the DMD: this lens's aperture, from its
+                    // back principal plane (the path from there to the surface point).
+                    pupil = Some((l.name.clone(), l.semi_diameter, -(p - back_h).length()));
+                }
+                since_chart = since_chart.map(|x| x * m);
+                object = (back_h + s_img * l.axis, format!("image by `{name}`"));
+            }
+        }
+    }
+    if let (Some(a), Some(end)) = (&mut arm_lens, ray.points.last()) {
+        // The ray's last point (on the diode) if the walk above did not reach it.
+        a.1 += (*end - trail).length();
+    }
+    if let (Some((i, z)), ChiefEnd::Detector(d)) = (arm_lens, ray.end) {
+        let det = &bench.detectors()[d];
+        let l = &prescriptions[i];
+        let (f, ..) = cardinal(l, l.glass.index(wl));
+        let e = &mut entries[i];
+        if let (Some(arm), Some(s), Some((_, a, pl))) =
+            (&mut e.arm, e.object_distance_m, &pupil_to_dmd)
+        {
+            let (_, _, bound) = arm_beam(f, s, *a, *pl, half_diagonal, Some(z));
+            let (u, c, _) = lit_cone(lit, *a / *pl, 1.0 / *pl);
+            let spot = arm_spot(f, s, u, c, half_diagonal, z);
+            arm.diode = Some(["pd_plus", "pd_minus"][d].to_string());
+            arm.diode_distance_m = Some(z);
+            arm.spot_diameter_m = Some(spot);
+            arm.diode_fill = Some(spot / (2.0 * det.radius));
+            arm.spot_bound_diameter_m = bound;
+            arm.diode_fill_bound = bound.map(|v| v / (2.0 * det.radius));
+        }
+    }
+}
+
 /// The cone each pattern point receives: the lit pupil's (the filament's image) where it is
 /// narrower than the aperture's (half-angle `aperture_u`, axis slope `aperture_chief` per unit
 /// height), else the aperture's: (half-angle, axis slope per height, which one).
@@ -333,141 +479,17 @@ pub fn check_bench(scene: &str, bench: &Bench, wl: f64) -> Result<CheckReport> {
     });
     let half_diagonal = pattern_on_dmd.map_or(0.0, |[w, h]| 0.5 * w.hypot(h));
     // Walk the two chief rays from the lamp: objects, lens conjugates, the chart → DMD chain.
-    let lamp = &bench.lamp().frame;
     let mut chart_to_dmd = None;
     for state in [MirrorState::Plus, MirrorState::Minus] {
-        let ray = chief_ray(bench, lamp.origin, lamp.w, wl, state);
-        let mut object: (DVec3, String) = (lamp.origin, "lamp filament".into());
-        // Magnification accumulated since the last chart.
-        let mut since_chart: Option<f64> = None;
-        let mut last: Option<usize> = None;
-        // The pupil (name, semi-diameter) and the path from it; the arm lens (entry, its back
-        // principal plane's path) and the path from it to the ray's end.
-        let mut pupil: Option<(String, f64, f64)> = None;
-        let mut pupil_to_dmd: Option<(String, f64, f64)> = None;
-        let mut arm_lens: Option<(usize, f64)> = None;
-        // The illumination's matrix up to the DMD, then the lit cone there.
-        let mut illum = Some(LitPupil::new(lamp.origin, bench.lamp().shape.reach()));
-        let mut lit: Option<LitPupil> = None;
-        let mut trail = ray.points[0];
-        for (k, el) in ray.elements.iter().enumerate() {
-            let p = ray.points[k + 1];
-            let step = (p - trail).length();
-            trail = p;
-            if let Some(pp) = &mut pupil {
-                pp.2 += step;
-            }
-            if let Some(a) = &mut arm_lens {
-                a.1 += step;
-            }
-            match el {
-                None => {
-                    pupil_to_dmd = pupil.take();
-                    lit = illum.take().map(|x| x.at(p));
-                    if chart_to_dmd.is_none() {
-                        chart_to_dmd = since_chart;
-                    }
-                    since_chart = None;
-                    object = (p, "DMD pattern centre".into());
-                    last = None;
-                }
-                Some(id) => {
-                    let name = &bench.elements()[*id];
-                    // The chart's object plane is its chrome face, whichever way it faces.
-                    if ray.surfaces[k].is_some_and(|i| {
-                        matches!(bench.surfaces()[i].interaction, Interaction::Chart { .. })
-                    }) {
-                        object = (p, format!("chart `{name}`"));
-                        since_chart = Some(1.0);
-                        last = Some(*id);
-                        continue;
-                    }
-                    if last == Some(*id) {
-                        continue;
-                    }
-                    last = Some(*id);
-                    let Some(i) = prescriptions.iter().position(|l| &l.name == name) else {
-                        continue;
-                    };
-                    let l = &prescriptions[i];
-                    let n = l.glass.index(wl);
-                    let (f, _, h1, h2) = cardinal(l, n);
-                    let front_h = l.vertex + h1 * l.axis;
-                    let back_h = l.vertex + (l.thickness + h2) * l.axis;
-                    let s = (front_h - object.0).dot(l.axis);
-                    let s_img = 1.0 / (1.0 / f - 1.0 / s);
-                    let m = -s_img / s;
-                    if let Some(il) = &mut illum {
-                        il.lens(f, front_h, back_h, l.axis);
-                    }
-                    let is_dmd_object = object.1 == "DMD pattern centre";
-                    let images_chart = object.1.starts_with("chart");
-                    let e = &mut entries[i];
-                    if e.object.is_none() {
-                        e.object = Some(object.1.clone());
-                        e.object_distance_m = Some(s);
-                        e.image_distance_m = Some(s_img);
-                        e.magnification = Some(m);
-                        if let (true, Some((name, a, l))) = (is_dmd_object, &pupil_to_dmd) {
-                            let (pupil_img, pupil_m, _) =
-                                arm_beam(f, s, *a, *l, half_diagonal, None);
-                            let (u, c, lit_by) = lit_cone(lit, *a / *l, 1.0 / *l);
-                            e.arm = Some(ArmLensEntry {
-                                pupil: format!("aperture of `{name}`"),
-                                pupil_diameter_m: 2.0 * a,
-                                pupil_to_dmd_m: *l,
-                                pupil_image_distance_m: pupil_img,
-                                pupil_image_diameter_m: 2.0 * a * pupil_m.abs(),
-                                dmd_image_distance_m: s_img,
-                                dmd_image_diagonal_m: 2.0 * half_diagonal * m.abs(),
-                                lit_half_angle_rad: u,
-                                lit_pupil_to_dmd_m: (c != 0.0).then(|| 1.0 / c),
-                                lit_pupil_diameter_m: (c != 0.0).then(|| 2.0 * u / c.abs()),
-                                lit_by: lit_by.to_string(),
-                                diode: None,
-                                diode_distance_m: None,
-                                spot_diameter_m: None,
-                                diode_fill: None,
-                                spot_bound_diameter_m: None,
-                                diode_fill_bound: None,
-                            });
-                            // The path from the back principal plane to this surface point.
-                            arm_lens = Some((i, -(back_h - p).length()));
-                        }
-                    }
-                    if images_chart {
-                        // The pupil of the light on the DMD: this lens's aperture, from its
-                        // back principal plane (the path from there to the surface point).
-                        pupil = Some((l.name.clone(), l.semi_diameter, -(p - back_h).length()));
-                    }
-                    since_chart = since_chart.map(|x| x * m);
-                    object = (back_h + s_img * l.axis, format!("image by `{name}`"));
-                }
-            }
-        }
-        if let (Some(a), Some(end)) = (&mut arm_lens, ray.points.last()) {
-            // The ray's last point (on the diode) if the walk above did not reach it.
-            a.1 += (*end - trail).length();
-        }
-        if let (Some((i, z)), ChiefEnd::Detector(d)) = (arm_lens, ray.end) {
-            let det = &bench.detectors()[d];
-            let l = &prescriptions[i];
-            let (f, ..) = cardinal(l, l.glass.index(wl));
-            let e = &mut entries[i];
-            if let (Some(arm), Some(s), Some((_, a, pl))) =
-                (&mut e.arm, e.object_distance_m, &pupil_to_dmd)
-            {
-                let (_, _, bound) = arm_beam(f, s, *a, *pl, half_diagonal, Some(z));
-                let (u, c, _) = lit_cone(lit, *a / *pl, 1.0 / *pl);
-                let spot = arm_spot(f, s, u, c, half_diagonal, z);
-                arm.diode = Some(["pd_plus", "pd_minus"][d].to_string());
-                arm.diode_distance_m = Some(z);
-                arm.spot_diameter_m = Some(spot);
-                arm.diode_fill = Some(spot / (2.0 * det.radius));
-                arm.spot_bound_diameter_m = bound;
-                arm.diode_fill_bound = bound.map(|v| v / (2.0 * det.radius));
-            }
-        }
+        walk_chief_ray(
+            bench,
+            &prescriptions,
+            &mut entries,
+            state,
+            wl,
+            half_diagonal,
+            &mut chart_to_dmd,
+        );
     }
 
     let pattern_on_chart = match (pattern_on_dmd, chart_to_dmd) {
