@@ -11,7 +11,10 @@
 //!   two rises give the curvature a, and the half-width is the distance over which the
 //!   objective rises by its paired standard error, √(2·SE/a). A variable along which neither
 //!   rise exceeds its standard error is flat within the noise (no half-width, a warning), and
-//!   so is a result on a bound (a warning: the optimum may lie beyond it);
+//!   so is a result on a bound (a warning: the optimum may lie beyond it). A variable along
+//!   which only one rise exceeds it is flat toward the other side: the result sits at the edge
+//!   of a plateau (a diode decentred until the spot reaches its rim), where the quadratic
+//!   model does not hold, so it gets no half-width and a warning naming the flat side;
 //! - the start and the result traced again at the search's highest ray count with the search's
 //!   seed, so their metric differences carry paired standard errors, and the objective's terms
 //!   at the result.
@@ -51,8 +54,11 @@ pub struct Uncertainty {
     /// The paired standard error of the rises (the larger of the two).
     pub rise_stderr: f64,
     /// ± this much (the variable's units) raises the objective by its standard error; NaN when
-    /// the objective is flat within its noise along this variable.
+    /// the objective is flat within its noise along this variable, or toward one side.
     pub half_width: f64,
+    /// The side (−1 or +1) toward which the objective stays flat within its noise while it
+    /// rises toward the other: the result is at the edge of a plateau. None otherwise.
+    pub flat_toward: Option<i8>,
     /// The result lies on a bound (within 1e-3 of the range).
     pub at_bound: bool,
 }
@@ -236,34 +242,50 @@ fn probe(
                 None => (f64::INFINITY, 0.0, h),
             };
         }
-        let [(rm, sm, hm), (rp, sp, hp)] = sides;
-        let se = sm.max(sp);
-        // a = 2r/h² from each probed side, averaged.
-        let curv: Vec<f64> = [(rm, hm), (rp, hp)]
-            .iter()
-            .filter(|(r, h)| r.is_finite() && *h > 0.0)
-            .map(|(r, h)| 2.0 * r / (h * h))
-            .collect();
-        let a = curv.iter().sum::<f64>() / curv.len().max(1) as f64;
-        let resolved = [rm, rp].iter().any(|r| *r > se);
-        let half_width = if resolved && a > 0.0 && se > 0.0 {
-            (2.0 * se / a).sqrt()
-        } else if resolved && se == 0.0 {
-            0.0
-        } else {
-            f64::NAN
-        };
-        out.push(Uncertainty {
-            path: f.path.clone(),
-            step,
-            rise_minus: rm,
-            rise_plus: rp,
-            rise_stderr: se,
-            half_width,
-            at_bound,
-        });
+        out.push(assess(&f.path, step, at_bound, sides));
     }
     Ok(out)
+}
+
+/// The uncertainty of one variable from its probes, `sides` = [(rise, its standard error,
+/// distance)] at − and + (NaN rise and distance 0 where not probed; module notes).
+fn assess(path: &str, step: f64, at_bound: bool, sides: [(f64, f64, f64); 2]) -> Uncertainty {
+    let [(rm, sm, hm), (rp, sp, hp)] = sides;
+    let se = sm.max(sp);
+    // a = 2r/h² from each probed side, averaged.
+    let curv: Vec<f64> = [(rm, hm), (rp, hp)]
+        .iter()
+        .filter(|(r, h)| r.is_finite() && *h > 0.0)
+        .map(|(r, h)| 2.0 * r / (h * h))
+        .collect();
+    let a = curv.iter().sum::<f64>() / curv.len().max(1) as f64;
+    let resolved = [rm, rp].iter().any(|r| *r > se);
+    // Probed on both sides, one rise within the noise and the other beyond it: a plateau's
+    // edge, where a curvature (an average of the two sides) means nothing.
+    let flat_toward = match (hm > 0.0 && hp > 0.0, rm > se, rp > se) {
+        (true, false, true) => Some(-1),
+        (true, true, false) => Some(1),
+        _ => None,
+    };
+    let half_width = if flat_toward.is_some() {
+        f64::NAN
+    } else if resolved && a > 0.0 && se > 0.0 {
+        (2.0 * se / a).sqrt()
+    } else if resolved && se == 0.0 {
+        0.0
+    } else {
+        f64::NAN
+    };
+    Uncertainty {
+        path: path.to_string(),
+        step,
+        rise_minus: rm,
+        rise_plus: rp,
+        rise_stderr: se,
+        half_width,
+        flat_toward,
+        at_bound,
+    }
 }
 
 /// A result on a bound; a variable along which the objective is flat within its noise; a last
@@ -277,7 +299,19 @@ fn warnings(u: &[Uncertainty], history: &[Step]) -> Vec<String> {
                 v.path
             ));
         }
-        if v.half_width.is_nan() {
+        if let Some(side) = v.flat_toward {
+            let (sign, flat, rises) = if side < 0 {
+                ("−", v.rise_minus, v.rise_plus)
+            } else {
+                ("+", v.rise_plus, v.rise_minus)
+            };
+            w.push(format!(
+                "{} sits at the edge of a plateau: the objective is flat within its noise toward \
+                 {sign} (rise {flat:.2e} at {sign}{:.3e}, standard error {:.2e}) and rises \
+                 {rises:.2e} the other way, so values toward {sign} are as good",
+                v.path, v.step, v.rise_stderr
+            ));
+        } else if v.half_width.is_nan() {
             w.push(format!(
                 "the objective is flat within its noise along {} (rises {:.2e} and {:.2e} at \
                  ±{:.3e}, standard error {:.2e}): values around the result are as good",
@@ -333,6 +367,54 @@ mod tests {
     fn position(d: &BenchDoc) -> glam::DVec3 {
         let p = d.file.detectors.minus.position_mm;
         glam::DVec3::new(p.0, p.1, p.2)
+    }
+
+    /// The probes of `spibench align` on the symmetric bench with diode + decentred by 2 mm
+    /// (free −3:3, 2·10⁵ rays): the search ended at 1.977 mm, at the rim of the plateau where
+    /// the spot stays on the diode (symmetric optimum 0): rise 8.0e-7 at −0.3 mm, 1.21 at
+    /// +0.3 mm (standard error 4.0e-4, the larger side's). The averaged curvature gave
+    /// ± 7.7e-3 mm, a false precision; such a result has no half-width and a warning naming
+    /// the flat side. Two
+    /// resolved rises keep the quadratic half-width; two rises within the noise are flat.
+    #[test]
+    fn a_plateau_edge_has_no_half_width_and_a_warning() {
+        let edge = assess(
+            "d.x",
+            0.3,
+            false,
+            [(8.0e-7, 1.6e-6, 0.3), (1.21, 4.03e-4, 0.3)],
+        );
+        assert!(edge.half_width.is_nan(), "{edge:?}");
+        assert_eq!(edge.flat_toward, Some(-1));
+        let w = warnings(std::slice::from_ref(&edge), &[]);
+        assert_eq!(w.len(), 1, "{w:?}");
+        assert!(w[0].contains("d.x sits at the edge of a plateau"), "{w:?}");
+        assert!(w[0].contains("toward −"), "{w:?}");
+        let mirrored = assess(
+            "d.x",
+            0.3,
+            false,
+            [(1.21, 4.03e-4, 0.3), (8.0e-7, 1.6e-6, 0.3)],
+        );
+        assert_eq!(mirrored.flat_toward, Some(1));
+        // A minimum resolved on both sides: √(2·SE/a), a = 2r/h².
+        let bowl = assess("d.x", 0.3, false, [(1e-4, 1e-6, 0.3), (1e-4, 1e-6, 0.3)]);
+        let a: f64 = 2.0 * 1e-4 / 0.09;
+        assert!(
+            (bowl.half_width - (2.0 * 1e-6 / a).sqrt()).abs() < 1e-15,
+            "{bowl:?}"
+        );
+        assert_eq!(bowl.flat_toward, None);
+        assert!(warnings(std::slice::from_ref(&bowl), &[]).is_empty());
+        // Flat both ways: no half-width, the flat warning, no plateau.
+        let flat = assess("d.x", 0.3, false, [(1e-7, 1e-6, 0.3), (-1e-7, 1e-6, 0.3)]);
+        assert!(flat.half_width.is_nan() && flat.flat_toward.is_none());
+        let w = warnings(std::slice::from_ref(&flat), &[]);
+        assert!(w[0].contains("flat within its noise along d.x"), "{w:?}");
+        // One side cut by a bound: not a plateau's edge (the bound warning covers it).
+        let cut = assess("d.x", 0.3, true, [(f64::NAN, 0.0, 0.0), (1e-4, 1e-6, 0.3)]);
+        assert_eq!(cut.flat_toward, None);
+        assert!(cut.half_width.is_finite());
     }
 
     /// The − diode displaced 1 mm and tilted 3° on a bench with otherwise symmetric arms:

@@ -31,6 +31,7 @@ pub fn run(
     Ok(outcomes.swap_remove(0))
 }
 
+pub mod findings;
 pub mod repeats;
 pub mod summary;
 

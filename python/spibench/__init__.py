@@ -392,6 +392,19 @@ class Kernel:
         return self._k.multi_crossing_current_fraction
 
     @property
+    def chart_current_a(self) -> float:
+        """The clear chart's detected current (A), summed over both diodes and both mirror-state
+        worlds, of every path that met the chart."""
+        return self._k.chart_current_a
+
+    @property
+    def multi_crossing_current_a(self) -> float:
+        """The part of ``chart_current_a`` on paths that met the chart twice or more (A). The
+        full product weights such a path by every pixel it met, the linear part by the first
+        only: for objects in [0, 1] the two differ by at most this current in all."""
+        return self._k.multi_crossing_current_a
+
+    @property
     def t_a(self) -> List[List[sp.csr_matrix]]:
         """T[d][s] per diode d and state s (A per unit transmittance)."""
         return self._get("t", lambda: [
@@ -548,6 +561,13 @@ class Acquisition:
     def offset(self) -> np.ndarray:
         """y₀ (M,), the measurement of the black object: the affine part (V)."""
         return self._a.offset
+
+    @property
+    def coefficients(self) -> np.ndarray:
+        """(ka, kb, ks₊, ks₋, kc₊, kc₋) (V/A) of the measurement model y_i = ka·a_i + kb·b_i +
+        ks₊·S₊ + ks₋·S₋ + kc₊·c₊ + kc₋·c₋ + const, a_i = P_i·g₊, b_i = P_i·g₋, S_d = Σ g_d, c_d
+        the pattern-independent light of diode d (the linear operator's model)."""
+        return np.array(self._a.coefficients, dtype=np.float64)
 
     @property
     def noise_default(self) -> bool:

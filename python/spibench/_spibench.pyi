@@ -62,6 +62,8 @@ class Kernel:
     seed: int
     batches: int
     multi_crossing_current_fraction: float
+    chart_current_a: float
+    multi_crossing_current_a: float
     def csr(
         self, kind: str, index: int
     ) -> Tuple[F64, npt.NDArray[np.uint32], npt.NDArray[np.uint64], Tuple[int, int]]: ...

@@ -381,6 +381,18 @@ impl Kernel {
         self.kernel.multi_crossing_current_fraction()
     }
 
+    /// The clear chart's detected current (A, summed over the diodes and both mirror-state
+    /// worlds) of paths that met the chart once or more, and twice or more.
+    #[getter]
+    fn chart_current_a(&self) -> f64 {
+        self.kernel.chart_current_a
+    }
+
+    #[getter]
+    fn multi_crossing_current_a(&self) -> f64 {
+        self.kernel.multi_crossing_current_a
+    }
+
     /// A sparse matrix (data, indices, indptr, shape): kind "t" (block 0–3), "g", "g_stderr"
     /// (arm 0–1) or "x".
     #[allow(clippy::type_complexity)]

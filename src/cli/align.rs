@@ -124,6 +124,9 @@ struct FreeSummary<'a> {
     /// The objective's rises at the probes − and + (null where not probed).
     rise_minus: Option<f64>,
     rise_plus: Option<f64>,
+    /// `-` or `+`: the objective stays flat within its noise toward that side and rises
+    /// toward the other (the result is at the edge of a plateau); null otherwise.
+    flat_toward: Option<&'static str>,
     at_bound: bool,
 }
 
@@ -373,8 +376,11 @@ pub fn run(args: &AlignArgs) -> Result<()> {
             "  {} = {:.5}{} (start {:.5}; counted from the bench file)",
             f.path,
             f.aligned_from_file,
-            f.half_width
-                .map_or(" (flat)".to_string(), |h| format!(" ± {h:.2e}")),
+            match (f.half_width, f.flat_toward) {
+                (Some(h), _) => format!(" ± {h:.2e}"),
+                (None, Some(side)) => format!(" (plateau edge, flat toward {side})"),
+                (None, None) => " (flat)".to_string(),
+            },
             f.start_from_file
         );
     }
@@ -414,6 +420,7 @@ fn free_summaries<'a>(
                 half_width: finite(u.half_width),
                 rise_minus: finite(u.rise_minus),
                 rise_plus: finite(u.rise_plus),
+                flat_toward: u.flat_toward.map(|k| if k < 0 { "-" } else { "+" }),
                 at_bound: u.at_bound,
             })
         })
@@ -516,10 +523,13 @@ fn tables(free: &[Free], a: &Alignment) -> Vec<Block> {
                 format!("{} … {}", f.lo, f.hi),
                 format!("{s:.6}"),
                 format!("{b:.6}"),
-                if u.half_width.is_finite() {
-                    format!("{:.2e}", u.half_width)
-                } else {
-                    "flat within the noise".into()
+                match (u.half_width.is_finite(), u.flat_toward) {
+                    (true, _) => format!("{:.2e}", u.half_width),
+                    (false, Some(k)) => format!(
+                        "edge of a plateau: flat toward {}",
+                        if k < 0 { "−" } else { "+" }
+                    ),
+                    (false, None) => "flat within the noise".into(),
                 },
             ]
         })

@@ -99,14 +99,90 @@ pub struct ArmLensEntry {
     /// Where it images the DMD's pattern area (= `image_distance_m`) and that image's diagonal.
     pub dmd_image_distance_m: f64,
     pub dmd_image_diagonal_m: f64,
+    /// The lit pupil: the light that reaches the DMD from the illumination, as the cone each
+    /// pattern point receives (see [`LitPupil`]): the half-angle of that cone, and where the
+    /// cones' axes meet (the filament's image: its distance before the DMD, null when the
+    /// illumination is telecentric) and its diameter there. `lit_by` says whether the
+    /// filament's image or the pupil's aperture limits the cone.
+    pub lit_half_angle_rad: f64,
+    pub lit_pupil_to_dmd_m: Option<f64>,
+    pub lit_pupil_diameter_m: Option<f64>,
+    pub lit_by: String,
     /// The diode the arm's chief ray reaches, its distance from the back principal plane along
     /// the chief ray (fold mirrors included), the beam's diameter there (every point of the
-    /// pattern area through the whole pupil) and its fill of the diode's diameter (> 1: the
-    /// diode clips the beam).
+    /// pattern area lit by the lit pupil's cone: the estimate) and its fill of the diode's
+    /// diameter (> 1: the diode clips the beam).
     pub diode: Option<String>,
     pub diode_distance_m: Option<f64>,
     pub spot_diameter_m: Option<f64>,
     pub diode_fill: Option<f64>,
+    /// The same with the pupil's whole aperture lit: the upper bound a filled aperture gives.
+    pub spot_bound_diameter_m: Option<f64>,
+    pub diode_fill_bound: Option<f64>,
+}
+
+/// The light a DMD point receives from the illumination, in paraxial optics along the lit
+/// chief ray (lamp → lenses → DMD, unfolded). With the ray-transfer matrix [[A, B], [C, D]]
+/// from the filament to the DMD (lenses as thin lenses at their principal planes, in air:
+/// AD − BC = 1; e.g. Hecht, *Optics*, §6.2), a ray from filament height y₀ reaches the DMD at
+/// height h with slope u = (D·h − y₀)/B. So every pattern point h receives a cone of half-angle
+/// r/|B| (r: the filament's reach, the half-diagonal of a rectangular one), whose axis has
+/// slope D·h/B: the axes meet at B/D before the DMD, where the filament is imaged (the lit
+/// pupil of a Köhler bench), with diameter 2·(r/|B|)·|B/D| = 2r/|D|. Apertures on the way (the
+/// collimator's, a field stop) are not applied: the cone is capped by the pupil's aperture only.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LitPupil {
+    /// Filament → DMD ray-transfer matrix so far: [A, B, C, D].
+    m: [f64; 4],
+    /// The plane the matrix ends at (the lamp, then each lens's back principal plane).
+    from: DVec3,
+    /// The filament's reach (m).
+    reach: f64,
+}
+
+impl LitPupil {
+    pub fn new(filament: DVec3, reach: f64) -> LitPupil {
+        LitPupil {
+            m: [1.0, 0.0, 0.0, 1.0],
+            from: filament,
+            reach,
+        }
+    }
+
+    fn then(&mut self, [a2, b2, c2, d2]: [f64; 4]) {
+        let [a, b, c, d] = self.m;
+        self.m = [
+            a2 * a + b2 * c,
+            a2 * b + b2 * d,
+            c2 * a + d2 * c,
+            c2 * b + d2 * d,
+        ];
+    }
+
+    /// A lens of focal length `f` with principal planes at `front` and `back` on `axis`.
+    pub fn lens(&mut self, f: f64, front: DVec3, back: DVec3, axis: DVec3) {
+        self.then([1.0, (front - self.from).dot(axis), 0.0, 1.0]);
+        self.then([1.0, 0.0, -1.0 / f, 1.0]);
+        self.from = back;
+    }
+
+    /// Ends the matrix at the DMD point `p` (along the chief ray from the last plane).
+    pub fn at(mut self, p: DVec3) -> LitPupil {
+        self.then([1.0, (p - self.from).length(), 0.0, 1.0]);
+        self.from = p;
+        self
+    }
+
+    /// Half-angle of the cone each pattern point receives (∞ when the filament is imaged on
+    /// the DMD: then the lenses' apertures set it).
+    pub fn half_angle(&self) -> f64 {
+        self.reach / self.m[1].abs()
+    }
+
+    /// Slope of the cone's axis per unit height on the DMD: D/B (0: telecentric).
+    pub fn chief_per_height(&self) -> f64 {
+        self.m[3] / self.m[1]
+    }
 }
 
 /// The beam of an arm lens of focal length `f` at `s` from the DMD (object distance), for a
@@ -120,13 +196,182 @@ pub fn arm_beam(f: f64, s: f64, a: f64, l: f64, h: f64, z: Option<f64>) -> (f64,
     let sp = l + s;
     let sp_img = 1.0 / (1.0 / f - 1.0 / sp);
     let mp = -sp_img / sp;
-    let height = |y0: f64, u0: f64, z: f64| {
+    (sp_img, mp, z.map(|z| arm_spot(f, s, a / l, 1.0 / l, h, z)))
+}
+
+/// The beam diameter at `z` behind an arm lens (focal length `f`, `s` from the DMD) when each
+/// pattern point receives a cone of half-angle `u_marginal` whose axis has slope
+/// `chief_per_height`·height, over a pattern of half-diagonal `h`: |y_marginal| + |y_chief|
+/// as in [`arm_beam`] (the marginal ray from the DMD's centre, the chief ray from the corner).
+pub fn arm_spot(f: f64, s: f64, u_marginal: f64, chief_per_height: f64, h: f64, z: f64) -> f64 {
+    let height = |y0: f64, u0: f64| {
         let y = y0 + u0 * s;
         let u = u0 - y / f;
         y + u * z
     };
-    let d = z.map(|z| 2.0 * (height(0.0, a / l, z).abs() + height(h, h / l, z).abs()));
-    (sp_img, mp, d)
+    2.0 * (height(0.0, u_marginal).abs() + height(h, h * chief_per_height).abs())
+}
+
+/// Walks the chief ray of mirror state `state` from the lamp (objects, lens conjugates, the
+/// chart → DMD chain, the lit pupil) and fills the lens entries it meets; sets `chart_to_dmd`
+/// to the chart → DMD magnification when it is first found.
+fn walk_chief_ray(
+    bench: &Bench,
+    prescriptions: &[LensPrescription],
+    entries: &mut [LensEntry],
+    state: MirrorState,
+    wl: f64,
+    half_diagonal: f64,
+    chart_to_dmd: &mut Option<f64>,
+) {
+    let lamp = &bench.lamp().frame;
+    let ray = chief_ray(bench, lamp.origin, lamp.w, wl, state);
+    let mut object: (DVec3, String) = (lamp.origin, "lamp filament".into());
+    // Magnification accumulated since the last chart.
+    let mut since_chart: Option<f64> = None;
+    let mut last: Option<usize> = None;
+    // The pupil (name, semi-diameter) and the path from it; the arm lens (entry, its back
+    // principal plane's path) and the path from it to the ray's end.
+    let mut pupil: Option<(String, f64, f64)> = None;
+    let mut pupil_to_dmd: Option<(String, f64, f64)> = None;
+    let mut arm_lens: Option<(usize, f64)> = None;
+    // The illumination's matrix up to the DMD, then the lit cone there.
+    let mut illum = Some(LitPupil::new(lamp.origin, bench.lamp().shape.reach()));
+    let mut lit: Option<LitPupil> = None;
+    let mut trail = ray.points[0];
+    for (k, el) in ray.elements.iter().enumerate() {
+        let p = ray.points[k + 1];
+        let step = (p - trail).length();
+        trail = p;
+        if let Some(pp) = &mut pupil {
+            pp.2 += step;
+        }
+        if let Some(a) = &mut arm_lens {
+            a.1 += step;
+        }
+        match el {
+            None => {
+                pupil_to_dmd = pupil.take();
+                lit = illum.take().map(|x| x.at(p));
+                if chart_to_dmd.is_none() {
+                    *chart_to_dmd = since_chart;
+                }
+                since_chart = None;
+                object = (p, "DMD pattern centre".into());
+                last = None;
+            }
+            Some(id) => {
+                let name = &bench.elements()[*id];
+                // The chart's object plane is its chrome face, whichever way it faces.
+                if ray.surfaces[k].is_some_and(|i| {
+                    matches!(bench.surfaces()[i].interaction, Interaction::Chart { .. })
+                }) {
+                    object = (p, format!("chart `{name}`"));
+                    since_chart = Some(1.0);
+                    last = Some(*id);
+                    continue;
+                }
+                if last == Some(*id) {
+                    continue;
+                }
+                last = Some(*id);
+                let Some(i) = prescriptions.iter().position(|l| &l.name == name) else {
+                    continue;
+                };
+                let l = &prescriptions[i];
+                let n = l.glass.index(wl);
+                let (f, _, h1, h2) = cardinal(l, n);
+                let front_h = l.vertex + h1 * l.axis;
+                let back_h = l.vertex + (l.thickness + h2) * l.axis;
+                let s = (front_h - object.0).dot(l.axis);
+                let s_img = 1.0 / (1.0 / f - 1.0 / s);
+                let m = -s_img / s;
+                if let Some(il) = &mut illum {
+                    il.lens(f, front_h, back_h, l.axis);
+                }
+                let is_dmd_object = object.1 == "DMD pattern centre";
+                let images_chart = object.1.starts_with("chart");
+                let e = &mut entries[i];
+                if e.object.is_none() {
+                    e.object = Some(object.1.clone());
+                    e.object_distance_m = Some(s);
+                    e.image_distance_m = Some(s_img);
+                    e.magnification = Some(m);
+                    if let (true, Some((name, a, l))) = (is_dmd_object, &pupil_to_dmd) {
+                        let (pupil_img, pupil_m, _) = arm_beam(f, s, *a, *l, half_diagonal, None);
+                        let (u, c, lit_by) = lit_cone(lit, *a / *l, 1.0 / *l);
+                        e.arm = Some(ArmLensEntry {
+                            pupil: format!("aperture of `{name}`"),
+                            pupil_diameter_m: 2.0 * a,
+                            pupil_to_dmd_m: *l,
+                            pupil_image_distance_m: pupil_img,
+                            pupil_image_diameter_m: 2.0 * a * pupil_m.abs(),
+                            dmd_image_distance_m: s_img,
+                            dmd_image_diagonal_m: 2.0 * half_diagonal * m.abs(),
+                            lit_half_angle_rad: u,
+                            lit_pupil_to_dmd_m: (c != 0.0).then(|| 1.0 / c),
+                            lit_pupil_diameter_m: (c != 0.0).then(|| 2.0 * u / c.abs()),
+                            lit_by: lit_by.to_string(),
+                            diode: None,
+                            diode_distance_m: None,
+                            spot_diameter_m: None,
+                            diode_fill: None,
+                            spot_bound_diameter_m: None,
+                            diode_fill_bound: None,
+                        });
+                        // The path from the back principal plane to this surface point.
+                        arm_lens = Some((i, -(back_h - p).length()));
+                    }
+                }
+                if images_chart {
+                    // The pupil of the light on the DMD: this lens's aperture, from its
+                    // back principal plane (the path from there to the surface point).
+                    pupil = Some((l.name.clone(), l.semi_diameter, -(p - back_h).length()));
+                }
+                since_chart = since_chart.map(|x| x * m);
+                object = (back_h + s_img * l.axis, format!("image by `{name}`"));
+            }
+        }
+    }
+    if let (Some(a), Some(end)) = (&mut arm_lens, ray.points.last()) {
+        // The ray's last point (on the diode) if the walk above did not reach it.
+        a.1 += (*end - trail).length();
+    }
+    if let (Some((i, z)), ChiefEnd::Detector(d)) = (arm_lens, ray.end) {
+        let det = &bench.detectors()[d];
+        let l = &prescriptions[i];
+        let (f, ..) = cardinal(l, l.glass.index(wl));
+        let e = &mut entries[i];
+        if let (Some(arm), Some(s), Some((_, a, pl))) =
+            (&mut e.arm, e.object_distance_m, &pupil_to_dmd)
+        {
+            let (_, _, bound) = arm_beam(f, s, *a, *pl, half_diagonal, Some(z));
+            let (u, c, _) = lit_cone(lit, *a / *pl, 1.0 / *pl);
+            let spot = arm_spot(f, s, u, c, half_diagonal, z);
+            arm.diode = Some(["pd_plus", "pd_minus"][d].to_string());
+            arm.diode_distance_m = Some(z);
+            arm.spot_diameter_m = Some(spot);
+            arm.diode_fill = Some(spot / (2.0 * det.radius));
+            arm.spot_bound_diameter_m = bound;
+            arm.diode_fill_bound = bound.map(|v| v / (2.0 * det.radius));
+        }
+    }
+}
+
+/// The cone each pattern point receives: the lit pupil's (the filament's image) where it is
+/// narrower than the aperture's (half-angle `aperture_u`, axis slope `aperture_chief` per unit
+/// height), else the aperture's: (half-angle, axis slope per height, which one).
+fn lit_cone(
+    lit: Option<LitPupil>,
+    aperture_u: f64,
+    aperture_chief: f64,
+) -> (f64, f64, &'static str) {
+    match lit {
+        Some(p) if p.half_angle() < aperture_u => {
+            (p.half_angle(), p.chief_per_height(), "filament image")
+        }
+        _ => (aperture_u, aperture_chief, "aperture"),
+    }
 }
 
 /// A photodiode's numerical aperture.
@@ -234,123 +479,17 @@ pub fn check_bench(scene: &str, bench: &Bench, wl: f64) -> Result<CheckReport> {
     });
     let half_diagonal = pattern_on_dmd.map_or(0.0, |[w, h]| 0.5 * w.hypot(h));
     // Walk the two chief rays from the lamp: objects, lens conjugates, the chart → DMD chain.
-    let lamp = &bench.lamp().frame;
     let mut chart_to_dmd = None;
     for state in [MirrorState::Plus, MirrorState::Minus] {
-        let ray = chief_ray(bench, lamp.origin, lamp.w, wl, state);
-        let mut object: (DVec3, String) = (lamp.origin, "lamp filament".into());
-        // Magnification accumulated since the last chart.
-        let mut since_chart: Option<f64> = None;
-        let mut last: Option<usize> = None;
-        // The pupil (name, semi-diameter) and the path from it; the arm lens (entry, its back
-        // principal plane's path) and the path from it to the ray's end.
-        let mut pupil: Option<(String, f64, f64)> = None;
-        let mut pupil_to_dmd: Option<(String, f64, f64)> = None;
-        let mut arm_lens: Option<(usize, f64)> = None;
-        let mut trail = ray.points[0];
-        for (k, el) in ray.elements.iter().enumerate() {
-            let p = ray.points[k + 1];
-            let step = (p - trail).length();
-            trail = p;
-            if let Some(pp) = &mut pupil {
-                pp.2 += step;
-            }
-            if let Some(a) = &mut arm_lens {
-                a.1 += step;
-            }
-            match el {
-                None => {
-                    pupil_to_dmd = pupil.take();
-                    if chart_to_dmd.is_none() {
-                        chart_to_dmd = since_chart;
-                    }
-                    since_chart = None;
-                    object = (p, "DMD pattern centre".into());
-                    last = None;
-                }
-                Some(id) => {
-                    let name = &bench.elements()[*id];
-                    // The chart's object plane is its chrome face, whichever way it faces.
-                    if ray.surfaces[k].is_some_and(|i| {
-                        matches!(bench.surfaces()[i].interaction, Interaction::Chart { .. })
-                    }) {
-                        object = (p, format!("chart `{name}`"));
-                        since_chart = Some(1.0);
-                        last = Some(*id);
-                        continue;
-                    }
-                    if last == Some(*id) {
-                        continue;
-                    }
-                    last = Some(*id);
-                    let Some(i) = prescriptions.iter().position(|l| &l.name == name) else {
-                        continue;
-                    };
-                    let l = &prescriptions[i];
-                    let n = l.glass.index(wl);
-                    let (f, _, h1, h2) = cardinal(l, n);
-                    let front_h = l.vertex + h1 * l.axis;
-                    let back_h = l.vertex + (l.thickness + h2) * l.axis;
-                    let s = (front_h - object.0).dot(l.axis);
-                    let s_img = 1.0 / (1.0 / f - 1.0 / s);
-                    let m = -s_img / s;
-                    let is_dmd_object = object.1 == "DMD pattern centre";
-                    let images_chart = object.1.starts_with("chart");
-                    let e = &mut entries[i];
-                    if e.object.is_none() {
-                        e.object = Some(object.1.clone());
-                        e.object_distance_m = Some(s);
-                        e.image_distance_m = Some(s_img);
-                        e.magnification = Some(m);
-                        if let (true, Some((name, a, l))) = (is_dmd_object, &pupil_to_dmd) {
-                            let (pupil_img, pupil_m, _) =
-                                arm_beam(f, s, *a, *l, half_diagonal, None);
-                            e.arm = Some(ArmLensEntry {
-                                pupil: format!("aperture of `{name}`"),
-                                pupil_diameter_m: 2.0 * a,
-                                pupil_to_dmd_m: *l,
-                                pupil_image_distance_m: pupil_img,
-                                pupil_image_diameter_m: 2.0 * a * pupil_m.abs(),
-                                dmd_image_distance_m: s_img,
-                                dmd_image_diagonal_m: 2.0 * half_diagonal * m.abs(),
-                                diode: None,
-                                diode_distance_m: None,
-                                spot_diameter_m: None,
-                                diode_fill: None,
-                            });
-                            // The path from the back principal plane to this surface point.
-                            arm_lens = Some((i, -(back_h - p).length()));
-                        }
-                    }
-                    if images_chart {
-                        // The pupil of the light on the DMD: this lens's aperture, from its
-                        // back principal plane (the path from there to the surface point).
-                        pupil = Some((l.name.clone(), l.semi_diameter, -(p - back_h).length()));
-                    }
-                    since_chart = since_chart.map(|x| x * m);
-                    object = (back_h + s_img * l.axis, format!("image by `{name}`"));
-                }
-            }
-        }
-        if let (Some(a), Some(end)) = (&mut arm_lens, ray.points.last()) {
-            // The ray's last point (on the diode) if the walk above did not reach it.
-            a.1 += (*end - trail).length();
-        }
-        if let (Some((i, z)), ChiefEnd::Detector(d)) = (arm_lens, ray.end) {
-            let det = &bench.detectors()[d];
-            let l = &prescriptions[i];
-            let (f, ..) = cardinal(l, l.glass.index(wl));
-            let e = &mut entries[i];
-            if let (Some(arm), Some(s), Some((_, a, pl))) =
-                (&mut e.arm, e.object_distance_m, &pupil_to_dmd)
-            {
-                let (_, _, spot) = arm_beam(f, s, *a, *pl, half_diagonal, Some(z));
-                arm.diode = Some(["pd_plus", "pd_minus"][d].to_string());
-                arm.diode_distance_m = Some(z);
-                arm.spot_diameter_m = spot;
-                arm.diode_fill = spot.map(|v| v / (2.0 * det.radius));
-            }
-        }
+        walk_chief_ray(
+            bench,
+            &prescriptions,
+            &mut entries,
+            state,
+            wl,
+            half_diagonal,
+            &mut chart_to_dmd,
+        );
     }
 
     let pattern_on_chart = match (pattern_on_dmd, chart_to_dmd) {
@@ -526,19 +665,48 @@ fn print_report(r: &CheckReport) {
                 mm(a.dmd_image_distance_m),
                 mm(a.dmd_image_diagonal_m)
             );
+            // The lit pupil: where the light on the DMD comes from (filament image or aperture).
+            match (a.lit_pupil_diameter_m, a.lit_pupil_to_dmd_m) {
+                (Some(d), Some(l)) => println!(
+                    "  {:<22} lit pupil: {} (Ø {} mm, {} mm before the DMD),",
+                    "",
+                    a.lit_by,
+                    mm(d),
+                    mm(l)
+                ),
+                _ => println!(
+                    "  {:<22} lit pupil: {} at infinity (telecentric),",
+                    "", a.lit_by
+                ),
+            }
+            println!(
+                "  {:<22}   a cone of ± {:.2} mrad on each pattern point",
+                "",
+                1e3 * a.lit_half_angle_rad
+            );
             match (
                 &a.diode,
                 a.diode_distance_m,
                 a.spot_diameter_m,
                 a.diode_fill,
             ) {
-                (Some(d), Some(z), Some(spot), Some(fill)) => println!(
-                    "  {:<22} {d} at {} mm: beam Ø ≤ {} mm, fill ≤ {:.0} % (pupil filled)",
-                    "",
-                    mm(z),
-                    mm(spot),
-                    100.0 * fill
-                ),
+                (Some(d), Some(z), Some(spot), Some(fill)) => {
+                    println!(
+                        "  {:<22} {d} at {} mm: beam Ø ≈ {} mm, fill ≈ {:.0} % (lit pupil)",
+                        "",
+                        mm(z),
+                        mm(spot),
+                        100.0 * fill
+                    );
+                    if let (Some(b), Some(fb)) = (a.spot_bound_diameter_m, a.diode_fill_bound) {
+                        println!(
+                            "  {:<22}   aperture filled: beam Ø ≤ {} mm, fill ≤ {:.0} %",
+                            "",
+                            mm(b),
+                            100.0 * fb
+                        );
+                    }
+                }
                 _ => println!("  {:<22} the arm's chief ray reaches no diode", ""),
             }
         }
@@ -687,5 +855,79 @@ mod tests {
             "{sp} {mp}"
         );
         assert!((d.unwrap() - 0.02).abs() < 1e-12, "{d:?}");
+    }
+
+    /// The lit pupil of a Köhler train by hand: filament at a thin collimator's focus
+    /// (f = 100 mm), a thin lens f = 100 mm 200 mm further on, the DMD 200 mm behind it. The
+    /// matrix is B = −f, D = −1 whatever the gap: each DMD point receives a cone of r/f, the
+    /// cones' axes meet f before the DMD (the filament's image, of diameter 2r).
+    #[test]
+    fn lit_pupil_of_a_koehler_train() {
+        let r = 1e-3;
+        let mut p = LitPupil::new(DVec3::ZERO, r);
+        let at = |z: f64| DVec3::new(0.0, 0.0, z);
+        p.lens(0.1, at(0.1), at(0.1), DVec3::Z);
+        p.lens(0.1, at(0.3), at(0.3), DVec3::Z);
+        let p = p.at(at(0.5));
+        assert!(
+            (p.m[1] + 0.1).abs() < 1e-12 && (p.m[3] + 1.0).abs() < 1e-12,
+            "{p:?}"
+        );
+        assert!((p.half_angle() - 0.01).abs() < 1e-12);
+        assert!((1.0 / p.chief_per_height() - 0.1).abs() < 1e-12);
+        // The narrower cone wins; a wider lit cone leaves the aperture's.
+        assert_eq!(lit_cone(Some(p), 0.05, 1.0 / 0.2).2, "filament image");
+        assert_eq!(
+            lit_cone(Some(p), 0.005, 1.0 / 0.2),
+            (0.005, 5.0, "aperture")
+        );
+        // The DMD at an arm lens's focal plane: each point's beam leaves collimated, 2·u·s
+        // wide; with telecentric light the corner's chief ray crosses the axis at f.
+        let spot = arm_spot(0.1, 0.1, 0.01, 0.0, 0.005, 0.1);
+        assert!((spot - 0.002).abs() < 1e-15, "{spot}");
+    }
+
+    /// On the paper bench the filament (2.0 × 1.2 mm, reach 1.166 mm) at the collimator's
+    /// focus is imaged by the imaging lens about f = 101 mm before the DMD at its own size, so
+    /// each pattern point receives ± r/f ≈ 11.5 mrad, not the ± 126 mrad of the imaging lens's
+    /// whole aperture: the estimated beam on the diode is a fraction of the bound and fits
+    /// the 5 mm diode.
+    #[test]
+    fn arm_lens_spot_from_the_lit_pupil() {
+        let bench = crate::trace::testing::paper_bench_with_mask();
+        let r = check_bench("paper", &bench, 850e-9).unwrap();
+        let f_img = r
+            .lenses
+            .iter()
+            .find(|l| l.name == "imaging_lens")
+            .unwrap()
+            .focal_length_m;
+        let reach = 1e-3_f64.hypot(0.6e-3);
+        for name in ["arm_plus_lens", "arm_minus_lens"] {
+            let l = r.lenses.iter().find(|l| l.name == name).unwrap();
+            let a = l.arm.as_ref().unwrap();
+            assert_eq!(a.lit_by, "filament image", "{a:?}");
+            let pl = a.lit_pupil_to_dmd_m.unwrap();
+            assert!((pl - f_img).abs() < 2e-3, "{a:?}");
+            assert!((a.lit_pupil_diameter_m.unwrap() / (2.0 * reach) - 1.0).abs() < 0.03);
+            assert!(
+                (a.lit_half_angle_rad * f_img / reach - 1.0).abs() < 0.03,
+                "{a:?}"
+            );
+            let (spot, bound) = (a.spot_diameter_m.unwrap(), a.spot_bound_diameter_m.unwrap());
+            let (f, s, z) = (
+                l.focal_length_m,
+                l.object_distance_m.unwrap(),
+                a.diode_distance_m.unwrap(),
+            );
+            let h = 0.5 * 48.0 * 12.0 * 13.68e-6 * 2f64.sqrt();
+            let by_hand = arm_spot(f, s, reach / f_img, 1.0 / f_img, h, z);
+            assert!((spot / by_hand - 1.0).abs() < 0.05, "{spot} {by_hand}");
+            assert!(spot < 0.25 * bound, "{a:?}");
+            assert!(
+                a.diode_fill.unwrap() < 1.0 && a.diode_fill_bound.unwrap() > 1.0,
+                "{a:?}"
+            );
+        }
     }
 }

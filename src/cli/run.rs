@@ -48,7 +48,8 @@ use crate::run::{RunOutcome, SchemeResult, Stage};
 use crate::scene::doc::BenchDoc;
 use crate::scene::run::RunScene;
 
-pub mod findings;
+/// The findings (computed in the library, so that summary.json carries them too).
+pub use crate::run::findings;
 
 /// The paper's bench, built into the binary.
 pub const PAPER_BENCH: &str = include_str!("../../scenes/paper_bench.ron");
@@ -222,14 +223,7 @@ pub fn run(args: &RunArgs) -> Result<()> {
     Ok(())
 }
 
-pub(super) fn pct(r: f64) -> String {
-    let p = r * 100.0;
-    if (p - p.round()).abs() < 1e-9 {
-        format!("{p:.0} %")
-    } else {
-        format!("{p:.1} %")
-    }
-}
+pub(super) use crate::run::findings::pct;
 
 /// The file of a reconstruction.
 pub fn result_file(r: &SchemeResult) -> String {
@@ -316,7 +310,9 @@ fn write_outputs(
     // timings.json is written beside them but not listed, so that summary.json stays the same
     // for the same seed whatever the timings file holds.
     let count = files.len() + 1;
-    let summary = summarize_run(name, bench, o, files);
+    let mut summary = summarize_run(name, bench, o, files);
+    // The standings over every repeat (summarize_run sees repeat 0 only).
+    summary.findings.standings = page.findings.record();
     super::provenance::write_summary_and_timings(out, &summary, provenance, Some(&run_timings(o)))?;
     super::run_report::write_report(page, o, &summary, out)?;
     Ok(count)

@@ -15,6 +15,7 @@ use crate::report::json::write_json;
 use crate::report::output::OutputDir;
 use crate::report::plot::{LinePlot, Series, write_plot};
 use crate::run::RunSettings;
+use crate::run::findings::short;
 use crate::run::repeats::{RepeatStats, Repeats};
 
 /// Writes the repeat files into `out` and returns their names.
@@ -101,42 +102,113 @@ pub fn write(r: &Repeats, s: &RunSettings, out: &OutputDir) -> crate::Result<Vec
     Ok(files)
 }
 
-/// A short name for the terminal table.
-fn short(s: crate::acquisition::Scheme) -> &'static str {
-    use crate::acquisition::Scheme::*;
-    match s {
-        Traditional => "traditional",
-        SingleArmComplementary => "single-arm",
-        DoubleArm => "double-arm",
-        SecondaryComplementaryBalancing => "SCB",
-        TraditionalZeroMean => "trad. zero-mean",
-        DoubleArmCalibrated => "calibrated double-arm",
-        DoubleArmOffset => "offset-aware double-arm",
-    }
-}
-
 /// The paired differences as a table under 100 columns (nothing for one repeat): one line per
 /// comparison and ratio, MSSIM and PSNR side by side, each with its 95 % interval.
 pub fn print(r: &Repeats) {
-    if r.repeats < 2 {
-        return;
+    for l in lines(r) {
+        println!("{l}");
     }
-    println!(
+}
+
+/// The lines [`print`] prints. Scheme names are the findings' short ones, the columns as wide
+/// as their widest entry; a row that would still pass 100 columns (PSNR differences of tens of
+/// dB) puts its PSNR on a line of its own.
+pub fn lines(r: &Repeats) -> Vec<String> {
+    if r.repeats < 2 {
+        return Vec::new();
+    }
+    let ci = |x: &crate::run::repeats::PairedDifference, d: usize| {
+        let [lo, hi] = x.ci95.unwrap_or([f64::NAN; 2]);
+        format!("{:+.d$} [{:+.d$}, {:+.d$}]", x.mean, lo, hi, d = d)
+    };
+    let rows: Vec<[String; 4]> = r
+        .paired
+        .chunks(2)
+        .filter_map(|pair| {
+            let [m, p] = pair else { return None };
+            Some([
+                format!("{} − {}", short(m.a), short(m.b)),
+                super::run::pct(m.ratio),
+                ci(m, 4),
+                ci(p, 2),
+            ])
+        })
+        .collect();
+    let width = |c: usize| rows.iter().map(|x| x[c].chars().count()).max().unwrap_or(0);
+    let (wl, wr, wm) = (width(0), width(1), width(2));
+    let mut out = vec![format!(
         "paired differences over {} repeats: mean [95 % interval]",
         r.repeats
-    );
-    for pair in r.paired.chunks(2) {
-        let [m, p] = pair else { continue };
-        let ci = |x: &crate::run::repeats::PairedDifference, d: usize| {
-            let [lo, hi] = x.ci95.unwrap_or([f64::NAN; 2]);
-            format!("{:+.d$} [{:+.d$}, {:+.d$}]", x.mean, lo, hi, d = d)
+    )];
+    for [label, ratio, mssim, psnr] in rows {
+        let head = format!("  {label:<wl$} {ratio:>wr$}  MSSIM {mssim:<wm$}");
+        let line = format!("{head}  PSNR {psnr} dB");
+        if line.chars().count() <= 100 {
+            out.push(line);
+        } else {
+            out.push(head.trim_end().to_string());
+            out.push(format!("  {:wl$} {:wr$}  PSNR  {psnr} dB", "", ""));
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::acquisition::Scheme;
+    use crate::run::repeats::PairedDifference;
+
+    fn pair(b: Scheme, ratio: f64, metric: &'static str, mean: f64) -> PairedDifference {
+        PairedDifference {
+            a: Scheme::SecondaryComplementaryBalancing,
+            b,
+            ratio,
+            metric,
+            repeats: 3,
+            mean,
+            sd: mean.abs(),
+            ci95: Some([mean - 2.0 * mean.abs(), mean + 2.0 * mean.abs()]),
+        }
+    }
+
+    /// Every line fits 100 columns, for the longest baseline names (offset-aware double-arm
+    /// printed 101 columns before), a ratio of one decimal and PSNR differences of tens of dB;
+    /// every comparison is still printed.
+    #[test]
+    fn paired_table_fits_100_columns() {
+        let mut paired = Vec::new();
+        for b in [
+            Scheme::SingleArmComplementary,
+            Scheme::DoubleArmCalibrated,
+            Scheme::DoubleArmOffset,
+            Scheme::TraditionalZeroMean,
+        ] {
+            for (ratio, dm, dp) in [(0.125, -0.0012, -0.31), (1.0, 0.1234, -123.45)] {
+                paired.push(pair(b, ratio, "mssim", dm));
+                paired.push(pair(b, ratio, "psnr_db", dp));
+            }
+        }
+        let r = Repeats {
+            repeats: 3,
+            seeds: vec![1, 2, 3],
+            stats: Vec::new(),
+            paired,
         };
-        println!(
-            "  {:<29} {:>5}  MSSIM {:<27} PSNR {} dB",
-            format!("{} − {}", short(m.a), short(m.b)),
-            super::run::pct(m.ratio),
-            ci(m, 4),
-            ci(p, 2)
-        );
+        let lines = lines(&r);
+        for l in &lines {
+            assert!(
+                l.chars().count() <= 100,
+                "{} columns: {l}",
+                l.chars().count()
+            );
+        }
+        assert_eq!(lines.iter().filter(|l| l.contains("MSSIM")).count(), 8);
+        assert_eq!(lines.iter().filter(|l| l.contains("PSNR")).count(), 8);
+        assert!(lines.iter().any(|l| l.contains("SCB − offset dbl-arm")));
+        assert!(lines.iter().any(|l| l.contains("12.5 %")));
+        // One repeat: nothing to print.
+        let one = Repeats { repeats: 1, ..r };
+        assert!(super::lines(&one).is_empty());
     }
 }

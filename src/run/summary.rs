@@ -104,6 +104,11 @@ pub struct Findings {
     /// MSSIM of secondary complementary balancing minus that of traditional CS at the highest
     /// ratio (both schemes run).
     pub scb_minus_traditional_mssim_at_max_ratio: Option<f64>,
+    /// The standings the report and the printed summary open with (crate::run::findings):
+    /// `repeats`, `basis`, `mssim` and `psnr_db`, each at every ratio and at equal frames.
+    /// summarize_run fills them from its one outcome; `spibench run --repeats N` from all N.
+    #[serde(flatten)]
+    pub standings: super::findings::Record,
 }
 
 fn findings(o: &RunOutcome) -> Findings {
@@ -138,6 +143,7 @@ fn findings(o: &RunOutcome) -> Findings {
         scb_beats_double_arm_at: beats,
         scb_not_above_double_arm_at: not,
         scb_minus_traditional_mssim_at_max_ratio: scb_trad,
+        standings: super::findings::Findings::of(std::slice::from_ref(o)).record(),
     }
 }
 

@@ -68,8 +68,8 @@ fn repeats_must_be_positive() {
     assert!(!out.exists());
 }
 
-/// The tables and notes that `check`, `trace`, `sweep` (two variables), `tolerance` and `align`
-/// print fit a terminal of 100 columns (`simulate`'s are checked in cli_simulate); a line that
+/// The tables and notes that `check`, `trace`, `sweep` (two variables), `tolerance`, `align`
+/// and `run --repeats` (its findings and paired differences) print fit a terminal of 100 columns (`simulate`'s are checked in cli_simulate); a line that
 /// names the output folder may be longer by the folder's own length.
 #[test]
 fn printed_tables_fit_100_columns() {
@@ -80,7 +80,14 @@ fn printed_tables_fit_100_columns() {
     let paper = root.join("scenes/paper_bench.ron");
     let tol = root.join("scenes/tolerances/symmetric_arms.ron");
     let out = |n: &str| dir.join(n).to_str().unwrap().to_string();
-    let (o1, o2, o3, o4) = (out("t"), out("s"), out("tol"), out("a"));
+    let (o1, o2, o3, o4, o5) = (out("t"), out("s"), out("tol"), out("a"), out("r"));
+    // `run --repeats` prints the paired differences SCB − each baseline; single-arm and
+    // offset-aware double-arm have the longest names (that table printed 101 columns).
+    let small = crate::findings::small_run_scene_of(
+        &dir,
+        "SecondaryComplementaryBalancing, SingleArmComplementary, DoubleArmOffset",
+        "0.125, 1.0",
+    );
     let runs: Vec<Vec<&str>> = vec![
         vec!["check", paper.to_str().unwrap()],
         vec!["trace", bench, "--rays", "8192", "--out", &o1],
@@ -119,6 +126,14 @@ fn printed_tables_fit_100_columns() {
             "8",
             "--out",
             &o4,
+        ],
+        vec![
+            "run",
+            small.to_str().unwrap(),
+            "--repeats",
+            "2",
+            "--out",
+            &o5,
         ],
     ];
     for args in runs {

@@ -13,13 +13,25 @@ fn paper() -> String {
 
 /// The paper bench as 16 × 16 units with a run section of three schemes and three ratios.
 fn small_run_scene(dir: &TempDir) -> PathBuf {
+    small_run_scene_of(
+        dir,
+        "SecondaryComplementaryBalancing, DoubleArmCalibrated, Traditional",
+        "0.25, 0.5, 1.0",
+    )
+}
+
+/// The paper bench as 16 × 16 units, 30 000 rays, with the schemes and ratios given (RON lists
+/// without their brackets).
+pub(crate) fn small_run_scene_of(dir: &TempDir, schemes: &str, ratios: &str) -> PathBuf {
     let t = std::fs::read_to_string(paper()).unwrap();
     let a = "units_across: 48, units_down: 48, mirrors_per_unit: 12";
     assert_eq!(t.matches(a).count(), 1);
     let t = t.replace(a, "units_across: 16, units_down: 16, mirrors_per_unit: 36");
     let end = t.trim_end().rfind(')').unwrap();
-    let run = "rays: 30000, sampling_ratios: [0.25, 0.5, 1.0], signal_trace_frames: 2, \
-               schemes: [SecondaryComplementaryBalancing, DoubleArmCalibrated, Traditional]";
+    let run = format!(
+        "rays: 30000, sampling_ratios: [{ratios}], signal_trace_frames: 2, \
+         schemes: [{schemes}]"
+    );
     let p = dir.join("small.ron");
     std::fs::write(
         &p,
@@ -87,12 +99,9 @@ fn run_opens_with_findings_that_match_the_repeats() {
     );
     assert!(text.contains("at equal DMD frames:"), "{text}");
     assert!(text.contains("PSNR dB mean ± SD, 3 repeats"), "{text}");
-    // The findings and tables fit 100 columns (the older paired-differences table after them,
-    // one column wider for the longest baseline name, is not checked here).
-    for l in text
-        .lines()
-        .take_while(|l| !l.starts_with("paired differences"))
-    {
+    // Every printed line fits 100 columns (the paired-differences table with the longest
+    // baseline names is checked in cli_misc::printed_tables_fit_100_columns).
+    for l in text.lines().filter(|l| !l.contains(out.to_str().unwrap())) {
         assert!(
             l.chars().count() <= 100,
             "{} columns: {l}",
@@ -111,6 +120,51 @@ fn run_opens_with_findings_that_match_the_repeats() {
 
     let repeats = read_json(&out.join("repeats.json"));
     let m = means(&repeats);
+    // summary.json carries the same findings, over all three repeats.
+    crate::outputs_schema::check_file(&out.join("summary.json"), "RunSummary");
+    let summary = read_json(&out.join("summary.json"));
+    let found = &summary["findings"];
+    assert_eq!(found["repeats"], 3, "{found}");
+    let standings = found["mssim"]["at_ratios"].as_array().unwrap();
+    assert_eq!(standings.len(), 3);
+    assert_eq!(found["psnr_db"]["at_ratios"].as_array().unwrap().len(), 3);
+    assert!(
+        !found["mssim"]["at_equal_frames"]
+            .as_array()
+            .unwrap()
+            .is_empty()
+    );
+    for st in standings {
+        let ratio = st["ratio"].as_f64().unwrap();
+        let best = m
+            .iter()
+            .filter(|x| x.1 == ratio)
+            .max_by(|a, b| a.2.total_cmp(&b.2))
+            .unwrap();
+        assert_eq!(st["best"], best.0.as_str(), "{st}");
+        assert!(
+            (st["best_mean"].as_f64().unwrap() - best.2).abs() < 1e-12,
+            "{st}"
+        );
+        let margins = st["margins"].as_array().unwrap();
+        assert_eq!(margins.len(), 2, "{st}");
+        for mg in margins {
+            let ci = mg["ci95"].as_array().unwrap();
+            let (lo, hi) = (ci[0].as_f64().unwrap(), ci[1].as_f64().unwrap());
+            let verdict = if lo > 0.0 || hi < 0.0 {
+                "ahead"
+            } else {
+                "not_distinguished"
+            };
+            assert_eq!(mg["verdict"], verdict, "{mg}");
+            // The best's mean minus the other's mean over the same repeats.
+            let other = m
+                .iter()
+                .find(|x| x.1 == ratio && x.0 == mg["scheme"].as_str().unwrap())
+                .unwrap();
+            assert!((mg["mean"].as_f64().unwrap() - (best.2 - other.2)).abs() < 1e-12);
+        }
+    }
     let label = |key: &str| match key {
         "secondary_complementary_balancing" => "Secondary complementary balancing",
         "double_arm_calibrated" => "Double-arm, calibrated",

@@ -14,6 +14,11 @@
 //! reference scheme (SCB when it ran) shows, each scheme's score interpolated linearly in
 //! log(frames) between its two neighbouring ratios, repeat by repeat (so the differences stay
 //! paired); a scheme whose frames do not reach a budget is left out of that comparison.
+//!
+//! The same standings are written to `summary.json` ([`Record`], under `findings`), so a
+//! script reads the result the report states.
+
+use serde::Serialize;
 
 use crate::acquisition::Scheme;
 use crate::run::RunOutcome;
@@ -136,7 +141,7 @@ pub enum Budget {
 impl Budget {
     pub fn label(self) -> String {
         match self {
-            Budget::Ratio(r) => super::pct(r),
+            Budget::Ratio(r) => pct(r),
             Budget::Frames(f) => format!("{f:.0} frames"),
         }
     }
@@ -458,11 +463,7 @@ impl Findings {
                     st.best_mean
                 );
                 if let Some(m) = st.margins.first() {
-                    let verdict = match m.distinguished() {
-                        Some(true) => "ahead",
-                        Some(false) => "not distinguished",
-                        None => "untested",
-                    };
+                    let verdict = m.verdict().replace('_', " ");
                     line += &format!(" | {:<15} {} {verdict}", short(m.other), interval(m, d));
                 }
                 lines.push(line);
@@ -470,6 +471,124 @@ impl Findings {
         }
         lines.push("  (every scheme's margin, and PSNR: report.html, \"Findings\")".to_string());
         lines
+    }
+}
+
+/// The findings as `summary.json` holds them (beside the paper's comparisons under
+/// `findings`): for each score, the standings at each ratio and at equal DMD frames.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Record {
+    /// Repeats the scores are over (1: one run, whose differences are not tested).
+    pub repeats: usize,
+    /// How the differences were made and tested, in one sentence.
+    pub basis: String,
+    pub mssim: ScoreRecord,
+    pub psnr_db: ScoreRecord,
+}
+
+/// One score's standings.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ScoreRecord {
+    pub at_ratios: Vec<StandingRecord>,
+    pub at_equal_frames: Vec<StandingRecord>,
+}
+
+/// One standing: where, the best scheme, and its margin over every other scheme compared.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct StandingRecord {
+    /// The sampling ratio (null at equal frames).
+    pub ratio: Option<f64>,
+    /// The DMD frame budget (null at a ratio).
+    pub frames: Option<u64>,
+    pub best: Scheme,
+    /// Its mean score and sample SD over the repeats (SD 0 for one run).
+    pub best_mean: f64,
+    pub best_sd: f64,
+    /// Closest first.
+    pub margins: Vec<MarginRecord>,
+}
+
+/// The best scheme's score minus `scheme`'s, over the repeats.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct MarginRecord {
+    pub scheme: Scheme,
+    pub mean: f64,
+    pub sd: f64,
+    /// Paired Student-t 95 % interval of the mean; null for one run.
+    pub ci95: Option<[f64; 2]>,
+    /// `ahead` (interval excludes 0), `not_distinguished` (contains 0) or `untested` (one run).
+    pub verdict: &'static str,
+}
+
+impl Margin {
+    /// The verdict word of [`MarginRecord::verdict`].
+    pub fn verdict(&self) -> &'static str {
+        match self.distinguished() {
+            Some(true) => "ahead",
+            Some(false) => "not_distinguished",
+            None => "untested",
+        }
+    }
+}
+
+impl Standing {
+    fn record(&self) -> StandingRecord {
+        let (ratio, frames) = match self.at {
+            Budget::Ratio(r) => (Some(r), None),
+            Budget::Frames(f) => (None, Some(f.round() as u64)),
+        };
+        StandingRecord {
+            ratio,
+            frames,
+            best: self.best,
+            best_mean: self.best_mean,
+            best_sd: self.best_sd,
+            margins: self
+                .margins
+                .iter()
+                .map(|m| MarginRecord {
+                    scheme: m.other,
+                    mean: m.mean,
+                    sd: m.sd,
+                    ci95: m.ci95,
+                    verdict: m.verdict(),
+                })
+                .collect(),
+        }
+    }
+}
+
+impl Findings {
+    /// The findings as written to summary.json.
+    pub fn record(&self) -> Record {
+        let of = |score: Score| {
+            let (ratios, frames) = self
+                .by_score
+                .iter()
+                .find(|(s, _, _)| *s == score)
+                .map(|(_, r, f)| (r.as_slice(), f.as_slice()))
+                .unwrap_or((&[], &[]));
+            ScoreRecord {
+                at_ratios: ratios.iter().map(Standing::record).collect(),
+                at_equal_frames: frames.iter().map(Standing::record).collect(),
+            }
+        };
+        Record {
+            repeats: self.repeats,
+            basis: self.basis(),
+            mssim: of(Score::Mssim),
+            psnr_db: of(Score::PsnrDb),
+        }
+    }
+}
+
+/// A ratio as a percentage: "40 %", "12.5 %".
+pub fn pct(r: f64) -> String {
+    let p = r * 100.0;
+    if (p - p.round()).abs() < 1e-9 {
+        format!("{p:.0} %")
+    } else {
+        format!("{p:.1} %")
     }
 }
 
