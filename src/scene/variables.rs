@@ -671,6 +671,17 @@ fn along_line(p: DVec3, o: DVec3, dir: DVec3) -> Option<f64> {
 struct Groups {
     illumination: Vec<String>,
     arms: [Vec<String>; 2],
+    /// Each arm's last fold mirror met by its chief line, with the chief direction arriving
+    /// there and the fold's unit normal.
+    last_folds: [Option<Fold>; 2],
+}
+
+/// A fold mirror on an arm's chief line.
+struct Fold {
+    name: String,
+    position: DVec3,
+    incoming: DVec3,
+    normal: DVec3,
 }
 
 fn groups(file: &BenchFile, d: DVec3, normals: [DVec3; 2], path: &str) -> Result<Groups> {
@@ -700,6 +711,7 @@ fn groups(file: &BenchFile, d: DVec3, normals: [DVec3; 2], path: &str) -> Result
         .map(|(n, _, _)| n.clone())
         .collect();
     let mut arms: [Vec<String>; 2] = [Vec::new(), Vec::new()];
+    let mut last_folds: [Option<Fold>; 2] = [None, None];
     for (k, arm) in arms.iter_mut().enumerate() {
         let (mut o, mut dir) = (DVec3::ZERO, reflect(d, normals[k]));
         for _ in 0..=MAX_FOLDS {
@@ -719,7 +731,14 @@ fn groups(file: &BenchFile, d: DVec3, normals: [DVec3; 2], path: &str) -> Result
             );
             let Some((_, i)) = fold else { break };
             let normal = place[i].2.map(|n| unit(n, path)).transpose()?;
-            (o, dir) = (place[i].1, reflect(dir, normal.unwrap_or(DVec3::Z)));
+            let normal = normal.unwrap_or(DVec3::Z);
+            last_folds[k] = Some(Fold {
+                name: place[i].0.clone(),
+                position: place[i].1,
+                incoming: dir,
+                normal,
+            });
+            (o, dir) = (place[i].1, reflect(dir, normal));
         }
     }
     for (name, _, _) in &place {
@@ -735,14 +754,18 @@ fn groups(file: &BenchFile, d: DVec3, normals: [DVec3; 2], path: &str) -> Result
             ));
         }
     }
-    Ok(Groups { illumination, arms })
+    Ok(Groups {
+        illumination,
+        arms,
+        last_folds,
+    })
 }
 
 /// Turns the illumination by `deg` about the DMD's centre: the lamp (its field-sampling target
 /// with it) and the illumination's elements rigidly, about the mirrors' hinge or the in-plane
-/// axis across it; a tracked turn also turns each arm (its detector and elements) by the
-/// smallest rotation that carries its state's specular direction to the new one, so the arms
-/// stay on the geometric reflection of the incoming chief ray.
+/// axis across it; a tracked turn also turns each arm by the smallest rotation that carries its
+/// state's specular direction to the new one, so the arms stay on the geometric reflection of
+/// the incoming chief ray (the diodes as one mount where both arms are folded: [`track_arms`]).
 fn apply_turn(file: &mut BenchFile, turn: Turn, deg: f64, path: &str) -> Result<()> {
     let Some(dmd) = file.dmd.as_ref() else {
         return Err(Error::field(
@@ -781,20 +804,91 @@ fn apply_turn(file: &mut BenchFile, turn: Turn, deg: f64, path: &str) -> Result<
         turn_part(file, name, q, path)?;
     }
     if turn.tracked {
-        let d2 = q * d;
-        for (k, names) in g.arms.iter().enumerate() {
-            let (u, u2) = (reflect(d, normals[k]), reflect(d2, normals[k]));
-            let r = DMat3::from_quat(glam::DQuat::from_rotation_arc(u, u2));
-            let detector = if k == 0 {
-                "detectors.plus"
-            } else {
-                "detectors.minus"
-            };
-            turn_part(file, detector, r, path)?;
-            for name in names {
-                turn_part(file, name, r, path)?;
-            }
+        track_arms(file, &g, [d, q * d], normals, path)?;
+    }
+    Ok(())
+}
+
+/// The arms' part of a tracked turn (`d` the incoming chief direction before and after): each
+/// arm's elements turn about the DMD's centre by the smallest rotation carrying its state's
+/// specular direction to the new one. The two diodes are one instrument (a balanced detector,
+/// its inputs side by side): when both arms end in a fold mirror, the pair moves as one rigid
+/// mount, turned by the rotation half-way between the arms' (on a bench symmetric under the
+/// exchange of the arms, a turn about the turn's own axis) and slid along its beams to keep the
+/// diodes in focus, and each arm's last fold is re-aimed so its chief ray meets its diode as
+/// before. An arm without a fold has nothing to
+/// steer its beam with: then each diode turns with its own arm.
+fn track_arms(
+    file: &mut BenchFile,
+    g: &Groups,
+    d: [DVec3; 2],
+    normals: [DVec3; 2],
+    path: &str,
+) -> Result<()> {
+    let r = [0, 1].map(|k| {
+        glam::DQuat::from_rotation_arc(reflect(d[0], normals[k]), reflect(d[1], normals[k]))
+    });
+    for (k, names) in g.arms.iter().enumerate() {
+        for name in names {
+            turn_part(file, name, DMat3::from_quat(r[k]), path)?;
         }
+    }
+    let detectors = ["detectors.plus", "detectors.minus"];
+    let [Some(fold_plus), Some(fold_minus)] = &g.last_folds else {
+        for (k, detector) in detectors.iter().enumerate() {
+            turn_part(file, detector, DMat3::from_quat(r[k]), path)?;
+        }
+        return Ok(());
+    };
+    let diodes = [
+        v3(file.detectors.plus.position_mm),
+        v3(file.detectors.minus.position_mm),
+    ];
+    let mount = r[0].slerp(r[1], 0.5);
+    let folds = [fold_plus, fold_minus];
+    let at = [0, 1].map(|k| r[k] * folds[k].position);
+    // Refocus: the turned mount brings the diodes nearer the folds (by 9 mm at a 17.6° turn
+    // across the hinge on the paper bench), so slide the pair along its beams' mean direction
+    // until the folds' distances to the diodes are on average what they were: each diode stays
+    // in its arm's image plane, as on a bench where the detector is moved, not only turned.
+    let length = |a: DVec3, b: DVec3| (a - b).length();
+    let before = [0, 1].map(|k| length(diodes[k], folds[k].position));
+    let mut placed = diodes.map(|p| mount * p);
+    let beam = [0, 1].map(|k| (placed[k] - at[k]).normalize());
+    let slide = (beam[0] + beam[1]).normalize();
+    for _ in 0..4 {
+        let s = (0..2)
+            .map(|k| {
+                let b = (placed[k] - at[k]).normalize();
+                (before[k] - length(placed[k], at[k])) / b.dot(slide)
+            })
+            .sum::<f64>()
+            / 2.0;
+        placed = placed.map(|p| p + s * slide);
+    }
+    let shift = placed[0] - mount * diodes[0];
+    for detector in detectors {
+        turn_part(file, detector, DMat3::from_quat(mount), path)?;
+        let p = pose(file, detector, path)?;
+        *p.position = mm3(v3(*p.position) + shift);
+    }
+    for (k, fold) in folds.into_iter().enumerate() {
+        // The chief ray turned with the arm leaves the fold towards where the diode would be,
+        // turned with the arm; turn it further, about the fold, by the rotation that carries
+        // that point onto where the mount put the diode: any offset from the diode's centre
+        // (a built-in misalignment) is kept, to first order.
+        let (incoming, normal) = (r[k] * fold.incoming, r[k] * fold.normal);
+        let steer = glam::DQuat::from_rotation_arc(
+            (r[k] * diodes[k] - at[k]).normalize(),
+            (placed[k] - at[k]).normalize(),
+        );
+        let outgoing = steer * reflect(incoming, normal);
+        let mut aimed = (incoming - outgoing).normalize();
+        if aimed.dot(normal) < 0.0 {
+            aimed = -aimed;
+        }
+        let tilt = DMat3::from_quat(glam::DQuat::from_rotation_arc(normal, aimed));
+        rotate_part(file, &fold.name, tilt, false, path)?;
     }
     Ok(())
 }
@@ -802,6 +896,18 @@ fn apply_turn(file: &mut BenchFile, turn: Turn, deg: f64, path: &str) -> Result<
 /// Turns a part rigidly by `q` about the DMD's centre (the origin): its position, its axis and
 /// its in-plane orientation.
 fn turn_part(file: &mut BenchFile, target: &str, q: DMat3, path: &str) -> Result<()> {
+    rotate_part(file, target, q, true, path)
+}
+
+/// Turns a part's orientation (its axis and in-plane orientation) by `q`, and its position
+/// about the DMD's centre too when `about_centre` (else about the part's own position).
+fn rotate_part(
+    file: &mut BenchFile,
+    target: &str,
+    q: DMat3,
+    about_centre: bool,
+    path: &str,
+) -> Result<()> {
     let p = pose(file, target, path)?;
     let w = unit(*p.axis, path)?;
     let hint = match p.x_axis.as_deref() {
@@ -810,7 +916,9 @@ fn turn_part(file: &mut BenchFile, target: &str, q: DMat3, path: &str) -> Result
     };
     let f = Frame::new(DVec3::ZERO, w, hint);
     let vec = |v: DVec3| Direction::Vector(mm3(v));
-    *p.position = mm3(q * v3(*p.position));
+    if about_centre {
+        *p.position = mm3(q * v3(*p.position));
+    }
     *p.axis = vec(q * f.w);
     if let Some(x) = p.x_axis {
         *x = Some(vec(q * f.u));
@@ -1034,5 +1142,92 @@ mod tests {
         assert!(
             (d.dot(n[0]).abs() - 10f64.to_radians().cos() * 12f64.to_radians().cos()).abs() < 1e-12
         );
+    }
+
+    /// Where an arm's chief line (from the DMD's centre along its state's specular direction,
+    /// folded by the arm's fold mirror as written in the file) meets its diode's plane, from
+    /// the diode's centre (mm).
+    fn chief_ray_offset(f: &BenchFile, k: usize) -> DVec3 {
+        let hinge = DVec3::new(1.0, 1.0, 0.0).normalize();
+        let s = [1.0, -1.0][k];
+        let n = DMat3::from_axis_angle(hinge, s * 12f64.to_radians()) * DVec3::Z;
+        let u = reflect(-v3(f.lamp.position_mm).normalize(), n);
+        let fold = ["arm_plus_fold", "arm_minus_fold"][k];
+        let Some(ElementSpec::Mirror {
+            position_mm,
+            normal,
+            ..
+        }) = f.elements.iter().find(|e| e.name() == fold)
+        else {
+            panic!("{fold}")
+        };
+        let (p, m) = (v3(*position_mm), unit(*normal, "t").unwrap());
+        let hit = u * (p.dot(m) / u.dot(m));
+        let out = reflect(u, m);
+        let det = [&f.detectors.plus, &f.detectors.minus][k];
+        let (c, w) = (v3(det.position_mm), unit(det.normal, "t").unwrap());
+        hit + out * ((c - hit).dot(w) / out.dot(w)) - c
+    }
+
+    /// The balanced detector's two diodes move as one rigid mount under a tracked turn, and
+    /// each arm's re-aimed fold still brings its chief ray onto its diode (the − arm's built-in
+    /// offset kept): at 18° across the hinge, where turning each diode with its own arm would
+    /// make them overlap.
+    #[test]
+    fn tracked_turns_move_the_detector_pair_as_one_mount() {
+        let f0 = paper();
+        let pair = |f: &BenchFile| {
+            let (a, b) = (&f.detectors.plus, &f.detectors.minus);
+            let (na, nb) = (unit(a.normal, "t").unwrap(), unit(b.normal, "t").unwrap());
+            (
+                v3(a.position_mm).distance(v3(b.position_mm)),
+                na.angle_between(nb),
+            )
+        };
+        for across in ["across", "hinge"] {
+            let mut f = f0.clone();
+            let turn = if across == "across" { 18.0 } else { 2.0 };
+            set(
+                &mut f,
+                &format!("illumination.tracked_turn_deg.{across}"),
+                turn,
+            )
+            .unwrap();
+            let (s0, s1) = (pair(&f0), pair(&f));
+            assert!((s0.0 - s1.0).abs() < 1e-9 && (s0.1 - s1.1).abs() < 1e-12);
+            for k in 0..2 {
+                let (o0, o1) = (chief_ray_offset(&f0, k), chief_ray_offset(&f, k));
+                assert!(
+                    (o0.length() - o1.length()).abs() < 0.05,
+                    "{across} {k}: {o0} {o1}"
+                );
+            }
+            assert!(chief_ray_offset(&f, 0).length() < 0.05);
+            // In focus: each fold's distance to its diode kept (to 0.2 mm: the pair is rigid,
+            // the two distances are matched on average).
+            for (fold, det) in [
+                ("arm_plus_fold", [&f0.detectors.plus, &f.detectors.plus]),
+                ("arm_minus_fold", [&f0.detectors.minus, &f.detectors.minus]),
+            ] {
+                let l0 = element_position(&f0, fold).distance(v3(det[0].position_mm));
+                let l1 = element_position(&f, fold).distance(v3(det[1].position_mm));
+                assert!((l0 - l1).abs() < 0.2, "{across} {fold}: {l0} {l1}");
+            }
+        }
+        // Across the hinge the pair turns about the turn's own axis (the bench is symmetric
+        // under the exchange of the arms; the refocusing slide stays in the symmetry plane), by
+        // about the turn (0.915 of it, and the slide moves the pair's midpoint a little further).
+        let mut f = f0.clone();
+        set(&mut f, "illumination.tracked_turn_deg.across", 18.0).unwrap();
+        let mid =
+            |f: &BenchFile| v3(f.detectors.plus.position_mm) + v3(f.detectors.minus.position_mm);
+        let (m0, m1) = (mid(&f0), mid(&f));
+        let axis = m0.cross(m1).normalize();
+        assert!(
+            axis.dot(DVec3::new(1.0, -1.0, 0.0).normalize()).abs() > 0.999,
+            "{axis}"
+        );
+        let angle = m0.angle_between(m1).to_degrees();
+        assert!(angle > 15.0 && angle < 20.0, "{angle}");
     }
 }

@@ -272,17 +272,20 @@ fn large_pitch_tends_to_geometric_reflection() {
 /// The exact distribution of a ray (every order from the envelope for its own direction and
 /// wavelength) and the total-variation distance of the sampler's from it: the largest error
 /// the tail table (normal incidence's footprint, the bin's centre wavelength) can put into the
-/// share of the reflected power that reaches any set of directions.
-fn tail_error(diff: &Diffraction, state: usize, d: DVec3, wl: f64) -> f64 {
+/// share of the reflected power that reaches any set of directions. Also the sum S of the
+/// envelope over every order in the range (1 where the footprint does not overlap its
+/// translates by the pitch).
+fn tail_error(diff: &Diffraction, state: usize, d: DVec3, wl: f64) -> (f64, f64) {
     use std::collections::HashMap;
     let g = diff.grating();
     let facet = diff.facet(state);
     let env = Envelope::new(g, facet, d, wl).unwrap();
     let r = ((2.0 * g.pitch / wl).ceil() as i32 + 1) + CORE_RADIUS;
     let mut exact: HashMap<(i32, i32), f64> = HashMap::new();
-    let mut reach = 0.0;
+    let (mut reach, mut all) = (0.0, 0.0);
     for i in -r..=r {
         for j in -r..=r {
+            all += env.probability(i, j);
             let (m, n) = (env.m0 + i, env.n0 + j);
             if let Order::Propagating { .. } = diff.order(facet, d, wl, m, n) {
                 let p = env.probability(i, j);
@@ -297,20 +300,26 @@ fn tail_error(diff: &Diffraction, state: usize, d: DVec3, wl: f64) -> f64 {
         tv += (p - exact.remove(&(*m, *n)).unwrap_or(0.0)).abs();
     }
     tv += exact.values().sum::<f64>();
-    tv / 2.0
+    (tv / 2.0, all)
 }
 
 /// The bound of the tail table's error (docs/dmd_diffraction.md, "Sampling"): the core and the
-/// tail's mass are exact, so the sampler's distribution differs from the exact one only in how
-/// the tail's mass is shared among the tail orders (≥ 3 orders from the peak). Measured: a
-/// total-variation distance of 0.108 within 5° of the normal and 0.137 up to 24°, about the
-/// tail's whole mass (where the ray's detuning differs by half an order from the table's, the
-/// tail's lobes sit one order off); the test fails above 0.12 and 0.15. Wavelengths across the
-/// band, at bin centres and edges, eight azimuths.
+/// tail's mass T = 1 − Σ core are exact, so the sampler's distribution and the exact one differ
+/// only in how each shares the same mass T among the tail orders (≥ 3 orders from the peak) and
+/// the far remainder; two distributions of mass T differ by at most T in total variation. So
+/// TV ≤ T for every ray, and T is the sinc² power beyond the core's ±2.5 orders: about
+/// (1/π²)·(1/(2.5 − δ) + 1/(2.5 + δ)) ≈ 0.081–0.084 per direction for a detuning δ ≤ ½, over a
+/// footprint a little narrower than the pitch, so T ≈ 0.16–0.17 near the normal (measured up to
+/// 0.226 at 24°, where the shear shortens the footprint; tested below 0.25). Where the
+/// footprint, sheared along an oblique exit, overlaps its translates by the pitch (mutual
+/// shadowing, outside the model), the envelope's orders sum to S > 1 and the bound is
+/// T + (S − 1). Wavelengths across the band, at bin
+/// centres and edges, eight azimuths, incidences to 24°; measured TV 0.108 within 5° of the
+/// normal and 0.137 up to 24° (printed), about the whole tail.
 #[test]
 fn tail_table_error_is_bounded() {
     let diff = dlp7000();
-    let (mut near, mut wide) = (0.0f64, 0.0f64);
+    let (mut near, mut wide, mut tail) = (0.0f64, 0.0f64, 0.0f64);
     for state in 0..2 {
         for wl in [
             351e-9, 455e-9, 500e-9, 633e-9, 785e-9, 850e-9, 1005e-9, 1149e-9,
@@ -320,7 +329,14 @@ fn tail_table_error_is_bounded() {
                 for theta_deg in [0.0, 2.0, 5.0, 12.0, 24.0f64] {
                     let s = theta_deg.to_radians().sin();
                     let d = DVec3::new(s * az.cos(), s * az.sin(), -theta_deg.to_radians().cos());
-                    let e = tail_error(&diff, state, d, wl);
+                    let (e, all) = tail_error(&diff, state, d, wl);
+                    let env = Envelope::new(diff.grating(), diff.facet(state), d, wl).unwrap();
+                    let t = 1.0 - env.core().1;
+                    // Where the sheared footprint overlaps its translates the envelope's
+                    // orders sum to S > 1 and the exact side's non-core mass exceeds T by S − 1.
+                    let bound = t + (all - 1.0).max(0.0);
+                    assert!(e <= bound + 1e-9, "TV {e} above the bound {bound} (T {t})");
+                    tail = tail.max(t);
                     if theta_deg <= 5.0 {
                         near = near.max(e);
                     } else {
@@ -330,7 +346,10 @@ fn tail_table_error_is_bounded() {
             }
         }
     }
-    eprintln!("tail table error: TV ≤ {near:.2e} within 5°, ≤ {wide:.2e} to 24°");
-    assert!(near < 0.12, "{near}");
-    assert!(wide < 0.15, "{wide}");
+    eprintln!(
+        "tail table error: TV ≤ {near:.3} within 5°, ≤ {wide:.3} to 24°; tail mass ≤ {tail:.3}"
+    );
+    // Measured 0.226: at the steepest exits the sheared footprint is shorter than the mirror
+    // along one direction, its sinc² wider, and more of it falls outside the core.
+    assert!(tail < 0.25, "{tail}");
 }
