@@ -19,8 +19,9 @@
 //!   `spibench run bench.ron --seed S` reads back to reproduce the run.
 //! - `images/x.png` (the ideal object, 255·x / max x) and `images/<scheme>__r<ratio>.png` (each
 //!   normalised reconstruction on the same 0–255 scale).
-//! - `montage.png`: laid out like the paper's Fig. 6 (one row per scheme, the object x at the
-//!   head of each row, then one column per ratio, PSNR / MSSIM under each tile).
+//! - `montage.{svg,png}`: laid out like the paper's Fig. 6 (one row per scheme, the object x at
+//!   the head of each row, then one column per ratio, PSNR / MSSIM under each tile); the SVG
+//!   embeds each tile as a lossless PNG of its pixels.
 //! - `mssim_vs_ratio.{svg,png,pdf}` (the paper's Fig. 7) and `psnr_vs_ratio.{svg,png,pdf}`;
 //!   the PNG and the PDF are renderings of the SVG.
 //! - `signals_<sequence>.{svg,png,pdf}`: the first frames of each recorded sequence as the
@@ -39,7 +40,7 @@ use clap::Args;
 use crate::pipeline::TraceRequest;
 use crate::pipeline::cache::{CacheKey, TraceCache};
 use crate::report::csv::{ResultRow, write_results};
-use crate::report::montage::{Montage, write_montage};
+use crate::report::montage::{Montage, write_montage_figure};
 use crate::report::output::OutputDir;
 use crate::report::plot::{LinePlot, ScopePlot, Series, write_plot, write_scope};
 use crate::report::png::write_gray8;
@@ -396,7 +397,13 @@ fn write_fig6_montage(
         tiles,
         captions,
     };
-    write_montage(&montage, 160, &out.path("montage.png"))?;
+    write_montage_figure(
+        &montage,
+        160,
+        &out.path("montage.svg"),
+        &out.path("montage.png"),
+    )?;
+    files.push("montage.svg".to_string());
     files.push("montage.png".to_string());
 
     Ok(())

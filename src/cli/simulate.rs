@@ -11,7 +11,7 @@ use crate::metrics::NORMALIZATION_RULE;
 use crate::reconstruction::ZeroOneHandling;
 use crate::reconstruction::tval3::StopReason;
 use crate::report::csv::{ResultRow, write_csv, write_results};
-use crate::report::montage::{Montage, write_montage};
+use crate::report::montage::{Montage, write_montage_figure};
 use crate::report::output::OutputDir;
 use crate::report::plot::{LinePlot, Series, write_plot};
 use crate::report::png::write_gray8;
@@ -257,9 +257,10 @@ fn write_outputs(
 
     if let Some(m) = &exp.montage {
         for (suffix, montage) in montages(exp, res, m.rows, m.columns) {
-            write_montage(
+            write_montage_figure(
                 &montage,
                 m.tile_px,
+                &out.path(&format!("montage{suffix}.svg")),
                 &out.path(&format!("montage{suffix}.png")),
             )?;
         }

@@ -1,6 +1,8 @@
 //! Image montages laid out like a paper figure: a title, column labels above, row labels
 //! (rotated) at the left, one tile per cell with an optional caption underneath (for example
-//! "PSNR 24.1 dB / MSSIM 0.81"), written as one RGB PNG.
+//! "PSNR 24.1 dB / MSSIM 0.81"), written as one RGB PNG and as an SVG of the same size
+//! ([`montage_svg`]: each tile embedded as a lossless PNG of its own pixels, the text as glyph
+//! outlines). No PDF: the montage is neither a curve nor a map.
 //!
 //! Every tile shows its raster on the 0–255 gray scale of the scores (values clipped to
 //! [0, 255], rounded; NaN shows black), scaled by nearest neighbour so that its longer side is
@@ -216,15 +218,21 @@ fn gray(v: f64) -> u8 {
     }
 }
 
+/// Where `tile` is drawn in the `size × size` cell at `(x0, y0)`: scaled so its longer side is
+/// `size` (each side at least one pixel), centred. Returns `(x, y, width, height)` in pixels.
+fn drawn_box(x0: u32, y0: u32, size: u32, tile: &Raster) -> (u32, u32, u32, u32) {
+    let (w, h) = (tile.width as u64, tile.height as u64);
+    let long = w.max(h);
+    let dw = ((w * size as u64 + long / 2) / long).max(1) as u32;
+    let dh = ((h * size as u64 + long / 2) / long).max(1) as u32;
+    (x0 + (size - dw) / 2, y0 + (size - dh) / 2, dw, dh)
+}
+
 /// Copies `tile` into `rgb` (an image `stride` pixels wide) at `(x0, y0)`, scaled by nearest
 /// neighbour so its longer side is `size`, centred in the `size × size` cell.
 fn blit(rgb: &mut [u8], stride: u32, x0: u32, y0: u32, size: u32, tile: &Raster) {
     let (w, h) = (tile.width as u64, tile.height as u64);
-    let long = w.max(h);
-    // Drawn size, at least one pixel each way.
-    let dw = ((w * size as u64 + long / 2) / long).max(1) as u32;
-    let dh = ((h * size as u64 + long / 2) / long).max(1) as u32;
-    let (ox, oy) = (x0 + (size - dw) / 2, y0 + (size - dh) / 2);
+    let (ox, oy, dw, dh) = drawn_box(x0, y0, size, tile);
     for py in 0..dh {
         // Source row of this pixel centre: floor((py + ½)·h / dh), in integers.
         let sy = (((2 * py as u64 + 1) * h) / (2 * dh as u64)).min(h - 1) as usize;
@@ -268,12 +276,107 @@ pub fn render_montage(m: &Montage, tile_px: u32) -> Result<(MontageLayout, Vec<u
 fn draw_text(m: &Montage, lay: &MontageLayout, rgb: &mut [u8]) -> std::result::Result<(), String> {
     // The text is drawn as SVG and rendered by resvg over the tiles (report::svg), so glyphs
     // are spaced by the font's own advances, as in every other figure.
+    let svg = labels_svg(m, lay)?;
+    super::svg::render_over(&svg, lay.width, lay.height, rgb).map_err(|e| e.to_string())
+}
+
+/// The title, labels and captions as a transparent SVG of the montage's size (text elements).
+fn labels_svg(m: &Montage, lay: &MontageLayout) -> std::result::Result<String, String> {
     let mut svg = String::new();
     {
         let root = SVGBackend::with_string(&mut svg, (lay.width, lay.height)).into_drawing_area();
         draw_labels(m, lay, &root)?;
     }
-    super::svg::render_over(&svg, lay.width, lay.height, rgb).map_err(|e| e.to_string())
+    Ok(svg)
+}
+
+/// The pixels a tile's raster shows (row-major, [`gray`] of each value), before any scaling.
+pub fn tile_gray(tile: &Raster) -> Vec<u8> {
+    tile.data.iter().map(|&v| gray(v)).collect()
+}
+
+/// The montage as SVG, `width × height` user units for the PNG's `width × height` pixels: the
+/// same layout, each tile embedded at its own resolution as a lossless 8-bit gray PNG (a
+/// `data:` URI) stretched over the box the PNG draws it in, with `image-rendering` asking for
+/// square pixels (nearest neighbour) as in the PNG; the text set as glyph outlines
+/// (`report::outline`), so no viewer needs the font.
+pub fn montage_svg(m: &Montage, tile_px: u32) -> Result<String> {
+    let lay = montage_layout(m, tile_px)?;
+    if !font::ensure_registered() {
+        return Err(Error::Numerical(font::unavailable().to_string()));
+    }
+    let (w, h) = (lay.width, lay.height);
+    let mut svg = format!(
+        "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{w}\" height=\"{h}\" \
+         viewBox=\"0 0 {w} {h}\">\n<rect width=\"{w}\" height=\"{h}\" fill=\"#FFFFFF\"/>\n"
+    );
+    for (r, row) in m.tiles.iter().enumerate() {
+        for (c, tile) in row.iter().enumerate() {
+            let (x0, y0) = lay.cell_origin(r, c);
+            svg.push_str(&format!(
+                "<rect x=\"{x0}\" y=\"{y0}\" width=\"{tile_px}\" height=\"{tile_px}\" \
+                 fill=\"#{EMPTY_GRAY:02X}{EMPTY_GRAY:02X}{EMPTY_GRAY:02X}\"/>\n"
+            ));
+            if let Some(t) = tile {
+                let png = encode_tile(t)?;
+                let (x, y, dw, dh) = drawn_box(x0, y0, tile_px, t);
+                svg.push_str(&format!(
+                    "<image x=\"{x}\" y=\"{y}\" width=\"{dw}\" height=\"{dh}\" \
+                     preserveAspectRatio=\"none\" image-rendering=\"optimizeSpeed\" \
+                     style=\"image-rendering:pixelated\" href=\"data:image/png;base64,{}\"/>\n",
+                    base64(&png)
+                ));
+            }
+        }
+    }
+    let labels = labels_svg(m, &lay).map_err(Error::Numerical)?;
+    svg.push_str(svg_body(&labels));
+    svg.push_str("</svg>\n");
+    super::outline::outline_text(&svg)
+}
+
+/// The content of an SVG document's root element.
+fn svg_body(svg: &str) -> &str {
+    let open = svg
+        .find("<svg")
+        .and_then(|s| svg[s..].find('>').map(|e| s + e + 1));
+    match (open, svg.rfind("</svg>")) {
+        (Some(a), Some(b)) if a <= b => &svg[a..b],
+        _ => "",
+    }
+}
+
+/// A tile's raster as an 8-bit gray PNG of its own size ([`tile_gray`]).
+fn encode_tile(tile: &Raster) -> Result<Vec<u8>> {
+    let buf: image::GrayImage =
+        image::ImageBuffer::from_raw(tile.width as u32, tile.height as u32, tile_gray(tile))
+            .ok_or_else(|| Error::Numerical("a montage tile's buffer has the wrong size".into()))?;
+    let mut out = std::io::Cursor::new(Vec::new());
+    buf.write_to(&mut out, image::ImageFormat::Png)
+        .map_err(|e| Error::Numerical(format!("cannot encode a montage tile as PNG: {e}")))?;
+    Ok(out.into_inner())
+}
+
+/// Standard base64 (RFC 4648 §4, with padding), as a `data:` URI carries it.
+fn base64(bytes: &[u8]) -> String {
+    const ALPHABET: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    let mut out = String::with_capacity(bytes.len().div_ceil(3) * 4);
+    for chunk in bytes.chunks(3) {
+        let b = [
+            chunk[0],
+            chunk.get(1).copied().unwrap_or(0),
+            chunk.get(2).copied().unwrap_or(0),
+        ];
+        let n = (u32::from(b[0]) << 16) | (u32::from(b[1]) << 8) | u32::from(b[2]);
+        for k in 0..4 {
+            if k <= chunk.len() {
+                out.push(ALPHABET[((n >> (18 - 6 * k)) & 63) as usize] as char);
+            } else {
+                out.push('=');
+            }
+        }
+    }
+    out
 }
 
 fn draw_labels<DB: DrawingBackend>(
@@ -364,6 +467,26 @@ pub fn write_montage(m: &Montage, tile_px: u32, path: &Path) -> Result<()> {
         other => other.in_file(path),
     })?;
     super::png::write_rgb8(path, lay.width, lay.height, &rgb)
+}
+
+/// Writes the montage as SVG ([`montage_svg`]) and as an RGB PNG of the same size. Both are
+/// made in memory before either is written, so a failure writes neither.
+pub fn write_montage_figure(
+    m: &Montage,
+    tile_px: u32,
+    svg_path: &Path,
+    png_path: &Path,
+) -> Result<()> {
+    let fail = |path: &Path, e: Error| match e {
+        Error::Numerical(msg) => Error::write(path, std::io::Error::other(msg)),
+        other => other.in_file(path),
+    };
+    let svg = montage_svg(m, tile_px).map_err(|e| fail(svg_path, e))?;
+    let (lay, rgb) = render_montage(m, tile_px).map_err(|e| fail(png_path, e))?;
+    let png =
+        super::png::encode_rgb8(lay.width, lay.height, &rgb).map_err(|e| fail(png_path, e))?;
+    super::npy::write_atomic(svg_path, svg.as_bytes())?;
+    super::npy::write_atomic(png_path, &png)
 }
 
 #[cfg(test)]
@@ -507,6 +630,125 @@ mod tests {
         assert!(dark(gx, gy + 64, 64, lay.caption_h) > 30);
         let (cx, cy) = lay.cell_origin(0, 2);
         assert_eq!(dark(cx, cy + 64, 64, lay.caption_h), 0);
+    }
+
+    /// Standard base64 back to bytes (the test's own decoder; panics on a bad character).
+    fn unbase64(text: &str) -> Vec<u8> {
+        let value = |c: u8| match c {
+            b'A'..=b'Z' => c - b'A',
+            b'a'..=b'z' => c - b'a' + 26,
+            b'0'..=b'9' => c - b'0' + 52,
+            b'+' => 62,
+            b'/' => 63,
+            _ => panic!("not base64: {:?}", c as char),
+        };
+        let mut out = Vec::new();
+        for quad in text.as_bytes().chunks(4) {
+            assert_eq!(quad.len(), 4, "base64 text is not padded to 4");
+            let pad = quad.iter().filter(|&&c| c == b'=').count();
+            let n = quad[..4 - pad]
+                .iter()
+                .fold(0u32, |n, &c| (n << 6) | u32::from(value(c)))
+                << (6 * pad);
+            out.extend_from_slice(&[(n >> 16) as u8, (n >> 8) as u8, n as u8][..3 - pad]);
+        }
+        out
+    }
+
+    #[test]
+    fn base64_matches_rfc_4648_vectors() {
+        for (plain, coded) in [
+            ("", ""),
+            ("f", "Zg=="),
+            ("fo", "Zm8="),
+            ("foo", "Zm9v"),
+            ("foob", "Zm9vYg=="),
+            ("fooba", "Zm9vYmE="),
+            ("foobar", "Zm9vYmFy"),
+        ] {
+            assert_eq!(base64(plain.as_bytes()), coded);
+            assert_eq!(unbase64(coded), plain.as_bytes());
+        }
+        let all: Vec<u8> = (0..=255).collect();
+        assert_eq!(unbase64(&base64(&all)), all);
+    }
+
+    #[test]
+    fn svg_embeds_each_tile_losslessly_at_the_png_layout() {
+        let m = example();
+        let dir = std::env::temp_dir().join(format!("spibench-montage-svg-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let (svg_path, png_path) = (dir.join("m.svg"), dir.join("m.png"));
+        write_montage_figure(&m, 64, &svg_path, &png_path).unwrap();
+        let text = std::fs::read_to_string(&svg_path).unwrap();
+        let img = image::open(&png_path).unwrap().to_rgb8();
+        let _ = std::fs::remove_dir_all(&dir);
+
+        let doc = roxmltree::Document::parse(&text).unwrap();
+        let root = doc.root_element();
+        let num = |n: roxmltree::Node, a: &str| -> u32 {
+            n.attribute(a)
+                .unwrap_or_else(|| panic!("no {a}"))
+                .parse()
+                .unwrap()
+        };
+        assert_eq!((num(root, "width"), num(root, "height")), img.dimensions());
+        assert_eq!(root.attribute("viewBox"), Some("0 0 256 284"));
+        // Text is outlines (labelled for search and screen readers), never <text>.
+        assert!(!doc.descendants().any(|n| n.has_tag_name("text")));
+        let labels: Vec<&str> = doc
+            .descendants()
+            .filter_map(|n| n.attribute("aria-label"))
+            .collect();
+        assert!(
+            labels.contains(&"Reconstructions at 25 % sampling"),
+            "{labels:?}"
+        );
+        assert!(labels.contains(&"USAF chart"), "{labels:?}");
+
+        // One image per tile present, in row-major order, holding the tile's own pixels.
+        let images: Vec<roxmltree::Node> = doc
+            .descendants()
+            .filter(|n| n.has_tag_name("image"))
+            .collect();
+        let tiles: Vec<&Raster> = m.tiles.iter().flatten().flatten().collect();
+        assert_eq!(images.len(), tiles.len());
+        for (node, tile) in images.iter().zip(&tiles) {
+            let href = node.attribute("href").unwrap();
+            let coded = href.strip_prefix("data:image/png;base64,").unwrap();
+            let png =
+                image::load_from_memory_with_format(&unbase64(coded), image::ImageFormat::Png)
+                    .unwrap();
+            assert_eq!(png.color(), image::ColorType::L8);
+            let png = png.to_luma8();
+            assert_eq!(png.dimensions(), (tile.width as u32, tile.height as u32));
+            assert_eq!(png.into_raw(), tile_gray(tile));
+            assert!(
+                node.attribute("style")
+                    .unwrap()
+                    .contains("image-rendering:pixelated")
+            );
+            assert_eq!(node.attribute("preserveAspectRatio"), Some("none"));
+            // The box is where the PNG draws the tile: its corners show the raster's corners.
+            let (x, y, w, h) = (
+                num(*node, "x"),
+                num(*node, "y"),
+                num(*node, "width"),
+                num(*node, "height"),
+            );
+            let last = tile_gray(tile)[tile.data.len() - 1];
+            assert_eq!(px(&img, x, y), tile_gray(tile)[0]);
+            assert_eq!(px(&img, x + w - 1, y + h - 1), last);
+        }
+        // The 8 × 4 tile at (1, 1) sits 16 pixels down its cell, as in the PNG.
+        let (x0, y0) = montage_layout(&m, 64).unwrap().cell_origin(1, 1);
+        assert_eq!((num(images[3], "x"), num(images[3], "y")), (x0, y0 + 16));
+        assert_eq!(
+            (num(images[3], "width"), num(images[3], "height")),
+            (64, 32)
+        );
+        // The clipped tile's pixels: 300 → 255, −5 → 0, NaN → 0, 127.5 → 128.
+        assert_eq!(tile_gray(tiles[4])[..4], [255, 0, 0, 128]);
     }
 
     #[test]

@@ -72,6 +72,7 @@ fn run_writes_every_output_identically_on_one_and_two_threads() {
         "report.html".to_string(),
         "results.csv".to_string(),
         "montage.png".to_string(),
+        "montage.svg".to_string(),
         "images/x.png".to_string(),
         "bench.ron".to_string(),
     ];

@@ -63,6 +63,7 @@ fn simulate_writes_every_output() {
         "psnr.png",
         "psnr.csv",
         "montage.png",
+        "montage.svg",
         "images/phantom__truth.png",
     ] {
         assert!(out.join(f).is_file(), "missing {f}");

@@ -16,6 +16,7 @@ mod dmd;
 mod figures;
 mod findings;
 mod fuzz;
+mod kernel_offset;
 mod kernel_se;
 mod layering;
 mod output_dirs;
