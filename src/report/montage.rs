@@ -324,7 +324,7 @@ pub fn montage_svg(m: &Montage, tile_px: u32) -> Result<String> {
                     "<image x=\"{x}\" y=\"{y}\" width=\"{dw}\" height=\"{dh}\" \
                      preserveAspectRatio=\"none\" image-rendering=\"optimizeSpeed\" \
                      style=\"image-rendering:pixelated\" href=\"data:image/png;base64,{}\"/>\n",
-                    base64(&png)
+                    super::html::base64(&png)
                 ));
             }
         }
@@ -355,28 +355,6 @@ fn encode_tile(tile: &Raster) -> Result<Vec<u8>> {
     buf.write_to(&mut out, image::ImageFormat::Png)
         .map_err(|e| Error::Numerical(format!("cannot encode a montage tile as PNG: {e}")))?;
     Ok(out.into_inner())
-}
-
-/// Standard base64 (RFC 4648 §4, with padding), as a `data:` URI carries it.
-fn base64(bytes: &[u8]) -> String {
-    const ALPHABET: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-    let mut out = String::with_capacity(bytes.len().div_ceil(3) * 4);
-    for chunk in bytes.chunks(3) {
-        let b = [
-            chunk[0],
-            chunk.get(1).copied().unwrap_or(0),
-            chunk.get(2).copied().unwrap_or(0),
-        ];
-        let n = (u32::from(b[0]) << 16) | (u32::from(b[1]) << 8) | u32::from(b[2]);
-        for k in 0..4 {
-            if k <= chunk.len() {
-                out.push(ALPHABET[((n >> (18 - 6 * k)) & 63) as usize] as char);
-            } else {
-                out.push('=');
-            }
-        }
-    }
-    out
 }
 
 fn draw_labels<DB: DrawingBackend>(
@@ -666,11 +644,11 @@ mod tests {
             ("fooba", "Zm9vYmE="),
             ("foobar", "Zm9vYmFy"),
         ] {
-            assert_eq!(base64(plain.as_bytes()), coded);
+            assert_eq!(crate::report::html::base64(plain.as_bytes()), coded);
             assert_eq!(unbase64(coded), plain.as_bytes());
         }
         let all: Vec<u8> = (0..=255).collect();
-        assert_eq!(unbase64(&base64(&all)), all);
+        assert_eq!(unbase64(&crate::report::html::base64(&all)), all);
     }
 
     #[test]
