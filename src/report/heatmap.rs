@@ -458,6 +458,39 @@ pub fn unit_map_svg(m: &UnitMap) -> Result<String> {
         y = top + mh / 2.0
     );
     let _ = writeln!(out, "</g>");
+    colour_bar(&mut out, m, (lo, hi), (bar_x, top, bar_h), total_w);
+    let notes = [
+        format!(
+            "hatched: {dark} of {n} units with x_j < {:.0} % of the mean x_j",
+            DARK_FRACTION * 100.0
+        ),
+        format!(
+            "colour range: the {}–{} % percentiles of the other units",
+            RANGE_PERCENTILES.0, RANGE_PERCENTILES.1
+        ),
+    ];
+    for (k, note) in notes.iter().enumerate() {
+        let _ = writeln!(
+            out,
+            r##"<text x="14" y="{:.2}" font-size="{MAP_TICK_FONT}">{}</text>"##,
+            notes_y + 20.0 * k as f64,
+            esc(note)
+        );
+    }
+    let _ = writeln!(out, "</svg>");
+    super::svg::at_print_size(&super::outline::outline_text(&out)?)
+}
+
+/// The colour bar of a unit map at `(x, top, height)`: the colour scale in 64 steps, ticks over
+/// `range` with one power of ten for the whole bar, and the map's label and unit beside it.
+fn colour_bar(
+    out: &mut String,
+    m: &UnitMap,
+    (lo, hi): (f64, f64),
+    (bar_x, top, bar_h): (f64, f64, f64),
+    total_w: f64,
+) {
+    use std::fmt::Write as _;
     // The colour bar with ticks in the map's unit.
     let steps = 64;
     let _ = writeln!(
@@ -514,26 +547,6 @@ pub fn unit_map_svg(m: &UnitMap) -> Result<String> {
         esc(&m.label),
         esc(&unit)
     );
-    let notes = [
-        format!(
-            "hatched: {dark} of {n} units with x_j < {:.0} % of the mean x_j",
-            DARK_FRACTION * 100.0
-        ),
-        format!(
-            "colour range: the {}–{} % percentiles of the other units",
-            RANGE_PERCENTILES.0, RANGE_PERCENTILES.1
-        ),
-    ];
-    for (k, note) in notes.iter().enumerate() {
-        let _ = writeln!(
-            out,
-            r##"<text x="14" y="{:.2}" font-size="{MAP_TICK_FONT}">{}</text>"##,
-            notes_y + 20.0 * k as f64,
-            esc(note)
-        );
-    }
-    let _ = writeln!(out, "</svg>");
-    super::svg::at_print_size(&super::outline::outline_text(&out)?)
 }
 
 /// Writes a per-unit map as SVG, its PNG rendering and PDF (beside the SVG).
