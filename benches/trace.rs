@@ -1,7 +1,8 @@
 //! Tracer benchmark (harness = false, std::time only): `cargo bench --bench trace [-- SCENE]`.
 //!
 //! Traces a bench (default scenes/paper_bench.ron) and prints
-//! - rays per second per core on 1 and 2 threads, and that the two give bit-identical tallies,
+//! - rays per second per core on 1 and 2 threads, and that the two give bit-identical tallies;
+//!   with more cores (or SPIBENCH_TRACE_THREADS="4 8 16") the scaling to each thread count,
 //! - the relative standard errors of k₊ and k₋, the number of rays and the time needed for
 //!   0.1 % (extrapolated with SE ∝ 1/√N from a pilot run, then confirmed by one run at that N),
 //! - the same in the same run for the tracer's earlier sampling, `Sampling::Independent`
@@ -65,6 +66,44 @@ fn load() -> String {
         .unwrap_or_else(|| "load ?".into())
 }
 
+/// Thread counts of the scaling table: SPIBENCH_TRACE_THREADS ("1 2 4 8 16"), else the powers
+/// of two above 2 up to the machine's cores, and the core count itself.
+fn thread_counts() -> Vec<usize> {
+    if let Ok(list) = std::env::var("SPIBENCH_TRACE_THREADS") {
+        return list
+            .split([' ', ','])
+            .filter_map(|w| w.parse().ok())
+            .filter(|&t| t > 2)
+            .collect();
+    }
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let mut counts: Vec<usize> = (2..)
+        .map(|k| 1usize << k)
+        .take_while(|&t| t <= cores)
+        .collect();
+    if cores > 2 && counts.last() != Some(&cores) {
+        counts.push(cores);
+    }
+    counts
+}
+
+/// The trace's thread scaling beyond 2 threads (rays/s, speed-up against `one`, the 1-thread
+/// run, and that every count gives bit-identical tallies). Prints nothing on a 2-core machine.
+fn scaling(bench: &Bench, rays: u64, sampling: Sampling, one: &Run) {
+    for t in thread_counts() {
+        let r = run(bench, rays, 1, t, sampling);
+        println!(
+            "{t:>3} threads: {:.0} rays/s, {:.2}x the 1-thread rate ({:.0} % of linear; {}); \
+             bit-identical to 1 thread: {}",
+            rays as f64 / r.seconds,
+            one.seconds / r.seconds,
+            100.0 * one.seconds / r.seconds / t as f64,
+            load(),
+            r.tallies == one.tallies
+        );
+    }
+}
+
 fn main() {
     let scene = std::env::args()
         .skip(1)
@@ -107,6 +146,7 @@ fn main() {
         load(),
         one.tallies == two.tallies
     );
+    scaling(&bench, pilot_rays, new, &one);
     println!(
         "pilot {pilot_rays} rays: k+ = {:.5} (rel. SE {:.2e}), k- = {:.5} (rel. SE {:.2e})",
         two.k[0], two.rel_se[0], two.k[1], two.rel_se[1]

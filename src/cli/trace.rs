@@ -26,6 +26,7 @@ use crate::report::plot::{Area, LinePlot, PlotOptions, Series, write_plot_with};
 use crate::scene::bench::read_bench;
 use crate::trace::collection::{Collection, collection};
 use crate::transport::Transport;
+use rayon::prelude::*;
 
 /// Arguments of `spibench trace`.
 #[derive(Debug, Clone, clap::Args)]
@@ -306,30 +307,41 @@ fn write_outputs(
         .zip(&f32s)
         .map(|((n, _), v)| (*n, v.as_slice()))
         .collect();
-    write_channels(&dir.path("maps.exr"), w, h, &channels)?;
-    files.push("maps.exr".to_string());
-    for (stem, label, unit, values, from_zero) in [
+    let unit_maps = [
         ("x", "x_j", "W", &t.x_w, true),
         ("g_plus", "g₊_j", "A", &t.g_a[0], false),
         ("g_minus", "g₋_j", "A", &t.g_a[1], false),
         ("k_plus", "k₊_j", "A/W", &t.k_map[0], true),
         ("k_minus", "k₋_j", "A/W", &t.k_map[1], true),
-    ] {
-        let map = UnitMap {
-            label: label.into(),
-            unit: unit.into(),
-            width: w,
-            height: h,
-            values: values.clone(),
-            light_w: t.x_w.clone(),
-            from_zero,
-        };
-        let (svg, png) = (format!("{stem}.svg"), format!("{stem}.png"));
-        write_unit_map(&map, &dir.path(&svg), &dir.path(&png))?;
-        files.push(svg);
-        files.push(png);
-        files.push(format!("{stem}.pdf"));
-    }
+    ];
+    // The EXR and the five maps (SVG, PNG and PDF each; the PNG and PDF compression is most of
+    // the time) are independent files, written side by side: serial, they were the largest
+    // serial part of `trace` on many threads.
+    let (exr, written) = rayon::join(
+        || write_channels(&dir.path("maps.exr"), w, h, &channels),
+        || {
+            unit_maps
+                .par_iter()
+                .map(|&(stem, label, unit, values, from_zero)| {
+                    let map = UnitMap {
+                        label: label.into(),
+                        unit: unit.into(),
+                        width: w,
+                        height: h,
+                        values: values.clone(),
+                        light_w: t.x_w.clone(),
+                        from_zero,
+                    };
+                    let (svg, png) = (format!("{stem}.svg"), format!("{stem}.png"));
+                    write_unit_map(&map, &dir.path(&svg), &dir.path(&png))?;
+                    Ok([svg, png, format!("{stem}.pdf")])
+                })
+                .collect::<Result<Vec<_>>>()
+        },
+    );
+    exr?;
+    files.push("maps.exr".to_string());
+    files.extend(written?.into_iter().flatten());
     if let Some(c) = collections {
         let (plot, opts) = collection_plot(c, bench);
         write_plot_with(

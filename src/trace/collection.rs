@@ -9,15 +9,13 @@
 //! mirrors it is the arms' geometric collection; with the diffractive model it also carries
 //! the orders that miss the diode.
 
-use rayon::prelude::*;
-
 use crate::error::{Error, Result};
 use crate::optics::dmd::MirrorState;
 use crate::optics::{Arm, Bench};
 
+use super::RAYS_PER_BATCH;
 use super::path::{self, Detection, PatternMode, Recorder};
 use super::tally::{BatchTally, branch_state};
-use super::{BATCHES_PER_CHUNK, RAYS_PER_BATCH};
 
 /// Per wavelength bin of the traced band: power on the pattern mirrors and detected power.
 #[derive(Debug, Clone, PartialEq)]
@@ -114,25 +112,21 @@ pub fn collection(bench: &Bench, rays: u64, seed: u64, bins: usize) -> Result<Co
     let inv = 1.0 / rays as f64;
     let mut incident = vec![0.0; bins];
     let mut detected = vec![[[0.0; 2]; 2]; bins];
-    let mut start = 0;
-    while start < n_batches {
-        let end = (start + BATCHES_PER_CHUNK).min(n_batches);
-        let chunk: Vec<Binned> = (start..end)
-            .into_par_iter()
-            .map(|b| {
-                let n = RAYS_PER_BATCH.min(rays - b * RAYS_PER_BATCH);
-                let mut rec = Binned {
-                    band,
-                    bins,
-                    bin: 0,
-                    incident: vec![0.0; bins],
-                    detected: vec![[[0.0; 2]; 2]; bins],
-                };
-                path::run_batch_recorded(bench, PatternMode::Branch, seed, b, n, inv, &mut rec);
-                rec
-            })
-            .collect();
-        for rec in &chunk {
+    super::batches_in_order(
+        n_batches,
+        |b| {
+            let n = RAYS_PER_BATCH.min(rays - b * RAYS_PER_BATCH);
+            let mut rec = Binned {
+                band,
+                bins,
+                bin: 0,
+                incident: vec![0.0; bins],
+                detected: vec![[[0.0; 2]; 2]; bins],
+            };
+            path::run_batch_recorded(bench, PatternMode::Branch, seed, b, n, inv, &mut rec);
+            rec
+        },
+        |_, rec| {
             for (sum, v) in incident.iter_mut().zip(&rec.incident) {
                 *sum += v;
             }
@@ -143,9 +137,9 @@ pub fn collection(bench: &Bench, rays: u64, seed: u64, bins: usize) -> Result<Co
                     }
                 }
             }
-        }
-        start = end;
-    }
+        },
+        |_| {},
+    );
     let mut c = Collection {
         band_m: band,
         bins,

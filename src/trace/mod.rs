@@ -42,7 +42,7 @@ pub const RAYS_PER_BATCH: u64 = 1024;
 pub const BATCHES_PER_CHUNK: u64 = 256;
 
 /// A progress callback of the tracer: (rays traced, rays to trace), called after every chunk
-/// of batches from the calling thread. The library draws nothing; the command line turns this
+/// of batches has been merged (from a thread of the pool). The library draws nothing; the command line turns this
 /// into a bar or a log line.
 pub type RayProgress<'a> = &'a (dyn Fn(u64, u64) + Sync);
 
@@ -113,33 +113,72 @@ pub fn trace(bench: &Bench, options: &TraceOptions) -> Result<Tallies> {
     let n = options.rays;
     let n_batches = n.div_ceil(RAYS_PER_BATCH);
     let inv = 1.0 / n as f64;
+    batches_in_order(
+        n_batches,
+        |b| {
+            let rays = RAYS_PER_BATCH.min(n - b * RAYS_PER_BATCH);
+            path::run_batch(
+                bench,
+                options.mode,
+                options.sampling,
+                options.seed,
+                b,
+                rays,
+                inv,
+            )
+        },
+        |_, t| tallies.absorb(&t),
+        |batches| {
+            if let Some(report) = options.progress {
+                report((batches * RAYS_PER_BATCH).min(n), n);
+            }
+        },
+    );
+    Ok(tallies)
+}
+
+/// Computes `make(b)` for the batches `0..n_batches` on the current rayon pool and hands every
+/// result to `absorb` in batch order, calling `chunk_done` with the number of batches absorbed
+/// so far after each chunk of [`BATCHES_PER_CHUNK`] batches.
+///
+/// The serial merge of one chunk runs beside the parallel computation of the next (one
+/// `rayon::join`), so the other threads never wait for it; before, every chunk's merge was a
+/// serial pause of all threads, a share that grows with the thread count (Amdahl). The order of
+/// the merge, and so every floating-point sum, is the same for any number of threads. At most
+/// two chunks of results are held at once.
+pub(crate) fn batches_in_order<T, M, A, C>(
+    n_batches: u64,
+    make: M,
+    mut absorb: A,
+    mut chunk_done: C,
+) where
+    T: Send,
+    M: Fn(u64) -> T + Sync,
+    A: FnMut(u64, T) + Send,
+    C: FnMut(u64) + Send,
+{
+    let mut pending: Option<(u64, Vec<T>)> = None;
     let mut start = 0;
-    while start < n_batches {
+    loop {
         let end = (start + BATCHES_PER_CHUNK).min(n_batches);
-        let chunk: Vec<BatchTally> = (start..end)
-            .into_par_iter()
-            .map(|b| {
-                let rays = RAYS_PER_BATCH.min(n - b * RAYS_PER_BATCH);
-                path::run_batch(
-                    bench,
-                    options.mode,
-                    options.sampling,
-                    options.seed,
-                    b,
-                    rays,
-                    inv,
-                )
-            })
-            .collect();
-        for t in &chunk {
-            tallies.absorb(t);
+        let mut merge = |done: Option<(u64, Vec<T>)>| {
+            if let Some((first, chunk)) = done {
+                let len = chunk.len() as u64;
+                for (b, r) in (first..).zip(chunk) {
+                    absorb(b, r);
+                }
+                chunk_done(first + len);
+            }
+        };
+        let compute =
+            || (start < end).then(|| (start, (start..end).into_par_iter().map(&make).collect()));
+        let ((), next) = rayon::join(|| merge(pending.take()), compute);
+        if next.is_none() {
+            return;
         }
-        if let Some(report) = options.progress {
-            report(tallies.rays, n);
-        }
+        pending = next;
         start = end;
     }
-    Ok(tallies)
 }
 
 #[cfg(test)]
