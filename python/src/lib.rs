@@ -554,11 +554,8 @@ impl Acquisition {
         seed: u64,
         linear: bool,
     ) -> Result<Vec<f64>> {
-        let transport = if linear {
-            Transport::from_kernel_linear(&scene.bench, &self.kernel, object)?
-        } else {
-            Transport::from_kernel(&scene.bench, &self.kernel, object)?
-        };
+        // Values only: a measurement reports no standard errors (Transport::from_kernel_values).
+        let transport = Transport::from_kernel_values(&scene.bench, &self.kernel, object, linear)?;
         let rec = evaluate::acquire(scene, &transport, &self.patterns, seed, &|_, _, _| {})?;
         let scheme = self.op.scheme;
         let r = rec.record(scheme.sequence()).ok_or_else(|| {

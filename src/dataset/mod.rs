@@ -637,7 +637,8 @@ impl Prepared {
             None => (&self.scene, &self.kernel),
         };
         let object = self.object(s)?.data;
-        let transport = Transport::from_kernel(&scene.bench, kernel, &object)?;
+        // Values only: a sample's arrays hold no standard errors (Transport::from_kernel_values).
+        let transport = Transport::from_kernel_values(&scene.bench, kernel, &object, false)?;
         let seed = noise_seed(self.spec.file.seed, s);
         let rec = evaluate::acquire(scene, &transport, &self.patterns, seed, &|_, _, _| {})?;
         let mut measurements = Vec::new();

@@ -176,11 +176,13 @@ fn frame_lights(
 ) -> Vec<Vec<[f64; 2]>> {
     let bits = patterns.base_patterns();
     let max_m = patterns.measurements();
+    // The pattern products are shared by every sequence (one packed product per record).
+    let products = transport.pattern_products(&bits, max_m);
     needed
         .iter()
         .map(|&q| match q {
-            Sequence::Base => transport.frame_currents(&bits, max_m, false),
-            Sequence::Complementary => transport.frame_currents(&bits, max_m, true),
+            Sequence::Base => transport.frame_currents_of(&products, false),
+            Sequence::Complementary => transport.frame_currents_of(&products, true),
             Sequence::CalibratedBase => {
                 // All-on frames shown as complementary pairs give (all on, all off).
                 let on = crate::reconstruction::BitMatrix::from_fn(
@@ -189,7 +191,7 @@ fn frame_lights(
                     |_, _| true,
                 );
                 let mut l = transport.frame_currents(&on, CALIBRATION_PAIRS, true);
-                l.extend(transport.frame_currents(&bits, max_m, false));
+                l.extend(transport.frame_currents_of(&products, false));
                 l
             }
         })

@@ -103,15 +103,16 @@ impl ByteBlocks {
     /// columns 8k .. 8k + 7, least significant bit first, which is exactly a group).
     fn from_rows(m: &BitMatrix) -> Self {
         let mut out = ByteBlocks::zeros(m.rows(), m.cols());
+        // A row's bytes within one block are contiguous in the layout: one copy per row and
+        // block (this runs for every record's frame currents, so it is kept at memcpy speed).
+        let mut row = Vec::with_capacity(8 * m.words_per_row());
         for r in 0..m.rows() {
-            for (wi, &word) in m.row_words(r).iter().enumerate() {
-                for (k, byte) in word.to_le_bytes().into_iter().enumerate() {
-                    let g = 8 * wi + k;
-                    if g < out.groups {
-                        let i = out.index(r, g);
-                        out.bytes[i] = byte;
-                    }
-                }
+            row.clear();
+            row.extend(m.row_words(r).iter().flat_map(|w| w.to_le_bytes()));
+            for g0 in (0..out.groups).step_by(BLOCK_GROUPS) {
+                let w = BLOCK_GROUPS.min(out.groups - g0);
+                let at = out.index(r, g0);
+                out.bytes[at..at + w].copy_from_slice(&row[g0..g0 + w]);
             }
         }
         out
@@ -290,26 +291,27 @@ fn lut_product(m: &ByteBlocks, x: &[f64], out: &mut [f64], form: PatternForm) {
 
 /// A bit-packed pattern set used as `P` or as `2P − 1`.
 ///
-/// Construction lays the patterns out for the lookup kernel twice, row-wise for `A x` and
-/// column-wise for `Aᵀ y` (1 bit per entry each, so with the bit matrix itself 3 bits per entry:
-/// 24 MiB for 4096 × 16384).
+/// Construction lays the patterns out row-wise for the lookup kernel of `A x`; the column-wise
+/// layout for `Aᵀ y` (the bit matrix's transpose) is made on the first adjoint product, since
+/// many users never need one (the frame currents of every dataset sample and every record, where
+/// the transpose was most of the time). 1 bit per entry each, so with the bit matrix itself at
+/// most 3 bits per entry: 24 MiB for 4096 × 16384.
 #[derive(Debug, Clone)]
 pub struct PackedOperator {
     patterns: BitMatrix,
     form: PatternForm,
     forward: ByteBlocks,
-    adjoint: ByteBlocks,
+    adjoint: std::sync::OnceLock<ByteBlocks>,
 }
 
 impl PackedOperator {
     pub fn new(patterns: BitMatrix, form: PatternForm) -> Self {
         let forward = ByteBlocks::from_rows(&patterns);
-        let adjoint = ByteBlocks::from_columns(&patterns);
         PackedOperator {
             patterns,
             form,
             forward,
-            adjoint,
+            adjoint: std::sync::OnceLock::new(),
         }
     }
 
@@ -337,7 +339,10 @@ impl LinearOperator for PackedOperator {
 
     fn apply_adjoint(&self, y: &[f64], x: &mut [f64]) {
         // (2P − 1)ᵀ y = 2 Pᵀ y − Σy: the same signed tables, now over groups of 8 measurements.
-        lut_product(&self.adjoint, y, x, self.form);
+        let adjoint = self
+            .adjoint
+            .get_or_init(|| ByteBlocks::from_columns(&self.patterns));
+        lut_product(adjoint, y, x, self.form);
     }
 }
 
@@ -469,6 +474,30 @@ mod tests {
         (0..n)
             .map(|_| (g.next_u64() >> 11) as f64 / (1u64 << 52) as f64 - 1.0)
             .collect()
+    }
+
+    /// The row layout, built a block at a time, equals the layout's definition byte by byte:
+    /// byte (row r, group g) at `index(r, g)` holds columns 8g .. 8g + 7 of row r. Widths
+    /// below, at and above one block, and not a multiple of 8.
+    #[test]
+    fn row_layout_matches_its_definition() {
+        for (rows, cols) in [(3, 5), (7, 128), (9, 129), (33, 8 * BLOCK_GROUPS * 3 + 13)] {
+            let m = random_bits(rows, cols, 11 + cols as u64);
+            let b = ByteBlocks::from_rows(&m);
+            assert_eq!(b.bytes.len(), rows * cols.div_ceil(8));
+            for r in 0..rows {
+                for g in 0..cols.div_ceil(8) {
+                    let want = (0..8)
+                        .filter(|&k| 8 * g + k < cols && m.get(r, 8 * g + k))
+                        .fold(0u8, |acc, k| acc | (1 << k));
+                    assert_eq!(
+                        b.bytes[b.index(r, g)],
+                        want,
+                        "{rows}x{cols} row {r} group {g}"
+                    );
+                }
+            }
+        }
     }
 
     fn dot(a: &[f64], b: &[f64]) -> f64 {

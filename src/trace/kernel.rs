@@ -43,15 +43,13 @@
 
 use std::collections::HashMap;
 
-use rayon::prelude::*;
-
 use crate::error::{Error, Result};
 use crate::optics::dmd::MirrorState;
 use crate::optics::{Arm, Bench};
 
 use super::path::{self, ChartCrossing, Detection, NO_PIXEL, PatternMode, Recorder};
 use super::tally::{BatchTally, Tallies, branch_state};
-use super::{BATCHES_PER_CHUNK, RAYS_PER_BATCH, TraceOptions};
+use super::{RAYS_PER_BATCH, TraceOptions};
 
 /// The object grid on a chart face: `width_px` × `height_px` pixels covering `width_m` ×
 /// `height_m`, centred on the plate centre, row 0 at the top (largest local y) — the mapping
@@ -384,34 +382,30 @@ pub fn trace_kernel(bench: &Bench, grid: ObjectGrid, options: &TraceOptions) -> 
     let n = options.rays;
     let n_batches = n_batches_of(n);
     let inv = 1.0 / n as f64;
-    let mut start = 0;
-    while start < n_batches {
-        let end = (start + BATCHES_PER_CHUNK).min(n_batches);
-        let chunk: Vec<(BatchTally, KernelBatch)> = (start..end)
-            .into_par_iter()
-            .map(|bi| {
-                let rays = RAYS_PER_BATCH.min(n - bi * RAYS_PER_BATCH);
-                let mut rec = KernelBatch::new(grid, units);
-                let t = path::run_batch_recorded(
-                    bench,
-                    PatternMode::Branch,
-                    options.seed,
-                    bi,
-                    rays,
-                    inv,
-                    &mut rec,
-                );
-                rec.values.sort_unstable_by_key(|v| v.0);
-                rec.index = HashMap::new();
-                (t, rec)
-            })
-            .collect();
-        for (bi, (t, kb)) in (start..end).zip(&chunk) {
-            tallies.absorb(t);
-            merge.absorb(kb, bi, t.rays);
-        }
-        start = end;
-    }
+    super::batches_in_order(
+        n_batches,
+        |bi| {
+            let rays = RAYS_PER_BATCH.min(n - bi * RAYS_PER_BATCH);
+            let mut rec = KernelBatch::new(grid, units);
+            let t = path::run_batch_recorded(
+                bench,
+                PatternMode::Branch,
+                options.seed,
+                bi,
+                rays,
+                inv,
+                &mut rec,
+            );
+            rec.values.sort_unstable_by_key(|v| v.0);
+            rec.index = HashMap::new();
+            (t, rec)
+        },
+        |bi, (t, kb)| {
+            tallies.absorb(&t);
+            merge.absorb(&kb, bi, t.rays);
+        },
+        |_| {},
+    );
     Ok(merge.finish(grid, options, n_batches, across, down, tallies))
 }
 
@@ -708,14 +702,23 @@ impl KernelProduct {
         self.x2[j] += t2 * e.x2;
     }
 
-    /// Adds a key's Bk, second moments and group sums weighted `ti`.
-    fn add_pixel(&mut self, ti: f64, b: &[f64; 2], q: &[f64; PQ], groups: &[[f64; PV]]) {
+    /// Adds a key's Bk weighted `ti`.
+    #[inline]
+    fn add_b(&mut self, ti: f64, b: &[f64; 2]) {
         if ti == 0.0 {
             return;
         }
         for arm in Arm::ALL {
             self.b[arm] += ti * b[arm];
         }
+    }
+
+    /// Adds a key's Bk, second moments and group sums weighted `ti`.
+    fn add_pixel(&mut self, ti: f64, b: &[f64; 2], q: &[f64; PQ], groups: &[[f64; PV]]) {
+        if ti == 0.0 {
+            return;
+        }
+        self.add_b(ti, b);
         for (a, v) in self.q.iter_mut().zip(q) {
             *a += ti * ti * v;
         }
@@ -772,7 +775,20 @@ impl Kernel {
     /// in [0, 1]; values outside are used as given). Panics if `t` has the wrong length:
     /// callers check it.
     pub fn apply(&self, object: &[f64]) -> KernelProduct {
-        self.apply_with(object, |g| g.weight(object))
+        self.apply_with(object, |g| g.weight(object), true)
+    }
+
+    /// [`Kernel::apply`] (`linear`: [`Kernel::apply_linear`]) without the batch-group sums and
+    /// second moments of the totals: `group_sums` and `q` stay zero, so the totals' standard
+    /// errors are unknown. Those sums stream 32 × 5 numbers per pixel (12 MB for 96 × 96
+    /// pixels), most of the product's memory traffic, and a dataset sample or a Python
+    /// measurement never reports them.
+    pub fn apply_values(&self, object: &[f64], linear: bool) -> KernelProduct {
+        if linear {
+            self.apply_with(object, |g| object[g.pixels[0] as usize], false)
+        } else {
+            self.apply_with(object, |g| g.weight(object), false)
+        }
     }
 
     /// The kernel's linear part: every path weighted by the first pixel it met (the ghosts'
@@ -780,11 +796,17 @@ impl Kernel {
     /// The linear operator of `pipeline::operator` is this; [`Kernel::apply`] adds the ghosts'
     /// corrections Π_k t_{i_k} − t_{i_1}.
     pub fn apply_linear(&self, object: &[f64]) -> KernelProduct {
-        self.apply_with(object, |g| object[g.pixels[0] as usize])
+        self.apply_with(object, |g| object[g.pixels[0] as usize], true)
     }
 
-    /// The product with the ghosts weighted by `ghost_weight` instead of t of their first pixel.
-    fn apply_with(&self, object: &[f64], ghost_weight: impl Fn(&Ghost) -> f64) -> KernelProduct {
+    /// The product with the ghosts weighted by `ghost_weight` instead of t of their first pixel;
+    /// the totals' error sums only with `errors`.
+    fn apply_with(
+        &self,
+        object: &[f64],
+        ghost_weight: impl Fn(&Ghost) -> f64,
+        errors: bool,
+    ) -> KernelProduct {
         let units = self.units();
         let npix = self.grid.pixels();
         assert_eq!(object.len(), npix, "object size");
@@ -804,7 +826,7 @@ impl Kernel {
             x2: vec![0.0; units],
             q: [0.0; PQ],
             sums: [0.0; PV],
-            group_sums: vec![[0.0; PV]; self.group_rays.len()],
+            group_sums: vec![[0.0; PV]; if errors { self.group_rays.len() } else { 0 }],
             group_rays: self.group_rays.clone(),
             batches: self.batches,
         };
@@ -813,8 +835,12 @@ impl Kernel {
         }
         let groups = self.group_rays.len();
         for (i, (bi, qi)) in self.b.iter().zip(&self.pixel_q).enumerate() {
-            let gs = &self.group_sums[i * groups..(i + 1) * groups];
-            p.add_pixel(w(i as u32), bi, qi, gs);
+            if errors {
+                let gs = &self.group_sums[i * groups..(i + 1) * groups];
+                p.add_pixel(w(i as u32), bi, qi, gs);
+            } else {
+                p.add_b(w(i as u32), bi);
+            }
         }
         // The ghosts' light is in the entries at its first pixel already: the correction.
         let ghost_w: Vec<f64> = self
@@ -826,7 +852,11 @@ impl Kernel {
             p.add_entry(ghost_w[*g as usize], *j as usize, e);
         }
         for (g, wg) in self.ghosts.iter().zip(&ghost_w) {
-            p.add_pixel(*wg, &g.b, &g.q, &g.group_sums);
+            if errors {
+                p.add_pixel(*wg, &g.b, &g.q, &g.group_sums);
+            } else {
+                p.add_b(*wg, &g.b);
+            }
         }
         let t_at =
             |arm: Arm, state: MirrorState, j: usize| p.t[BatchTally::t_index(units, arm, state, j)];

@@ -410,14 +410,28 @@ impl Transport {
         m: usize,
         complementary: bool,
     ) -> Vec<[f64; 2]> {
+        let products = self.pattern_products(patterns, m);
+        self.frame_currents_of(&products, complementary)
+    }
+
+    /// Σ_j P_ij·g±_j for the first `m` rows of `patterns`: the pattern-dependent part of
+    /// [`Transport::frame_currents`], the same for a sequence and its complementary form, so a
+    /// record computes it once for all its sequences.
+    pub fn pattern_products(&self, patterns: &BitMatrix, m: usize) -> [Vec<f64>; 2] {
         let op = PackedOperator::new(patterns.head(m), PatternForm::ZeroOne);
         let mut pg = [vec![0.0; m], vec![0.0; m]];
         for (g, out) in self.g_a.iter().zip(pg.iter_mut()) {
             op.apply(g, out);
         }
+        pg
+    }
+
+    /// [`Transport::frame_currents`] from the [`Transport::pattern_products`] of its patterns.
+    pub fn frame_currents_of(&self, pg: &[Vec<f64>; 2], complementary: bool) -> Vec<[f64; 2]> {
         let total = Arm::ALL.map(|arm| self.g_a[arm].iter().sum::<f64>());
         let c = Arm::ALL.map(|arm| self.c_traced[arm].value);
         let (plus, minus) = (Arm::Plus, Arm::Minus);
+        let m = pg[plus].len();
         let mut out = Vec::with_capacity(if complementary { 2 * m } else { m });
         for (p_plus, p_minus) in pg[plus].iter().zip(&pg[minus]) {
             out.push([p_plus + c[plus], (total[minus] - p_minus) + c[minus]]);

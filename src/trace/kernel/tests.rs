@@ -290,4 +290,51 @@ fn kernel_product_is_the_direct_trace_path_by_path() {
         c_minus >= direct_c * (1.0 - 1e-9),
         "{c_minus:e} vs {direct_c:e}"
     );
+    values_only_products_equal_the_full_ones(&bench, &kernel, x);
+}
+
+/// The products without the totals' error sums (`Kernel::apply_values`,
+/// `Transport::from_kernel_values`) give every value bit for bit as the full ones, ghosts
+/// included, and unknown (NaN) errors for the totals only.
+fn values_only_products_equal_the_full_ones(
+    bench: &crate::optics::Bench,
+    kernel: &Kernel,
+    x: &[f64],
+) {
+    for linear in [false, true] {
+        let full = if linear {
+            kernel.apply_linear(x)
+        } else {
+            kernel.apply(x)
+        };
+        let values = kernel.apply_values(x, linear);
+        assert_eq!(values.t, full.t, "linear {linear}");
+        assert_eq!(
+            (&values.x, values.b, values.sums),
+            (&full.x, full.b, full.sums)
+        );
+        assert_eq!(
+            (&values.g2, &values.gx, &values.x2),
+            (&full.g2, &full.gx, &full.x2)
+        );
+        assert!(values.group_sums.is_empty() && values.q == [0.0; super::PQ]);
+        assert!(values.cov(0, 0).is_nan());
+        let tf = if linear {
+            Transport::from_kernel_linear(bench, kernel, x).unwrap()
+        } else {
+            Transport::from_kernel(bench, kernel, x).unwrap()
+        };
+        let tv = Transport::from_kernel_values(bench, kernel, x, linear).unwrap();
+        assert_eq!(
+            (&tv.t_a, &tv.x_w, &tv.g_a, &tv.k_map),
+            (&tf.t_a, &tf.x_w, &tf.g_a, &tf.k_map)
+        );
+        for arm in Arm::ALL {
+            assert_eq!(tv.k[arm].value, tf.k[arm].value);
+            assert_eq!(tv.c_traced[arm].value, tf.c_traced[arm].value);
+            assert!(tf.k[arm].stderr.is_finite() && tv.k[arm].stderr.is_nan());
+        }
+        assert_eq!(tv.x_total.value, tf.x_total.value);
+        assert!(tv.x_total.stderr.is_nan() && tv.imbalance.stderr.is_nan());
+    }
 }
