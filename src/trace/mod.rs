@@ -1,5 +1,5 @@
 //! The Monte Carlo engine: forward from the lamp, one wavelength per ray, in parallel over
-//! fixed-size batches. The only module that uses rayon.
+//! fixed-size batches (the only module that traces in parallel).
 //!
 //! Use: `let tallies = trace(&bench, &TraceOptions::new(rays, seed))?;` then
 //! `crate::transport::Transport::from_tallies(&bench, &tallies)`. `PatternMode::Fixed(&bits)`
@@ -8,7 +8,7 @@
 //! Determinism: batch b (of [`RAYS_PER_BATCH`] rays, the last one shorter) always draws its
 //! stratification from `rng::stream(seed, b)`, and every ray its interactions from streams keyed
 //! by (seed, ray index, part of the path) (path.rs, `RayKey`); batches run in parallel in chunks
-//! of [`BATCHES_PER_CHUNK`] and their tallies are merged in batch order, so the result is
+//! (at least [`BATCHES_PER_CHUNK`]) and their tallies are merged in batch order, so the result is
 //! bit-identical for any number of threads. Because each ray has its own streams, two benches
 //! that differ a little are traced with common random numbers ray by ray. Within a batch the
 //! rays' emission and wavelength coordinates form a Latin hypercube (path.rs); the physics of
@@ -36,10 +36,22 @@ pub use tally::{BatchScalars, BatchTally, Tallies};
 /// batch-means standard errors even in short test traces.
 pub const RAYS_PER_BATCH: u64 = 1024;
 
-/// Batches traced in parallel before their tallies are merged (bounds memory to ~25 MB of
-/// per-batch tallies for the paper bench and keeps the threads' idle time at the end of each
-/// chunk around 1 %; any value gives the same result).
+/// Batches traced in parallel before their tallies are merged, at least (bounds memory to ~25 MB
+/// of per-batch tallies for the paper bench per chunk; any value gives the same result). With
+/// many threads a chunk holds [`BATCHES_PER_THREAD`] per thread, up to [`MAX_BATCHES_PER_CHUNK`]:
+/// the threads wait for the slowest at the end of each chunk, about one batch in every
+/// batches-per-thread, 6 % at 16 threads with 256.
 pub const BATCHES_PER_CHUNK: u64 = 256;
+/// See [`BATCHES_PER_CHUNK`].
+pub const BATCHES_PER_THREAD: u64 = 32;
+/// See [`BATCHES_PER_CHUNK`] (two chunks of the paper bench's tallies: ~190 MB).
+pub const MAX_BATCHES_PER_CHUNK: u64 = 1024;
+
+/// The batches of one chunk on the current pool ([`BATCHES_PER_CHUNK`]).
+fn chunk_batches() -> u64 {
+    (BATCHES_PER_THREAD * rayon::current_num_threads() as u64)
+        .clamp(BATCHES_PER_CHUNK, MAX_BATCHES_PER_CHUNK)
+}
 
 /// A progress callback of the tracer: (rays traced, rays to trace), called after every chunk
 /// of batches has been merged (from a thread of the pool). The library draws nothing; the command line turns this
@@ -139,7 +151,7 @@ pub fn trace(bench: &Bench, options: &TraceOptions) -> Result<Tallies> {
 
 /// Computes `make(b)` for the batches `0..n_batches` on the current rayon pool and hands every
 /// result to `absorb` in batch order, calling `chunk_done` with the number of batches absorbed
-/// so far after each chunk of [`BATCHES_PER_CHUNK`] batches.
+/// so far after each chunk of batches ([`BATCHES_PER_CHUNK`]).
 ///
 /// The serial merge of one chunk runs beside the parallel computation of the next (one
 /// `rayon::join`), so the other threads never wait for it; before, every chunk's merge was a
@@ -159,8 +171,9 @@ pub(crate) fn batches_in_order<T, M, A, C>(
 {
     let mut pending: Option<(u64, Vec<T>)> = None;
     let mut start = 0;
+    let chunk = chunk_batches();
     loop {
-        let end = (start + BATCHES_PER_CHUNK).min(n_batches);
+        let end = (start + chunk).min(n_batches);
         let mut merge = |done: Option<(u64, Vec<T>)>| {
             if let Some((first, chunk)) = done {
                 let len = chunk.len() as u64;

@@ -484,3 +484,182 @@ fn diffractive_tail_bin_is_checked() {
         .to_string();
     assert!(err.contains("tail_bin_nm"), "{err}");
 }
+
+/// `batches_in_order` hands every batch's result to the merge exactly once, in batch order, on
+/// any number of threads (the chunk size grows with the pool, between 256 and 1024 batches), so
+/// a floating-point sum over the batches is bit-identical whatever the pool.
+#[test]
+fn batches_merge_in_order_on_any_pool() {
+    let n = 2500;
+    let run = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        pool.install(|| {
+            let (mut order, mut sum, mut reported) = (Vec::new(), 0.0f64, Vec::new());
+            super::batches_in_order(
+                n,
+                |b| (b, 1.0 + (b as f64 * 0.37).sin() * 1e-9),
+                |b, (made, v)| {
+                    assert_eq!(b, made);
+                    order.push(b);
+                    sum += v;
+                },
+                |done| reported.push(done),
+            );
+            (order, sum.to_bits(), reported)
+        })
+    };
+    let (order, sum, reported) = run(1);
+    assert_eq!(order, (0..n).collect::<Vec<_>>());
+    assert_eq!(reported.last(), Some(&n));
+    assert!(reported.windows(2).all(|w| w[0] < w[1]));
+    for threads in [2, 3, 17, 40] {
+        let (o, s, r) = run(threads);
+        assert_eq!(o, order, "{threads} threads");
+        assert_eq!(s, sum, "{threads} threads");
+        assert_eq!(r.last(), Some(&n), "{threads} threads");
+    }
+}
+
+/// Where the noise of k± comes from (a measurement, run by hand: `cargo test --lib
+/// variance_sources_of_k -- --ignored --nocapture`; docs/tracer_sampling.md quotes it). Each lamp
+/// ray of the paper bench is one independent term of the ratio estimator k = Σg/Σx (up to the
+/// batch's Latin hypercube), so its residual r = g − k·x splits the estimator's variance ray by
+/// ray: by the strategy that drew the ray's direction, and into its largest terms. The check:
+/// the recorder's k equals the tallies' k.
+#[test]
+#[ignore = "a measurement of the variance's sources, about 20 s"]
+fn variance_sources_of_k() {
+    use super::path::{Detection, PatternMode, Recorder, STRATIFIED_DIMS, run_batch_sampled};
+    use super::tally::{BRANCH_MINUS, BRANCH_PLUS};
+    use glam::DVec3;
+    /// Per ray: x, g₊, g₋ (on − off), the strategy draw, the wavelength; the path of the rays
+    /// with the most x so far.
+    #[derive(Default)]
+    struct Rays {
+        x: f64,
+        g: [f64; 2],
+        u2: f64,
+        wl: f64,
+        path: Vec<f64>,
+        rows: Vec<(f64, [f64; 2], f64, f64)>,
+        largest: Vec<(f64, f64, Vec<f64>)>,
+    }
+    impl Recorder for Rays {
+        fn segment(&mut self, o: DVec3, _: DVec3, _: f64) {
+            self.path.push(o.z * 1e3);
+        }
+        fn ray_done(&mut self, _: &BatchTally) {
+            self.rows.push((self.x, self.g, self.u2, self.wl));
+            if self.largest.len() < 3 || self.x > self.largest[2].0 {
+                self.largest
+                    .push((self.x, self.wl, std::mem::take(&mut self.path)));
+                self.largest.sort_by(|a, b| b.0.total_cmp(&a.0));
+                self.largest.truncate(3);
+            }
+            (self.x, self.g) = (0.0, [0.0; 2]);
+            self.path.clear();
+        }
+        fn emission(&mut self, u: &[f64; STRATIFIED_DIMS], _w: f64) {
+            self.u2 = u[2];
+        }
+        fn wavelength(&mut self, wl: f64) {
+            self.wl = wl;
+        }
+        fn incident(&mut self, _: usize, _: u32, w: f64) {
+            self.x += w;
+        }
+        fn detected(&mut self, h: Detection) {
+            let on = match h.detector {
+                Arm::Plus => BRANCH_PLUS,
+                Arm::Minus => BRANCH_MINUS,
+            };
+            let sign = if h.world == on { 1.0 } else { -1.0 };
+            if h.world == BRANCH_PLUS || h.world == BRANCH_MINUS {
+                self.g[h.detector.index()] += sign * h.current_a;
+            }
+        }
+    }
+    let bench = crate::scene::bench::read_bench(&scene_path("paper_bench.ron")).unwrap();
+    let (alpha, beta) = bench.lamp().shares();
+    let batches = 1000u64;
+    let n = batches * RAYS_PER_BATCH;
+    let mut rec = Rays::default();
+    let (across, down) = bench.units_shape();
+    let mut tallies = Tallies::new(across, down, bench.elements().len(), 7, 0.0);
+    for b in 0..batches {
+        let t = run_batch_sampled(
+            &bench,
+            PatternMode::Branch,
+            Sampling::Independent,
+            7,
+            b,
+            RAYS_PER_BATCH,
+            1.0 / n as f64,
+            &mut rec,
+        );
+        tallies.absorb(&t);
+    }
+    let t = Transport::from_tallies(&bench, &tallies);
+    let rows = &rec.rows;
+    let m = rows.len() as f64;
+    let sx: f64 = rows.iter().map(|r| r.0).sum();
+    let hits = rows.iter().filter(|r| r.0 > 0.0).count() as f64 / m;
+    for arm in Arm::ALL {
+        let a = arm.index();
+        let k = rows.iter().map(|r| r.1[a]).sum::<f64>() / sx;
+        assert!(
+            (k / t.k[arm].value - 1.0).abs() < 1e-9,
+            "{arm:?}: recorder {k}, tallies {}",
+            t.k[arm].value
+        );
+        let r2: Vec<f64> = rows.iter().map(|r| (r.1[a] - k * r.0).powi(2)).collect();
+        let total: f64 = r2.iter().sum();
+        let rel_sd = (total / m).sqrt() / (k * sx / m);
+        let lost = rows.iter().filter(|r| r.0 > 0.0 && r.1[a] <= 0.0).count() as f64 / (hits * m);
+        let mut sorted = r2.clone();
+        sorted.sort_by(|a, b| b.total_cmp(a));
+        let top = |c: usize| sorted[..c].iter().sum::<f64>() / total;
+        eprintln!(
+            "{arm:?}: k {k:.5} (tallies: ±{:.2e} rel.); per-ray rel. SD {rel_sd:.3} (rel. SE at \
+             10⁶ rays {:.2e}); rays putting light on the pattern {hits:.3}, of those without g {lost:.3}; \
+             share of the variance in the largest 10, 100, 1000 rays: {:.3}, {:.3}, {:.3}",
+            t.k[arm].relative_stderr(),
+            rel_sd * 1e-3,
+            top(10),
+            top(100),
+            top(1000)
+        );
+        for (name, lo, hi) in [
+            ("chart-guided", 0.0, alpha * beta),
+            ("field target", alpha * beta, alpha),
+            ("cone", alpha, 1.0),
+        ] {
+            let pick = |r: &&(f64, [f64; 2], f64, f64)| r.2 >= lo && r.2 < hi;
+            let share_x = rows.iter().filter(pick).map(|r| r.0).sum::<f64>() / sx;
+            let share_v = rows
+                .iter()
+                .zip(&r2)
+                .filter(|(r, _)| pick(r))
+                .map(|(_, v)| v)
+                .sum::<f64>()
+                / total;
+            eprintln!(
+                "  {name}: {:.3} of the rays, {share_x:.3} of x, {share_v:.3} of the variance",
+                hi - lo
+            );
+        }
+    }
+    let mean_x = sx / m;
+    for (x, wl, path) in &rec.largest {
+        let z: Vec<String> = path.iter().map(|z| format!("{z:.1}")).collect();
+        eprintln!(
+            "ray with x = {:.0}× the mean: {:.0} nm, segments from z (mm) = {}",
+            x / mean_x,
+            wl * 1e9,
+            z.join(", ")
+        );
+    }
+}
