@@ -268,7 +268,7 @@ impl Lamp {
     /// (α, β): the probability of aiming at the field target and, of those, the share aimed by
     /// the chart guide.
     #[inline]
-    fn shares(&self) -> (f64, f64) {
+    pub(crate) fn shares(&self) -> (f64, f64) {
         let alpha = self.field.map_or(0.0, |f| f.probability);
         let beta = self.guide.as_ref().map_or(0.0, |g| g.share);
         (alpha, beta)

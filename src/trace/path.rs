@@ -226,6 +226,10 @@ pub(super) trait Recorder {
     /// The wavelength (m) of the lamp ray about to be traced.
     #[inline(always)]
     fn wavelength(&mut self, _wl: f64) {}
+    /// The lamp ray's emission draws (filament x, y; strategy; direction a, b; wavelength bin,
+    /// offset) and its starting weight (W), before it is traced.
+    #[inline(always)]
+    fn emission(&mut self, _u: &[f64; STRATIFIED_DIMS], _w: f64) {}
 }
 
 /// One photocurrent tallied by a path, for [`Recorder::detected`].
@@ -302,7 +306,7 @@ impl RayKey<'_> {
 
 /// Emission dimensions (filament x, y; strategy; direction a, b) and the wavelength (bin, offset
 /// within the bin) stratified by the Latin hypercube.
-const STRATIFIED_DIMS: usize = 7;
+pub(super) const STRATIFIED_DIMS: usize = 7;
 
 /// Traces one lamp ray with all its branches, adding to `tally`. `index` is scratch space for
 /// the refractive index of every medium at the ray's wavelength (computed once per ray).
@@ -324,6 +328,7 @@ fn trace_ray<R: Recorder>(
     rec.wavelength(wl);
     let e = lamp.sample([u[0], u[1], u[2], u[3], u[4]], wl);
     let w = lamp.band_power_w * e.factor * spectral * inv_rays;
+    rec.emission(&u, w);
     let n_el = bench.elements().len();
     tally.ledger[COMMON][n_el + SLOT_EMITTED] += w;
     tally.rays += 1;
