@@ -18,6 +18,7 @@ use crate::report::csv::write_csv;
 use crate::report::html::{Block, Page, write_page};
 use crate::report::output::OutputDir;
 use crate::report::plot::{LinePlot, Series, write_plot};
+use crate::scene::doc::BenchDoc;
 use crate::transport::metrics::{METRICS, MetricRow};
 
 use super::rows::Row;
@@ -239,19 +240,7 @@ pub fn run(args: &AlignArgs) -> Result<()> {
     for f in &free {
         doc.get(&f.path)?;
     }
-    let objective = match args.objective {
-        ObjectiveArg::Balance => Objective::Balance {
-            min_fraction: args.min_fraction,
-            offset_weight: args.offset_weight,
-        },
-        ObjectiveArg::Power => Objective::Power,
-        ObjectiveArg::Weighted => Objective::Weighted(
-            args.weight
-                .iter()
-                .map(|w| super::parse_assignment(w, "--weight"))
-                .collect::<crate::Result<_>>()?,
-        ),
-    };
+    let objective = objective(args)?;
     check_weights(&objective)?;
     crate::align::check_objective(&objective)?;
     let opts = &args.bench.opts;
@@ -289,56 +278,13 @@ pub fn run(args: &AlignArgs) -> Result<()> {
 
     write_history(&a, &free, &out)?;
 
-    // Layouts.
-    let mut blocks = vec![Block::Paragraph(format!(
-        "{name}: {} free variable(s), objective {:?}; {} evaluations in {:.1} s (Nelder–Mead on \
-         common-random-number traces, {} → {} rays), stopped because {}. The returned point is \
-         the best of {} candidates traced again with {} rays on a fresh seed ({}). The start \
-         and the aligned bench are traced with {} rays and seed {}; their difference carries a \
-         paired standard error.",
-        free.len(),
-        args.objective,
-        a.history.len(),
+    report_page(
+        &out,
+        &name,
+        args,
+        (&free, &o, &a),
+        (&doc, &aligned),
         t0.elapsed().as_secs_f64(),
-        o.start_rays,
-        o.max_rays,
-        a.stop.describe(),
-        a.candidates.len(),
-        a.compare_rays,
-        a.compare_seed,
-        o.max_rays,
-        o.seed
-    ))];
-    for w in &a.warnings {
-        blocks.push(Block::Paragraph(format!("Warning: {w}.")));
-    }
-    blocks.extend(tables(&free, &a));
-    let svg = std::fs::read_to_string(out.path("history.svg"))
-        .map_err(|e| crate::Error::read(&out.path("history.svg"), e))?;
-    blocks.push(Block::Svg {
-        caption: "Convergence: the objective at each evaluation (stages trace more rays)".into(),
-        svg,
-    });
-    for (file, d, title) in [
-        ("layout_before.svg", &doc, "before"),
-        ("layout_after.svg", &aligned, "after"),
-    ] {
-        let (block, svg) =
-            super::layout::layout_block(&d.build()?, &format!("{name}, {title} alignment"))?;
-        let path = out.path(file);
-        std::fs::write(&path, &svg).map_err(|e| crate::Error::write(&path, e))?;
-        blocks.push(Block::Heading {
-            level: 2,
-            text: format!("Layout {title}"),
-        });
-        blocks.push(block);
-    }
-    write_page(
-        &out.path("report.html"),
-        &Page {
-            title: format!("spibench align of {name}"),
-            blocks,
-        },
     )?;
     let summary = AlignSummary {
         command: "align",
@@ -392,6 +338,87 @@ pub fn run(args: &AlignArgs) -> Result<()> {
         )),
         dir.display()
     );
+    Ok(())
+}
+
+/// The command's parsed objective.
+fn objective(args: &AlignArgs) -> crate::Result<Objective> {
+    Ok(match args.objective {
+        ObjectiveArg::Balance => Objective::Balance {
+            min_fraction: args.min_fraction,
+            offset_weight: args.offset_weight,
+        },
+        ObjectiveArg::Power => Objective::Power,
+        ObjectiveArg::Weighted => Objective::Weighted(
+            args.weight
+                .iter()
+                .map(|w| super::parse_assignment(w, "--weight"))
+                .collect::<crate::Result<_>>()?,
+        ),
+    })
+}
+
+/// report.html: what was searched and why it stopped, the warnings, the tables, the
+/// convergence plot and the layouts before and after (`layout_before.svg`, `layout_after.svg`
+/// written beside it).
+fn report_page(
+    out: &OutputDir,
+    name: &str,
+    args: &AlignArgs,
+    (free, o, a): (&[Free], &AlignOptions, &Alignment),
+    (doc, aligned): (&BenchDoc, &BenchDoc),
+    seconds: f64,
+) -> crate::Result<()> {
+    let mut blocks = vec![Block::Paragraph(format!(
+        "{name}: {} free variable(s), objective {:?}; {} evaluations in {:.1} s (Nelder–Mead on \
+         common-random-number traces, {} → {} rays), stopped because {}. The returned point is \
+         the best of {} candidates traced again with {} rays on a fresh seed ({}). The start \
+         and the aligned bench are traced with {} rays and seed {}; their difference carries a \
+         paired standard error.",
+        free.len(),
+        args.objective,
+        a.history.len(),
+        seconds,
+        o.start_rays,
+        o.max_rays,
+        a.stop.describe(),
+        a.candidates.len(),
+        a.compare_rays,
+        a.compare_seed,
+        o.max_rays,
+        o.seed
+    ))];
+    for w in &a.warnings {
+        blocks.push(Block::Paragraph(format!("Warning: {w}.")));
+    }
+    blocks.extend(tables(free, a));
+    let svg = std::fs::read_to_string(out.path("history.svg"))
+        .map_err(|e| crate::Error::read(&out.path("history.svg"), e))?;
+    blocks.push(Block::Svg {
+        caption: "Convergence: the objective at each evaluation (stages trace more rays)".into(),
+        svg,
+    });
+    for (file, d, title) in [
+        ("layout_before.svg", doc, "before"),
+        ("layout_after.svg", aligned, "after"),
+    ] {
+        let (block, svg) =
+            super::layout::layout_block(&d.build()?, &format!("{name}, {title} alignment"))?;
+        let path = out.path(file);
+        std::fs::write(&path, &svg).map_err(|e| crate::Error::write(&path, e))?;
+        blocks.push(Block::Heading {
+            level: 2,
+            text: format!("Layout {title}"),
+        });
+        blocks.push(block);
+    }
+    write_page(
+        &out.path("report.html"),
+        &Page {
+            title: format!("spibench align of {name}"),
+            blocks,
+        },
+    )?;
     Ok(())
 }
 

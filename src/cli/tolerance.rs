@@ -100,34 +100,7 @@ pub fn run(args: &ToleranceArgs) -> Result<()> {
         opts.rays_or(DEFAULT_RAYS, super::args::MIN_RAYS_WITH_STDERR)?,
         opts.seed(),
     );
-    let resolve = match args.resolve {
-        None => None,
-        Some(se) => {
-            if !(se.is_finite() && se > 0.0 && se < 1.0) {
-                return Err(crate::Error::field(
-                    "--resolve",
-                    format!("a paired standard error of the imbalance in (0, 1), got {se}"),
-                )
-                .into());
-            }
-            let max_rays = args
-                .max_rays
-                .unwrap_or(rays.saturating_mul(64))
-                .min(crate::scene::run::MAX_RAYS);
-            if max_rays < rays {
-                return Err(crate::Error::field(
-                    "--max-rays",
-                    format!("must be at least --rays ({rays})"),
-                )
-                .into());
-            }
-            Some(crate::tolerance::Resolve {
-                stderr: se,
-                relative: 0.01,
-                max_rays,
-            })
-        }
-    };
+    let resolve = resolve_option(args, rays)?;
     if args.trials > MAX_TRIALS {
         return Err(crate::Error::field("--trials", format!("at most {MAX_TRIALS}")).into());
     }
@@ -139,31 +112,7 @@ pub fn run(args: &ToleranceArgs) -> Result<()> {
         quality: args.quality,
     };
     if o.quality {
-        // The run settings must be valid before the first trace, and the file's quality limits
-        // must name scores this run records (else their yields would be empty).
-        let settings = doc.run_scene()?.settings;
-        let percents: Vec<u32> = settings
-            .sampling_ratios
-            .iter()
-            .map(|r| (r * 100.0).round() as u32)
-            .collect();
-        let keys: Vec<String> = settings
-            .schemes
-            .iter()
-            .flat_map(|s| {
-                settings
-                    .sampling_ratios
-                    .iter()
-                    .map(|r| crate::pipeline::evaluate::quality_key(s.key(), *r))
-            })
-            .collect();
-        let is_score = |m: &str| {
-            keys.iter().any(|k| {
-                m.strip_prefix(k.as_str())
-                    .is_some_and(|rest| ["_mssim", "_psnr_db", "_finest_lp_per_mm"].contains(&rest))
-            })
-        };
-        set.check_quality(&tol_text, &percents, &is_score)?;
+        check_quality_names(&doc, &set, &tol_text)?;
     }
     if let Some(k) = args.trial {
         let out = OutputDir::create(&opts.out_or("out/tolerance"))?;
@@ -254,6 +203,71 @@ pub fn run(args: &ToleranceArgs) -> Result<()> {
         time_split(set.compensators.len(), comp_s, trace_s)
     );
     Ok(())
+}
+
+/// `--resolve` and `--max-rays` checked: the sensitivity's stopping rule, if asked for.
+fn resolve_option(
+    args: &ToleranceArgs,
+    rays: u64,
+) -> crate::Result<Option<crate::tolerance::Resolve>> {
+    Ok(match args.resolve {
+        None => None,
+        Some(se) => {
+            if !(se.is_finite() && se > 0.0 && se < 1.0) {
+                return Err(crate::Error::field(
+                    "--resolve",
+                    format!("a paired standard error of the imbalance in (0, 1), got {se}"),
+                ));
+            }
+            let max_rays = args
+                .max_rays
+                .unwrap_or(rays.saturating_mul(64))
+                .min(crate::scene::run::MAX_RAYS);
+            if max_rays < rays {
+                return Err(crate::Error::field(
+                    "--max-rays",
+                    format!("must be at least --rays ({rays})"),
+                ));
+            }
+            Some(crate::tolerance::Resolve {
+                stderr: se,
+                relative: 0.01,
+                max_rays,
+            })
+        }
+    })
+}
+
+/// With `--quality`: the run settings valid before the first trace, and the tolerance file's
+/// quality limits naming scores this run records (else their yields would be empty).
+fn check_quality_names(
+    doc: &crate::scene::doc::BenchDoc,
+    set: &ToleranceSet,
+    tol_text: &str,
+) -> crate::Result<()> {
+    let settings = doc.run_scene()?.settings;
+    let percents: Vec<u32> = settings
+        .sampling_ratios
+        .iter()
+        .map(|r| (r * 100.0).round() as u32)
+        .collect();
+    let keys: Vec<String> = settings
+        .schemes
+        .iter()
+        .flat_map(|s| {
+            settings
+                .sampling_ratios
+                .iter()
+                .map(|r| crate::pipeline::evaluate::quality_key(s.key(), *r))
+        })
+        .collect();
+    let is_score = |m: &str| {
+        keys.iter().any(|k| {
+            m.strip_prefix(k.as_str())
+                .is_some_and(|rest| ["_mssim", "_psnr_db", "_finest_lp_per_mm"].contains(&rest))
+        })
+    };
+    set.check_quality(tol_text, &percents, &is_score)
 }
 
 /// The shard record's checksum file beside `trials.ron` (`sha256sum` format).
