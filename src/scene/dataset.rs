@@ -335,68 +335,7 @@ pub fn parse_dataset(text: &str, path: &Path) -> Result<DatasetSpec> {
     let mut object_files = Vec::new();
     let objects = match &file.objects {
         ObjectsSpec::Folder { path: folder, rule } => {
-            let dir = base.join(folder);
-            let entries = std::fs::read_dir(&dir).map_err(|e| {
-                err(
-                    "objects",
-                    format!("cannot read the image folder {}: {e}", dir.display()),
-                )
-            })?;
-            let mut files: Vec<PathBuf> = entries
-                .flatten()
-                .map(|e| e.path())
-                .filter(|p| {
-                    p.extension().and_then(|x| x.to_str()).is_some_and(|x| {
-                        matches!(
-                            x.to_ascii_lowercase().as_str(),
-                            "png" | "jpg" | "jpeg" | "exr" | "npy"
-                        )
-                    })
-                })
-                .collect();
-            files.sort();
-            if files.is_empty() {
-                return Err(err(
-                    "objects",
-                    format!(
-                        "the image folder {} holds no PNG, JPEG, EXR or .npy image",
-                        dir.display()
-                    ),
-                ));
-            }
-            // Read, hashed and decoded in parallel (a folder may hold thousands of images);
-            // the first bad file in name order is the one reported.
-            let read: Vec<Result<(Raster, String)>> = files
-                .par_iter()
-                .map(|f| {
-                    let unreadable = |e: String| {
-                        err("objects", format!("unreadable image {}: {e}", f.display()))
-                    };
-                    let bytes = std::fs::read(f).map_err(|e| unreadable(e.to_string()))?;
-                    let img = crate::objects::image_file::decode_gray(&bytes)
-                        .map_err(|e| unreadable(e.to_string()))?;
-                    Ok((img, sha256_hex(&bytes)))
-                })
-                .collect();
-            let mut names = Vec::new();
-            let mut images = Vec::new();
-            for (f, r) in files.iter().zip(read) {
-                let (img, sha256) = r?;
-                let name = f.file_name().map(|n| n.to_string_lossy().to_string());
-                let name = name.unwrap_or_default();
-                fit(&img, &name, *rule)?;
-                object_files.push(ObjectFile {
-                    name: name.clone(),
-                    sha256,
-                });
-                names.push(name);
-                images.push(img.map(|v| v / 255.0));
-            }
-            ObjectSource::Images {
-                names,
-                images,
-                rule: *rule,
-            }
+            folder_objects(&base.join(folder), *rule, &err, &fit, &mut object_files)?
         }
         ObjectsSpec::TestImages { names, rule } => {
             if names.is_empty() {
@@ -449,6 +388,77 @@ pub fn parse_dataset(text: &str, path: &Path) -> Result<DatasetSpec> {
         text: text.to_string(),
         objects,
         object_files,
+    })
+}
+
+/// The objects of an image folder: its PNG, JPEG, EXR and .npy files in name order, read,
+/// hashed and decoded in parallel (a folder may hold thousands of images; the first bad file in
+/// name order is the one reported), each checked against the grid by `fit` and listed with its
+/// SHA-256 in `object_files`.
+fn folder_objects(
+    dir: &Path,
+    rule: FitRule,
+    err: &(dyn Fn(&str, String) -> Error + Sync),
+    fit: &dyn Fn(&Raster, &str, FitRule) -> Result<()>,
+    object_files: &mut Vec<ObjectFile>,
+) -> Result<ObjectSource> {
+    let entries = std::fs::read_dir(dir).map_err(|e| {
+        err(
+            "objects",
+            format!("cannot read the image folder {}: {e}", dir.display()),
+        )
+    })?;
+    let mut files: Vec<PathBuf> = entries
+        .flatten()
+        .map(|e| e.path())
+        .filter(|p| {
+            p.extension().and_then(|x| x.to_str()).is_some_and(|x| {
+                matches!(
+                    x.to_ascii_lowercase().as_str(),
+                    "png" | "jpg" | "jpeg" | "exr" | "npy"
+                )
+            })
+        })
+        .collect();
+    files.sort();
+    if files.is_empty() {
+        return Err(err(
+            "objects",
+            format!(
+                "the image folder {} holds no PNG, JPEG, EXR or .npy image",
+                dir.display()
+            ),
+        ));
+    }
+    let read: Vec<Result<(Raster, String)>> = files
+        .par_iter()
+        .map(|f| {
+            let unreadable =
+                |e: String| err("objects", format!("unreadable image {}: {e}", f.display()));
+            let bytes = std::fs::read(f).map_err(|e| unreadable(e.to_string()))?;
+            let img = crate::objects::image_file::decode_gray(&bytes)
+                .map_err(|e| unreadable(e.to_string()))?;
+            Ok((img, sha256_hex(&bytes)))
+        })
+        .collect();
+    let mut names = Vec::new();
+    let mut images = Vec::new();
+    for (f, r) in files.iter().zip(read) {
+        let (img, sha256) = r?;
+        let name = f.file_name().map(|n| n.to_string_lossy().to_string());
+        let name = name.unwrap_or_default();
+        fit(&img, &name, rule)?;
+        object_files.push(ObjectFile {
+            name: name.clone(),
+            sha256,
+        });
+        names.push(name);
+        images.push(img.map(|v| v / 255.0));
+    }
+    Ok(ObjectSource::Images {
+        names,
+        images,
+        rule,
     })
 }
 
