@@ -27,9 +27,10 @@
 
 use glam::DVec3;
 
-use super::bench::{Bench, Interaction, Target};
+use super::bench::{Bench, ChartPlate, Interaction, Target};
 use super::fresnel::{reflect, refract};
-use super::lamp::{CdfIndex, EmitterShape};
+use super::geometry::Frame;
+use super::lamp::{CdfIndex, EmitterShape, FieldTarget};
 
 /// Wavelength bands of the proxy map. Dispersion moves the collimated beam's scale by ~3 % over
 /// 350–1150 nm in N-BK7 (docs/bench-facts.md §3.4); 16 bands leave ≤ 0.2 % per band, a few µm at the
@@ -179,64 +180,7 @@ impl ChartGuide {
                 region.0, region.1
             ));
         }
-        let grid = |n: usize| -> Vec<f64> {
-            (0..n)
-                .map(|k| 0.8 * (2.0 * k as f64 / (n - 1) as f64 - 1.0))
-                .collect()
-        };
-        let (gf, gt) = (grid(FILAMENT_GRID), grid(TARGET_GRID));
-        let wanted = gf.len() * gf.len() * gt.len() * gt.len();
-        let mut maps = Vec::with_capacity(WAVELENGTH_NODES);
-        let mut fit_rms = 0.0f64;
-        for k in 0..WAVELENGTH_NODES {
-            let wl = bench.band().0
-                + (k as f64 + 0.5) * (bench.band().1 - bench.band().0) / WAVELENGTH_NODES as f64;
-            // Features scaled to O(1) for a well-conditioned normal matrix.
-            let mut rows: Vec<([f64; 5], [f64; 2])> = Vec::with_capacity(wanted);
-            for &fa in &gf {
-                for &fb in &gf {
-                    let d = (fa * du, fb * dv);
-                    let p = fr.origin + d.0 * fr.u + d.1 * fr.v;
-                    for &ta in &gt {
-                        for &tb in &gt {
-                            let q = (ta * qu, tb * qv);
-                            let aim = field.center + q.0 * fr.u + q.1 * fr.v;
-                            if let Some(s) =
-                                follow_to_chart(bench, chart, p, (aim - p).normalize(), wl)
-                            {
-                                rows.push(([ta, tb, fa, fb, 1.0], [s.0, s.1]));
-                            }
-                        }
-                    }
-                }
-            }
-            if rows.len() * 10 < wanted * 6 {
-                return Err(format!(
-                    "only {} of {wanted} design rays from the field target reach the chart at \
-                     {:.0} nm: the field target must feed the chart through the optics",
-                    rows.len(),
-                    wl * 1e9
-                ));
-            }
-            let (coef, rms) = least_squares(&rows).ok_or(
-                "the design rays do not determine the map from the field target to the chart",
-            )?;
-            fit_rms = fit_rms.max(rms);
-            // Undo the feature scaling: s = Σ coef·(q/qu, q/qv, d/du, d/dv, 1).
-            let a = [
-                [coef[0][0] / qu, coef[0][1] / qv],
-                [coef[1][0] / qu, coef[1][1] / qv],
-            ];
-            let b = [
-                [coef[0][2] / du, coef[0][3] / dv],
-                [coef[1][2] / du, coef[1][3] / dv],
-            ];
-            let c = [coef[0][4], coef[1][4]];
-            let map = Affine::new(a, b, c).ok_or(
-                "the optics fold the field target onto a line on the chart: cannot aim through them",
-            )?;
-            maps.push(map);
-        }
+        let (maps, fit_rms) = fit_maps(bench, chart, (&field, fr), (du, dv), (qu, qv))?;
 
         // The window: `region` (width, height in m) centred where the target's centre sends the
         // light from the filament's centre at the band's middle.
@@ -250,38 +194,7 @@ impl ChartGuide {
             centre.1 - 0.5 * ny as f64 * cell,
         );
 
-        let mut clear = vec![0.0; nx * ny];
-        let sub = cell / SUPERSAMPLE as f64;
-        for i in 0..ny {
-            for j in 0..nx {
-                let mut acc = 0.0;
-                for a in 0..SUPERSAMPLE {
-                    for b in 0..SUPERSAMPLE {
-                        let x = x0 + j as f64 * cell + (b as f64 + 0.5) * sub;
-                        let y = y0 + i as f64 * cell + (a as f64 + 0.5) * sub;
-                        acc += plate.mask.clear_fraction(x, y).clamp(0.0, 1.0);
-                    }
-                }
-                clear[i * nx + j] = acc / (SUPERSAMPLE * SUPERSAMPLE) as f64;
-            }
-        }
-        // A rim of one cell around the clear glass at a quarter of the density: rays that the
-        // proxy map misplaces by up to a cell (its error is ~10 µm RMS, ~70 µm at worst on the
-        // paper bench) still find a density no more than 4× below that of the glass they reach,
-        // which bounds their weight; the rim costs ~5 % of the rays on 0.6 mm bars.
-        let glass = clear.iter().sum::<f64>() / (nx * ny) as f64;
-        let clear: Vec<f64> = (0..ny)
-            .flat_map(|i| (0..nx).map(move |j| (i, j)))
-            .map(|(i, j)| {
-                let mut m = 0.0f64;
-                for ii in i.saturating_sub(RIM)..(i + RIM + 1).min(ny) {
-                    for jj in j.saturating_sub(RIM)..(j + RIM + 1).min(nx) {
-                        m = m.max(clear[ii * nx + jj]);
-                    }
-                }
-                clear[i * nx + j].max(RIM_WEIGHT * m)
-            })
-            .collect();
+        let (clear, glass) = clear_cells(plate, (x0, y0, cell), (nx, ny));
         let total: f64 = clear.iter().sum();
         if total <= 0.0 {
             return Err(
@@ -387,6 +300,118 @@ impl ChartGuide {
         }
         self.density[fy as usize * self.nx + fx as usize] * m.det_abs
     }
+}
+
+/// The proxy maps of the `WAVELENGTH_NODES` bands, each fitted by least squares to the design
+/// rays from a grid over the filament (half-sizes `d`) to a grid over the field target
+/// (half-sizes `q`), and the largest RMS residual (m).
+fn fit_maps(
+    bench: &Bench,
+    chart: usize,
+    (field, fr): (&FieldTarget, &Frame),
+    (du, dv): (f64, f64),
+    (qu, qv): (f64, f64),
+) -> Result<(Vec<Affine>, f64), String> {
+    let grid = |n: usize| -> Vec<f64> {
+        (0..n)
+            .map(|k| 0.8 * (2.0 * k as f64 / (n - 1) as f64 - 1.0))
+            .collect()
+    };
+    let (gf, gt) = (grid(FILAMENT_GRID), grid(TARGET_GRID));
+    let wanted = gf.len() * gf.len() * gt.len() * gt.len();
+    let mut maps = Vec::with_capacity(WAVELENGTH_NODES);
+    let mut fit_rms = 0.0f64;
+    for k in 0..WAVELENGTH_NODES {
+        let wl = bench.band().0
+            + (k as f64 + 0.5) * (bench.band().1 - bench.band().0) / WAVELENGTH_NODES as f64;
+        // Features scaled to O(1) for a well-conditioned normal matrix.
+        let mut rows: Vec<([f64; 5], [f64; 2])> = Vec::with_capacity(wanted);
+        for &fa in &gf {
+            for &fb in &gf {
+                let d = (fa * du, fb * dv);
+                let p = fr.origin + d.0 * fr.u + d.1 * fr.v;
+                for &ta in &gt {
+                    for &tb in &gt {
+                        let q = (ta * qu, tb * qv);
+                        let aim = field.center + q.0 * fr.u + q.1 * fr.v;
+                        if let Some(s) = follow_to_chart(bench, chart, p, (aim - p).normalize(), wl)
+                        {
+                            rows.push(([ta, tb, fa, fb, 1.0], [s.0, s.1]));
+                        }
+                    }
+                }
+            }
+        }
+        if rows.len() * 10 < wanted * 6 {
+            return Err(format!(
+                "only {} of {wanted} design rays from the field target reach the chart at \
+                 {:.0} nm: the field target must feed the chart through the optics",
+                rows.len(),
+                wl * 1e9
+            ));
+        }
+        let (coef, rms) = least_squares(&rows)
+            .ok_or("the design rays do not determine the map from the field target to the chart")?;
+        fit_rms = fit_rms.max(rms);
+        // Undo the feature scaling: s = Σ coef·(q/qu, q/qv, d/du, d/dv, 1).
+        let a = [
+            [coef[0][0] / qu, coef[0][1] / qv],
+            [coef[1][0] / qu, coef[1][1] / qv],
+        ];
+        let b = [
+            [coef[0][2] / du, coef[0][3] / dv],
+            [coef[1][2] / du, coef[1][3] / dv],
+        ];
+        let c = [coef[0][4], coef[1][4]];
+        let map = Affine::new(a, b, c).ok_or(
+            "the optics fold the field target onto a line on the chart: cannot aim through them",
+        )?;
+        maps.push(map);
+    }
+    Ok((maps, fit_rms))
+}
+
+/// The clear fraction of each of the `nx × ny` cells of side `cell` from (x0, y0) on the chart
+/// (3 × 3 samples a cell), raised to a rim around the clear glass (below), and the mean clear
+/// fraction before the rim.
+fn clear_cells(
+    plate: &ChartPlate,
+    (x0, y0, cell): (f64, f64, f64),
+    (nx, ny): (usize, usize),
+) -> (Vec<f64>, f64) {
+    let mut clear = vec![0.0; nx * ny];
+    let sub = cell / SUPERSAMPLE as f64;
+    for i in 0..ny {
+        for j in 0..nx {
+            let mut acc = 0.0;
+            for a in 0..SUPERSAMPLE {
+                for b in 0..SUPERSAMPLE {
+                    let x = x0 + j as f64 * cell + (b as f64 + 0.5) * sub;
+                    let y = y0 + i as f64 * cell + (a as f64 + 0.5) * sub;
+                    acc += plate.mask.clear_fraction(x, y).clamp(0.0, 1.0);
+                }
+            }
+            clear[i * nx + j] = acc / (SUPERSAMPLE * SUPERSAMPLE) as f64;
+        }
+    }
+    // A rim of one cell around the clear glass at a quarter of the density: rays that the
+    // proxy map misplaces by up to a cell (its error is ~10 µm RMS, ~70 µm at worst on the
+    // paper bench) still find a density no more than 4× below that of the glass they reach,
+    // which bounds their weight; the rim costs ~5 % of the rays on 0.6 mm bars.
+    let glass = clear.iter().sum::<f64>() / (nx * ny) as f64;
+    let clear: Vec<f64> = (0..ny)
+        .flat_map(|i| (0..nx).map(move |j| (i, j)))
+        .map(|(i, j)| {
+            let mut m = 0.0f64;
+            for ii in i.saturating_sub(RIM)..(i + RIM + 1).min(ny) {
+                for jj in j.saturating_sub(RIM)..(j + RIM + 1).min(nx) {
+                    m = m.max(clear[ii * nx + jj]);
+                }
+            }
+            clear[i * nx + j].max(RIM_WEIGHT * m)
+        })
+        .collect();
+    (clear, glass)
 }
 
 /// Follows a design ray from `o` along the unit `d` at `wl` through refracting and reflecting
