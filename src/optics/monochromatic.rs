@@ -20,7 +20,7 @@
 //! Every change that alters the physics is listed in [`Monochromatic::notes`]; a bench that is
 //! already monochromatic comes back with no notes.
 
-use super::bench::{Bench, Coating, Interaction};
+use super::bench::{Assembly, Bench, Coating, Interaction};
 use super::chart::ChartMask;
 use super::glass::Glass;
 use super::lamp::LampSpectrum;
@@ -114,77 +114,7 @@ pub fn monochromatic(bench: &Bench, opts: &MonochromaticOptions) -> Result<Monoc
             m.absorption = None;
         }
     }
-    // Charts: substrate index 1 (a thin mask), chrome R = 0 and T(λ₀), USAF rasterised.
-    let mut chart_media = Vec::new();
-    for s in bench.surfaces() {
-        if let Interaction::Chart { front, back, .. } = s.interaction {
-            chart_media.push((front, back, s.element));
-        }
-    }
-    for &(front, back, el) in &chart_media {
-        for m in [front, back] {
-            if m != super::bench::AIR_MEDIUM && b.parts.media[m].glass != Glass::Constant(1.0) {
-                notes.push(format!(
-                    "`{}`: chart substrate replaced by index 1 (a thin mask without refraction)",
-                    bench.elements()[el]
-                ));
-                b.parts.media[m].glass = Glass::Constant(1.0);
-            }
-        }
-    }
-    for (k, plate) in b.parts.charts.iter_mut().enumerate() {
-        let name = chart_name(bench, k);
-        let rc = plate.chrome_reflectance.at(wl);
-        if rc != 0.0 || !matches!(plate.chrome_reflectance, Spectrum::Constant(_)) {
-            if rc != 0.0 {
-                notes.push(format!(
-                    "`{name}`: chrome reflectance {rc:.4} replaced by 0 (Mitsuba's mask BSDF \
-                     passes or absorbs)"
-                ));
-            }
-            plate.chrome_reflectance = Spectrum::Constant(0.0);
-        }
-        plate.chrome_od = Spectrum::Constant(plate.chrome_od.at(wl));
-        if let ChartMask::Usaf(chart) = &plate.mask {
-            let n = opts.usaf_pixels;
-            let side = opts.usaf_region_m;
-            // The window is centred on the point of the chart face nearest the lamp axis.
-            let lamp = &bench.lamp().frame;
-            let f = plate.frame;
-            let den = lamp.w.dot(f.w);
-            let centre = if den.abs() > 1e-12 {
-                let t = (f.origin - lamp.origin).dot(f.w) / den;
-                f.to_local(lamp.origin + t * lamp.w)
-            } else {
-                glam::DVec3::ZERO
-            };
-            let (cx, cy) = (centre.x, centre.y);
-            let px = side / n as f64;
-            let raster = Raster::from_fn(n, n, |row, col| {
-                let x = cx - 0.5 * side + (col as f64 + 0.5) * px;
-                let y = cy + 0.5 * side - (row as f64 + 0.5) * px;
-                if chart.is_clear(x * 1e3, y * 1e3) {
-                    1.0
-                } else {
-                    0.0
-                }
-            });
-            notes.push(format!(
-                "`{name}`: analytic USAF chart rasterised to {n} × {n} px over {:.1} mm × {:.1} \
-                 mm around the lamp axis (pixel-centre sampling); chrome elsewhere",
-                side * 1e3,
-                side * 1e3
-            ));
-            // An Image mask is centred on the plate centre: move the frame so that the window
-            // centre sits at the raster centre.
-            plate.frame.origin = f.origin + cx * f.u + cy * f.v;
-            plate.mask = ChartMask::Image {
-                raster,
-                width_m: side,
-                height_m: side,
-            };
-        }
-    }
+    substitute_charts(bench, &mut b, opts, &mut notes);
     // Coatings and reflectances.
     for s in b.parts.surfaces.iter_mut() {
         let name = &bench.elements()[s.element];
@@ -262,6 +192,87 @@ pub fn monochromatic(bench: &Bench, opts: &MonochromaticOptions) -> Result<Monoc
         notes,
         wavelength_m: wl,
     })
+}
+
+/// The charts of the substitute: substrate index 1 (a thin mask), chrome R = 0 and T(λ₀), an
+/// analytic USAF chart rasterised around the lamp axis; a note per change.
+fn substitute_charts(
+    bench: &Bench,
+    b: &mut Assembly,
+    opts: &MonochromaticOptions,
+    notes: &mut Vec<String>,
+) {
+    let wl = opts.wavelength_m;
+    let mut chart_media = Vec::new();
+    for s in bench.surfaces() {
+        if let Interaction::Chart { front, back, .. } = s.interaction {
+            chart_media.push((front, back, s.element));
+        }
+    }
+    for &(front, back, el) in &chart_media {
+        for m in [front, back] {
+            if m != super::bench::AIR_MEDIUM && b.parts.media[m].glass != Glass::Constant(1.0) {
+                notes.push(format!(
+                    "`{}`: chart substrate replaced by index 1 (a thin mask without refraction)",
+                    bench.elements()[el]
+                ));
+                b.parts.media[m].glass = Glass::Constant(1.0);
+            }
+        }
+    }
+    for (k, plate) in b.parts.charts.iter_mut().enumerate() {
+        let name = chart_name(bench, k);
+        let rc = plate.chrome_reflectance.at(wl);
+        if rc != 0.0 || !matches!(plate.chrome_reflectance, Spectrum::Constant(_)) {
+            if rc != 0.0 {
+                notes.push(format!(
+                    "`{name}`: chrome reflectance {rc:.4} replaced by 0 (Mitsuba's mask BSDF \
+                     passes or absorbs)"
+                ));
+            }
+            plate.chrome_reflectance = Spectrum::Constant(0.0);
+        }
+        plate.chrome_od = Spectrum::Constant(plate.chrome_od.at(wl));
+        if let ChartMask::Usaf(chart) = &plate.mask {
+            let n = opts.usaf_pixels;
+            let side = opts.usaf_region_m;
+            // The window is centred on the point of the chart face nearest the lamp axis.
+            let lamp = &bench.lamp().frame;
+            let f = plate.frame;
+            let den = lamp.w.dot(f.w);
+            let centre = if den.abs() > 1e-12 {
+                let t = (f.origin - lamp.origin).dot(f.w) / den;
+                f.to_local(lamp.origin + t * lamp.w)
+            } else {
+                glam::DVec3::ZERO
+            };
+            let (cx, cy) = (centre.x, centre.y);
+            let px = side / n as f64;
+            let raster = Raster::from_fn(n, n, |row, col| {
+                let x = cx - 0.5 * side + (col as f64 + 0.5) * px;
+                let y = cy + 0.5 * side - (row as f64 + 0.5) * px;
+                if chart.is_clear(x * 1e3, y * 1e3) {
+                    1.0
+                } else {
+                    0.0
+                }
+            });
+            notes.push(format!(
+                "`{name}`: analytic USAF chart rasterised to {n} × {n} px over {:.1} mm × {:.1} \
+                 mm around the lamp axis (pixel-centre sampling); chrome elsewhere",
+                side * 1e3,
+                side * 1e3
+            ));
+            // An Image mask is centred on the plate centre: move the frame so that the window
+            // centre sits at the raster centre.
+            plate.frame.origin = f.origin + cx * f.u + cy * f.v;
+            plate.mask = ChartMask::Image {
+                raster,
+                width_m: side,
+                height_m: side,
+            };
+        }
+    }
 }
 
 fn chart_name(bench: &Bench, chart: usize) -> String {
