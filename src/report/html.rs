@@ -596,7 +596,7 @@ fn render_block(out: &mut String, block: &Block, next_heading: &mut usize) {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::concise;
 
     #[test]
@@ -621,8 +621,9 @@ mod tests {
     use super::*;
     use crate::objects::usaf::{PaperRegion, Polarity, UsafChart};
 
-    /// An independent decoder for the tests: RFC 4648 §4 read back bit by bit.
-    fn decode64(s: &str) -> Vec<u8> {
+    /// An independent decoder for the tests (also the montage's): RFC 4648 §4 read back bit
+    /// by bit.
+    pub(crate) fn decode64(s: &str) -> Vec<u8> {
         let alphabet = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
         let mut bits: Vec<bool> = Vec::new();
         for c in s.trim_end_matches('=').chars() {

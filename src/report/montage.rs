@@ -610,47 +610,6 @@ mod tests {
         assert_eq!(dark(cx, cy + 64, 64, lay.caption_h), 0);
     }
 
-    /// Standard base64 back to bytes (the test's own decoder; panics on a bad character).
-    fn unbase64(text: &str) -> Vec<u8> {
-        let value = |c: u8| match c {
-            b'A'..=b'Z' => c - b'A',
-            b'a'..=b'z' => c - b'a' + 26,
-            b'0'..=b'9' => c - b'0' + 52,
-            b'+' => 62,
-            b'/' => 63,
-            _ => panic!("not base64: {:?}", c as char),
-        };
-        let mut out = Vec::new();
-        for quad in text.as_bytes().chunks(4) {
-            assert_eq!(quad.len(), 4, "base64 text is not padded to 4");
-            let pad = quad.iter().filter(|&&c| c == b'=').count();
-            let n = quad[..4 - pad]
-                .iter()
-                .fold(0u32, |n, &c| (n << 6) | u32::from(value(c)))
-                << (6 * pad);
-            out.extend_from_slice(&[(n >> 16) as u8, (n >> 8) as u8, n as u8][..3 - pad]);
-        }
-        out
-    }
-
-    #[test]
-    fn base64_matches_rfc_4648_vectors() {
-        for (plain, coded) in [
-            ("", ""),
-            ("f", "Zg=="),
-            ("fo", "Zm8="),
-            ("foo", "Zm9v"),
-            ("foob", "Zm9vYg=="),
-            ("fooba", "Zm9vYmE="),
-            ("foobar", "Zm9vYmFy"),
-        ] {
-            assert_eq!(crate::report::html::base64(plain.as_bytes()), coded);
-            assert_eq!(unbase64(coded), plain.as_bytes());
-        }
-        let all: Vec<u8> = (0..=255).collect();
-        assert_eq!(unbase64(&crate::report::html::base64(&all)), all);
-    }
-
     #[test]
     fn svg_embeds_each_tile_losslessly_at_the_png_layout() {
         let m = example();
@@ -694,9 +653,11 @@ mod tests {
         for (node, tile) in images.iter().zip(&tiles) {
             let href = node.attribute("href").unwrap();
             let coded = href.strip_prefix("data:image/png;base64,").unwrap();
-            let png =
-                image::load_from_memory_with_format(&unbase64(coded), image::ImageFormat::Png)
-                    .unwrap();
+            let png = image::load_from_memory_with_format(
+                &crate::report::html::tests::decode64(coded),
+                image::ImageFormat::Png,
+            )
+            .unwrap();
             assert_eq!(png.color(), image::ColorType::L8);
             let png = png.to_luma8();
             assert_eq!(png.dimensions(), (tile.width as u32, tile.height as u32));

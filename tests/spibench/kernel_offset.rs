@@ -12,15 +12,14 @@
 //! the seeds; its standard error is the spread of the seeds (s/√n, independent seeds), and z is
 //! the difference over the combined standard error. docs/object_kernels.md quotes the result.
 
-use std::path::Path;
-
-use spibench::optics::{Arm, Bench};
+use spibench::optics::Arm;
 use spibench::raster::Raster;
 use spibench::trace::kernel::{ObjectGrid, trace_kernel};
 use spibench::trace::{TraceOptions, trace};
 use spibench::transport::Transport;
 
 use super::common::TempDir;
+use super::kernel_se::bench_with_pattern;
 
 /// The chart field the paper bench images onto its 48 × 48 units (mm); the object grid is
 /// 2 × finer per axis, as in the dataset example.
@@ -32,32 +31,6 @@ fn env_u64(name: &str, default: u64) -> u64 {
         .ok()
         .and_then(|v| v.parse().ok())
         .unwrap_or(default)
-}
-
-/// The paper bench, centred on the chart, its pattern replaced by `pattern` (a RON `pattern:`
-/// line), on black chrome of OD 10 without reflectance: the object the kernel describes.
-fn bench_with_pattern(pattern: &str) -> Bench {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/paper_bench.ron");
-    let mut text = std::fs::read_to_string(&path).unwrap();
-    for (from, to) in [
-        (
-            "center_on: Elements(group: -1, first: 5, last: 6),",
-            "center_on: Point((0.0, 0.0)),",
-        ),
-        (
-            "chrome_od: Table([(350.0, 3.2), (430.0, 3.0), (700.0, 2.8), (1150.0, 2.5)]),",
-            "chrome_od: Constant(10.0),",
-        ),
-        (
-            "chrome_reflectance: Constant(0.10),",
-            "chrome_reflectance: Constant(0.0),",
-        ),
-        ("pattern: Usaf(min_group: -2, max_group: 7),", pattern),
-    ] {
-        assert_eq!(text.matches(from).count(), 1, "{from}");
-        text = text.replace(from, to);
-    }
-    spibench::scene::bench::parse_bench(&text, &path).unwrap()
 }
 
 /// Bars 3 px wide every 16 px over the whole field (the first at the field's left edge) and a

@@ -39,7 +39,7 @@ fn scene_text() -> String {
 
 /// The paper bench with its chart's pattern replaced (`pattern` is a RON `pattern:` line), on
 /// black chrome of OD 10 without reflectance (the object the kernel describes), centred.
-fn bench_with_pattern(pattern: &str) -> Bench {
+pub(super) fn bench_with_pattern(pattern: &str) -> Bench {
     let mut text = scene_text();
     for (from, to) in [
         (
