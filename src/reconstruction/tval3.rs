@@ -658,290 +658,271 @@ impl<'a> Solver<'a> {
     }
 
     fn run(&mut self, b_user: &[f64]) -> (Vec<f64>, StopReason) {
-        let opts = self.opts;
         let n = self.grid.width * self.grid.height;
-        let m = b_user.len();
         if b_user.iter().all(|&v| v == 0.0) {
             // A u = 0 is solved by u = 0 with zero total variation; the iteration itself would
             // divide 0 by 0 (||Up|| = 0 and d = 0).
             self.relative_residual = 0.0;
             return (vec![0.0; n], StopReason::Tolerance);
         }
-        let (b, scl) = self.preprocess(b_user);
-        let nrm_b = norm_sq(&b).sqrt();
-
-        let mut atb = vec![0.0; n];
-        self.a.adjoint(&b, &mut atb);
-
-        let muf = opts.mu;
-        let betaf = opts.beta;
-        let mut mu = opts.mu0.unwrap_or(muf).min(muf);
-        let mut beta = opts.beta0.unwrap_or(betaf).min(betaf);
-        let mut mu_d_beta = mu / beta;
-
-        let mut u = match opts.init {
-            Init::AdjointOfData => atb.clone(),
-            Init::Zeros => vec![0.0; n],
-        };
-        let mut rcd_u = u.clone();
-        let mut sigx = vec![0.0; n];
-        let mut sigy = vec![0.0; n];
-        let mut delta = vec![0.0; m];
-        let mut dts_atd = vec![0.0; n];
-
-        let mut ws = Work::new(n, m);
-        let mut ux = vec![0.0; n];
-        let mut uy = vec![0.0; n];
-        let mut wx = vec![0.0; n];
-        let mut wy = vec![0.0; n];
-        let mut au = vec![0.0; m];
-        let mut g = vec![0.0; n];
-        let mut g2 = vec![0.0; n];
-
-        self.grid.d(&u, &mut ux, &mut uy);
-        let mut lag = Lagrangian {
-            lam1: shrink(
-                opts.tv_norm,
-                beta,
-                &ux,
-                &uy,
-                &sigx,
-                &sigy,
-                &mut wx,
-                &mut wy,
-                &mut ws.dx,
-            ),
-            ..Lagrangian::default()
-        };
-        self.get_g(
-            &u, &ux, &uy, &wx, &wy, &b, &atb, &sigx, &sigy, &delta, &mut au, &mut g, &mut g2,
-            &mut lag, &mut ws,
-        );
-        let mut f = lag.f(beta, mu);
-
-        // d = g2 + (mu/beta) g − DtsAtd: the gradient of the augmented Lagrangian in u over beta.
-        let mut d: Vec<f64> = (0..n)
-            .map(|i| g2[i] + mu_d_beta * g[i] - dts_atd[i])
-            .collect();
-
-        let mut count = 1usize;
-        let mut q = 1.0;
-        let mut c_ref = f;
-        let mut gam = opts.gam;
-        let mut have_prev = false;
-
-        let mut up = vec![0.0; n];
-        let mut gp = vec![0.0; n];
-        let mut g2p = vec![0.0; n];
-        let mut aup = vec![0.0; m];
-        let mut uxp = vec![0.0; n];
-        let mut uyp = vec![0.0; n];
-        let mut du = vec![0.0; n];
-        let mut dg = vec![0.0; n];
-        let mut dg2 = vec![0.0; n];
-        let mut dau = vec![0.0; m];
-        let mut dux = vec![0.0; n];
-        let mut duy = vec![0.0; n];
-
+        let mut s = self.start(b_user);
         let mut stop = StopReason::MaxIterations;
-        for ii in 1..=opts.maxit {
+        for ii in 1..=self.opts.maxit {
             self.iterations = ii;
             // (a) Step length: BB1 within an inner loop, exact steepest descent at its start.
-            let tau;
-            let fst_itr;
-            if have_prev {
-                // s = U − Up (= du of the previous iteration), yv = (g2 − g2p) + (mu/β)(g − gp).
-                let (ss, sy) = sum2(n, |i| {
-                    let s = u[i] - up[i];
-                    (s * s, s * ((g2[i] - g2p[i]) + mu_d_beta * (g[i] - gp[i])))
-                });
-                tau = (ss / sy.max(f64::EPSILON)).abs();
-                fst_itr = false;
-            } else {
-                tau = self.sd_step(&d, mu_d_beta, &mut ws);
-                fst_itr = true;
-            }
-
+            let fst_itr = !s.have_prev;
+            let tau = self.step_length(&mut s);
             // (b) Keep the previous values. Swapping buffers is enough: every current-iterate
             // vector is overwritten in full below before it is read.
-            std::mem::swap(&mut up, &mut u);
-            std::mem::swap(&mut gp, &mut g);
-            std::mem::swap(&mut g2p, &mut g2);
-            std::mem::swap(&mut aup, &mut au);
-            std::mem::swap(&mut uxp, &mut ux);
-            std::mem::swap(&mut uyp, &mut uy);
-
-            // (c) One projected gradient step.
-            for ((ui, &upi), &di) in u.iter_mut().zip(&up).zip(&d) {
-                *ui = upi - tau * di;
-                if opts.nonneg {
-                    *ui = ui.max(0.0);
-                }
-            }
-            // (d) D U and the gradients with the old W (2 products).
-            self.grid.d(&u, &mut ux, &mut uy);
-            self.get_g(
-                &u, &ux, &uy, &wx, &wy, &b, &atb, &sigx, &sigy, &delta, &mut au, &mut g, &mut g2,
-                &mut lag, &mut ws,
-            );
-            f = lag.f(beta, mu);
-
-            // (e) Non-monotone line search (Zhang & Hager 2004) by interpolation.
-            let mut alpha = 1.0;
-            for i in 0..n {
-                du[i] = u[i] - up[i];
-            }
-            let armijo = opts.c * beta * tau * dot(&d, &d);
-            let mut cnt = 0;
-            let mut flag = true;
-            while f > c_ref - alpha * armijo {
-                if cnt == 5 {
-                    // Give up: take the projected steepest-descent step from Up, do the w-step
-                    // with it, and mark the failure with alpha = 0.
-                    gam *= opts.rate_gam;
-                    self.failures += 1;
-                    let tau_sd = self.sd_step(&d, mu_d_beta, &mut ws);
-                    for ((ui, &upi), &di) in u.iter_mut().zip(&up).zip(&d) {
-                        *ui = upi - tau_sd * di;
-                        if opts.nonneg {
-                            *ui = ui.max(0.0);
-                        }
-                    }
-                    self.grid.d(&u, &mut ux, &mut uy);
-                    lag.lam1 = shrink(
-                        opts.tv_norm,
-                        beta,
-                        &ux,
-                        &uy,
-                        &sigx,
-                        &sigy,
-                        &mut wx,
-                        &mut wy,
-                        &mut ws.dx,
-                    );
-                    self.get_g(
-                        &u, &ux, &uy, &wx, &wy, &b, &atb, &sigx, &sigy, &delta, &mut au, &mut g,
-                        &mut g2, &mut lag, &mut ws,
-                    );
-                    f = lag.f(beta, mu);
-                    alpha = 0.0;
-                    break;
-                }
-                if flag {
-                    for i in 0..n {
-                        dg[i] = g[i] - gp[i];
-                        dg2[i] = g2[i] - g2p[i];
-                        dux[i] = ux[i] - uxp[i];
-                        duy[i] = uy[i] - uyp[i];
-                    }
-                    for i in 0..m {
-                        dau[i] = au[i] - aup[i];
-                    }
-                    flag = false;
-                }
-                alpha *= opts.gamma;
-                // Everything is affine in U with W fixed, so the chord point needs no product.
-                for i in 0..n {
-                    g[i] = gp[i] + alpha * dg[i];
-                    g2[i] = g2p[i] + alpha * dg2[i];
-                    u[i] = up[i] + alpha * du[i];
-                    ux[i] = uxp[i] + alpha * dux[i];
-                    uy[i] = uyp[i] + alpha * duy[i];
-                }
-                for i in 0..m {
-                    au[i] = aup[i] + alpha * dau[i];
-                }
-                let (lam2, lam4) = v_terms(&ux, &uy, &wx, &wy, &sigx, &sigy);
-                lag.lam2 = lam2;
-                lag.lam4 = lam4;
-                let (lam3, lam5) = r_terms(&au, &b, &delta);
-                lag.lam3 = lam3;
-                lag.lam5 = lam5;
-                f = lag.f(beta, mu);
-                cnt += 1;
-            }
-
-            // (f) w-step (shrinkage) after a successful line search.
-            if alpha != 0.0 {
-                let tmpf = f - lag.lam1 - beta / 2.0 * lag.lam2 + lag.lam4;
-                lag.lam1 = shrink(
-                    opts.tv_norm,
-                    beta,
-                    &ux,
-                    &uy,
-                    &sigx,
-                    &sigy,
-                    &mut wx,
-                    &mut wy,
-                    &mut ws.dx,
+            std::mem::swap(&mut s.cur, &mut s.prev);
+            // (c) One projected gradient step; (d) D U and the gradients with the old W (2
+            // products).
+            self.project_step(&mut s, tau);
+            self.grid.d(&s.cur.u, &mut s.cur.ux, &mut s.cur.uy);
+            self.gradients(&mut s);
+            s.f = s.lag.f(s.beta, s.mu);
+            // (e) Non-monotone line search; (f) w-step (shrinkage) after a successful one.
+            if self.line_search(&mut s, tau) {
+                let tmpf = s.f - s.lag.lam1 - s.beta / 2.0 * s.lag.lam2 + s.lag.lam4;
+                s.lag.lam1 = self.shrink_w(&mut s);
+                self.update_w(
+                    &s.cur.ux,
+                    &s.cur.uy,
+                    &s.wx,
+                    &s.wy,
+                    &s.sigx,
+                    &s.sigy,
+                    &mut s.cur.g2,
+                    &mut s.lag,
+                    &mut s.ws,
                 );
-                self.update_w(&ux, &uy, &wx, &wy, &sigx, &sigy, &mut g2, &mut lag, &mut ws);
-                f = tmpf + lag.lam1 + beta / 2.0 * lag.lam2 - lag.lam4;
+                s.f = tmpf + s.lag.lam1 + s.beta / 2.0 * s.lag.lam2 - s.lag.lam4;
             }
-
             // (g) Non-monotone reference value.
-            let qp = q;
-            q = gam * qp + 1.0;
-            c_ref = (gam * qp * c_ref + f) / q;
-
-            // (h) New direction and the inner stopping test.
-            let (nrm_uup, nrm_up) = sum2(n, |i| {
-                d[i] = g2[i] + mu_d_beta * g[i] - dts_atd[i];
-                let s = u[i] - up[i];
-                (s * s, up[i] * up[i])
-            });
-            let nrm_up = nrm_up.sqrt();
-            let rel_chg = nrm_uup.sqrt() / nrm_up;
-            have_prev = true;
-
-            // (i) End of an inner loop.
-            if rel_chg < opts.tol_inn && !fst_itr {
-                count += 1;
-                self.outer = count - 1;
-                let rel_chg_out = sum2(n, |i| ((u[i] - rcd_u[i]).powi(2), 0.0)).0.sqrt() / nrm_up;
-                rcd_u.copy_from_slice(&u);
-                if rel_chg_out < opts.tol {
-                    stop = StopReason::Tolerance;
-                    break;
-                }
-                if count > opts.maxcnt {
-                    stop = StopReason::MaxOuter;
-                    break;
-                }
-                // Multipliers: sigma −= beta (DU − W), delta −= mu (AU − b).
-                for i in 0..n {
-                    sigx[i] -= beta * (ux[i] - wx[i]);
-                    sigy[i] -= beta * (uy[i] - wy[i]);
-                }
-                for i in 0..m {
-                    delta[i] -= mu * (au[i] - b[i]);
-                }
-                let (_, lam4) = v_terms(&ux, &uy, &wx, &wy, &sigx, &sigy);
-                let (_, lam5) = r_terms(&au, &b, &delta);
-                lag.lam4 = lam4;
-                lag.lam5 = lam5;
-                // Continuation.
-                let beta_old = beta;
-                beta = (beta * opts.rate_ctn).min(betaf);
-                mu = (mu * opts.rate_ctn).min(muf);
-                mu_d_beta = mu / beta;
-                f = lag.f(beta, mu);
-                // d (from h) equals −(Dᵀσ_new + Aᵀδ_new)/β_old plus the gradient terms; TVAL3
-                // keeps DtsAtd = −(β_old/β) d and rebuilds d with it.
-                for i in 0..n {
-                    dts_atd[i] = -(beta_old / beta) * d[i];
-                    d[i] = g2[i] + mu_d_beta * g[i] - dts_atd[i];
-                }
-                have_prev = false;
-                gam = opts.gam;
-                q = 1.0;
-                c_ref = f;
+            let qp = s.q;
+            s.q = s.gam * qp + 1.0;
+            s.c_ref = (s.gam * qp * s.c_ref + s.f) / s.q;
+            // (h) New direction and the inner stopping test; (i) the end of an inner loop.
+            let (rel_chg, nrm_up) = s.new_direction();
+            s.have_prev = true;
+            if rel_chg < self.opts.tol_inn
+                && !fst_itr
+                && let Some(reason) = self.end_inner_loop(&mut s, nrm_up)
+            {
+                stop = reason;
+                break;
             }
         }
-
-        self.relative_residual = lag.lam3.sqrt() / nrm_b;
+        self.relative_residual = s.lag.lam3.sqrt() / s.nrm_b;
+        let scl = s.scl;
+        let mut u = s.cur.u;
         u.iter_mut().for_each(|v| *v /= scl);
         (u, stop)
+    }
+
+    /// Pre-processing, the first iterate and its gradients, and the first direction.
+    fn start(&mut self, b_user: &[f64]) -> State {
+        let opts = self.opts;
+        let n = self.grid.width * self.grid.height;
+        let m = b_user.len();
+        let (b, scl) = self.preprocess(b_user);
+        let nrm_b = norm_sq(&b).sqrt();
+        let mut atb = vec![0.0; n];
+        self.a.adjoint(&b, &mut atb);
+        let mu = opts.mu0.unwrap_or(opts.mu).min(opts.mu);
+        let beta = opts.beta0.unwrap_or(opts.beta).min(opts.beta);
+        let mut cur = Iterate::zeros(n, m);
+        if opts.init == Init::AdjointOfData {
+            cur.u.copy_from_slice(&atb);
+        }
+        let mut s = State {
+            rcd_u: cur.u.clone(),
+            cur,
+            prev: Iterate::zeros(n, m),
+            step: Iterate::zeros(n, m),
+            b,
+            atb,
+            scl,
+            nrm_b,
+            wx: vec![0.0; n],
+            wy: vec![0.0; n],
+            sigx: vec![0.0; n],
+            sigy: vec![0.0; n],
+            delta: vec![0.0; m],
+            dts_atd: vec![0.0; n],
+            d: Vec::new(),
+            ws: Work::new(n, m),
+            lag: Lagrangian::default(),
+            mu,
+            beta,
+            mu_d_beta: mu / beta,
+            f: 0.0,
+            c_ref: 0.0,
+            q: 1.0,
+            gam: opts.gam,
+            have_prev: false,
+            count: 1,
+        };
+        self.grid.d(&s.cur.u, &mut s.cur.ux, &mut s.cur.uy);
+        s.lag.lam1 = self.shrink_w(&mut s);
+        self.gradients(&mut s);
+        s.f = s.lag.f(beta, mu);
+        s.c_ref = s.f;
+        // d = g2 + (mu/beta) g − DtsAtd: the gradient of the augmented Lagrangian in u over beta.
+        s.d = (0..n)
+            .map(|i| s.cur.g2[i] + s.mu_d_beta * s.cur.g[i] - s.dts_atd[i])
+            .collect();
+        s
+    }
+
+    /// The step length: BB1 from the last step within an inner loop, exact steepest descent
+    /// at its start.
+    fn step_length(&mut self, s: &mut State) -> f64 {
+        if s.have_prev {
+            // s = U − Up (= du of the previous iteration), yv = (g2 − g2p) + (mu/β)(g − gp).
+            let (c, p, mu_d_beta) = (&s.cur, &s.prev, s.mu_d_beta);
+            let (ss, sy) = sum2(c.u.len(), |i| {
+                let s = c.u[i] - p.u[i];
+                (
+                    s * s,
+                    s * ((c.g2[i] - p.g2[i]) + mu_d_beta * (c.g[i] - p.g[i])),
+                )
+            });
+            (ss / sy.max(f64::EPSILON)).abs()
+        } else {
+            self.sd_step(&s.d, s.mu_d_beta, &mut s.ws)
+        }
+    }
+
+    /// U = max(Up − tau d, 0) (without the bound when `nonneg` is off).
+    fn project_step(&self, s: &mut State, tau: f64) {
+        for ((ui, &upi), &di) in s.cur.u.iter_mut().zip(&s.prev.u).zip(&s.d) {
+            *ui = upi - tau * di;
+            if self.opts.nonneg {
+                *ui = ui.max(0.0);
+            }
+        }
+    }
+
+    /// The W-step's shrinkage of the current DU; returns lam1.
+    fn shrink_w(&self, s: &mut State) -> f64 {
+        shrink(
+            self.opts.tv_norm,
+            s.beta,
+            &s.cur.ux,
+            &s.cur.uy,
+            &s.sigx,
+            &s.sigy,
+            &mut s.wx,
+            &mut s.wy,
+            &mut s.ws.dx,
+        )
+    }
+
+    /// AU, g and g2 of the current iterate with the current W ([`Solver::get_g`]).
+    fn gradients(&mut self, s: &mut State) {
+        self.get_g(
+            &s.cur.u,
+            &s.cur.ux,
+            &s.cur.uy,
+            &s.wx,
+            &s.wy,
+            &s.b,
+            &s.atb,
+            &s.sigx,
+            &s.sigy,
+            &s.delta,
+            &mut s.cur.au,
+            &mut s.cur.g,
+            &mut s.cur.g2,
+            &mut s.lag,
+            &mut s.ws,
+        );
+    }
+
+    /// The non-monotone line search (Zhang & Hager 2004) by interpolation between Up and the
+    /// full step. False when it gave up after 5 cuts and took the projected steepest-descent
+    /// step with its own w-step instead (TVAL3's alpha = 0).
+    fn line_search(&mut self, s: &mut State, tau: f64) -> bool {
+        for i in 0..s.cur.u.len() {
+            s.step.u[i] = s.cur.u[i] - s.prev.u[i];
+        }
+        let armijo = self.opts.c * s.beta * tau * dot(&s.d, &s.d);
+        let mut alpha = 1.0;
+        let mut cnt = 0;
+        while s.f > s.c_ref - alpha * armijo {
+            if cnt == 5 {
+                self.give_up_line_search(s);
+                return false;
+            }
+            if cnt == 0 {
+                s.step_differences();
+            }
+            alpha *= self.opts.gamma;
+            s.chord_point(alpha);
+            cnt += 1;
+        }
+        true
+    }
+
+    /// The line search's way out: the projected steepest-descent step from Up, and the w-step
+    /// with it.
+    fn give_up_line_search(&mut self, s: &mut State) {
+        s.gam *= self.opts.rate_gam;
+        self.failures += 1;
+        let tau_sd = self.sd_step(&s.d, s.mu_d_beta, &mut s.ws);
+        self.project_step(s, tau_sd);
+        self.grid.d(&s.cur.u, &mut s.cur.ux, &mut s.cur.uy);
+        s.lag.lam1 = self.shrink_w(s);
+        self.gradients(s);
+        s.f = s.lag.f(s.beta, s.mu);
+    }
+
+    /// The end of an inner loop: the outer stopping tests, then the multipliers' update and
+    /// the continuation of mu and beta. Some(reason) when the solver stops.
+    fn end_inner_loop(&mut self, s: &mut State, nrm_up: f64) -> Option<StopReason> {
+        let opts = self.opts;
+        s.count += 1;
+        self.outer = s.count - 1;
+        let (u, rcd_u) = (&s.cur.u, &s.rcd_u);
+        let rel_chg_out = sum2(u.len(), |i| ((u[i] - rcd_u[i]).powi(2), 0.0)).0.sqrt() / nrm_up;
+        s.rcd_u.copy_from_slice(&s.cur.u);
+        if rel_chg_out < opts.tol {
+            return Some(StopReason::Tolerance);
+        }
+        if s.count > opts.maxcnt {
+            return Some(StopReason::MaxOuter);
+        }
+        let (c, beta, mu) = (&s.cur, s.beta, s.mu);
+        // Multipliers: sigma −= beta (DU − W), delta −= mu (AU − b).
+        for i in 0..c.u.len() {
+            s.sigx[i] -= beta * (c.ux[i] - s.wx[i]);
+            s.sigy[i] -= beta * (c.uy[i] - s.wy[i]);
+        }
+        for i in 0..s.delta.len() {
+            s.delta[i] -= mu * (c.au[i] - s.b[i]);
+        }
+        let (_, lam4) = v_terms(&c.ux, &c.uy, &s.wx, &s.wy, &s.sigx, &s.sigy);
+        let (_, lam5) = r_terms(&c.au, &s.b, &s.delta);
+        s.lag.lam4 = lam4;
+        s.lag.lam5 = lam5;
+        // Continuation.
+        let beta_old = s.beta;
+        s.beta = (s.beta * opts.rate_ctn).min(opts.beta);
+        s.mu = (s.mu * opts.rate_ctn).min(opts.mu);
+        s.mu_d_beta = s.mu / s.beta;
+        s.f = s.lag.f(s.beta, s.mu);
+        // d (from h) equals −(Dᵀσ_new + Aᵀδ_new)/β_old plus the gradient terms; TVAL3 keeps
+        // DtsAtd = −(β_old/β) d and rebuilds d with it.
+        for i in 0..s.d.len() {
+            s.dts_atd[i] = -(beta_old / s.beta) * s.d[i];
+            s.d[i] = s.cur.g2[i] + s.mu_d_beta * s.cur.g[i] - s.dts_atd[i];
+        }
+        s.have_prev = false;
+        s.gam = opts.gam;
+        s.q = 1.0;
+        s.c_ref = s.f;
+        None
     }
 
     /// `get_g`: Au = A U, g = Aᵀ(Au) − Aᵀb (2 products), then the W-dependent terms.
@@ -1018,6 +999,125 @@ fn r_terms(au: &[f64], b: &[f64], delta: &[f64]) -> (f64, f64) {
         let r = au[i] - b[i];
         (r * r, delta[i] * r)
     })
+}
+
+/// An iterate U and what TVAL3 derives from it: DU (ux, uy), AU, the data term's gradient g
+/// and the TV term's g2. As `State::step`, the differences between two iterates.
+struct Iterate {
+    u: Vec<f64>,
+    ux: Vec<f64>,
+    uy: Vec<f64>,
+    au: Vec<f64>,
+    g: Vec<f64>,
+    g2: Vec<f64>,
+}
+
+impl Iterate {
+    fn zeros(n: usize, m: usize) -> Self {
+        Iterate {
+            u: vec![0.0; n],
+            ux: vec![0.0; n],
+            uy: vec![0.0; n],
+            au: vec![0.0; m],
+            g: vec![0.0; n],
+            g2: vec![0.0; n],
+        }
+    }
+}
+
+/// Everything the iterations change (TVAL3 names; `prev` is the previous iterate, TVAL3's
+/// `p` suffixes).
+struct State {
+    cur: Iterate,
+    prev: Iterate,
+    step: Iterate,
+    /// The pre-processed data, Aᵀb, the scaling of b and ||b||.
+    b: Vec<f64>,
+    atb: Vec<f64>,
+    scl: f64,
+    nrm_b: f64,
+    wx: Vec<f64>,
+    wy: Vec<f64>,
+    sigx: Vec<f64>,
+    sigy: Vec<f64>,
+    delta: Vec<f64>,
+    dts_atd: Vec<f64>,
+    /// The search direction.
+    d: Vec<f64>,
+    /// U at the end of the last inner loop.
+    rcd_u: Vec<f64>,
+    ws: Work,
+    lag: Lagrangian,
+    mu: f64,
+    beta: f64,
+    mu_d_beta: f64,
+    /// The augmented Lagrangian at U, its non-monotone reference and weight.
+    f: f64,
+    c_ref: f64,
+    q: f64,
+    gam: f64,
+    /// Whether U and `prev` are two steps of the same inner loop (BB step possible).
+    have_prev: bool,
+    /// Inner loops begun (TVAL3's `count`).
+    count: usize,
+}
+
+impl State {
+    /// The differences between the full step and Up, once per line search (the step in u is
+    /// already there).
+    fn step_differences(&mut self) {
+        let (c, p, d) = (&self.cur, &self.prev, &mut self.step);
+        for i in 0..c.u.len() {
+            d.g[i] = c.g[i] - p.g[i];
+            d.g2[i] = c.g2[i] - p.g2[i];
+            d.ux[i] = c.ux[i] - p.ux[i];
+            d.uy[i] = c.uy[i] - p.uy[i];
+        }
+        for i in 0..c.au.len() {
+            d.au[i] = c.au[i] - p.au[i];
+        }
+    }
+
+    /// The iterate at Up + alpha (U − Up) and the Lagrangian there. Everything is affine in U
+    /// with W fixed, so the chord point needs no product.
+    fn chord_point(&mut self, alpha: f64) {
+        let (c, p, d) = (&mut self.cur, &self.prev, &self.step);
+        for i in 0..c.u.len() {
+            c.g[i] = p.g[i] + alpha * d.g[i];
+            c.g2[i] = p.g2[i] + alpha * d.g2[i];
+            c.u[i] = p.u[i] + alpha * d.u[i];
+            c.ux[i] = p.ux[i] + alpha * d.ux[i];
+            c.uy[i] = p.uy[i] + alpha * d.uy[i];
+        }
+        for i in 0..c.au.len() {
+            c.au[i] = p.au[i] + alpha * d.au[i];
+        }
+        let (lam2, lam4) = v_terms(&c.ux, &c.uy, &self.wx, &self.wy, &self.sigx, &self.sigy);
+        self.lag.lam2 = lam2;
+        self.lag.lam4 = lam4;
+        let (lam3, lam5) = r_terms(&c.au, &self.b, &self.delta);
+        self.lag.lam3 = lam3;
+        self.lag.lam5 = lam5;
+        self.f = self.lag.f(self.beta, self.mu);
+    }
+
+    /// The new direction d and (||U − Up||², ||Up||) for the inner stopping test.
+    fn new_direction(&mut self) -> (f64, f64) {
+        let (c, p, d, dts_atd, mu_d_beta) = (
+            &self.cur,
+            &self.prev,
+            &mut self.d,
+            &self.dts_atd,
+            self.mu_d_beta,
+        );
+        let (nrm_uup, nrm_up) = sum2(c.u.len(), |i| {
+            d[i] = c.g2[i] + mu_d_beta * c.g[i] - dts_atd[i];
+            let s = c.u[i] - p.u[i];
+            (s * s, p.u[i] * p.u[i])
+        });
+        let nrm_up = nrm_up.sqrt();
+        (nrm_uup.sqrt() / nrm_up, nrm_up)
+    }
 }
 
 /// Scratch vectors.
