@@ -545,39 +545,150 @@ fn non_finite_outputs(out: &Path, what: &str) -> Vec<String> {
 #[test]
 fn mutated_command_line_arguments_exit_0_or_2() {
     let dir = TempDir::new("fuzz-args");
-    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let sym = root.join("scenes/tests/symmetric_arms.ron");
-    let sym = sym.to_str().unwrap();
-    let paper = root.join("scenes/paper_bench.ron");
-    std::fs::copy(&paper, dir.join("paper_bench.ron")).unwrap();
-    let tol = dir.join("tol.ron");
-    std::fs::write(
-        &tol,
-        "(tolerances: [(path: \"dmd.tilt_deg\", range: PlusMinus(0.5))])",
-    )
-    .unwrap();
-    let spec = dir.join("spec.ron");
-    std::fs::write(
-        &spec,
-        "Dataset(bench: \"paper_bench.ron\", kernel: (rays: 4096, seed: 1, grid_px: (8, 8), \
-         field_mm: (7.88, 7.88)), objects: Phantom, seed: 7, samples: 2, shard_samples: 2)",
-    )
-    .unwrap();
-    let (pp, yp) = (dir.join("p.npy"), dir.join("y.npy"));
-    spibench::report::npy::write_u8(&pp, &[8, 16], &[1u8; 128]).unwrap();
-    spibench::report::npy::write_f64(&yp, &[8], &[1.0; 8]).unwrap();
-    let exp = dir.join("exp.ron");
-    std::fs::write(&exp, SMALL_EXPERIMENT).unwrap();
-    let (tol, spec, pp, yp, exp) = (
-        tol.to_str().unwrap(),
-        spec.to_str().unwrap(),
-        pp.to_str().unwrap(),
-        yp.to_str().unwrap(),
-        exp.to_str().unwrap(),
+    let files = ArgFiles::new(&dir);
+    let mut failures = Vec::new();
+    let mut n = 0;
+    let mut exits = [0usize; 2];
+    for (c, (line, slots)) in command_lines(&files).iter().enumerate() {
+        for &slot in slots {
+            let mut rng = Mix::new(400 + c as u64, slot as u64);
+            for _ in 0..6 {
+                let value = ARG_VALUES[rng.below(ARG_VALUES.len())];
+                let mut args = line.clone();
+                args[slot] = value;
+                let out = dir.join(&format!("out{n}"));
+                n += 1;
+                let mut a = args.clone();
+                a.extend(["--out", out.to_str().unwrap()]);
+                let o = spibench(&a, &[("RAYON_NUM_THREADS", "1")]);
+                let what = format!("`spibench {}`", args.join(" "));
+                judge_exit(&o, &out, &what, None, &mut exits, &mut failures);
+            }
+        }
+    }
+    // Mutated experiment files through `spibench simulate`: the same rules, and an exit-2
+    // message that names the file.
+    for i in 0..24u64 {
+        let m = mutant(SMALL_EXPERIMENT, 900, i);
+        let name = format!("exp{i}.ron");
+        let file = dir.join(&name);
+        std::fs::write(&file, &m).unwrap();
+        let out = dir.join(&format!("out{n}"));
+        n += 1;
+        let o = spibench(
+            &[
+                "simulate",
+                file.to_str().unwrap(),
+                "--out",
+                out.to_str().unwrap(),
+            ],
+            &[("RAYON_NUM_THREADS", "1")],
+        );
+        let what = format!("experiment mutant {i}");
+        judge_exit(&o, &out, &what, Some(&name), &mut exits, &mut failures);
+    }
+    for e in std::fs::read_dir(&dir.0).unwrap().flatten() {
+        let name = e.file_name().to_string_lossy().into_owned();
+        if name.contains("partial") || name.contains("spibench-lock") {
+            failures.push(format!("{name} left behind"));
+        }
+    }
+    eprintln!(
+        "fuzz: {n} command lines, {} exit 0, {} exit 2",
+        exits[0], exits[1]
+    );
+    assert!(exits[0] > 0 && exits[1] > 0, "{exits:?}");
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
+/// Exit 0 with finite outputs, or exit 2 with a message (that names `names`, when given), no
+/// panic and no output folder; anything else is a failure. Counts the exits 0 and 2.
+fn judge_exit(
+    o: &std::process::Output,
+    out: &Path,
+    what: &str,
+    names: Option<&str>,
+    exits: &mut [usize; 2],
+    failures: &mut Vec<String>,
+) {
+    let err = String::from_utf8_lossy(&o.stderr).into_owned();
+    if let Some(c @ (0 | 2)) = o.status.code() {
+        exits[c as usize / 2] += 1;
+    }
+    match o.status.code() {
+        Some(0) => failures.extend(non_finite_outputs(out, what)),
+        Some(2) => {
+            let unnamed = names.is_some_and(|name| !err.contains(name));
+            if err.contains("panicked") || err.trim().is_empty() || unnamed {
+                failures.push(format!("{what}: exit 2 with {err:?}"));
+            }
+            if out.exists() {
+                failures.push(format!("{what}: output left after exit 2"));
+            }
+        }
+        other => failures.push(format!("{what}: exit {other:?}: {err}")),
+    }
+}
+
+/// The input files of the mutated command lines, written in the test's folder.
+struct ArgFiles {
+    sym: String,
+    tol: String,
+    spec: String,
+    patterns: String,
+    measurements: String,
+    experiment: String,
+}
+
+impl ArgFiles {
+    fn new(dir: &TempDir) -> ArgFiles {
+        let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+        let sym = root.join("scenes/tests/symmetric_arms.ron");
+        let sym = sym.to_str().unwrap();
+        let paper = root.join("scenes/paper_bench.ron");
+        std::fs::copy(&paper, dir.join("paper_bench.ron")).unwrap();
+        let tol = dir.join("tol.ron");
+        std::fs::write(
+            &tol,
+            "(tolerances: [(path: \"dmd.tilt_deg\", range: PlusMinus(0.5))])",
+        )
+        .unwrap();
+        let spec = dir.join("spec.ron");
+        std::fs::write(
+            &spec,
+            "Dataset(bench: \"paper_bench.ron\", kernel: (rays: 4096, seed: 1, grid_px: (8, 8), \
+             field_mm: (7.88, 7.88)), objects: Phantom, seed: 7, samples: 2, shard_samples: 2)",
+        )
+        .unwrap();
+        let (pp, yp) = (dir.join("p.npy"), dir.join("y.npy"));
+        spibench::report::npy::write_u8(&pp, &[8, 16], &[1u8; 128]).unwrap();
+        spibench::report::npy::write_f64(&yp, &[8], &[1.0; 8]).unwrap();
+        let exp = dir.join("exp.ron");
+        std::fs::write(&exp, SMALL_EXPERIMENT).unwrap();
+        let path = |p: &Path| p.to_str().unwrap().to_string();
+        ArgFiles {
+            sym: sym.to_string(),
+            tol: path(&tol),
+            spec: path(&spec),
+            patterns: path(&pp),
+            measurements: path(&yp),
+            experiment: path(&exp),
+        }
+    }
+}
+
+/// The command lines, each with the indices of its values that are mutated.
+fn command_lines(f: &ArgFiles) -> Vec<(Vec<&str>, Vec<usize>)> {
+    let (sym, tol, spec, pp, yp, exp) = (
+        f.sym.as_str(),
+        f.tol.as_str(),
+        f.spec.as_str(),
+        f.patterns.as_str(),
+        f.measurements.as_str(),
+        f.experiment.as_str(),
     );
     let free = "detectors.minus.decenter_mm.x=-2:2";
-    // Each command line with the indices of the values that are mutated.
-    let commands: Vec<(Vec<&str>, Vec<usize>)> = vec![
+    vec![
         (
             vec!["trace", sym, "--rays", "2048", "--seed", "3"],
             vec![3, 5],
@@ -692,87 +803,5 @@ fn mutated_command_line_arguments_exit_0_or_2() {
             vec![5, 7, 13],
         ),
         (vec!["simulate", exp, "--zero-one", "plain"], vec![1, 3]),
-    ];
-    let mut failures = Vec::new();
-    let mut n = 0;
-    let mut exits = [0usize; 2];
-    for (c, (line, slots)) in commands.iter().enumerate() {
-        for &slot in slots {
-            let mut rng = Mix::new(400 + c as u64, slot as u64);
-            for _ in 0..6 {
-                let value = ARG_VALUES[rng.below(ARG_VALUES.len())];
-                let mut args = line.clone();
-                args[slot] = value;
-                let out = dir.join(&format!("out{n}"));
-                n += 1;
-                let mut a = args.clone();
-                a.extend(["--out", out.to_str().unwrap()]);
-                let o = spibench(&a, &[("RAYON_NUM_THREADS", "1")]);
-                let err = String::from_utf8_lossy(&o.stderr).into_owned();
-                let what = format!("`spibench {}`", args.join(" "));
-                if let Some(c @ (0 | 2)) = o.status.code() {
-                    exits[c as usize / 2] += 1;
-                }
-                match o.status.code() {
-                    Some(0) => failures.extend(non_finite_outputs(&out, &what)),
-                    Some(2) => {
-                        if err.contains("panicked") || err.trim().is_empty() {
-                            failures.push(format!("{what}: exit 2 with {err:?}"));
-                        }
-                        if out.exists() {
-                            failures.push(format!("{what}: output left after exit 2"));
-                        }
-                    }
-                    other => failures.push(format!("{what}: exit {other:?}: {err}")),
-                }
-            }
-        }
-    }
-    // Mutated experiment files through `spibench simulate`: the same rules, and an exit-2
-    // message that names the file.
-    for i in 0..24u64 {
-        let m = mutant(SMALL_EXPERIMENT, 900, i);
-        let file = dir.join(&format!("exp{i}.ron"));
-        std::fs::write(&file, &m).unwrap();
-        let out = dir.join(&format!("out{n}"));
-        n += 1;
-        let o = spibench(
-            &[
-                "simulate",
-                file.to_str().unwrap(),
-                "--out",
-                out.to_str().unwrap(),
-            ],
-            &[("RAYON_NUM_THREADS", "1")],
-        );
-        let err = String::from_utf8_lossy(&o.stderr).into_owned();
-        let what = format!("experiment mutant {i}");
-        if let Some(c @ (0 | 2)) = o.status.code() {
-            exits[c as usize / 2] += 1;
-        }
-        match o.status.code() {
-            Some(0) => failures.extend(non_finite_outputs(&out, &what)),
-            Some(2) => {
-                if err.contains("panicked") || !err.contains(&format!("exp{i}.ron")) {
-                    failures.push(format!("{what}: exit 2 with {err:?}"));
-                }
-                if out.exists() {
-                    failures.push(format!("{what}: output left after exit 2"));
-                }
-            }
-            other => failures.push(format!("{what}: exit {other:?}: {err}")),
-        }
-    }
-    for e in std::fs::read_dir(&dir.0).unwrap().flatten() {
-        let name = e.file_name().to_string_lossy().into_owned();
-        if name.contains("partial") || name.contains("spibench-lock") {
-            failures.push(format!("{name} left behind"));
-        }
-    }
-    eprintln!(
-        "fuzz: {n} command lines, {} exit 0, {} exit 2",
-        exits[0], exits[1]
-    );
-    assert!(exits[0] > 0 && exits[1] > 0, "{exits:?}");
-    assert!(failures.is_empty(), "{}", failures.join("\n"));
+    ]
 }
