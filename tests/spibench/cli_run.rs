@@ -67,6 +67,67 @@ fn run_writes_every_output_identically_on_one_and_two_threads() {
     assert!(oa.status.success(), "{}", stderr(&oa));
     let ob = run_to(&scene, &b, "2");
     assert!(ob.status.success(), "{}", stderr(&ob));
+    let files = expected_run_files();
+    for f in &files {
+        assert!(a.join(f).is_file(), "missing {f}");
+    }
+    // Without --repeats, no repeat statistics (one repeat has no spread).
+    for f in ["repeats.json", "repeats.csv", "mssim_vs_frames.svg"] {
+        assert!(!a.join(f).exists(), "{f} written without --repeats");
+    }
+    assert_report_page(&a.join("report.html"));
+    let summary = read_json(&a.join("summary.json"));
+    let e = &summary["electronics"];
+    assert!(
+        e["cmrr_db"].is_number() && e["cmrr_electronics_db"].is_number(),
+        "{e}"
+    );
+    assert_ne!(e["cmrr_db"], e["cmrr_electronics_db"], "{e}");
+    let sa = read_json(&a.join("summary.json"));
+    let sb = read_json(&b.join("summary.json"));
+    assert_eq!(without_timings(sa.clone()), without_timings(sb));
+    // Same seed: results.csv byte-identical (summary.json too but for the command line, above);
+    // the timings are in timings.json.
+    let same = std::fs::read(a.join("results.csv")).unwrap()
+        == std::fs::read(b.join("results.csv")).unwrap();
+    assert!(same, "results.csv differs between two runs with one seed");
+    assert!(read_json(&a.join("timings.json"))["total_s"].is_number());
+    // The same command again (on two threads) replaces the folder with a byte-identical
+    // summary.json and results.csv: provenance included, timings apart.
+    let kept: Vec<Vec<u8>> = ["summary.json", "results.csv"]
+        .iter()
+        .map(|f| std::fs::read(a.join(f)).unwrap())
+        .collect();
+    let again = run_to(&scene, &a, "2");
+    assert!(again.status.success(), "{}", stderr(&again));
+    for (f, before) in ["summary.json", "results.csv"].iter().zip(&kept) {
+        assert!(
+            &std::fs::read(a.join(f)).unwrap() == before,
+            "{f} differs between two runs of one command"
+        );
+    }
+    assert_documented_keys(&sa);
+    let out = stdout(&oa);
+    assert!(out.contains("Secondary complementary balancing"), "{out}");
+    // The report's table and notes fit a terminal of 100 columns (paths aside).
+    for l in out.lines().filter(|l| l.starts_with("  ")) {
+        assert!(
+            l.chars().count() <= 100,
+            "{} columns: {l}",
+            l.chars().count()
+        );
+    }
+    let sa = without_timings(sa);
+    assert_other_seed_and_settings(&scene, &dir, &a, &sa);
+    // results.csv: LF only, one row per result, the run-identifying columns filled in.
+    let csv = std::fs::read_to_string(a.join("results.csv")).unwrap();
+    assert!(!csv.contains('\r'));
+    assert_eq!(csv.lines().count(), 15, "a header and 14 rows");
+    assert!(csv.starts_with("command,scene,seed,"), "{csv}");
+}
+
+/// Every file `spibench run` writes for the small scene (schemes at 25 and 100 %).
+fn expected_run_files() -> Vec<String> {
     let mut files = vec![
         "summary.json".to_string(),
         "report.html".to_string(),
@@ -105,15 +166,13 @@ fn run_writes_every_output_identically_on_one_and_two_threads() {
     ] {
         files.push(format!("arrays/{f}.npy"));
     }
-    for f in &files {
-        assert!(a.join(f).is_file(), "missing {f}");
-    }
-    // Without --repeats, no repeat statistics (one repeat has no spread).
-    for f in ["repeats.json", "repeats.csv", "mssim_vs_frames.svg"] {
-        assert!(!a.join(f).exists(), "{f} written without --repeats");
-    }
-    // report.html: one self-contained page whose images are all embedded.
-    let html = std::fs::read_to_string(a.join("report.html")).expect("report.html");
+    files
+}
+
+/// report.html: one self-contained page whose images are all embedded, with its sections, the
+/// solver's stops and both CMRRs.
+fn assert_report_page(page: &Path) {
+    let html = std::fs::read_to_string(page).expect("report.html");
     assert!(
         html.starts_with("<!DOCTYPE html>"),
         "report.html is not an HTML page"
@@ -133,37 +192,10 @@ fn run_writes_every_output_identically_on_one_and_two_threads() {
     assert!(!html.contains("(cap)"), "report.html still says (cap)");
     assert!(html.contains("TVAL3&#39;s stops:"));
     assert!(html.contains("CMRR of the bench") && html.contains("CMRR of the electronics alone"));
-    let summary = read_json(&a.join("summary.json"));
-    let e = &summary["electronics"];
-    assert!(
-        e["cmrr_db"].is_number() && e["cmrr_electronics_db"].is_number(),
-        "{e}"
-    );
-    assert_ne!(e["cmrr_db"], e["cmrr_electronics_db"], "{e}");
-    let sa = read_json(&a.join("summary.json"));
-    let sb = read_json(&b.join("summary.json"));
-    assert_eq!(without_timings(sa.clone()), without_timings(sb));
-    // Same seed: results.csv byte-identical (summary.json too but for the command line, above);
-    // the timings are in timings.json.
-    let same = std::fs::read(a.join("results.csv")).unwrap()
-        == std::fs::read(b.join("results.csv")).unwrap();
-    assert!(same, "results.csv differs between two runs with one seed");
-    assert!(read_json(&a.join("timings.json"))["total_s"].is_number());
-    // The same command again (on two threads) replaces the folder with a byte-identical
-    // summary.json and results.csv: provenance included, timings apart.
-    let kept: Vec<Vec<u8>> = ["summary.json", "results.csv"]
-        .iter()
-        .map(|f| std::fs::read(a.join(f)).unwrap())
-        .collect();
-    let again = run_to(&scene, &a, "2");
-    assert!(again.status.success(), "{}", stderr(&again));
-    for (f, before) in ["summary.json", "results.csv"].iter().zip(&kept) {
-        assert!(
-            &std::fs::read(a.join(f)).unwrap() == before,
-            "{f} differs between two runs of one command"
-        );
-    }
-    // The documented keys.
+}
+
+/// The documented keys of summary.json and the frame counts at 100 %.
+fn assert_documented_keys(sa: &serde_json::Value) {
     assert_eq!(sa["command"], "run");
     for key in [
         "k_plus",
@@ -205,16 +237,12 @@ fn run_writes_every_output_identically_on_one_and_two_threads() {
     };
     assert_eq!(frames("secondary_complementary_balancing"), 512);
     assert_eq!(frames("double_arm"), 256);
-    let out = stdout(&oa);
-    assert!(out.contains("Secondary complementary balancing"), "{out}");
-    // The report's table and notes fit a terminal of 100 columns (paths aside).
-    for l in out.lines().filter(|l| l.starts_with("  ")) {
-        assert!(
-            l.chars().count() <= 100,
-            "{} columns: {l}",
-            l.chars().count()
-        );
-    }
+}
+
+/// Another seed gives other noise; the folder's bench.ron reproduces the run (seed 4, like
+/// `run_to`) on one thread: the same transport and results. `sa` is the first run's summary
+/// without timings.
+fn assert_other_seed_and_settings(scene: &Path, dir: &TempDir, a: &Path, sa: &serde_json::Value) {
     // A different seed gives different noise.
     let c = dir.join("three");
     let oc = spibench(
@@ -231,7 +259,7 @@ fn run_writes_every_output_identically_on_one_and_two_threads() {
     assert!(oc.status.success(), "{}", stderr(&oc));
     assert_ne!(
         without_timings(read_json(&c.join("summary.json")))["results"],
-        without_timings(sa.clone())["results"]
+        sa["results"]
     );
     // The page's settings (bench.ron) reproduce the run: the same transport and results.
     let d = dir.join("again");
@@ -248,14 +276,8 @@ fn run_writes_every_output_identically_on_one_and_two_threads() {
     );
     assert!(od.status.success(), "{}", stderr(&od));
     let sd = without_timings(read_json(&d.join("summary.json")));
-    let sa = without_timings(sa);
     assert_eq!(sd["results"], sa["results"]);
     assert_eq!(sd["transport"]["k_plus"], sa["transport"]["k_plus"]);
-    // results.csv: LF only, one row per result, the run-identifying columns filled in.
-    let csv = std::fs::read_to_string(a.join("results.csv")).unwrap();
-    assert!(!csv.contains('\r'));
-    assert_eq!(csv.lines().count(), 15, "a header and 14 rows");
-    assert!(csv.starts_with("command,scene,seed,"), "{csv}");
 }
 
 #[test]
