@@ -685,17 +685,7 @@ impl<'a> Solver<'a> {
             if self.line_search(&mut s, tau) {
                 let tmpf = s.f - s.lag.lam1 - s.beta / 2.0 * s.lag.lam2 + s.lag.lam4;
                 s.lag.lam1 = self.shrink_w(&mut s);
-                self.update_w(
-                    &s.cur.ux,
-                    &s.cur.uy,
-                    &s.wx,
-                    &s.wy,
-                    &s.sigx,
-                    &s.sigy,
-                    &mut s.cur.g2,
-                    &mut s.lag,
-                    &mut s.ws,
-                );
+                self.tv_gradient(&mut s);
                 s.f = tmpf + s.lag.lam1 + s.beta / 2.0 * s.lag.lam2 - s.lag.lam4;
             }
             // (g) Non-monotone reference value.
@@ -755,7 +745,6 @@ impl<'a> Solver<'a> {
             lag: Lagrangian::default(),
             mu,
             beta,
-            mu_d_beta: mu / beta,
             f: 0.0,
             c_ref: 0.0,
             q: 1.0,
@@ -769,8 +758,9 @@ impl<'a> Solver<'a> {
         s.f = s.lag.f(beta, mu);
         s.c_ref = s.f;
         // d = g2 + (mu/beta) g − DtsAtd: the gradient of the augmented Lagrangian in u over beta.
+        let mu_d_beta = s.mu_d_beta();
         s.d = (0..n)
-            .map(|i| s.cur.g2[i] + s.mu_d_beta * s.cur.g[i] - s.dts_atd[i])
+            .map(|i| s.cur.g2[i] + mu_d_beta * s.cur.g[i] - s.dts_atd[i])
             .collect();
         s
     }
@@ -780,7 +770,7 @@ impl<'a> Solver<'a> {
     fn step_length(&mut self, s: &mut State) -> f64 {
         if s.have_prev {
             // s = U − Up (= du of the previous iteration), yv = (g2 − g2p) + (mu/β)(g − gp).
-            let (c, p, mu_d_beta) = (&s.cur, &s.prev, s.mu_d_beta);
+            let (c, p, mu_d_beta) = (&s.cur, &s.prev, s.mu_d_beta());
             let (ss, sy) = sum2(c.u.len(), |i| {
                 let s = c.u[i] - p.u[i];
                 (
@@ -790,7 +780,7 @@ impl<'a> Solver<'a> {
             });
             (ss / sy.max(f64::EPSILON)).abs()
         } else {
-            self.sd_step(&s.d, s.mu_d_beta, &mut s.ws)
+            self.sd_step(&s.d, s.mu_d_beta(), &mut s.ws)
         }
     }
 
@@ -817,6 +807,21 @@ impl<'a> Solver<'a> {
             &mut s.wy,
             &mut s.ws.dx,
         )
+    }
+
+    /// g2, lam2 and lam4 of the current iterate with the current W ([`Solver::update_w`]).
+    fn tv_gradient(&self, s: &mut State) {
+        self.update_w(
+            &s.cur.ux,
+            &s.cur.uy,
+            &s.wx,
+            &s.wy,
+            &s.sigx,
+            &s.sigy,
+            &mut s.cur.g2,
+            &mut s.lag,
+            &mut s.ws,
+        );
     }
 
     /// AU, g and g2 of the current iterate with the current W ([`Solver::get_g`]).
@@ -870,7 +875,7 @@ impl<'a> Solver<'a> {
     fn give_up_line_search(&mut self, s: &mut State) {
         s.gam *= self.opts.rate_gam;
         self.failures += 1;
-        let tau_sd = self.sd_step(&s.d, s.mu_d_beta, &mut s.ws);
+        let tau_sd = self.sd_step(&s.d, s.mu_d_beta(), &mut s.ws);
         self.project_step(s, tau_sd);
         self.grid.d(&s.cur.u, &mut s.cur.ux, &mut s.cur.uy);
         s.lag.lam1 = self.shrink_w(s);
@@ -910,13 +915,13 @@ impl<'a> Solver<'a> {
         let beta_old = s.beta;
         s.beta = (s.beta * opts.rate_ctn).min(opts.beta);
         s.mu = (s.mu * opts.rate_ctn).min(opts.mu);
-        s.mu_d_beta = s.mu / s.beta;
         s.f = s.lag.f(s.beta, s.mu);
         // d (from h) equals −(Dᵀσ_new + Aᵀδ_new)/β_old plus the gradient terms; TVAL3 keeps
         // DtsAtd = −(β_old/β) d and rebuilds d with it.
+        let mu_d_beta = s.mu_d_beta();
         for i in 0..s.d.len() {
             s.dts_atd[i] = -(beta_old / s.beta) * s.d[i];
-            s.d[i] = s.cur.g2[i] + s.mu_d_beta * s.cur.g[i] - s.dts_atd[i];
+            s.d[i] = s.cur.g2[i] + mu_d_beta * s.cur.g[i] - s.dts_atd[i];
         }
         s.have_prev = false;
         s.gam = opts.gam;
@@ -1050,7 +1055,6 @@ struct State {
     lag: Lagrangian,
     mu: f64,
     beta: f64,
-    mu_d_beta: f64,
     /// The augmented Lagrangian at U, its non-monotone reference and weight.
     f: f64,
     c_ref: f64,
@@ -1063,6 +1067,12 @@ struct State {
 }
 
 impl State {
+    /// mu/beta, the weight of the data term's gradient in the direction.
+    #[inline]
+    fn mu_d_beta(&self) -> f64 {
+        self.mu / self.beta
+    }
+
     /// The differences between the full step and Up, once per line search (the step in u is
     /// already there).
     fn step_differences(&mut self) {
@@ -1103,13 +1113,8 @@ impl State {
 
     /// The new direction d and (||U − Up||², ||Up||) for the inner stopping test.
     fn new_direction(&mut self) -> (f64, f64) {
-        let (c, p, d, dts_atd, mu_d_beta) = (
-            &self.cur,
-            &self.prev,
-            &mut self.d,
-            &self.dts_atd,
-            self.mu_d_beta,
-        );
+        let mu_d_beta = self.mu_d_beta();
+        let (c, p, d, dts_atd) = (&self.cur, &self.prev, &mut self.d, &self.dts_atd);
         let (nrm_uup, nrm_up) = sum2(c.u.len(), |i| {
             d[i] = c.g2[i] + mu_d_beta * c.g[i] - dts_atd[i];
             let s = c.u[i] - p.u[i];
