@@ -76,14 +76,13 @@ fn run_writes_every_output_identically_on_one_and_two_threads() {
         assert!(!a.join(f).exists(), "{f} written without --repeats");
     }
     assert_report_page(&a.join("report.html"));
-    let summary = read_json(&a.join("summary.json"));
-    let e = &summary["electronics"];
+    let sa = read_json(&a.join("summary.json"));
+    let e = &sa["electronics"];
     assert!(
         e["cmrr_db"].is_number() && e["cmrr_electronics_db"].is_number(),
         "{e}"
     );
     assert_ne!(e["cmrr_db"], e["cmrr_electronics_db"], "{e}");
-    let sa = read_json(&a.join("summary.json"));
     let sb = read_json(&b.join("summary.json"));
     assert_eq!(without_timings(sa.clone()), without_timings(sb));
     // Same seed: results.csv byte-identical (summary.json too but for the command line, above);
