@@ -11,12 +11,17 @@
 # Environment: OUT (work folder, default /tmp/spibench-scaling, emptied first), SAMPLES (4000),
 # RAYS (4000000), THREADS (default "1 2 4 … cores"), JOBS ("trace dataset"; either alone).
 #
-# Columns: seconds; rays/s or samples/s; speed-up against 1 thread (×1) and against 2 threads
-# (×2, the figure issue 26 states for the dataset); `out%`, the share of the dataset command's
+# Columns: seconds; rays/s or samples/s; speed-up against the first thread count (×1, normally
+# 1 thread) and against 2 threads (×2, the figure issue 26 states for the dataset); `cpu`, the
+# command's user + system CPU seconds, `sys` the system part, and `cpu×`, the CPU against the
+# first thread count's (above 1: the same work costs more CPU on more threads, contention or a
+# slower clock rather than idle threads); `out%`, the share of the dataset command's
 # own time spent outside its parallel sample loops (printed by binaries that report it, else
 # "-"); `same`, whether the outputs equal the first run's of that binary byte for byte (the
 # dataset's arrays, and its manifest less the command line) and, for binaries after the first,
-# whether the dataset's arrays equal b1's. Exit status 1 if any output differs.
+# whether the dataset's arrays equal b1's. Exit status 1 if any output differs. A run's output
+# folder is removed once compared (only each binary's first is kept), so that a large dataset
+# does not fill the disk or the page cache.
 # Budget: with the defaults one binary takes about 2 minutes on 16 cores (most of it at 1 thread).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -69,32 +74,38 @@ have_python=$(command -v python3 >/dev/null && echo 1 || echo 0)
 failed=0
 echo "cores: $cores; threads: ${threads[*]}; trace $rays rays; dataset $samples samples"
 for i in "${!bins[@]}"; do echo "b$((i + 1)): ${bins[$i]} ($("${bins[$i]}" --version 2>/dev/null || echo '?'))"; done
-printf '%-8s %-3s %4s %8s %12s %6s %6s %5s %s\n' job bin thr s rate/s x1 x2 out% same
+printf '%-8s %-3s %4s %8s %12s %6s %6s %7s %5s %5s %5s %s\n' job bin thr s rate/s x1 x2 cpu sys cpu× out% same
 for job in $jobs; do
     for i in "${!bins[@]}"; do
         bin=${bins[$i]}
         tag=b$((i + 1))
         base1=
         base2=
+        cpu1=
         for t in "${threads[@]}"; do
             dir="$out/$job-$tag-$t"
-            s=$(now)
             case $job in
             trace)
                 n=$rays
-                "$bin" trace scenes/paper_bench.ron --rays "$rays" --threads "$t" --out "$dir" -q >"$dir.log" 2>&1
+                cmd=("$bin" trace scenes/paper_bench.ron --rays "$rays" --threads "$t" --out "$dir" -q)
                 ;;
             dataset)
                 n=$samples
-                "$bin" dataset "$out/spec.ron" --threads "$t" --out "$dir" -q >"$dir.log" 2>&1
+                cmd=("$bin" dataset "$out/spec.ron" --threads "$t" --out "$dir" -q)
                 ;;
             *) echo "scaling: unknown job $job (JOBS: trace, dataset)" >&2; exit 2 ;;
-            esac || {
+            esac
+            s=$(now)
+            # bash's `time` keyword: the child's user and system CPU seconds, on any machine.
+            { TIMEFORMAT='%U %S'; time "${cmd[@]}" >"$dir.log" 2>&1; } 2>"$dir.cpu" || {
                 echo "scaling: $bin $job failed at $t threads:" >&2
                 tail -5 "$dir.log" >&2
                 exit 1
             }
             dt=$(awk -v a="$(now)" -v b="$s" 'BEGIN { print a - b }')
+            cpu=$(awk '{ print $1 + $2 }' "$dir.cpu")
+            sys=$(awk '{ print $2 }' "$dir.cpu")
+            cpu1=${cpu1:-$cpu}
             base1=${base1:-$dt}
             [ "$t" != 2 ] || base2=$dt
             pct=$(grep -o '[0-9.]* % of the' "$dir.log" | head -1 | cut -d' ' -f1 || true)
@@ -115,11 +126,12 @@ for job in $jobs; do
                 fi
             fi
             case $same in *DIFF*) failed=1 ;; esac
+            [ "$dir" = "$first" ] || rm -rf "$dir"
             awk -v job="$job" -v tag="$tag" -v t="$t" -v dt="$dt" -v n="$n" -v b1="$base1" \
-                -v b2="$base2" -v pct="${pct:--}" -v same="$same" 'BEGIN {
+                -v b2="$base2" -v cpu="$cpu" -v sys="$sys" -v cpu1="$cpu1" -v pct="${pct:--}" -v same="$same" 'BEGIN {
                     x2 = b2 == "" ? "-" : sprintf("%.2f", b2 / dt)
-                    printf "%-8s %-3s %4d %8.2f %12.1f %6.2f %6s %5s %s\n",
-                        job, tag, t, dt, n / dt, b1 / dt, x2, pct, same }'
+                    printf "%-8s %-3s %4d %8.2f %12.1f %6.2f %6s %7.1f %5.1f %5.2f %5s %s\n",
+                        job, tag, t, dt, n / dt, b1 / dt, x2, cpu, sys, cpu / cpu1, pct, same }'
         done
     done
 done

@@ -33,6 +33,7 @@ use crate::acquisition::{PatternSet, Scheme, patterns_for_ratio};
 use crate::error::{Error, Result};
 use crate::pipeline::evaluate;
 use crate::raster::Raster;
+use crate::report::npy::F64Writer;
 use crate::report::output::FolderLock;
 use crate::report::untrusted::bad_field;
 use crate::rng::{self, uniform};
@@ -830,19 +831,26 @@ impl Prepared {
         let end = first + samples.len() as u64;
         let measurement_names = self.measurement_names();
         let optional_arrays = self.optional_arrays();
-        let rows = |data: &mut Vec<f64>, row: &dyn Fn(&Sample) -> &[f64]| {
-            samples.iter().for_each(|s| data.extend_from_slice(row(s)))
+        let rows = |data: &mut F64Writer, row: &dyn Fn(&Sample) -> &[f64]| {
+            samples.iter().for_each(|s| data.extend(row(s)))
         };
         self.schema()
             .into_par_iter()
             .map(|a| {
-                let mut data = Vec::new();
+                let mut shape = vec![samples.len()];
+                shape.extend(&a.sample_shape);
+                // Straight into the file's bytes: assembling each array first, then encoding
+                // it, copied a shard's largest array (the objects, ~18 MB) twice more.
+                let mut data = F64Writer::new(&shape);
+                let index = |data: &mut F64Writer, f: &dyn Fn(u64) -> u64| {
+                    (first..end).for_each(|s| data.extend(&[f(s) as f64]))
+                };
                 match a.name.as_str() {
-                    "sample" => data.extend((first..end).map(|s| s as f64)),
+                    "sample" => index(&mut data, &|s| s),
                     "object" => rows(&mut data, &|s| &s.object),
                     "k" => rows(&mut data, &|s| &s.k_a_per_w),
                     "b" => rows(&mut data, &|s| &s.b_a),
-                    "bench" => data.extend((first..end).map(|s| self.bench_index(s) as f64)),
+                    "bench" => index(&mut data, &|s| self.bench_index(s)),
                     "deviations" => rows(&mut data, &|s| &s.deviations),
                     name => {
                         if let Some(i) = measurement_names.iter().position(|m| m.0 == name) {
@@ -856,9 +864,7 @@ impl Prepared {
                         }
                     }
                 }
-                let mut shape = vec![samples.len()];
-                shape.extend(&a.sample_shape);
-                let bytes = crate::report::npy::encode_f64(&shape, &data);
+                let bytes = data.finish();
                 EncodedArray {
                     sha256: sha256_hex(&bytes),
                     name: a.name,
@@ -1214,17 +1220,21 @@ fn commit_shard(
     let _ = std::fs::remove_dir_all(&staging);
     lock.staging(Some(&staging));
     std::fs::create_dir_all(&staging).map_err(|e| Error::write(&staging, e))?;
-    let mut files = Vec::new();
-    for a in arrays {
-        let file = format!("{}.npy", a.name);
-        let p = staging.join(&file);
-        std::fs::write(&p, &a.bytes).map_err(|e| Error::write(&p, e))?;
-        files.push(FileHash {
-            name: a.name,
-            file,
-            sha256: a.sha256,
-        });
-    }
+    // The files side by side (a shard of the scaling spec is ~30 MB in 13 files): on many
+    // threads the commit of shard b − 1 must end within shard b's sample loop.
+    let files = arrays
+        .into_par_iter()
+        .map(|a| {
+            let file = format!("{}.npy", a.name);
+            let p = staging.join(&file);
+            std::fs::write(&p, &a.bytes).map_err(|e| Error::write(&p, e))?;
+            Ok(FileHash {
+                name: a.name,
+                file,
+                sha256: a.sha256,
+            })
+        })
+        .collect::<Result<Vec<_>>>()?;
     let final_dir = dir.join(&name);
     std::fs::rename(&staging, &final_dir).map_err(|e| Error::write(&final_dir, e))?;
     lock.staging(None);

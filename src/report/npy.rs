@@ -66,16 +66,41 @@ fn header_bytes(descr: &str, shape: &[usize]) -> Vec<u8> {
 
 /// The bytes of a float64 array.
 pub fn encode_f64(shape: &[usize], data: &[f64]) -> Vec<u8> {
-    assert_eq!(
-        shape.iter().product::<usize>(),
-        data.len(),
-        "shape and data disagree"
-    );
-    let mut out = header_bytes("<f8", shape);
-    for v in data {
-        out.extend_from_slice(&v.to_le_bytes());
+    let mut w = F64Writer::new(shape);
+    w.extend(data);
+    w.finish()
+}
+
+/// A float64 array's file bytes, written value by value (no array of the values first: a
+/// dataset shard's arrays go from the samples straight into their files' bytes).
+pub struct F64Writer {
+    bytes: Vec<u8>,
+    left: usize,
+}
+
+impl F64Writer {
+    /// The header of an array of `shape`, room for its values reserved.
+    pub fn new(shape: &[usize]) -> F64Writer {
+        let n: usize = shape.iter().product();
+        let mut bytes = header_bytes("<f8", shape);
+        bytes.reserve_exact(8 * n);
+        F64Writer { bytes, left: n }
     }
-    out
+
+    /// Appends values in C order.
+    pub fn extend(&mut self, values: &[f64]) {
+        assert!(values.len() <= self.left, "shape and data disagree");
+        self.left -= values.len();
+        for v in values {
+            self.bytes.extend_from_slice(&v.to_le_bytes());
+        }
+    }
+
+    /// The file bytes; every value of the shape must have been written.
+    pub fn finish(self) -> Vec<u8> {
+        assert_eq!(self.left, 0, "shape and data disagree");
+        self.bytes
+    }
 }
 
 /// The bytes of a uint8 array.

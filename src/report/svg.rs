@@ -158,13 +158,16 @@ pub fn write_figure(svg: &str, svg_path: &Path, png_path: &Path, pdf: bool) -> R
         other => other.in_file(svg_path),
     };
     let svg = at_print_size(&super::outline::outline_text(svg).map_err(fail)?).map_err(fail)?;
-    let (w, h, rgb) = print_to_rgb(&svg).map_err(fail)?;
-    let png = super::png::encode_rgb8(w, h, &rgb).map_err(fail)?;
-    let pdf = if pdf {
-        Some(svg_to_pdf(&svg).map_err(fail)?)
-    } else {
-        None
-    };
+    // The PNG (render and deflate) and the PDF (conversion and deflate) side by side: they are
+    // most of a figure's time, and a command writes its figures while nothing else runs.
+    let (png, pdf) = rayon::join(
+        || {
+            let (w, h, rgb) = print_to_rgb(&svg)?;
+            super::png::encode_rgb8(w, h, &rgb)
+        },
+        || pdf.then(|| svg_to_pdf(&svg)).transpose(),
+    );
+    let (png, pdf) = (png.map_err(fail)?, pdf.map_err(fail)?);
     super::npy::write_atomic(svg_path, svg.as_bytes())?;
     if let Some(pdf) = pdf {
         super::npy::write_atomic(&svg_path.with_extension("pdf"), &pdf)?;

@@ -7,8 +7,8 @@
 //!
 //! Determinism: batch b (of [`RAYS_PER_BATCH`] rays, the last one shorter) always draws its
 //! stratification from `rng::stream(seed, b)`, and every ray its interactions from streams keyed
-//! by (seed, ray index, part of the path) (path.rs, `RayKey`); batches run in parallel in chunks
-//! (at least [`BATCHES_PER_CHUNK`]) and their tallies are merged in batch order, so the result is
+//! by (seed, ray index, part of the path) (path.rs, `RayKey`); batches run in parallel
+//! and their tallies are merged in batch order (`batches_in_order`), so the result is
 //! bit-identical for any number of threads. Because each ray has its own streams, two benches
 //! that differ a little are traced with common random numbers ray by ray. Within a batch the
 //! rays' emission and wavelength coordinates form a Latin hypercube (path.rs); the physics of
@@ -22,7 +22,9 @@ pub mod split;
 pub mod strata;
 pub mod tally;
 
-use rayon::prelude::*;
+use std::collections::BTreeMap;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Condvar, Mutex, MutexGuard, PoisonError};
 
 use crate::error::{Error, Result};
 use crate::optics::Bench;
@@ -36,25 +38,27 @@ pub use tally::{BatchScalars, BatchTally, Tallies};
 /// batch-means standard errors even in short test traces.
 pub const RAYS_PER_BATCH: u64 = 1024;
 
-/// Batches traced in parallel before their tallies are merged, at least (bounds memory to ~25 MB
-/// of per-batch tallies for the paper bench per chunk; any value gives the same result). With
-/// many threads a chunk holds [`BATCHES_PER_THREAD`] per thread, up to [`MAX_BATCHES_PER_CHUNK`]:
-/// the threads wait for the slowest at the end of each chunk, about one batch in every
-/// batches-per-thread, 6 % at 16 threads with 256.
-pub const BATCHES_PER_CHUNK: u64 = 256;
-/// See [`BATCHES_PER_CHUNK`].
-pub const BATCHES_PER_THREAD: u64 = 32;
-/// See [`BATCHES_PER_CHUNK`] (two chunks of the paper bench's tallies: ~190 MB).
-pub const MAX_BATCHES_PER_CHUNK: u64 = 1024;
+/// Batches whose results may wait for the merge at once, per thread of the pool (at least
+/// [`MIN_PENDING_BATCHES`], at most [`MAX_PENDING_BATCHES`]): a thread that would start a batch
+/// further ahead of the merge than that waits until the merge catches up, which bounds the
+/// memory held by finished batches (~100 kB of tallies each for the paper bench) whatever the
+/// scheduling. Any value gives the same result.
+pub const PENDING_BATCHES_PER_THREAD: u64 = 32;
+/// See [`PENDING_BATCHES_PER_THREAD`].
+pub const MIN_PENDING_BATCHES: u64 = 256;
+/// See [`PENDING_BATCHES_PER_THREAD`] (about 100 MB of the paper bench's tallies).
+pub const MAX_PENDING_BATCHES: u64 = 1024;
+/// The progress callback is called after every this many batches merged (and after the last).
+pub const BATCHES_PER_REPORT: u64 = 256;
 
-/// The batches of one chunk on the current pool ([`BATCHES_PER_CHUNK`]).
-fn chunk_batches() -> u64 {
-    (BATCHES_PER_THREAD * rayon::current_num_threads() as u64)
-        .clamp(BATCHES_PER_CHUNK, MAX_BATCHES_PER_CHUNK)
+/// The bound on finished batches waiting for the merge, on the current pool.
+fn pending_limit() -> u64 {
+    (PENDING_BATCHES_PER_THREAD * rayon::current_num_threads() as u64)
+        .clamp(MIN_PENDING_BATCHES, MAX_PENDING_BATCHES)
 }
 
-/// A progress callback of the tracer: (rays traced, rays to trace), called after every chunk
-/// of batches has been merged (from a thread of the pool). The library draws nothing; the command line turns this
+/// A progress callback of the tracer: (rays traced, rays to trace), called after every
+/// [`BATCHES_PER_REPORT`] batches merged (from a thread of the pool). The library draws nothing; the command line turns this
 /// into a bar or a log line.
 pub type RayProgress<'a> = &'a (dyn Fn(u64, u64) + Sync);
 
@@ -150,48 +154,137 @@ pub fn trace(bench: &Bench, options: &TraceOptions) -> Result<Tallies> {
 }
 
 /// Computes `make(b)` for the batches `0..n_batches` on the current rayon pool and hands every
-/// result to `absorb` in batch order, calling `chunk_done` with the number of batches absorbed
-/// so far after each chunk of batches ([`BATCHES_PER_CHUNK`]).
+/// result to `absorb` in batch order, calling `progress` with the number of batches absorbed so
+/// far after every [`BATCHES_PER_REPORT`] of them and after the last.
 ///
-/// The serial merge of one chunk runs beside the parallel computation of the next (one
-/// `rayon::join`), so the other threads never wait for it; before, every chunk's merge was a
-/// serial pause of all threads, a share that grows with the thread count (Amdahl). The order of
-/// the merge, and so every floating-point sum, is the same for any number of threads. At most
-/// two chunks of results are held at once.
-pub(crate) fn batches_in_order<T, M, A, C>(
-    n_batches: u64,
-    make: M,
-    mut absorb: A,
-    mut chunk_done: C,
-) where
+/// No thread waits for another at a chunk's end: every batch is a task of its own (FIFO, so
+/// the batches start about in index order), each claims the next batch index, and the thread
+/// that finishes a batch merges every finished batch that is next in order, unless another
+/// thread is merging already (which then takes it). Before, the batches ran in chunks of a few
+/// hundred and every thread waited at each chunk's end for the slowest, about half a batch per
+/// thread per chunk, a loss that grows with the thread count. The order of the merge, and so
+/// every floating-point sum, is the same for any number of threads. A thread does not start a
+/// batch more than [`pending_limit`] ahead of the merge (it waits; the batches before it are
+/// all being computed by running threads, as `make` and `absorb` never wait for the pool), so
+/// at most that many results are held at once.
+pub(crate) fn batches_in_order<T, M, A, C>(n_batches: u64, make: M, absorb: A, progress: C)
+where
     T: Send,
     M: Fn(u64) -> T + Sync,
     A: FnMut(u64, T) + Send,
     C: FnMut(u64) + Send,
 {
-    let mut pending: Option<(u64, Vec<T>)> = None;
-    let mut start = 0;
-    let chunk = chunk_batches();
-    loop {
-        let end = (start + chunk).min(n_batches);
-        let mut merge = |done: Option<(u64, Vec<T>)>| {
-            if let Some((first, chunk)) = done {
-                let len = chunk.len() as u64;
-                for (b, r) in (first..).zip(chunk) {
-                    absorb(b, r);
-                }
-                chunk_done(first + len);
-            }
-        };
-        let compute =
-            || (start < end).then(|| (start, (start..end).into_par_iter().map(&make).collect()));
-        let ((), next) = rayon::join(|| merge(pending.take()), compute);
-        if next.is_none() {
-            return;
+    let order = InOrder {
+        n_batches,
+        limit: pending_limit(),
+        claimed: AtomicU64::new(0),
+        queue: Mutex::new(Queue {
+            merged: 0,
+            failed: false,
+            ready: BTreeMap::new(),
+        }),
+        room: Condvar::new(),
+        sink: Mutex::new((absorb, progress)),
+    };
+    rayon::scope_fifo(|s| {
+        for _ in 0..n_batches {
+            s.spawn_fifo(|_| order.run_one(&make));
         }
-        pending = next;
-        start = end;
+    });
+}
+
+/// The shared state of [`batches_in_order`].
+struct InOrder<T, A, C> {
+    n_batches: u64,
+    limit: u64,
+    /// The next batch index to hand out.
+    claimed: AtomicU64,
+    queue: Mutex<Queue<T>>,
+    /// Signalled when the merge advances (or a batch failed).
+    room: Condvar,
+    /// The merge: held by the one thread merging.
+    sink: Mutex<(A, C)>,
+}
+
+/// Finished batches waiting for the merge.
+struct Queue<T> {
+    /// Batches absorbed so far (the next one to absorb).
+    merged: u64,
+    /// A batch panicked: nobody waits any longer (the scope rethrows the panic).
+    failed: bool,
+    ready: BTreeMap<u64, T>,
+}
+
+impl<T, A, C> InOrder<T, A, C>
+where
+    T: Send,
+    A: FnMut(u64, T) + Send,
+    C: FnMut(u64) + Send,
+{
+    /// One task: claim a batch, wait for room, compute it, queue it and merge what is in order.
+    fn run_one(&self, make: &(impl Fn(u64) -> T + Sync)) {
+        let guard = FailOnPanic(self);
+        let b = self.claimed.fetch_add(1, Ordering::Relaxed);
+        {
+            let mut q = lock(&self.queue);
+            while b >= q.merged + self.limit && !q.failed {
+                q = self.room.wait(q).unwrap_or_else(PoisonError::into_inner);
+            }
+            if q.failed {
+                return;
+            }
+        }
+        let result = make(b);
+        lock(&self.queue).ready.insert(b, result);
+        self.merge();
+        std::mem::forget(guard);
     }
+
+    /// Absorbs the queued batches that are next in order, unless another thread is doing so.
+    /// After letting go of the merge it looks again: a batch queued while it held the merge by
+    /// a thread that then found the merge taken would otherwise wait for the next batch.
+    fn merge(&self) {
+        loop {
+            let Ok(mut sink) = self.sink.try_lock() else {
+                return;
+            };
+            let (absorb, progress) = &mut *sink;
+            let mut next = lock(&self.queue).merged;
+            loop {
+                let Some(result) = lock(&self.queue).ready.remove(&next) else {
+                    break;
+                };
+                absorb(next, result);
+                next += 1;
+                lock(&self.queue).merged = next;
+                self.room.notify_all();
+                if next.is_multiple_of(BATCHES_PER_REPORT) || next == self.n_batches {
+                    progress(next);
+                }
+            }
+            drop(sink);
+            if !lock(&self.queue).ready.contains_key(&next) {
+                return;
+            }
+        }
+    }
+}
+
+/// Wakes every waiting task if a batch (or the merge) panics, so that the scope can end and
+/// rethrow the panic instead of waiting for a batch that never comes.
+struct FailOnPanic<'a, T, A, C>(&'a InOrder<T, A, C>);
+
+impl<T, A, C> Drop for FailOnPanic<'_, T, A, C> {
+    fn drop(&mut self) {
+        lock(&self.0.queue).failed = true;
+        self.0.room.notify_all();
+    }
+}
+
+/// A lock that survives a panic elsewhere (the data it guards stays consistent: every update
+/// under it is a single insert, remove or store).
+fn lock<U>(m: &Mutex<U>) -> MutexGuard<'_, U> {
+    m.lock().unwrap_or_else(PoisonError::into_inner)
 }
 
 #[cfg(test)]

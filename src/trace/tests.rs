@@ -523,6 +523,72 @@ fn batches_merge_in_order_on_any_pool() {
     }
 }
 
+/// Batches finished ahead of the merge are bounded (`pending_limit`): with batch 0 held up, the
+/// threads run ahead only that far, and the merge still takes every batch once, in order.
+#[test]
+fn batches_ahead_of_the_merge_are_bounded() {
+    use std::sync::atomic::{AtomicU64, Ordering};
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(4)
+        .build()
+        .unwrap();
+    let (alive, most) = (AtomicU64::new(0), AtomicU64::new(0));
+    let (n, mut order) = (2000, Vec::new());
+    let limit = pool.install(|| {
+        super::batches_in_order(
+            n,
+            |b| {
+                if b == 0 {
+                    std::thread::sleep(std::time::Duration::from_millis(50));
+                }
+                let now = alive.fetch_add(1, Ordering::SeqCst) + 1;
+                most.fetch_max(now, Ordering::SeqCst);
+                b
+            },
+            |b, made| {
+                assert_eq!(b, made);
+                alive.fetch_sub(1, Ordering::SeqCst);
+                order.push(b);
+            },
+            |_| {},
+        );
+        super::pending_limit()
+    });
+    assert_eq!(order, (0..n).collect::<Vec<_>>());
+    let most = most.load(Ordering::SeqCst);
+    assert!(most <= limit, "{most} results held at once, limit {limit}");
+}
+
+/// A batch that panics makes the whole call panic (the waiting threads are released, so it
+/// does not hang), and the pool stays usable.
+#[test]
+fn a_panicking_batch_propagates() {
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(3)
+        .build()
+        .unwrap();
+    let caught = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        pool.install(|| {
+            super::batches_in_order(
+                5000,
+                |b| {
+                    assert!(b != 7, "batch 7 fails");
+                    b
+                },
+                |_, _| {},
+                |_| {},
+            )
+        })
+    }));
+    assert!(caught.is_err());
+    let sum = pool.install(|| {
+        let mut sum = 0;
+        super::batches_in_order(10, |b| b, |_, b| sum += b, |_| {});
+        sum
+    });
+    assert_eq!(sum, 45);
+}
+
 /// Where the noise of k± comes from (a measurement, run by hand: `cargo test --lib
 /// variance_sources_of_k -- --ignored --nocapture`; docs/tracer_sampling.md quotes it). Each lamp
 /// ray of the paper bench is one independent term of the ratio estimator k = Σg/Σx (up to the
