@@ -9,7 +9,8 @@
 # Several binaries (say the commit before a change and after it) run in turn on the same machine,
 # so their figures compare; each is labelled by its position (b1, b2, …) and listed first.
 # Environment: OUT (work folder, default /tmp/spibench-scaling, emptied first), SAMPLES (4000),
-# RAYS (4000000), THREADS (default "1 2 4 … cores"), JOBS ("trace dataset"; either alone).
+# RAYS (4000000), THREADS (default "1 2 4 … cores"), JOBS ("trace dataset"; either alone, or
+# "processes" for the machine's own ceiling, below), PROCESS_RAYS (1000000).
 #
 # Columns: seconds; rays/s or samples/s; speed-up against the first thread count (×1, normally
 # 1 thread) and against 2 threads (×2, the figure issue 26 states for the dataset); `cpu`, the
@@ -17,9 +18,10 @@
 # first thread count's (above 1: the same work costs more CPU on more threads, contention or a
 # slower clock rather than idle threads); `out%`, the share of the dataset command's
 # own time spent outside its parallel sample loops (printed by binaries that report it, else
-# "-"); `same`, whether the outputs equal the first run's of that binary byte for byte (the
-# dataset's arrays, and its manifest less the command line) and, for binaries after the first,
-# whether the dataset's arrays equal b1's. Exit status 1 if any output differs. A run's output
+# "-"), and below a dataset row where its shards' writing went (encoding, files, manifest, and
+# how long the sample loops waited for it); `same`, whether the outputs equal the first run's
+# of that binary byte for byte (the dataset's arrays, and its manifest less the command line)
+# and, for binaries after the first, whether the dataset's arrays equal b1's. Exit status 1 if any output differs. A run's output
 # folder is removed once compared (only each binary's first is kept), so that a large dataset
 # does not fill the disk or the page cache.
 # Budget: with the defaults one binary takes about 2 minutes on 16 cores (most of it at 1 thread).
@@ -74,8 +76,10 @@ have_python=$(command -v python3 >/dev/null && echo 1 || echo 0)
 failed=0
 echo "cores: $cores; threads: ${threads[*]}; trace $rays rays; dataset $samples samples"
 for i in "${!bins[@]}"; do echo "b$((i + 1)): ${bins[$i]} ($("${bins[$i]}" --version 2>/dev/null || echo '?'))"; done
-printf '%-8s %-3s %4s %8s %12s %6s %6s %7s %5s %5s %5s %s\n' job bin thr s rate/s x1 x2 cpu sys cpu× out% same
+[ "$jobs" = processes ] ||
+    printf '%-8s %-3s %4s %8s %12s %6s %6s %7s %5s %5s %5s %s\n' job bin thr s rate/s x1 x2 cpu sys cpu× out% same
 for job in $jobs; do
+    [ "$job" != processes ] || continue
     for i in "${!bins[@]}"; do
         bin=${bins[$i]}
         tag=b$((i + 1))
@@ -91,9 +95,9 @@ for job in $jobs; do
                 ;;
             dataset)
                 n=$samples
-                cmd=("$bin" dataset "$out/spec.ron" --threads "$t" --out "$dir" -q)
+                cmd=("$bin" dataset "$out/spec.ron" --threads "$t" --out "$dir")
                 ;;
-            *) echo "scaling: unknown job $job (JOBS: trace, dataset)" >&2; exit 2 ;;
+            *) echo "scaling: unknown job $job (JOBS: trace, dataset, processes)" >&2; exit 2 ;;
             esac
             s=$(now)
             # bash's `time` keyword: the child's user and system CPU seconds, on any machine.
@@ -132,7 +136,36 @@ for job in $jobs; do
                     x2 = b2 == "" ? "-" : sprintf("%.2f", b2 / dt)
                     printf "%-8s %-3s %4d %8.2f %12.1f %6.2f %6s %7.1f %5.1f %5.2f %5s %s\n",
                         job, tag, t, dt, n / dt, b1 / dt, x2, cpu, sys, cpu / cpu1, pct, same }'
+            # Where a dataset's shard writing went (binaries that report it).
+            grep -h '^shard writing' "$dir.log" 2>/dev/null | sed 's/^/    /' || true
         done
     done
 done
+# The machine's own ceiling: t single-thread traces of PROCESS_RAYS rays run side by side as
+# separate processes (nothing shared but the machine), each timed; their mean and longest time
+# against one alone. Above 1, t busy cores slow each other's work (shared caches, memory
+# bandwidth, clock, a virtual machine's neighbours), which no change to spibench removes.
+if [[ " $jobs " == *" processes "* ]]; then
+    prays=${PROCESS_RAYS:-1000000}
+    bin=${bins[-1]}
+    echo "processes: $bin, single-thread traces of $prays rays side by side"
+    printf '%-10s %4s %8s %8s %7s %7s\n' job procs mean_s max_s mean× max×
+    alone=
+    for t in "${threads[@]}"; do
+        for k in $(seq 1 "$t"); do
+            (
+                TIMEFORMAT=%R
+                { time "$bin" trace scenes/paper_bench.ron --rays "$prays" --threads 1 \
+                    --out "$out/proc-$t-$k" -q >"$out/proc-$t-$k.log" 2>&1; } 2>"$out/proc-$t-$k.wall"
+            ) &
+        done
+        wait
+        read -r mean max < <(cat "$out"/proc-"$t"-*.wall |
+            awk '{ s += $1; if ($1 > m) m = $1 } END { print s / NR, m }')
+        alone=${alone:-$mean}
+        rm -rf "$out"/proc-"$t"-*
+        awk -v t="$t" -v mean="$mean" -v max="$max" -v a="$alone" 'BEGIN {
+            printf "%-10s %4d %8.2f %8.2f %7.2f %7.2f\n", "processes", t, mean, max, mean / a, max / a }'
+    done
+fi
 exit $failed

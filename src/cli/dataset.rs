@@ -136,6 +136,15 @@ pub fn run(args: &DatasetArgs) -> anyhow::Result<()> {
         100.0 * (1.0 - g.sample_seconds / g.seconds.max(1e-9)),
         g.seconds
     );
+    let c = &g.commits;
+    crate::note!(
+        "shard writing: encoding {:.2} s, files {:.2} s, manifest {:.2} s; the sample loops \
+         waited {:.2} s for it",
+        c.encode,
+        c.files,
+        c.manifest,
+        c.waited
+    );
     // Reference values for readers (the CI's numpy check reads this line).
     if range.0 < range.1 {
         let first = range.0 * prep.spec.file.shard_samples;

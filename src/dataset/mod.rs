@@ -1068,6 +1068,20 @@ pub struct Generated {
     /// The seconds spent computing samples (the parallel sample loops); the rest of `seconds`
     /// is spent outside them (setup, and the wait for the last shard's writing).
     pub sample_seconds: f64,
+    /// Where the shards' writing went (it runs beside the next shard's samples).
+    pub commits: CommitSeconds,
+}
+
+/// The seconds of the shards' commits, summed over the shards: encoding and hashing the
+/// arrays, writing their files (and the rename), rewriting the manifest (with its fsync), and
+/// how long the sample loops waited for a commit that outlasted the next shard's samples
+/// (with the last shard's whole commit, which nothing overlaps).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct CommitSeconds {
+    pub encode: f64,
+    pub files: f64,
+    pub manifest: f64,
+    pub waited: f64,
 }
 
 /// Makes (or, with `resume`, continues) the shards `range` of a dataset in the folder `lock`
@@ -1144,7 +1158,7 @@ pub fn generate(
     }
     let done: Vec<u64> = manifest.shards.iter().map(|s| s.index).collect();
     let todo: Vec<u64> = (range.0..range.1).filter(|b| !done.contains(b)).collect();
-    let (written, sample_seconds) = make_shards(prep, lock, &mut manifest, &todo, &|b| {
+    let (written, sample_seconds, commits) = make_shards(prep, lock, &mut manifest, &todo, &|b| {
         progress(b + 1 - range.0, range.1 - range.0)
     })?;
     let samples_written = manifest
@@ -1159,6 +1173,7 @@ pub fn generate(
         shards_resumed: done.len() as u64,
         seconds: start.elapsed().as_secs_f64(),
         sample_seconds,
+        commits,
     })
 }
 
@@ -1170,20 +1185,26 @@ pub fn generate(
 /// kept the job from using many cores. Shards are still committed one at a time, in index
 /// order, each by a rename followed by the manifest's rewrite, so the folder and a resume are
 /// the same as without the overlap; at most two shards are in memory. Returns the shards
-/// written and the seconds spent in the sample loops.
+/// written, the seconds spent in the sample loops and where the commits' time went.
 fn make_shards(
     prep: &Prepared,
     lock: &FolderLock,
     manifest: &mut Manifest,
     todo: &[u64],
     committed: &(dyn Fn(u64) + Sync),
-) -> Result<(u64, f64)> {
-    let mut commit = |(b, samples): (u64, Vec<Sample>)| -> Result<()> {
-        commit_shard(prep, lock, manifest, b, &samples)?;
+) -> Result<(u64, f64, CommitSeconds)> {
+    let mut times = CommitSeconds::default();
+    let mut commit = |(b, samples): (u64, Vec<Sample>)| -> Result<f64> {
+        let t = std::time::Instant::now();
+        let [encode, files, manifest_s] = commit_shard(prep, lock, manifest, b, &samples)?;
+        times.encode += encode;
+        times.files += files;
+        times.manifest += manifest_s;
         committed(b);
-        Ok(())
+        Ok(t.elapsed().as_secs_f64())
     };
     let mut sample_seconds = 0.0;
+    let mut waited = 0.0;
     let mut pending = None;
     for &b in todo {
         let last = pending.take();
@@ -1197,24 +1218,28 @@ fn make_shards(
         sample_seconds += seconds;
         // Shard b − 1's error first; with a later shard's error, the earlier shards stay
         // committed (a resume continues from them).
-        done?;
+        waited += (done?.unwrap_or(0.0) - seconds).max(0.0);
         pending = Some((b, samples?));
     }
-    pending.map(&mut commit).transpose()?;
-    Ok((todo.len() as u64, sample_seconds))
+    waited += pending.map(&mut commit).transpose()?.unwrap_or(0.0);
+    times.waited = waited;
+    Ok((todo.len() as u64, sample_seconds, times))
 }
 
 /// Writes shard b of `samples` in a staging folder, commits it by rename and rewrites the
-/// manifest with its entry.
+/// manifest with its entry. Returns the seconds spent encoding, writing the files (and the
+/// rename) and rewriting the manifest.
 fn commit_shard(
     prep: &Prepared,
     lock: &FolderLock,
     manifest: &mut Manifest,
     b: u64,
     samples: &[Sample],
-) -> Result<()> {
+) -> Result<[f64; 3]> {
+    let t0 = std::time::Instant::now();
     let dir = lock.dir();
     let arrays = prep.encode_shard(b, samples);
+    let encoded = t0.elapsed().as_secs_f64();
     let name = shard_dir_name(b);
     let staging = dir.join(format!(".{name}.partial"));
     let _ = std::fs::remove_dir_all(&staging);
@@ -1238,6 +1263,7 @@ fn commit_shard(
     let final_dir = dir.join(&name);
     std::fs::rename(&staging, &final_dir).map_err(|e| Error::write(&final_dir, e))?;
     lock.staging(None);
+    let written = t0.elapsed().as_secs_f64();
     let first = b * prep.spec.file.shard_samples;
     manifest.shards.push(ShardEntry {
         index: b,
@@ -1246,7 +1272,12 @@ fn commit_shard(
         dir: name,
         files,
     });
-    write_manifest(dir, manifest)
+    write_manifest(dir, manifest)?;
+    Ok([
+        encoded,
+        written - encoded,
+        t0.elapsed().as_secs_f64() - written,
+    ])
 }
 
 /// Merges dataset folders (each one job's shards) into `out`: the same spec, bench and seed in

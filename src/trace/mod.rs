@@ -157,16 +157,19 @@ pub fn trace(bench: &Bench, options: &TraceOptions) -> Result<Tallies> {
 /// result to `absorb` in batch order, calling `progress` with the number of batches absorbed so
 /// far after every [`BATCHES_PER_REPORT`] of them and after the last.
 ///
-/// No thread waits for another at a chunk's end: every batch is a task of its own (FIFO, so
-/// the batches start about in index order), each claims the next batch index, and the thread
-/// that finishes a batch merges every finished batch that is next in order, unless another
-/// thread is merging already (which then takes it). Before, the batches ran in chunks of a few
-/// hundred and every thread waited at each chunk's end for the slowest, about half a batch per
-/// thread per chunk, a loss that grows with the thread count. The order of the merge, and so
-/// every floating-point sum, is the same for any number of threads. A thread does not start a
-/// batch more than [`pending_limit`] ahead of the merge (it waits; the batches before it are
-/// all being computed by running threads, as `make` and `absorb` never wait for the pool), so
-/// at most that many results are held at once.
+/// No thread waits for another at a chunk's end: one worker per thread claims batch indices
+/// in order, one at a time, and the thread that finishes a batch merges every finished batch
+/// that is next in order, unless another thread is merging already (which then takes it).
+/// Before, the batches ran in chunks of a few hundred and every thread waited at each chunk's
+/// end for the slowest, about half a batch per thread per chunk, a loss that grows with the
+/// thread count. The order of the merge, and so every floating-point sum, is the same for any
+/// number of threads. A worker does not start a batch more than [`pending_limit`] ahead of the
+/// merge: it waits, so at most that many results are held at once.
+///
+/// Contract: `make`, `absorb` and `progress` never wait for the pool (no rayon call inside).
+/// Then every batch before a waiting worker's is being computed by a running thread, or done,
+/// and the merge goes on; a rayon call inside could put a worker that waits on top of the
+/// batch the merge needs, on one thread's stack. (The tracer's batches and merges are serial.)
 pub(crate) fn batches_in_order<T, M, A, C>(n_batches: u64, make: M, absorb: A, progress: C)
 where
     T: Send,
@@ -186,9 +189,12 @@ where
         room: Condvar::new(),
         sink: Mutex::new((absorb, progress)),
     };
+    // One worker per thread of the pool, each taking batches until none is left (a task per
+    // batch would queue 10⁷ tasks for the largest traces allowed).
+    let workers = (rayon::current_num_threads() as u64).min(n_batches);
     rayon::scope_fifo(|s| {
-        for _ in 0..n_batches {
-            s.spawn_fifo(|_| order.run_one(&make));
+        for _ in 0..workers {
+            s.spawn_fifo(|_| order.work(&make));
         }
     });
 }
@@ -221,22 +227,28 @@ where
     A: FnMut(u64, T) + Send,
     C: FnMut(u64) + Send,
 {
-    /// One task: claim a batch, wait for room, compute it, queue it and merge what is in order.
-    fn run_one(&self, make: &(impl Fn(u64) -> T + Sync)) {
+    /// One worker: claims the next batch, waits for room, computes it, queues it and merges
+    /// what is in order, until every batch is claimed (or one failed).
+    fn work(&self, make: &(impl Fn(u64) -> T + Sync)) {
         let guard = FailOnPanic(self);
-        let b = self.claimed.fetch_add(1, Ordering::Relaxed);
-        {
-            let mut q = lock(&self.queue);
-            while b >= q.merged + self.limit && !q.failed {
-                q = self.room.wait(q).unwrap_or_else(PoisonError::into_inner);
+        loop {
+            let b = self.claimed.fetch_add(1, Ordering::Relaxed);
+            if b >= self.n_batches {
+                break;
             }
-            if q.failed {
-                return;
+            {
+                let mut q = lock(&self.queue);
+                while b >= q.merged + self.limit && !q.failed {
+                    q = self.room.wait(q).unwrap_or_else(PoisonError::into_inner);
+                }
+                if q.failed {
+                    return;
+                }
             }
+            let result = make(b);
+            lock(&self.queue).ready.insert(b, result);
+            self.merge();
         }
-        let result = make(b);
-        lock(&self.queue).ready.insert(b, result);
-        self.merge();
         std::mem::forget(guard);
     }
 
@@ -270,7 +282,7 @@ where
     }
 }
 
-/// Wakes every waiting task if a batch (or the merge) panics, so that the scope can end and
+/// Wakes every waiting worker if a batch (or the merge) panics, so that the scope can end and
 /// rethrow the panic instead of waiting for a batch that never comes.
 struct FailOnPanic<'a, T, A, C>(&'a InOrder<T, A, C>);
 

@@ -486,7 +486,7 @@ fn diffractive_tail_bin_is_checked() {
 }
 
 /// `batches_in_order` hands every batch's result to the merge exactly once, in batch order, on
-/// any number of threads (the chunk size grows with the pool, between 256 and 1024 batches), so
+/// any number of threads (the bound on batches ahead of the merge grows with the pool), so
 /// a floating-point sum over the batches is bit-identical whatever the pool.
 #[test]
 fn batches_merge_in_order_on_any_pool() {
