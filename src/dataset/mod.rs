@@ -1194,20 +1194,20 @@ fn make_shards(
     committed: &(dyn Fn(u64) + Sync),
 ) -> Result<(u64, f64, CommitSeconds)> {
     let mut times = CommitSeconds::default();
-    let mut commit = |(b, samples): (u64, Vec<Sample>)| -> Result<f64> {
-        let t = std::time::Instant::now();
+    let mut commit = |(b, samples): (u64, Vec<Sample>)| -> Result<()> {
         let [encode, files, manifest_s] = commit_shard(prep, lock, manifest, b, &samples)?;
         times.encode += encode;
         times.files += files;
         times.manifest += manifest_s;
         committed(b);
-        Ok(t.elapsed().as_secs_f64())
+        Ok(())
     };
     let mut sample_seconds = 0.0;
     let mut waited = 0.0;
     let mut pending = None;
     for &b in todo {
         let last = pending.take();
+        let both = std::time::Instant::now();
         let ((samples, seconds), done) = rayon::join(
             || {
                 let t = std::time::Instant::now();
@@ -1218,11 +1218,14 @@ fn make_shards(
         sample_seconds += seconds;
         // Shard b − 1's error first; with a later shard's error, the earlier shards stay
         // committed (a resume continues from them).
-        waited += (done?.unwrap_or(0.0) - seconds).max(0.0);
+        done?;
+        // The join lasts as long as the longer of the two: beyond the samples, it waited.
+        waited += (both.elapsed().as_secs_f64() - seconds).max(0.0);
         pending = Some((b, samples?));
     }
-    waited += pending.map(&mut commit).transpose()?.unwrap_or(0.0);
-    times.waited = waited;
+    let last = std::time::Instant::now();
+    pending.map(&mut commit).transpose()?;
+    times.waited = waited + last.elapsed().as_secs_f64();
     Ok((todo.len() as u64, sample_seconds, times))
 }
 

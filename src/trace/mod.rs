@@ -58,8 +58,8 @@ fn pending_limit() -> u64 {
 }
 
 /// A progress callback of the tracer: (rays traced, rays to trace), called after every
-/// [`BATCHES_PER_REPORT`] batches merged (from a thread of the pool). The library draws nothing; the command line turns this
-/// into a bar or a log line.
+/// [`BATCHES_PER_REPORT`] batches merged (from a thread of the pool). The library draws
+/// nothing; the command line turns this into a bar or a log line.
 pub type RayProgress<'a> = &'a (dyn Fn(u64, u64) + Sync);
 
 /// What to trace.
