@@ -143,7 +143,7 @@ for job in $jobs; do
 done
 # The machine's own ceiling: t single-thread traces of PROCESS_RAYS rays run side by side as
 # separate processes (nothing shared but the machine), each timed; their mean and longest time
-# against one alone. Above 1, t busy cores slow each other's work (shared caches, memory
+# against one alone (the first thread count's run). The binary is the last one named. Above 1, t busy cores slow each other's work (shared caches, memory
 # bandwidth, clock, a virtual machine's neighbours), which no change to spibench removes.
 if [[ " $jobs " == *" processes "* ]]; then
     prays=${PROCESS_RAYS:-1000000}
