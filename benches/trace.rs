@@ -5,9 +5,11 @@
 //!   with more cores (or SPIBENCH_TRACE_THREADS="4 8 16") the scaling to each thread count,
 //! - the relative standard errors of k₊ and k₋, the number of rays and the time needed for
 //!   0.1 % (extrapolated with SE ∝ 1/√N from a pilot run, then confirmed by one run at that N),
+//!   with the default sampling, `Sampling::Split` (the refracted part of every interface
+//!   crossing carried as weight, the reflected part followed with probability R),
 //! - the same in the same run for the tracer's earlier sampling, `Sampling::Independent`
-//!   (independent Fresnel and chrome draws; the emission's Latin hypercube is the same), the
-//!   baseline of the stratified interaction streams,
+//!   (the analogue choice at every interface; the emission's Latin hypercube is the same), the
+//!   baseline of the split crossings, and for `Sampling::Stratified`,
 //! - and two baselines of the lamp's importance sampling: the field target without the chart
 //!   guidance, and the bench without any field importance sampling (rays over the whole cone),
 //! - the throughput of the diffractive DMD model against the geometric one (same rays, same
@@ -134,7 +136,7 @@ fn main() {
     println!("bench: {}", scene.display());
 
     let pilot_rays = 1_000_000;
-    let new = Sampling::Stratified;
+    let new = Sampling::default();
     let one = run(&bench, pilot_rays, 1, 1, new);
     let two = run(&bench, pilot_rays, 1, 2, new);
     println!(
@@ -163,30 +165,33 @@ fn main() {
         confirm.rel_se[1]
     );
 
-    // The baseline in the same run: independent interaction draws (the tracer before the
-    // stratified streams), same emission, same seed.
-    let base = run(&bench, pilot_rays, 1, 2, Sampling::Independent);
-    let nb = rays_for_target(&base, pilot_rays);
-    let tb = base.seconds * nb as f64 / pilot_rays as f64;
-    let tn = predicted;
-    println!(
-        "baseline, independent interaction draws: {:.0} rays/s on 2 threads ({}), \
-         k+ = {:.5} (rel. SE {:.2e}), k- = {:.5} (rel. SE {:.2e}) -> 0.1 % needs {nb} rays, \
-         ~{tb:.2} s (extrapolated)",
-        pilot_rays as f64 / base.seconds,
-        load(),
-        base.k[0],
-        base.rel_se[0],
-        base.k[1],
-        base.rel_se[1],
-    );
-    println!(
-        "stratified against independent: {:.2}x the rays/s, {:.2}x fewer rays to 0.1 %, \
-         {:.2}x less time to 0.1 % (pilot extrapolations, same run)",
-        base.seconds / two.seconds,
-        nb as f64 / n as f64,
-        tb / tn.max(1e-9)
-    );
+    // The baselines in the same run, same emission, same seed: the analogue tracer (the default
+    // before the split crossings) and its stratified interaction streams.
+    for (name, sampling) in [
+        ("independent (analogue)", Sampling::Independent),
+        ("stratified (analogue)", Sampling::Stratified),
+    ] {
+        let base = run(&bench, pilot_rays, 1, 2, sampling);
+        let nb = rays_for_target(&base, pilot_rays);
+        let tb = base.seconds * nb as f64 / pilot_rays as f64;
+        println!(
+            "baseline {name}: {:.0} rays/s on 2 threads ({}), k+ = {:.5} (rel. SE {:.2e}), \
+             k- = {:.5} (rel. SE {:.2e}) -> 0.1 % needs {nb} rays, ~{tb:.2} s (extrapolated)",
+            pilot_rays as f64 / base.seconds,
+            load(),
+            base.k[0],
+            base.rel_se[0],
+            base.k[1],
+            base.rel_se[1],
+        );
+        println!(
+            "{new:?} against {name}: {:.2}x the time per ray, {:.2}x fewer rays to 0.1 %, \
+             {:.2}x less time to 0.1 % (pilot extrapolations, same run)",
+            two.seconds / base.seconds,
+            nb as f64 / n as f64,
+            tb / predicted.max(1e-9)
+        );
+    }
 
     // The diffractive DMD model against the geometric one (docs/dmd_diffraction.md), same run,
     // same rays, alternating to spread the machine's drift over both: throughput ratio.

@@ -287,6 +287,7 @@ impl Trace {
             wd.set_item("escaped_w", w.escaped_w)?;
             wd.set_item("path_cap_w", w.path_cap_w)?;
             wd.set_item("detected_w", w.detected_w.to_vec())?;
+            wd.set_item("sampled_w", w.sampled_w)?;
             wd.set_item("residual_w", w.residual_w)?;
             d.set_item(format!("world_{name}"), wd)?;
         }

@@ -446,6 +446,7 @@ fn ledger_section(blocks: &mut Vec<Block>, r: &ReportInput<'_>) {
         ("path cap", |w| w.path_cap_w),
         ("detected, diode +", |w| w.detected_w[0]),
         ("detected, diode −", |w| w.detected_w[1]),
+        ("added by sampled reflections", |w| w.sampled_w),
         ("residual", |w| w.residual_w),
     ] {
         rows.push(vec![

@@ -132,7 +132,9 @@ pub struct LedgerWorldSummary {
     /// Reached photodiode + and −.
     pub detected_plus_w: f64,
     pub detected_minus_w: f64,
-    /// emitted − (absorbed + escaped + path cap + detected): zero up to rounding.
+    /// Weight added by the tracer's sampled reflections (signed, zero in expectation).
+    pub sampled_w: f64,
+    /// emitted + sampled − (absorbed + escaped + path cap + detected): zero up to rounding.
     pub residual_w: f64,
 }
 
@@ -143,6 +145,7 @@ fn world_summary(w: &LedgerWorld) -> LedgerWorldSummary {
         path_cap_w: w.path_cap_w,
         detected_plus_w: w.detected_w[0],
         detected_minus_w: w.detected_w[1],
+        sampled_w: w.sampled_w,
         residual_w: w.residual_w,
     }
 }

@@ -40,6 +40,8 @@
 //! state, reflection, the gaps) is `optics::dmd::Dmd::interact`; `meet_dmd` here splits the path,
 //! books x_j and the absorbed power.
 
+use std::cell::Cell;
+
 use glam::DVec3;
 
 use crate::optics::Arm;
@@ -49,11 +51,11 @@ use crate::optics::fresnel::{reflect, refract};
 pub use crate::optics::geometry::SURFACE_OFFSET;
 use crate::rng::uniform;
 
-use super::strata::{BatchStrata, PathRng, Sampling, permutation};
+use super::strata::{BatchStrata, PathRng, STREAMS, Sampling, permutation};
 
 use super::tally::{
-    BatchTally, COMMON, SLOT_EMITTED, SLOT_ESCAPED, SLOT_PATH_CAP, branch, branch_state,
-    slot_detected,
+    BatchTally, COMMON, SLOT_EMITTED, SLOT_ESCAPED, SLOT_PATH_CAP, SLOT_SAMPLED, branch,
+    branch_state, slot_detected,
 };
 
 /// How the pattern area is set during a trace.
@@ -82,6 +84,11 @@ struct Path {
     pixel: u32,
     /// How many times the path has met a chart face (reflections included).
     chart_hits: u16,
+    /// The stream a path pushed on the stack starts when it is popped ([`RayKey::stream`]'s
+    /// part): the − copy of a split starts its branch's stream, a reflected path of
+    /// [`Sampling::Split`] one of its own (`STREAM_SPAWNED` + its ordinal in the ray), so that no
+    /// path's draws depend on how many another path took (common random numbers).
+    fresh_stream: Option<u64>,
 }
 
 /// `Path::pixel` of a path that has not met the tracked chart (or of an untracked trace).
@@ -118,6 +125,11 @@ pub fn run_batch(
 /// [`run_batch`] with a [`Recorder`] that sees every path segment and the end of every ray (the
 /// ray fan of `trace::fan`). `run_batch` passes `()`, whose empty inlined methods make this the
 /// same machine code as a loop without the hooks.
+///
+/// Recorded traces (ray fans, object kernels, the spectral collection) follow the analogue
+/// tracer, [`Sampling::Independent`]: a drawing shows one path per choice, and an object
+/// kernel's identity with a direct trace, path by path, is stated and tested for it
+/// (`trace::kernel`). Their estimates are unbiased either way.
 pub(super) fn run_batch_recorded<R: Recorder>(
     bench: &Bench,
     mode: PatternMode,
@@ -130,7 +142,7 @@ pub(super) fn run_batch_recorded<R: Recorder>(
     run_batch_sampled(
         bench,
         mode,
-        Sampling::default(),
+        Sampling::Independent,
         seed,
         batch,
         rays,
@@ -185,6 +197,7 @@ pub(super) fn run_batch_sampled<R: Recorder>(
             inv_rays,
             u,
             key,
+            sampling,
             &mut ray_rng,
             &mut tally,
             &mut stack,
@@ -281,6 +294,8 @@ struct RayKey<'a> {
 const STREAM_COMMON: u64 = 0;
 const STREAM_PLUS: u64 = 1;
 const STREAM_MINUS: u64 = 2;
+/// The first stream of the reflected paths of [`Sampling::Split`] (above every split's).
+const STREAM_SPAWNED: u64 = 1 << 32;
 
 impl RayKey<'_> {
     /// The uniform in [0, 1) that draws the diffraction order of the DMD hit of branch `world` at
@@ -295,12 +310,21 @@ impl RayKey<'_> {
         (h >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
     }
 
+    /// Stream `part` of the ray: `STREAM_COMMON`, `STREAM_PLUS`, `STREAM_MINUS` for its first
+    /// split at the pattern area, the same plus `STREAMS`·s for its split s (a reflected path of
+    /// [`Sampling::Split`] may reach the pattern area after the first split), and
+    /// `STREAM_SPAWNED` + n for its n-th reflected path.
     fn stream(self, part: u64) -> PathRng {
         let tail = crate::rng::stream(
             crate::rng::mix64(self.seed ^ crate::rng::mix64(0x5241_5953_0000_0000 + part)),
             self.index,
         );
-        PathRng::new(self.strata.prefix(self.slot, part as usize), tail)
+        let prefix = if part < STREAMS as u64 {
+            self.strata.prefix(self.slot, part as usize)
+        } else {
+            &[]
+        };
+        PathRng::new(prefix, tail)
     }
 }
 
@@ -317,6 +341,7 @@ fn trace_ray<R: Recorder>(
     inv_rays: f64,
     u: [f64; STRATIFIED_DIMS],
     key: RayKey,
+    sampling: Sampling,
     rng: &mut PathRng,
     tally: &mut BatchTally,
     stack: &mut Vec<Path>,
@@ -350,17 +375,22 @@ fn trace_ray<R: Recorder>(
         x_pending: false,
         pixel: NO_PIXEL,
         chart_hits: 0,
+        fresh_stream: None,
     });
     let ctx = Walk {
         bench,
         mode,
         wl,
         index,
+        split_reflections: sampling == Sampling::Split,
+        splits: Cell::new(0),
+        spawned: Cell::new(0),
     };
-    while let Some(p) = stack.pop() {
-        if p.world == branch(MirrorState::Minus) {
-            // The − branch of the split (pushed by `meet_dmd`) draws from its own stream.
-            *rng = key.stream(STREAM_MINUS);
+    while let Some(mut p) = stack.pop() {
+        if let Some(part) = p.fresh_stream.take() {
+            // The − branch of a split (pushed by `meet_dmd`), or a reflected path of
+            // `Sampling::Split`, draws from a stream of its own.
+            *rng = key.stream(part);
         }
         walk(&ctx, p, key, rng, tally, stack, rec);
     }
@@ -373,12 +403,19 @@ fn book(tally: &mut BatchTally, world: usize, slot: usize, w: f64) {
 
 /// What every path of one lamp ray walks through: the bench, how its pattern area is set, the
 /// ray's wavelength and the refractive index of every medium at that wavelength.
-#[derive(Clone, Copy)]
+#[derive(Clone)]
 struct Walk<'a> {
     bench: &'a Bench,
     mode: PatternMode<'a>,
     wl: f64,
     index: &'a [f64],
+    /// [`Sampling::Split`]: interfaces pass the refracted part on as weight (see
+    /// [`cross_interface`]).
+    split_reflections: bool,
+    /// Splits of the ray at the pattern area so far.
+    splits: Cell<u64>,
+    /// Reflected paths of [`Sampling::Split`] followed so far.
+    spawned: Cell<u64>,
 }
 
 /// Whether a path goes on after an interaction.
@@ -419,7 +456,7 @@ fn walk<R: Recorder>(
                 book(tally, p.world, bench.meshes()[k].1, p.w);
                 Flow::End
             }
-            Some(Target::Surface(i, n)) => surface(ctx, &mut p, t, i, n, rng, tally, rec),
+            Some(Target::Surface(i, n)) => surface(ctx, &mut p, t, i, n, rng, tally, stack, rec),
             Some(Target::Dmd) => meet_dmd(ctx, &mut p, key, rng, tally, stack, rec),
         };
         if flow == Flow::End {
@@ -467,6 +504,7 @@ fn surface<R: Recorder>(
     n: DVec3,
     rng: &mut PathRng,
     tally: &mut BatchTally,
+    stack: &mut Vec<Path>,
     rec: &mut R,
 ) -> Flow {
     let (bench, wl) = (ctx.bench, ctx.wl);
@@ -512,13 +550,13 @@ fn surface<R: Recorder>(
             attenuate(bench, x.m_in, t, wl, p, tally);
             let (n1, n2) = (ctx.index[x.m_in], ctx.index[x.m_out]);
             let r = coating.reflectance(n1, n2, x.cos_i, wl);
-            scatter(p, hit, x.nn, n1, n2, r, rng);
+            cross_interface(ctx, p, hit, x.nn, (n1, n2, r), rng, tally, stack);
             Flow::Go
         }
         Interaction::Chart { chart, front, back } => {
             let x = Crossing::new(*front, *back, n, cos_signed);
             attenuate(bench, x.m_in, t, wl, p, tally);
-            cross_chart(ctx, p, hit, x, s.element, *chart, rng, tally, rec)
+            cross_chart(ctx, p, hit, x, s.element, *chart, rng, tally, stack, rec)
         }
     }
 }
@@ -560,6 +598,7 @@ fn cross_chart<R: Recorder>(
     chart: usize,
     rng: &mut PathRng,
     tally: &mut BatchTally,
+    stack: &mut Vec<Path>,
     rec: &mut R,
 ) -> Flow {
     let plate = &ctx.bench.charts()[chart];
@@ -579,7 +618,7 @@ fn cross_chart<R: Recorder>(
     let (n1, n2) = (ctx.index[x.m_in], ctx.index[x.m_out]);
     if clear >= 1.0 || (clear > 0.0 && rng.uniform() < clear) {
         let r = crate::optics::fresnel::reflectance(n1, n2, x.cos_i);
-        scatter(p, hit, x.nn, n1, n2, r, rng);
+        cross_interface(ctx, p, hit, x.nn, (n1, n2, r), rng, tally, stack);
         return Flow::Go;
     }
     // Chrome: reflect R_c, transmit T_c = 10^−OD, absorb the rest, with the event drawn (see
@@ -627,14 +666,17 @@ fn meet_dmd<R: Recorder>(
         p.unit = j;
         tally.arrivals += 1;
         if matches!(ctx.mode, PatternMode::Branch) && p.world == COMMON {
+            let split = ctx.splits.get();
+            ctx.splits.set(split + 1);
             let mut other = *p;
             other.world = branch(MirrorState::Minus);
+            other.fresh_stream = Some(STREAM_MINUS + STREAMS as u64 * split);
             p.world = branch(MirrorState::Plus);
             // The minus copy is walked after this one finishes; each branch draws from its own
             // stream (see RayKey).
             other.interactions -= 1;
             stack.push(other);
-            *rng = key.stream(STREAM_PLUS);
+            *rng = key.stream(STREAM_PLUS + STREAMS as u64 * split);
         }
     }
     // A branch sees every pattern mirror in its own state; an unsplit path (before the pattern
@@ -745,6 +787,69 @@ fn attenuate(bench: &Bench, m: usize, t: f64, wl: f64, p: &mut Path, tally: &mut
         tally.ledger[p.world][*element] += p.w - kept;
         p.w = kept;
     }
+}
+
+/// A path crossing a dielectric interface of reflectance `r` from index n1 into n2 (normal `nn`
+/// facing the incoming ray).
+///
+/// With the analogue tracer ([`Sampling::Independent`], [`Sampling::Stratified`]) the path
+/// reflects with probability r and refracts otherwise, its weight unchanged ([`scatter`]).
+///
+/// With [`Sampling::Split`] the path always refracts, carrying w·(1 − r), and the reflected part
+/// (expected weight w·r) is followed as a path of its own with probability r at the full weight
+/// w. Both parts have the analogue expectation, so every tally stays unbiased, but the light that
+/// crosses all the interfaces of the bench (the signal) is no longer a coin toss per interface:
+/// the estimate of k± needs about half the rays for the same error (docs/tracer_sampling.md).
+/// The reflected path's weight is w rather than w·r, so the traced weight no longer balances ray
+/// by ray: the difference (w − w·r when the reflected path is followed, −w·r when it is not,
+/// zero in expectation) is booked to the ledger's `SLOT_SAMPLED`, and the ledger balances
+/// exactly with it.
+#[allow(clippy::too_many_arguments)]
+#[inline]
+fn cross_interface(
+    ctx: &Walk,
+    p: &mut Path,
+    hit: DVec3,
+    nn: DVec3,
+    (n1, n2, r): (f64, f64, f64),
+    rng: &mut PathRng,
+    tally: &mut BatchTally,
+    stack: &mut Vec<Path>,
+) {
+    if !ctx.split_reflections {
+        scatter(p, hit, nn, n1, n2, r, rng);
+        return;
+    }
+    let refracted = if r >= 1.0 {
+        None
+    } else {
+        refract(p.d, nn, n1, n2)
+    };
+    let Some(d) = refracted else {
+        // Total internal reflection (or a perfect reflector): all of it reflects.
+        p.d = reflect(p.d, nn);
+        p.o = hit + SURFACE_OFFSET * nn;
+        return;
+    };
+    let reflected = p.w * r;
+    if reflected > 0.0 {
+        let slot = ctx.bench.elements().len() + SLOT_SAMPLED;
+        if rng.uniform() < r {
+            let n = ctx.spawned.get();
+            ctx.spawned.set(n + 1);
+            let mut q = *p;
+            q.d = reflect(p.d, nn);
+            q.o = hit + SURFACE_OFFSET * nn;
+            q.fresh_stream = Some(STREAM_SPAWNED + n);
+            book(tally, p.world, slot, p.w - reflected);
+            stack.push(q);
+        } else {
+            book(tally, p.world, slot, -reflected);
+        }
+    }
+    p.w -= reflected;
+    p.d = d;
+    p.o = hit - SURFACE_OFFSET * nn;
 }
 
 /// Reflect with probability `r`, else refract from n1 into n2 (normal `nn` faces the incoming

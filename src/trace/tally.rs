@@ -40,7 +40,11 @@ pub const SLOT_DETECTED_PLUS: usize = 2;
 pub const SLOT_DETECTED_MINUS: usize = 3;
 /// The traced emission (sum of initial ray weights); only in the common world.
 pub const SLOT_EMITTED: usize = 4;
-pub const EXTRA_SLOTS: usize = 5;
+/// Weight added by following sampled reflections at their path's full weight
+/// ([`Sampling::Split`](super::strata::Sampling::Split), `path::cross_interface`): signed, zero
+/// in expectation, and zero with the analogue tracer.
+pub const SLOT_SAMPLED: usize = 5;
+pub const EXTRA_SLOTS: usize = 6;
 
 /// The ledger slot of the power reaching the photodiode of `arm`.
 #[inline]

@@ -456,7 +456,19 @@ fn diffractive_dmd_is_deterministic_balanced_and_optional() {
     }
     // The light on the pattern is the same rays' but for light that returns to the pattern
     // after a first reflection (off the window, from mirrors around the pattern), and the
-    // diffraction sends light away from the diodes: each arm's own current falls.
+    // diffraction sends light away from the diodes: each arm's own current falls. Compared
+    // with the analogue tracer, whose every path is one choice per interface, as when this
+    // bound was set (with the default `Split` the two traces differ by −0.14 % at these rays and
+    // −0.084 % at 200 000, against −0.088 % and −0.030 % analogue: the reflected paths' heavier
+    // weights make the difference noisier, and the bound was set with little margin).
+    let analogue = |b: &Bench| {
+        let o = TraceOptions {
+            sampling: Sampling::Independent,
+            ..TraceOptions::new(20_000, 42)
+        };
+        trace(b, &o).unwrap()
+    };
+    let (a, geometric) = (analogue(&bench), analogue(&paper_bench_with_mask()));
     let (xa, xg): (f64, f64) = (a.x.iter().sum(), geometric.x.iter().sum());
     assert!((xa - xg).abs() < 1e-3 * xg, "{xa} vs {xg}");
     let own = |t: &Tallies, arm: Arm| -> f64 {
@@ -466,8 +478,8 @@ fn diffractive_dmd_is_deterministic_balanced_and_optional() {
             .sum()
     };
     for arm in Arm::ALL {
-        assert!(own(&b, arm) < own(&geometric, arm), "{arm:?}");
-        assert!(own(&b, arm) > 0.0);
+        assert!(own(&a, arm) < own(&geometric, arm), "{arm:?}");
+        assert!(own(&a, arm) > 0.0);
     }
 }
 

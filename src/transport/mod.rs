@@ -28,7 +28,7 @@ use crate::optics::dmd::MirrorState;
 use crate::optics::{Arm, Bench};
 use crate::reconstruction::{BitMatrix, LinearOperator, PackedOperator, PatternForm};
 use crate::trace::tally::{
-    COMMON, SLOT_EMITTED, SLOT_ESCAPED, SLOT_PATH_CAP, branch, slot_detected,
+    COMMON, SLOT_EMITTED, SLOT_ESCAPED, SLOT_PATH_CAP, SLOT_SAMPLED, branch, slot_detected,
 };
 pub mod kernel;
 pub mod metrics;
@@ -107,7 +107,11 @@ pub struct LedgerWorld {
     pub path_cap_w: f64,
     /// Power reaching the photodiodes [arm +, arm −].
     pub detected_w: [f64; 2],
-    /// emitted − (absorbed + escaped + path cap + detected): zero up to rounding.
+    /// Weight added by following sampled reflections at their path's full weight
+    /// (`trace::Sampling::Split`): signed, zero in expectation (its batch spread is the
+    /// sampling's own noise), exactly zero with the analogue tracer.
+    pub sampled_w: f64,
+    /// emitted + sampled − (absorbed + escaped + path cap + detected): zero up to rounding.
     pub residual_w: f64,
 }
 
@@ -144,6 +148,7 @@ impl Ledger {
             let escaped = get(n_el + SLOT_ESCAPED);
             let cap = get(n_el + SLOT_PATH_CAP);
             let det = Arm::ALL.map(|arm| get(n_el + slot_detected(arm)));
+            let sampled = get(n_el + SLOT_SAMPLED);
             let out: f64 = absorbed.iter().map(|a| a.1).sum::<f64>()
                 + escaped
                 + cap
@@ -154,7 +159,8 @@ impl Ledger {
                 escaped_w: escaped,
                 path_cap_w: cap,
                 detected_w: det,
-                residual_w: emitted - out,
+                sampled_w: sampled,
+                residual_w: emitted + sampled - out,
             }
         };
         Ledger {
