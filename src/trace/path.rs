@@ -1,15 +1,20 @@
 //! The walk of one lamp ray (and its DMD branches) through the bench.
 //!
 //! Physics per interaction (f64 throughout):
-//! - interfaces: Fresnel (or coating) reflectance R for unpolarised light; the ray reflects with
-//!   probability R and refracts otherwise (Snell, with the glass's dispersion at the ray's
-//!   wavelength), its weight unchanged. Ghosts and stray light are therefore traced with the
-//!   right probabilities.
+//! - interfaces: Fresnel (or coating) reflectance R for unpolarised light, refraction by Snell's
+//!   law with the glass's dispersion at the ray's wavelength. With the default
+//!   [`Sampling::Split`] the path refracts carrying w·(1 − R), and the reflected part is
+//!   followed as a path of its own with probability R at weight w (`cross_interface`); with the
+//!   analogue tracer (`Sampling::Independent`, `Stratified`) the ray reflects with probability R
+//!   and refracts otherwise, its weight unchanged. Either way ghosts and stray light are traced
+//!   with the right expectation.
 //! - absorption (ND glass bulk, mirror and DMD aluminium 1 − R, chrome 1 − R − T): the weight
 //!   is multiplied by the surviving fraction and the absorbed power is booked to the element.
 //!   The one exception is chart chrome, where the absorption is drawn (see `chrome_event`) but no
-//!   ray ever gains weight: paths end by absorption, escape, detection or the interaction cap,
-//!   so the ledger balances exactly, ray by ray.
+//!   ray ever gains weight: paths end by absorption, escape, detection or the interaction cap.
+//!   The ledger balances exactly, ray by ray: with the analogue tracer as it stands, with
+//!   `Split` once the weight its followed reflections add or drop (`SLOT_SAMPLED`, zero in
+//!   expectation) is counted.
 //! - black surfaces (lens rims, mount lips, meshes, DMD gaps, housings): the ray ends and its
 //!   power is booked to the element.
 //! - photodiodes: the ray ends; its power is "detected" and its photocurrent w·ℜ(λ) is tallied.

@@ -606,7 +606,8 @@ fn a_panicking_batch_propagates() {
 /// ray of the paper bench is one independent term of the ratio estimator k = Σg/Σx (up to the
 /// batch's Latin hypercube), so its residual r = g − k·x splits the estimator's variance ray by
 /// ray: by the strategy that drew the ray's direction, and into its largest terms. The check:
-/// the recorder's k equals the tallies' k.
+/// the recorder's k equals the tallies' k. The analogue tracer by default;
+/// `SPIBENCH_SAMPLING=split` measures the split crossings.
 #[test]
 #[ignore = "a measurement of the variance's sources, about 20 s"]
 fn variance_sources_of_k() {
@@ -664,6 +665,10 @@ fn variance_sources_of_k() {
     let (alpha, beta) = bench.lamp().shares();
     let batches = 1000u64;
     let n = batches * RAYS_PER_BATCH;
+    let sampling = match std::env::var("SPIBENCH_SAMPLING").as_deref() {
+        Ok("split") => Sampling::Split,
+        _ => Sampling::Independent,
+    };
     let mut rec = Rays::default();
     let (across, down) = bench.units_shape();
     let mut tallies = Tallies::new(across, down, bench.elements().len(), 7, 0.0);
@@ -671,7 +676,7 @@ fn variance_sources_of_k() {
         let t = run_batch_sampled(
             &bench,
             PatternMode::Branch,
-            Sampling::Independent,
+            sampling,
             7,
             b,
             RAYS_PER_BATCH,

@@ -30,7 +30,7 @@ use std::sync::OnceLock;
 use serde_json::Value;
 use spibench::export::PatternSpec;
 use spibench::optics::monochromatic::{MonochromaticOptions, monochromatic};
-use spibench::trace::{PatternMode, TraceOptions, trace};
+use spibench::trace::{PatternMode, Sampling, TraceOptions, trace};
 use spibench::transport::{Estimate, fixed_pattern_currents};
 
 /// Family-wise error rate of every family of comparisons here.
@@ -124,9 +124,19 @@ fn trace_case(case: &Case, seed: u64) -> [Estimate; 2] {
         rays: rays(&case.name),
         seed,
         mode: PatternMode::Fixed(&bits),
+        sampling: sampling(),
         ..TraceOptions::new(0, 0)
     };
     fixed_pattern_currents(&bench, &trace(&bench, &opts).unwrap())
+}
+
+/// The tracer's default sampling, or the analogue tracer with `SPIBENCH_SAMPLING=independent`
+/// (to compare the two estimators on every case by hand; the suite runs the default).
+fn sampling() -> Sampling {
+    match std::env::var("SPIBENCH_SAMPLING").as_deref() {
+        Ok("independent") => Sampling::Independent,
+        _ => Sampling::default(),
+    }
 }
 
 /// Every case traced once (seeds 100, 101, ... in file order: independent between cases), shared
