@@ -390,6 +390,7 @@ fn trace_ray<R: Recorder>(
         split_reflections: sampling == Sampling::Split,
         splits: Cell::new(0),
         spawned: Cell::new(0),
+        arrived: Cell::new(false),
     };
     while let Some(mut p) = stack.pop() {
         if let Some(part) = p.fresh_stream.take() {
@@ -421,6 +422,8 @@ struct Walk<'a> {
     splits: Cell<u64>,
     /// Reflected paths of [`Sampling::Split`] followed so far.
     spawned: Cell<u64>,
+    /// Whether any path of the ray has reached the pattern area.
+    arrived: Cell<bool>,
 }
 
 /// Whether a path goes on after an interaction.
@@ -669,7 +672,11 @@ fn meet_dmd<R: Recorder>(
         p.arrived = true;
         p.x_pending = true;
         p.unit = j;
-        tally.arrivals += 1;
+        // Lamp rays that reach the pattern area, once per ray (a reflected path of
+        // `Sampling::Split` may arrive as well).
+        if !ctx.arrived.replace(true) {
+            tally.arrivals += 1;
+        }
         if matches!(ctx.mode, PatternMode::Branch) && p.world == COMMON {
             let split = ctx.splits.get();
             ctx.splits.set(split + 1);

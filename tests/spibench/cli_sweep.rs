@@ -153,7 +153,8 @@ fn two_dimensional_sweeps_and_bad_paths() {
 /// `findings` came to hold the standings the report opens with (one run: verdicts `untested`);
 /// re-pinned when the tracer's default became `Sampling::Split` (every traced number moved
 /// within its standard errors: k₊ 0.35286 ± 0.00081 → 0.35356 ± 0.00045 A/W, the imbalance
-/// −0.00044 ± 0.00080 → 0.00021 ± 0.00017; the ledger gained `sampled_w`).
+/// −0.00044 ± 0.00080 → 0.00021 ± 0.00017; the ledger gained `sampled_w`; `arrivals` counts each
+/// lamp ray once, whichever of its paths arrives).
 #[test]
 fn run_summary_of_the_default_bench_is_pinned() {
     let dir = TempDir::new("run-pin");
