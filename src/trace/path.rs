@@ -54,9 +54,8 @@ use crate::optics::bench::{Bench, Interaction, Target};
 use crate::optics::dmd::{DmdOutcome, MirrorState, PatternStates};
 use crate::optics::fresnel::{reflect, refract};
 pub use crate::optics::geometry::SURFACE_OFFSET;
-use crate::rng::uniform;
 
-use super::strata::{BatchStrata, PathRng, STREAMS, Sampling, permutation};
+use super::strata::{BatchStrata, EMISSION_DIMS, EmissionPoints, PathRng, STREAMS, Sampling};
 
 use super::tally::{
     BatchTally, COMMON, SLOT_EMITTED, SLOT_ESCAPED, SLOT_PATH_CAP, SLOT_SAMPLED, branch,
@@ -173,22 +172,17 @@ pub(super) fn run_batch_sampled<R: Recorder>(
     let mut stack = Vec::with_capacity(8);
     let mut index = vec![1.0; bench.media().len()];
     let n = rays as usize;
-    // Latin hypercube over the batch (McKay, Beckman & Conover 1979): each of the emission's
-    // five dimensions and the wavelength is cut into n strata, and an independent random
-    // permutation per dimension assigns the strata to the rays. Every ray is still uniformly
-    // distributed, so every tally stays unbiased; the batch's rays cover the filament, the
-    // directions and the spectrum evenly, which removes most of the spectral and geometric noise
-    // from the per-batch sums. Batches remain independent, so batch means give the errors.
-    let perms: Vec<Vec<u32>> = (0..STRATIFIED_DIMS)
-        .map(|_| permutation(n, &mut rng))
-        .collect();
-    let inv_n = 1.0 / n as f64;
+    // The emission's five coordinates and the wavelength's two, for every ray of the batch from
+    // one low-discrepancy design: a scrambled Sobol' sequence with `Sampling::Split`, a Latin
+    // hypercube (McKay, Beckman & Conover 1979) with the analogue samplings (strata.rs). Every ray
+    // is still uniformly distributed, so every tally stays unbiased; the batch's rays cover the
+    // filament, the directions and the spectrum evenly, which removes most of the spectral and
+    // geometric noise from the per-batch sums. Batches remain independent, so batch means give
+    // the errors.
+    let points = EmissionPoints::new(sampling, n, &mut rng);
     let strata = BatchStrata::new(sampling, seed, batch, n);
     for i in 0..n {
-        let mut u = [0.0; STRATIFIED_DIMS];
-        for (d, p) in perms.iter().enumerate() {
-            u[d] = (p[i] as f64 + uniform(&mut rng)) * inv_n;
-        }
+        let u = points.point(i, &mut rng);
         let key = RayKey {
             seed,
             index: batch * crate::trace::RAYS_PER_BATCH + i as u64,
@@ -335,7 +329,7 @@ impl RayKey<'_> {
 
 /// Emission dimensions (filament x, y; strategy; direction a, b) and the wavelength (bin, offset
 /// within the bin) stratified by the Latin hypercube.
-pub(super) const STRATIFIED_DIMS: usize = 7;
+pub(super) const STRATIFIED_DIMS: usize = EMISSION_DIMS;
 
 /// Traces one lamp ray with all its branches, adding to `tally`. `index` is scratch space for
 /// the refractive index of every medium at the ray's wavelength (computed once per ray).
@@ -888,7 +882,7 @@ fn scatter(p: &mut Path, hit: DVec3, nn: DVec3, n1: f64, n2: f64, r: f64, rng: &
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::rng::StreamRng;
+    use crate::rng::{StreamRng, uniform};
 
     /// Drawing the chrome's absorption keeps the expected reflected and transmitted power
     /// (midpoint rule over u: exact up to the grid's 1e-6 resolution) and never raises a ray's
