@@ -241,7 +241,7 @@ pub(super) trait Recorder {
     /// The lamp ray's emission draws (filament x, y; strategy; direction a, b; wavelength bin,
     /// offset) and its starting weight (W), before it is traced.
     #[inline(always)]
-    fn emission(&mut self, _u: &[f64; STRATIFIED_DIMS], _w: f64) {}
+    fn emission(&mut self, _u: &[f64; EMISSION_DIMS], _w: f64) {}
 }
 
 /// One photocurrent tallied by a path, for [`Recorder::detected`].
@@ -327,10 +327,6 @@ impl RayKey<'_> {
     }
 }
 
-/// Emission dimensions (filament x, y; strategy; direction a, b) and the wavelength (bin, offset
-/// within the bin) stratified by the Latin hypercube.
-pub(super) const STRATIFIED_DIMS: usize = EMISSION_DIMS;
-
 /// Traces one lamp ray with all its branches, adding to `tally`. `index` is scratch space for
 /// the refractive index of every medium at the ray's wavelength (computed once per ray).
 #[allow(clippy::too_many_arguments)]
@@ -338,7 +334,7 @@ fn trace_ray<R: Recorder>(
     bench: &Bench,
     mode: PatternMode,
     inv_rays: f64,
-    u: [f64; STRATIFIED_DIMS],
+    u: [f64; EMISSION_DIMS],
     key: RayKey,
     sampling: Sampling,
     rng: &mut PathRng,

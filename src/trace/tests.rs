@@ -611,7 +611,8 @@ fn a_panicking_batch_propagates() {
 #[test]
 #[ignore = "a measurement of the variance's sources, about 20 s"]
 fn variance_sources_of_k() {
-    use super::path::{Detection, PatternMode, Recorder, STRATIFIED_DIMS, run_batch_sampled};
+    use super::path::{Detection, PatternMode, Recorder, run_batch_sampled};
+    use super::strata::EMISSION_DIMS;
     use super::tally::{BRANCH_MINUS, BRANCH_PLUS};
     use glam::DVec3;
     /// Per ray: x, g₊, g₋ (on − off), the strategy draw, the wavelength; the path of the rays
@@ -641,7 +642,7 @@ fn variance_sources_of_k() {
             (self.x, self.g) = (0.0, [0.0; 2]);
             self.path.clear();
         }
-        fn emission(&mut self, u: &[f64; STRATIFIED_DIMS], _w: f64) {
+        fn emission(&mut self, u: &[f64; EMISSION_DIMS], _w: f64) {
             self.u2 = u[2];
         }
         fn wavelength(&mut self, wl: f64) {
