@@ -128,6 +128,53 @@ pub fn single_layer_reflectance(
     if s0 >= n2 {
         return 1.0;
     }
+    if s0 < n_layer {
+        return single_layer_propagating(n0, n_layer, n2, thickness_m, wavelength_m, cos0, s0);
+    }
+    single_layer_evanescent(n0, n_layer, n2, thickness_m, wavelength_m, cos0, s0)
+}
+
+/// [`single_layer_reflectance`] when the wave propagates in the layer (n sin θ below the
+/// layer's index, and below the exit medium's: checked by the caller). Every cosine and every
+/// r_ij is then real, and |(r01 + r12 e^{iφ}) / (1 + r01 r12 e^{iφ})|² with φ = 2β reduces to
+/// (r01² + r12² + 2 r01 r12 cos φ) / (1 + r01² r12² + 2 r01 r12 cos φ): one cosine, no complex
+/// division. This is the tracer's case at every coated lens face, so it is most of the cost of
+/// a coating (the complex form, [`single_layer_evanescent`], agrees with it to rounding: unit test
+/// `propagating_layer_equals_the_complex_form`).
+#[inline]
+fn single_layer_propagating(
+    n0: f64,
+    n_layer: f64,
+    n2: f64,
+    thickness_m: f64,
+    wavelength_m: f64,
+    cos0: f64,
+    s0: f64,
+) -> f64 {
+    let cos_in = |n: f64| (1.0 - (s0 / n) * (s0 / n)).max(0.0).sqrt();
+    let (c1, c2) = (cos_in(n_layer), cos_in(n2));
+    let cos_phi = (4.0 * std::f64::consts::PI * n_layer * thickness_m * c1 / wavelength_m).cos();
+    let airy = |r01: f64, r12: f64| {
+        let cross = 2.0 * r01 * r12 * cos_phi;
+        (r01 * r01 + r12 * r12 + cross) / (1.0 + r01 * r01 * r12 * r12 + cross)
+    };
+    let ratio = |a: f64, b: f64| (a - b) / (a + b);
+    let r_s = airy(ratio(n0 * cos0, n_layer * c1), ratio(n_layer * c1, n2 * c2));
+    let r_p = airy(ratio(n_layer * cos0, n0 * c1), ratio(n2 * c1, n_layer * c2));
+    (0.5 * (r_s + r_p)).clamp(0.0, 1.0)
+}
+
+/// [`single_layer_reflectance`] in complex arithmetic, for any n sin θ below the exit medium's
+/// index: above the layer's the wave is evanescent in the layer (complex cosine, decaying phase).
+fn single_layer_evanescent(
+    n0: f64,
+    n_layer: f64,
+    n2: f64,
+    thickness_m: f64,
+    wavelength_m: f64,
+    cos0: f64,
+    s0: f64,
+) -> f64 {
     let cos_in = |n: f64| C::real(1.0 - (s0 / n).powi(2)).sqrt();
     let c0 = C::real(cos0);
     let c1 = cos_in(n_layer);
@@ -241,6 +288,47 @@ mod tests {
         assert!((from_air - from_glass).abs() < 1e-12);
         // Beyond the critical angle from the glass side: total reflection.
         assert_eq!(single_layer_reflectance(n2, n1, n0, q, l, 0.5), 1.0);
+    }
+
+    #[test]
+    fn propagating_layer_equals_the_complex_form() {
+        // The real-arithmetic path against the complex one over indices, thicknesses,
+        // wavelengths and angles where the wave propagates in the layer (both sides of it).
+        let mut worst = 0.0f64;
+        for &(n0, n1, n2) in &[
+            (1.0, 1.38, 1.52),
+            (1.52, 1.38, 1.0),
+            (1.0, 2.1, 1.7),
+            (1.8, 1.38, 1.5),
+        ] {
+            for k in 0..=89 {
+                let cos0 = (k as f64).to_radians().cos();
+                let s0 = n0 * (1.0 - cos0 * cos0).sqrt();
+                if s0 >= n1 || s0 >= n2 {
+                    continue;
+                }
+                for &d in &[0.0, 37e-9, 99.6e-9, 250e-9, 1.3e-6] {
+                    for &l in &[400e-9, 633e-9, 1064e-9] {
+                        let a = single_layer_propagating(n0, n1, n2, d, l, cos0, s0);
+                        let b = single_layer_evanescent(n0, n1, n2, d, l, cos0, s0);
+                        worst = worst.max((a - b).abs());
+                    }
+                }
+            }
+        }
+        assert!(worst < 1e-14, "largest difference {worst:e}");
+        // The evanescent case (from glass beyond the layer's critical angle, below the exit
+        // medium's) still goes through the complex form: n0 = 1.8, MgF2 1.38, exit 1.5,
+        // sin θ0 = 0.8, n sin θ = 1.44.
+        let cos0 = 0.6;
+        let r = single_layer_reflectance(1.8, 1.38, 1.5, 100e-9, 600e-9, cos0);
+        let s0 = 1.8 * (1.0f64 - cos0 * cos0).sqrt();
+        assert!(s0 > 1.38);
+        assert_eq!(
+            r,
+            single_layer_evanescent(1.8, 1.38, 1.5, 100e-9, 600e-9, cos0, s0)
+        );
+        assert!(r > 0.0 && r < 1.0, "{r}");
     }
 
     #[test]
