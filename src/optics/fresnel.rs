@@ -128,10 +128,13 @@ pub fn single_layer_reflectance(
     if s0 >= n2 {
         return 1.0;
     }
+    // The layer's phase thickness at normal incidence, 2π n1 d / λ: β = k cos θ1.
+    let k = 2.0 * std::f64::consts::PI * n_layer * thickness_m / wavelength_m;
+    let n = [n0, n_layer, n2];
     if s0 < n_layer {
-        return single_layer_propagating(n0, n_layer, n2, thickness_m, wavelength_m, cos0, s0);
+        return single_layer_propagating(n, k, cos0, s0);
     }
-    single_layer_evanescent(n0, n_layer, n2, thickness_m, wavelength_m, cos0, s0)
+    single_layer_evanescent(n, k, cos0, s0)
 }
 
 /// [`single_layer_reflectance`] when the wave propagates in the layer (n sin θ below the
@@ -142,44 +145,28 @@ pub fn single_layer_reflectance(
 /// a coating (the complex form, [`single_layer_evanescent`], agrees with it to rounding: unit test
 /// `propagating_layer_equals_the_complex_form`).
 #[inline]
-fn single_layer_propagating(
-    n0: f64,
-    n_layer: f64,
-    n2: f64,
-    thickness_m: f64,
-    wavelength_m: f64,
-    cos0: f64,
-    s0: f64,
-) -> f64 {
+fn single_layer_propagating([n0, n1, n2]: [f64; 3], k: f64, cos0: f64, s0: f64) -> f64 {
     let cos_in = |n: f64| (1.0 - (s0 / n) * (s0 / n)).max(0.0).sqrt();
-    let (c1, c2) = (cos_in(n_layer), cos_in(n2));
-    let cos_phi = (4.0 * std::f64::consts::PI * n_layer * thickness_m * c1 / wavelength_m).cos();
+    let (c1, c2) = (cos_in(n1), cos_in(n2));
+    let cos_phi = (2.0 * k * c1).cos();
     let airy = |r01: f64, r12: f64| {
         let cross = 2.0 * r01 * r12 * cos_phi;
         (r01 * r01 + r12 * r12 + cross) / (1.0 + r01 * r01 * r12 * r12 + cross)
     };
     let ratio = |a: f64, b: f64| (a - b) / (a + b);
-    let r_s = airy(ratio(n0 * cos0, n_layer * c1), ratio(n_layer * c1, n2 * c2));
-    let r_p = airy(ratio(n_layer * cos0, n0 * c1), ratio(n2 * c1, n_layer * c2));
+    let r_s = airy(ratio(n0 * cos0, n1 * c1), ratio(n1 * c1, n2 * c2));
+    let r_p = airy(ratio(n1 * cos0, n0 * c1), ratio(n2 * c1, n1 * c2));
     (0.5 * (r_s + r_p)).clamp(0.0, 1.0)
 }
 
 /// [`single_layer_reflectance`] in complex arithmetic, for any n sin θ below the exit medium's
 /// index: above the layer's the wave is evanescent in the layer (complex cosine, decaying phase).
-fn single_layer_evanescent(
-    n0: f64,
-    n_layer: f64,
-    n2: f64,
-    thickness_m: f64,
-    wavelength_m: f64,
-    cos0: f64,
-    s0: f64,
-) -> f64 {
+fn single_layer_evanescent([n0, n_layer, n2]: [f64; 3], k: f64, cos0: f64, s0: f64) -> f64 {
     let cos_in = |n: f64| C::real(1.0 - (s0 / n).powi(2)).sqrt();
     let c0 = C::real(cos0);
     let c1 = cos_in(n_layer);
     let c2 = cos_in(n2);
-    let beta = c1.scale(2.0 * std::f64::consts::PI * n_layer * thickness_m / wavelength_m);
+    let beta = c1.scale(k);
     let phase = C::exp_i(beta.scale(2.0));
     let airy = |r01: C, r12: C| {
         let num = r01.add(r12.mul(phase));
@@ -309,8 +296,9 @@ mod tests {
                 }
                 for &d in &[0.0, 37e-9, 99.6e-9, 250e-9, 1.3e-6] {
                     for &l in &[400e-9, 633e-9, 1064e-9] {
-                        let a = single_layer_propagating(n0, n1, n2, d, l, cos0, s0);
-                        let b = single_layer_evanescent(n0, n1, n2, d, l, cos0, s0);
+                        let k = 2.0 * std::f64::consts::PI * n1 * d / l;
+                        let a = single_layer_propagating([n0, n1, n2], k, cos0, s0);
+                        let b = single_layer_evanescent([n0, n1, n2], k, cos0, s0);
                         worst = worst.max((a - b).abs());
                     }
                 }
@@ -324,10 +312,8 @@ mod tests {
         let r = single_layer_reflectance(1.8, 1.38, 1.5, 100e-9, 600e-9, cos0);
         let s0 = 1.8 * (1.0f64 - cos0 * cos0).sqrt();
         assert!(s0 > 1.38);
-        assert_eq!(
-            r,
-            single_layer_evanescent(1.8, 1.38, 1.5, 100e-9, 600e-9, cos0, s0)
-        );
+        let k = 2.0 * std::f64::consts::PI * 1.38 * 100e-9 / 600e-9;
+        assert_eq!(r, single_layer_evanescent([1.8, 1.38, 1.5], k, cos0, s0));
         assert!(r > 0.0 && r < 1.0, "{r}");
     }
 
