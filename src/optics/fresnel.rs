@@ -288,8 +288,8 @@ mod tests {
             (1.0, 2.1, 1.7),
             (1.8, 1.38, 1.5),
         ] {
-            for k in 0..=89 {
-                let cos0 = (k as f64).to_radians().cos();
+            for degrees in 0..=89 {
+                let cos0 = (degrees as f64).to_radians().cos();
                 let s0 = n0 * (1.0 - cos0 * cos0).sqrt();
                 if s0 >= n1 || s0 >= n2 {
                     continue;

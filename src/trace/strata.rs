@@ -42,8 +42,8 @@ pub enum Sampling {
     /// times less variance again (docs/tracer_sampling.md; `benches/trace.rs` compares the
     /// three samplings). The stratified prefixes change nothing measurable on the paper bench
     /// and cost 4 % of its time, but they make the reflected light of the validation's
-    /// ghost_plate case twelve times more precise (docs/tracer_sampling.md, "What a ray costs"),
-    /// so they stay.
+    /// ghost_plate case twelve times more precise (docs/tracer_sampling.md, "The default
+    /// tracer's profile"), so they stay.
     #[default]
     Split,
 }
