@@ -10,7 +10,8 @@
 # so their figures compare; each is labelled by its position (b1, b2, …) and listed first.
 # Environment: OUT (work folder, default /tmp/spibench-scaling, emptied first), SAMPLES (4000),
 # RAYS (4000000), THREADS (default "1 2 4 … cores"), JOBS ("trace dataset"; either alone, or
-# "processes" for the machine's own ceiling, below), PROCESS_RAYS (1000000).
+# "processes" and "dataset-processes" for the machine's own ceiling, below), PROCESS_RAYS
+# (1000000).
 #
 # Columns: seconds; rays/s or samples/s; speed-up against the first thread count (×1, normally
 # 1 thread) and against 2 threads (×2, the figure issue 26 states for the dataset); `cpu`, the
@@ -18,8 +19,8 @@
 # first thread count's (above 1: the same work costs more CPU on more threads, contention or a
 # slower clock rather than idle threads); `out%`, the share of the dataset command's
 # own time spent outside its parallel sample loops (printed by binaries that report it, else
-# "-"), and below a dataset row where its shards' writing went (encoding, files, manifest, and
-# how long the sample loops waited for it); `same`, whether the outputs equal the first run's
+# "-"), and below a dataset row where its shards' writing went (the arrays' files, the
+# manifest, and how long the sample loops waited for it); `same`, whether the outputs equal the first run's
 # of that binary byte for byte (the dataset's arrays, and its manifest less the command line)
 # and, for binaries after the first, whether the dataset's arrays equal b1's. Exit status 1 if any output differs. A run's output
 # folder is removed once compared (only each binary's first is kept), so that a large dataset
@@ -76,10 +77,10 @@ have_python=$(command -v python3 >/dev/null && echo 1 || echo 0)
 failed=0
 echo "cores: $cores; threads: ${threads[*]}; trace $rays rays; dataset $samples samples"
 for i in "${!bins[@]}"; do echo "b$((i + 1)): ${bins[$i]} ($("${bins[$i]}" --version 2>/dev/null || echo '?'))"; done
-[ "$jobs" = processes ] ||
+[ -z "$(echo " $jobs " | sed 's/ processes / /g; s/ dataset-processes / /g' | tr -d ' ')" ] ||
     printf '%-8s %-3s %4s %8s %12s %6s %6s %7s %5s %5s %5s %s\n' job bin thr s rate/s x1 x2 cpu sys cpu× out% same
 for job in $jobs; do
-    [ "$job" != processes ] || continue
+    case $job in processes | dataset-processes) continue ;; esac
     for i in "${!bins[@]}"; do
         bin=${bins[$i]}
         tag=b$((i + 1))
@@ -143,8 +144,14 @@ for job in $jobs; do
 done
 # The machine's own ceiling: t single-thread traces of PROCESS_RAYS rays run side by side as
 # separate processes (nothing shared but the machine), each timed; their mean and longest time
-# against one alone (the first thread count's run). The binary is the last one named. Above 1, t busy cores slow each other's work (shared caches, memory
-# bandwidth, clock, a virtual machine's neighbours), which no change to spibench removes.
+# against one alone (the first thread count's run), and then one process tracing t times the
+# rays on t threads (`threads`: its time against the processes' mean; near 1 or below, the
+# threads lose nothing). The binary is the last one named. Above 1, t busy cores slow each
+# other's work (shared caches, memory bandwidth, clock, a virtual machine's neighbours), which
+# no change to spibench removes. `dataset-processes` does the same for the dataset spec: t
+# single-thread processes each making a block of its shards (`--shard k/t`) against one process
+# on t threads, comparing the seconds each spends in its sample loops and commits (the summary
+# line's figure; the kernel's trace, which every process repeats, left out).
 if [[ " $jobs " == *" processes "* ]]; then
     prays=${PROCESS_RAYS:-1000000}
     bin=${bins[-1]}
@@ -166,6 +173,45 @@ if [[ " $jobs " == *" processes "* ]]; then
         rm -rf "$out"/proc-"$t"-*
         awk -v t="$t" -v mean="$mean" -v max="$max" -v a="$alone" 'BEGIN {
             printf "%-10s %4d %8.2f %8.2f %7.2f %7.2f\n", "processes", t, mean, max, mean / a, max / a }'
+        [ "$t" -gt 1 ] || continue
+        s=$(now)
+        "$bin" trace scenes/paper_bench.ron --rays $((prays * t)) --threads "$t" \
+            --out "$out/threads-$t" -q >"$out/threads-$t.log" 2>&1
+        dt=$(awk -v a="$(now)" -v b="$s" 'BEGIN { print a - b }')
+        rm -rf "$out/threads-$t"
+        awk -v t="$t" -v dt="$dt" -v mean="$mean" -v a="$alone" 'BEGIN {
+            printf "%-10s %4d %8.2f %8s %7.2f %7s  (x%d the rays; against the processes: %.2f)\n",
+                "threads", t, dt, "-", dt / a, "-", t, dt / mean }'
+    done
+fi
+if [[ " $jobs " == *" dataset-processes "* ]]; then
+    bin=${bins[-1]}
+    # The seconds of the summary line: "… of the Z s outside the sample loops".
+    loops() { grep -o 'of the [0-9.]* s outside' "$1" | awk '{ print $3 }'; }
+    echo "dataset-processes: $bin, $samples samples as t single-thread processes (--shard k/t) or one on t threads"
+    printf '%-10s %4s %8s %8s %7s %7s\n' job procs mean_s max_s mean× max×
+    alone=
+    for t in "${threads[@]}"; do
+        for k in $(seq 0 $((t - 1))); do
+            "$bin" dataset "$out/spec.ron" --threads 1 --shard "$k/$t" --out "$out/dp-$t-$k" \
+                >"$out/dp-$t-$k.log" 2>&1 &
+        done
+        wait
+        read -r mean max < <(for k in $(seq 0 $((t - 1))); do loops "$out/dp-$t-$k.log"; done |
+            awk '{ s += $1; if ($1 > m) m = $1 } END { print s / NR, m }')
+        # One process's share of the work alone: the t processes' mean against t times that.
+        alone=${alone:-$mean}
+        rm -rf "$out"/dp-"$t"-*
+        awk -v t="$t" -v mean="$mean" -v max="$max" -v a="$alone" -v t0="${threads[0]}" 'BEGIN {
+            printf "%-10s %4d %8.2f %8.2f %7.2f %7.2f\n", "processes", t, mean, max,
+                mean * t / (a * t0), max * t / (a * t0) }'
+        [ "$t" -gt 1 ] || continue
+        "$bin" dataset "$out/spec.ron" --threads "$t" --out "$out/dt-$t" >"$out/dt-$t.log" 2>&1
+        one=$(loops "$out/dt-$t.log")
+        rm -rf "$out/dt-$t"
+        awk -v t="$t" -v one="$one" -v mean="$mean" -v max="$max" 'BEGIN {
+            printf "%-10s %4d %8.2f %8s %7s %7s  (against the processes: %.2f of their mean, %.2f of the slowest)\n",
+                "threads", t, one, "-", "-", "-", one / mean, one / max }'
     done
 fi
 exit $failed

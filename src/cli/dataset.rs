@@ -138,10 +138,9 @@ pub fn run(args: &DatasetArgs) -> anyhow::Result<()> {
     );
     let c = &g.commits;
     crate::note!(
-        "shard writing: encoding {:.2} s, files {:.2} s, manifest {:.2} s; the sample loops \
-         waited {:.2} s for it",
-        c.encode,
-        c.files,
+        "shard writing: arrays {:.2} s (encoded, hashed and written), manifest {:.2} s; the \
+         sample loops waited {:.2} s for it",
+        c.arrays,
         c.manifest,
         c.waited
     );

@@ -33,7 +33,7 @@ use crate::acquisition::{PatternSet, Scheme, patterns_for_ratio};
 use crate::error::{Error, Result};
 use crate::pipeline::evaluate;
 use crate::raster::Raster;
-use crate::report::npy::F64Writer;
+use crate::report::npy::F64FileWriter;
 use crate::report::output::FolderLock;
 use crate::report::untrusted::bad_field;
 use crate::rng::{self, uniform};
@@ -194,14 +194,6 @@ pub struct BenchKernel {
 
 /// Invalid drawn benches tolerated in a row before a dataset gives up.
 const MAX_REDRAWS: u64 = 64;
-
-/// One array of a shard, encoded: its name, its `.npy` bytes and their SHA-256.
-#[derive(Debug, Clone, PartialEq)]
-pub struct EncodedArray {
-    pub name: String,
-    pub bytes: Vec<u8>,
-    pub sha256: String,
-}
 
 /// One sample.
 #[derive(Debug, Clone, PartialEq)]
@@ -823,65 +815,59 @@ impl Prepared {
             .collect()
     }
 
-    /// The arrays of shard b made of its `samples` ([`Prepared::shard_samples`]), in schema
-    /// order, each assembled, encoded as `.npy` and hashed as one parallel task (the writing of
-    /// a shard is what stood between the parallel sample loops; see [`generate`]).
-    pub fn encode_shard(&self, b: u64, samples: &[Sample]) -> Vec<EncodedArray> {
-        let first = b * self.spec.file.shard_samples;
-        let end = first + samples.len() as u64;
-        let measurement_names = self.measurement_names();
-        let optional_arrays = self.optional_arrays();
-        let rows = |data: &mut F64Writer, row: &dyn Fn(&Sample) -> &[f64]| {
-            samples.iter().for_each(|s| data.extend(row(s)))
+    /// The values of array `name` of the shard whose first sample is `first`, made of its
+    /// `samples` ([`Prepared::shard_samples`]), row by row in C order, given to `put`.
+    fn array_rows(
+        &self,
+        name: &str,
+        first: u64,
+        samples: &[Sample],
+        put: &mut dyn FnMut(&[f64]) -> Result<()>,
+    ) -> Result<()> {
+        let rows = |put: &mut dyn FnMut(&[f64]) -> Result<()>, row: &dyn Fn(&Sample) -> &[f64]| {
+            samples.iter().try_for_each(|s| put(row(s)))
         };
-        self.schema()
-            .into_par_iter()
-            .map(|a| {
-                let mut shape = vec![samples.len()];
-                shape.extend(&a.sample_shape);
-                // Straight into the file's bytes: assembling each array first, then encoding
-                // it, copied a shard's largest array (the objects, ~18 MB) twice more.
-                let mut data = F64Writer::new(&shape);
-                let index = |data: &mut F64Writer, f: &dyn Fn(u64) -> u64| {
-                    (first..end).for_each(|s| data.extend(&[f(s) as f64]))
-                };
-                match a.name.as_str() {
-                    "sample" => index(&mut data, &|s| s),
-                    "object" => rows(&mut data, &|s| &s.object),
-                    "k" => rows(&mut data, &|s| &s.k_a_per_w),
-                    "b" => rows(&mut data, &|s| &s.b_a),
-                    "bench" => index(&mut data, &|s| self.bench_index(s)),
-                    "deviations" => rows(&mut data, &|s| &s.deviations),
-                    name => {
-                        if let Some(i) = measurement_names.iter().position(|m| m.0 == name) {
-                            rows(&mut data, &|s| &s.measurements[i]);
-                        } else {
-                            let i = optional_arrays
-                                .iter()
-                                .position(|a| a.name == name)
-                                .expect("schema names");
-                            rows(&mut data, &|s| &s.optional[i]);
-                        }
-                    }
+        let index = |put: &mut dyn FnMut(&[f64]) -> Result<()>, f: &dyn Fn(u64) -> u64| {
+            (first..first + samples.len() as u64).try_for_each(|s| put(&[f(s) as f64]))
+        };
+        match name {
+            "sample" => index(put, &|s| s),
+            "object" => rows(put, &|s| &s.object),
+            "k" => rows(put, &|s| &s.k_a_per_w),
+            "b" => rows(put, &|s| &s.b_a),
+            "bench" => index(put, &|s| self.bench_index(s)),
+            "deviations" => rows(put, &|s| &s.deviations),
+            name => {
+                if let Some(i) = self.measurement_names().iter().position(|m| m.0 == name) {
+                    rows(put, &|s| &s.measurements[i])
+                } else {
+                    let i = self
+                        .optional_arrays()
+                        .iter()
+                        .position(|a| a.name == name)
+                        .expect("schema names");
+                    rows(put, &|s| &s.optional[i])
                 }
-                let bytes = data.finish();
-                EncodedArray {
-                    sha256: sha256_hex(&bytes),
-                    name: a.name,
-                    bytes,
-                }
-            })
-            .collect()
+            }
+        }
     }
 
-    /// The arrays of shard b, as (name, file bytes).
-    pub fn shard_arrays(&self, b: u64) -> Result<Vec<(String, Vec<u8>)>> {
-        let samples = self.shard_samples(b)?;
-        Ok(self
-            .encode_shard(b, &samples)
-            .into_iter()
-            .map(|a| (a.name, a.bytes))
-            .collect())
+    /// Writes array `a` of shard b, made of its `samples`, to `path`; returns the file's
+    /// SHA-256. The values go from the samples through a cache-sized chunk into the file and
+    /// the hash ([`F64FileWriter`]): the whole array never exists as bytes in memory.
+    fn write_array(
+        &self,
+        path: &Path,
+        a: &ArraySchema,
+        b: u64,
+        samples: &[Sample],
+    ) -> Result<String> {
+        let mut shape = vec![samples.len()];
+        shape.extend(&a.sample_shape);
+        let mut w = F64FileWriter::create(path, &shape)?;
+        let first = b * self.spec.file.shard_samples;
+        self.array_rows(&a.name, first, samples, &mut |v| w.extend(v))?;
+        w.finish()
     }
 
     /// `patterns.npy`: the base patterns, each row packed 8 units to a byte (most
@@ -1072,14 +1058,14 @@ pub struct Generated {
     pub commits: CommitSeconds,
 }
 
-/// The seconds of the shards' commits, summed over the shards: encoding and hashing the
-/// arrays, writing their files (and the rename), rewriting the manifest (with its fsync), and
+/// The seconds of the shards' commits, summed over the shards: making the arrays' files
+/// (encoded, hashed and written as they go, side by side; the rename), rewriting the manifest
+/// (with its fsync), and
 /// how long the sample loops waited for a commit that outlasted the next shard's samples
 /// (with the last shard's whole commit, which nothing overlaps).
 #[derive(Debug, Clone, Copy, Default)]
 pub struct CommitSeconds {
-    pub encode: f64,
-    pub files: f64,
+    pub arrays: f64,
     pub manifest: f64,
     pub waited: f64,
 }
@@ -1195,9 +1181,8 @@ fn make_shards(
 ) -> Result<(u64, f64, CommitSeconds)> {
     let mut times = CommitSeconds::default();
     let mut commit = |(b, samples): (u64, Vec<Sample>)| -> Result<()> {
-        let [encode, files, manifest_s] = commit_shard(prep, lock, manifest, b, &samples)?;
-        times.encode += encode;
-        times.files += files;
+        let [arrays, manifest_s] = commit_shard(prep, lock, manifest, b, &samples)?;
+        times.arrays += arrays;
         times.manifest += manifest_s;
         committed(b);
         Ok(())
@@ -1230,36 +1215,35 @@ fn make_shards(
 }
 
 /// Writes shard b of `samples` in a staging folder, commits it by rename and rewrites the
-/// manifest with its entry. Returns the seconds spent encoding, writing the files (and the
-/// rename) and rewriting the manifest.
+/// manifest with its entry. Returns the seconds spent making the files (encoding, hashing,
+/// writing, the rename) and rewriting the manifest.
 fn commit_shard(
     prep: &Prepared,
     lock: &FolderLock,
     manifest: &mut Manifest,
     b: u64,
     samples: &[Sample],
-) -> Result<[f64; 3]> {
+) -> Result<[f64; 2]> {
     let t0 = std::time::Instant::now();
     let dir = lock.dir();
-    let arrays = prep.encode_shard(b, samples);
-    let encoded = t0.elapsed().as_secs_f64();
     let name = shard_dir_name(b);
     let staging = dir.join(format!(".{name}.partial"));
     let _ = std::fs::remove_dir_all(&staging);
     lock.staging(Some(&staging));
     std::fs::create_dir_all(&staging).map_err(|e| Error::write(&staging, e))?;
-    // The files side by side (a shard of the scaling spec is ~30 MB in 13 files): on many
-    // threads the commit of shard b − 1 must end within shard b's sample loop.
-    let files = arrays
+    // The arrays side by side (a shard of the scaling spec is ~30 MB in 13 files), each
+    // encoded, hashed and written as it goes: on many threads the commit of shard b − 1 must
+    // end within shard b's sample loop.
+    let files = prep
+        .schema()
         .into_par_iter()
         .map(|a| {
             let file = format!("{}.npy", a.name);
-            let p = staging.join(&file);
-            std::fs::write(&p, &a.bytes).map_err(|e| Error::write(&p, e))?;
+            let sha256 = prep.write_array(&staging.join(&file), &a, b, samples)?;
             Ok(FileHash {
                 name: a.name,
                 file,
-                sha256: a.sha256,
+                sha256,
             })
         })
         .collect::<Result<Vec<_>>>()?;
@@ -1276,11 +1260,7 @@ fn commit_shard(
         files,
     });
     write_manifest(dir, manifest)?;
-    Ok([
-        encoded,
-        written - encoded,
-        t0.elapsed().as_secs_f64() - written,
-    ])
+    Ok([written, t0.elapsed().as_secs_f64() - written])
 }
 
 /// Merges dataset folders (each one job's shards) into `out`: the same spec, bench and seed in
