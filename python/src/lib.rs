@@ -19,7 +19,7 @@ use pyo3::exceptions::{PyOSError, PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use spibench::acquisition::{PatternSet, Scheme};
+use spibench::acquisition::{PackedPatterns, PatternSet, Scheme};
 use spibench::dataset::{self, Prepared};
 use spibench::detector::RecordModel;
 use spibench::error::{Error, Result};
@@ -518,8 +518,8 @@ struct Acquisition {
     /// recorded together (they share the oscilloscope's ranges).
     scene: Arc<RunScene>,
     kernel: Arc<LibKernel>,
-    /// The patterns recorded (at least `m`).
-    patterns: PatternSet,
+    /// The patterns recorded (at least `m`), with their operator built once.
+    patterns: PackedPatterns,
     op: Arc<TracedOperator>,
 }
 
@@ -540,7 +540,7 @@ impl Acquisition {
         Ok(Acquisition {
             scene: Arc::new(scene),
             kernel,
-            patterns,
+            patterns: PackedPatterns::new(patterns),
             op: Arc::new(op),
         })
     }
@@ -665,7 +665,7 @@ impl Acquisition {
 
     /// The first M base patterns, one row of units (row-major) per pattern, as 0/1 bytes.
     fn patterns<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<u8>>> {
-        let bits = self.patterns.base_patterns();
+        let bits = self.patterns.set().base_patterns();
         let (m, n) = (self.op.measurements, bits.cols());
         let mut v = Vec::with_capacity(m * n);
         for i in 0..m {
@@ -802,7 +802,7 @@ impl Acquisition {
         }
         let (across, down) = (self.kernel.units_across, self.kernel.units_down);
         let settings = &self.scene.settings;
-        let patterns = &self.patterns;
+        let patterns = self.patterns.set();
         let (sol, seconds) = run(py, threads, || {
             let start = std::time::Instant::now();
             let op = patterns.head(m)?.operator(scheme.form());
@@ -905,7 +905,7 @@ impl Dataset {
                 &p.scene,
                 self.kernel.clone(),
                 &self.matrices,
-                p.patterns.clone(),
+                p.patterns.set().clone(),
                 scheme,
                 m,
                 p.schemes.clone(),

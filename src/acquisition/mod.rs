@@ -14,7 +14,9 @@ pub mod schemes;
 
 pub use hadamard::{HadamardOrdering, hadamard_order, hadamard_patterns};
 pub use noise::{AdditiveNoise, NoiseDistribution};
-pub use patterns::{PatternFamily, PatternSet, hadamard_set, patterns_for_ratio, random_set};
+pub use patterns::{
+    PackedPatterns, PatternFamily, PatternSet, hadamard_set, patterns_for_ratio, random_set,
+};
 pub use schemes::{
     Acquisition, DEFAULT_DMD_RATE_HZ, Output, ScalarArms, Scheme, Sequence, acquire,
 };

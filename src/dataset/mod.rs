@@ -29,7 +29,7 @@ use std::path::{Path, PathBuf};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use crate::acquisition::{PatternSet, Scheme, patterns_for_ratio};
+use crate::acquisition::{PackedPatterns, Scheme, patterns_for_ratio};
 use crate::error::{Error, Result};
 use crate::pipeline::evaluate;
 use crate::raster::Raster;
@@ -166,7 +166,8 @@ pub struct Prepared {
     pub spec: DatasetSpec,
     pub scene: RunScene,
     pub kernel: Kernel,
-    pub patterns: PatternSet,
+    /// The base patterns for the highest ratio, with their operator built once.
+    pub patterns: PackedPatterns,
     pub schemes: Vec<Scheme>,
     pub ratios: Vec<f64>,
     pub bench_text: String,
@@ -388,7 +389,7 @@ impl Prepared {
             spec,
             scene,
             kernel,
-            patterns,
+            patterns: PackedPatterns::new(patterns),
             schemes,
             ratios,
             bench_text,
@@ -704,7 +705,7 @@ impl Prepared {
             settling_s: st.settling_time_s,
             sample_rate_hz: self.scene.scope.sample_rate_hz,
         };
-        let m = self.patterns.measurements();
+        let m = self.patterns.set().measurements();
         crate::acquisition::Sequence::all()
             .into_iter()
             .filter(|q| self.schemes.iter().any(|k| k.sequence() == *q))
@@ -873,7 +874,7 @@ impl Prepared {
     /// `patterns.npy`: the base patterns, each row packed 8 units to a byte (most
     /// significant bit first, as `numpy.packbits`).
     fn packed_patterns(&self) -> Vec<u8> {
-        let bits = self.patterns.base_patterns();
+        let bits = self.patterns.set().base_patterns();
         let (rows, cols) = (bits.rows(), bits.cols());
         let mut packed = Vec::with_capacity(rows * cols.div_ceil(8));
         for i in 0..rows {
@@ -925,7 +926,7 @@ impl Prepared {
                 crate::detector::RecordModel::Frames => "frames".into(),
                 crate::detector::RecordModel::Samples => "samples".into(),
             },
-            measurements_max: self.patterns.measurements(),
+            measurements_max: self.patterns.set().measurements(),
             schemes: self.schemes.iter().map(|s| s.key().to_string()).collect(),
             ratios: self.ratios.clone(),
             schema: self.schema(),

@@ -15,7 +15,7 @@
 //! The ideal object's 0–255 view ([`truth_view`]) and the solver of the traced experiment
 //! ([`run_solver`]) are defined here once.
 
-use crate::acquisition::{PatternSet, Scheme, patterns_for_ratio};
+use crate::acquisition::{PackedPatterns, PatternSet, Scheme, patterns_for_ratio};
 use crate::detector::{Bap, Channel, FrameTiming, Scope, SignalTrace};
 use crate::error::Result;
 use crate::pipeline::{
@@ -295,7 +295,8 @@ pub fn evaluate_traced(
     let x = traced.x()?;
     let truth = traced.truth()?;
     let t1 = std::time::Instant::now();
-    let recorded = acquire(scene, &traced.transport, patterns, seed, progress)?;
+    let packed = PackedPatterns::new(patterns.clone());
+    let recorded = acquire(scene, &traced.transport, &packed, seed, progress)?;
     let record_s = t1.elapsed().as_secs_f64();
     let t2 = std::time::Instant::now();
     let resolution = pipeline::resolution_context(&scene.bench, &x)?;
@@ -341,7 +342,7 @@ pub fn evaluate_traced(
 pub fn acquire(
     scene: &RunScene,
     transport: &Transport,
-    patterns: &PatternSet,
+    patterns: &PackedPatterns,
     seed: u64,
     progress: Progress,
 ) -> Result<Recorded> {

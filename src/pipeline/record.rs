@@ -4,7 +4,9 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use super::{Progress, Stage, Traced};
-use crate::acquisition::{AdditiveNoise, PatternSet, Sequence, schemes::CALIBRATION_PAIRS};
+use crate::acquisition::{
+    AdditiveNoise, PackedPatterns, PatternSet, Sequence, schemes::CALIBRATION_PAIRS,
+};
 use crate::detector::{
     self, Bap, Channel, DriftPath, FrameTiming, Illumination, OUTPUT_NAMES, Record, Scope,
     SignalTrace,
@@ -49,7 +51,7 @@ pub struct Saturation {
 #[derive(Debug, Clone)]
 pub struct Recorded {
     /// The base patterns for the highest sampling ratio (lower ratios use their first rows).
-    pub patterns: PatternSet,
+    pub patterns: std::sync::Arc<PatternSet>,
     pub timing: FrameTiming,
     /// The oscilloscope channels as set for the pattern sequences [RF, MONITOR+, MONITOR−] (the
     /// calibrated acquisition, when there are others, is auto-ranged on its own).
@@ -92,7 +94,7 @@ pub fn record_stage(
     detector: &Bap,
     scope: &Scope,
     settings: &RunSettings,
-    patterns: &PatternSet,
+    patterns: &PackedPatterns,
     seed: u64,
     progress: Progress,
 ) -> Result<Recorded> {
@@ -113,7 +115,7 @@ pub fn record_transport(
     detector: &Bap,
     scope: &Scope,
     settings: &RunSettings,
-    patterns: &PatternSet,
+    patterns: &PackedPatterns,
     seed: u64,
     progress: Progress,
 ) -> Result<Recorded> {
@@ -159,7 +161,7 @@ pub fn record_transport(
         saturation.extend(found);
     }
     Ok(Recorded {
-        patterns: patterns.clone(),
+        patterns: patterns.shared_set(),
         timing,
         channels,
         records: needed.into_iter().zip(records).collect(),
@@ -171,13 +173,13 @@ pub fn record_transport(
 /// The light on each diode, frame by frame, of each sequence in `needed`.
 fn frame_lights(
     transport: &crate::transport::Transport,
-    patterns: &PatternSet,
+    patterns: &PackedPatterns,
     needed: &[Sequence],
 ) -> Vec<Vec<[f64; 2]>> {
-    let bits = patterns.base_patterns();
-    let max_m = patterns.measurements();
-    // The pattern products are shared by every sequence (one packed product per record).
-    let products = transport.pattern_products(&bits, max_m);
+    // The pattern products are shared by every sequence (one packed product per record, with
+    // the operator built once per pattern set).
+    let products = transport.pattern_products_of(patterns.product());
+    let units = patterns.set().units();
     needed
         .iter()
         .map(|&q| match q {
@@ -185,11 +187,10 @@ fn frame_lights(
             Sequence::Complementary => transport.frame_currents_of(&products, true),
             Sequence::CalibratedBase => {
                 // All-on frames shown as complementary pairs give (all on, all off).
-                let on = crate::reconstruction::BitMatrix::from_fn(
-                    CALIBRATION_PAIRS,
-                    bits.cols(),
-                    |_, _| true,
-                );
+                let on =
+                    crate::reconstruction::BitMatrix::from_fn(CALIBRATION_PAIRS, units, |_, _| {
+                        true
+                    });
                 let mut l = transport.frame_currents(&on, CALIBRATION_PAIRS, true);
                 l.extend(transport.frame_currents_of(&products, false));
                 l

@@ -424,7 +424,14 @@ impl Transport {
     /// [`Transport::frame_currents`], the same for a sequence and its complementary form, so a
     /// record computes it once for all its sequences.
     pub fn pattern_products(&self, patterns: &BitMatrix, m: usize) -> [Vec<f64>; 2] {
-        let op = PackedOperator::new(patterns.head(m), PatternForm::ZeroOne);
+        self.pattern_products_of(&PackedOperator::new(patterns.head(m), PatternForm::ZeroOne))
+    }
+
+    /// [`Transport::pattern_products`] for every row of a 0/1 operator built beforehand (a
+    /// [`crate::acquisition::PackedPatterns`]'s, shared by all the records through its set).
+    pub fn pattern_products_of(&self, op: &PackedOperator) -> [Vec<f64>; 2] {
+        debug_assert_eq!(op.form(), PatternForm::ZeroOne, "0/1 patterns");
+        let m = op.rows();
         let mut pg = [vec![0.0; m], vec![0.0; m]];
         for (g, out) in self.g_a.iter().zip(pg.iter_mut()) {
             op.apply(g, out);

@@ -61,6 +61,7 @@ fn operator_matches_the_noise_free_record() {
     let (patterns, m) = patterns_for(&scene, 0.1).unwrap();
     let object = random(kernel.grid.pixels(), 5);
     let ones = vec![1.0; kernel.grid.pixels()];
+    let packed = crate::acquisition::PackedPatterns::new(patterns.clone());
     for scheme in Scheme::all() {
         let op = TracedOperator::new(&scene, &mats, &patterns, scheme, m).unwrap();
         let t = if scheme == Scheme::DoubleArmCalibrated {
@@ -69,7 +70,7 @@ fn operator_matches_the_noise_free_record() {
             &object
         };
         let transport = Transport::from_kernel_linear(&scene.bench, &kernel, t).unwrap();
-        let rec = evaluate::acquire(&scene, &transport, &patterns, 9, &|_, _, _| {}).unwrap();
+        let rec = evaluate::acquire(&scene, &transport, &packed, 9, &|_, _, _| {}).unwrap();
         let frames = &rec.record(scheme.sequence()).unwrap().frames;
         let y = scheme.measurements(frames, m);
         let lin = op.apply(t).unwrap();
