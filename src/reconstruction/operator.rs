@@ -31,7 +31,8 @@
 //!
 //! # Determinism
 //!
-//! Output elements are split into contiguous chunks, one rayon task each; every output element is
+//! Output elements are split into contiguous chunks (one per thread, at least `MIN_CHUNK_ROWS`
+//! rows each), one rayon task each; every output element is
 //! written by exactly one task, and the order of its floating-point operations (block by block,
 //! group by group, each table built by the same recurrence) does not depend on how the outputs are
 //! chunked. Results are therefore bit-identical for any number of threads, which the tests check.
@@ -65,6 +66,13 @@ pub enum PatternForm {
 /// (AMD Zen 3): 8 and 16 groups are equal within noise, 32 and 64 were about 50 % slower as the
 /// tables spill out of L1.
 const BLOCK_GROUPS: usize = 16;
+
+/// The fewest output rows a product gives one chunk (one rayon task), so that building the
+/// chunk's tables (the work of sweeping ~256 rows) stays at most a fifth of it. One chunk per
+/// thread built the tables once per thread: a dataset sample, whose products (about a thousand
+/// rows) run inside the parallel sample loop, cost ~15 % more CPU on 16 threads than on one
+/// (measured as 16 threads on one core, where nothing runs in parallel).
+const MIN_CHUNK_ROWS: usize = 1024;
 
 /// The bytes of a 0/1 matrix (8 input elements per byte, bit b of byte g = input 8g + b),
 /// stored block by block for the cache-blocked lookup kernel.
@@ -259,10 +267,13 @@ fn lut_product(m: &ByteBlocks, x: &[f64], out: &mut [f64], form: PatternForm) {
     if m.out_len == 0 {
         return;
     }
-    // One chunk of outputs per thread: every chunk builds all tables once (about 5 % of a
-    // product), so more chunks than threads only repeat that work. The chunking does not change
-    // any output bit (see the module documentation).
-    let tasks = rayon::current_num_threads().max(1);
+    // At most one chunk of outputs per thread, and at least MIN_CHUNK_ROWS rows a chunk: every
+    // chunk builds all tables (as much work as sweeping ~256 rows), so more chunks only repeat
+    // that work. The chunking does not change any output bit (see the module documentation).
+    let tasks = m
+        .out_len
+        .div_ceil(MIN_CHUNK_ROWS)
+        .clamp(1, rayon::current_num_threads().max(1));
     let chunk = m.out_len.div_ceil(tasks).max(1);
     out.par_chunks_mut(chunk)
         .enumerate()
