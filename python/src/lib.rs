@@ -19,7 +19,7 @@ use pyo3::exceptions::{PyOSError, PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use spibench::acquisition::{PackedPatterns, PatternSet, Scheme};
+use spibench::acquisition::{PackedPatterns, Scheme};
 use spibench::dataset::{self, Prepared};
 use spibench::detector::RecordModel;
 use spibench::error::{Error, Result};
@@ -528,7 +528,7 @@ impl Acquisition {
         scene: &RunScene,
         kernel: Arc<LibKernel>,
         matrices: &KernelMatrices,
-        patterns: PatternSet,
+        patterns: PackedPatterns,
         scheme: Scheme,
         m: usize,
         recorded: Vec<Scheme>,
@@ -536,11 +536,11 @@ impl Acquisition {
         let mut scene = scene.clone();
         scene.settings.schemes = recorded;
         scene.settings.signal_trace_frames = 0;
-        let op = TracedOperator::new(&scene, matrices, &patterns, scheme, m)?;
+        let op = TracedOperator::new(&scene, matrices, patterns.set(), scheme, m)?;
         Ok(Acquisition {
             scene: Arc::new(scene),
             kernel,
-            patterns: PackedPatterns::new(patterns),
+            patterns,
             op: Arc::new(op),
         })
     }
@@ -602,7 +602,7 @@ impl Acquisition {
                 &scene,
                 kernel.kernel.clone(),
                 &kernel.matrices,
-                patterns,
+                PackedPatterns::new(patterns),
                 scheme,
                 m,
                 schemes,
@@ -905,7 +905,7 @@ impl Dataset {
                 &p.scene,
                 self.kernel.clone(),
                 &self.matrices,
-                p.patterns.set().clone(),
+                p.patterns.clone(),
                 scheme,
                 m,
                 p.schemes.clone(),
