@@ -41,12 +41,74 @@ pub fn uniform_open0<R: Rng + ?Sized>(rng: &mut R) -> f64 {
     ((rng.next_u64() >> 11) + 1) as f64 * (1.0 / (1u64 << 53) as f64)
 }
 
-/// A standard normal deviate (Box–Muller; one of the pair is discarded to keep streams simple).
+/// A standard normal deviate by the ziggurat method of Marsaglia and Tsang (2000), exact: one
+/// 64-bit draw and a table lookup for about 99 % of deviates, against a logarithm and a sine for
+/// Box–Muller, which took a quarter of a dataset sample's time in the detector's noise. Written
+/// here, as [`uniform`], so that golden values do not change with a crate's version. Bits 0–7 of
+/// the draw pick the layer and bits 11–63 the position in it, so the two are independent.
 #[inline]
 pub fn normal<R: Rng + ?Sized>(rng: &mut R) -> f64 {
-    let u1 = uniform_open0(rng);
-    let u2 = uniform(rng);
-    (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
+    let z = ziggurat();
+    loop {
+        let bits = rng.next_u64();
+        let i = (bits & 0xff) as usize;
+        let u = 2.0 * ((bits >> 11) as f64 * (1.0 / (1u64 << 53) as f64)) - 1.0;
+        let x = u * z.x[i];
+        if x.abs() < z.x[i + 1] {
+            return x;
+        }
+        if i == 0 {
+            return normal_tail(rng, u);
+        }
+        // The wedge between the layer's rectangle and the curve: uniform height in the layer.
+        if z.f[i] + (z.f[i + 1] - z.f[i]) * uniform(rng) < (-0.5 * x * x).exp() {
+            return x;
+        }
+    }
+}
+
+/// A deviate beyond the ziggurat's base radius R, on the side of `u`'s sign (Marsaglia 1964:
+/// x = −ln U₁ / R accepted when −2 ln U₂ > x²).
+#[cold]
+fn normal_tail<R: Rng + ?Sized>(rng: &mut R, u: f64) -> f64 {
+    loop {
+        let x = -uniform_open0(rng).ln() / ZIGGURAT_R;
+        let y = -uniform_open0(rng).ln();
+        if 2.0 * y > x * x {
+            return if u < 0.0 {
+                -(ZIGGURAT_R + x)
+            } else {
+                ZIGGURAT_R + x
+            };
+        }
+    }
+}
+
+/// The ziggurat of 256 layers of equal area V under exp(−x²/2) (Marsaglia and Tsang 2000,
+/// J. Stat. Softw. 5(8), table for n = 256): R is the base layer's right edge.
+const ZIGGURAT_R: f64 = 3.654_152_885_361_009;
+const ZIGGURAT_V: f64 = 4.928_673_233_99e-3;
+
+/// Layer edges x[i] (x[0] = V/f(R), the base rectangle's width; x[1] = R; x[256] = 0) and the
+/// curve's heights f[i] = exp(−x[i]²/2) there.
+struct Ziggurat {
+    x: [f64; 257],
+    f: [f64; 257],
+}
+
+fn ziggurat() -> &'static Ziggurat {
+    static TABLE: std::sync::LazyLock<Ziggurat> = std::sync::LazyLock::new(|| {
+        let pdf = |x: f64| (-0.5 * x * x).exp();
+        let mut x = [0.0; 257];
+        x[0] = ZIGGURAT_V / pdf(ZIGGURAT_R);
+        x[1] = ZIGGURAT_R;
+        // Each layer's area x[i]·(f(x[i+1]) − f(x[i])) is V; the top one ends at 0.
+        for i in 1..255 {
+            x[i + 1] = (-2.0 * (ZIGGURAT_V / x[i] + pdf(x[i])).ln()).sqrt();
+        }
+        Ziggurat { x, f: x.map(pdf) }
+    });
+    &TABLE
 }
 
 /// The SplitMix64 sequence: output k is `mix64(seed + k·γ)` with γ = 0x9E3779B97F4A7C15.
@@ -114,5 +176,78 @@ mod tests {
         // Standard errors: 1/sqrt(n) = 0.0022 for the mean, sqrt(2/n) = 0.0032 for the variance.
         assert!(mean.abs() < 5.0 * 0.0023, "mean {mean}");
         assert!((var - 1.0).abs() < 5.0 * 0.0032, "var {var}");
+    }
+
+    #[test]
+    fn ziggurat_layers_have_equal_areas_and_close_at_zero() {
+        let z = ziggurat();
+        for i in 1..256 {
+            let area = z.x[i] * (z.f[i + 1] - z.f[i]);
+            assert!((area / ZIGGURAT_V - 1.0).abs() < 1e-9, "layer {i}: {area}");
+        }
+        // The top layer's area with x[256] = 0: its top at the curve's peak.
+        let top = ZIGGURAT_V / z.x[255] + z.f[255];
+        assert!((top - 1.0).abs() < 1e-9, "top {top}");
+        // The base: R·f(R) plus the tail ∫_R^∞ f = √(π/2)·erfc(R/√2), together V
+        // (erfc(R/√2) = 2.580 324 876 539e-4 from mpmath).
+        let tail = (std::f64::consts::PI / 2.0).sqrt() * 2.580_324_876_539e-4;
+        let base = ZIGGURAT_R * z.f[1] + tail;
+        assert!((base / ZIGGURAT_V - 1.0).abs() < 1e-6, "base {base}");
+    }
+
+    #[test]
+    fn normal_matches_the_normal_distribution_in_bulk_and_tails() {
+        // 2·10⁶ deviates binned at the normal's quantiles, the tails beyond R (the ziggurat's
+        // base edge, reached only through its tail algorithm) and beyond 4.5 included. Each
+        // bin's count is binomial: within 5 standard deviations of n·p.
+        let mut r = stream(3, 0);
+        let n = 2_000_000usize;
+        // Edges and the normal's CDF there (Φ, from mpmath's ncdf).
+        let edges = [
+            -4.5,
+            -3.654_152_885_361_009,
+            -2.0,
+            -1.0,
+            0.0,
+            0.5,
+            1.5,
+            3.0,
+            4.5,
+        ];
+        let cdf = [
+            3.397_673_124_730e-6,
+            1.290_162_438_270e-4,
+            0.022_750_131_948_179,
+            0.158_655_253_931_457,
+            0.5,
+            0.691_462_461_274_013,
+            0.933_192_798_731_142,
+            0.998_650_101_968_370,
+            0.999_996_602_326_875,
+        ];
+        let mut counts = [0usize; 10];
+        let (mut s3, mut s4) = (0.0, 0.0);
+        for _ in 0..n {
+            let v = normal(&mut r);
+            counts[edges.partition_point(|&e| e <= v)] += 1;
+            s3 += v * v * v;
+            s4 += v * v * v * v;
+        }
+        for (b, &c) in counts.iter().enumerate() {
+            let lo = if b == 0 { 0.0 } else { cdf[b - 1] };
+            let hi = if b == edges.len() { 1.0 } else { cdf[b] };
+            let p = hi - lo;
+            let sd = (n as f64 * p * (1.0 - p)).sqrt();
+            let dev = (c as f64 - n as f64 * p).abs();
+            assert!(
+                dev < 5.0 * sd.max(1.0),
+                "bin {b}: {c} against {}",
+                n as f64 * p
+            );
+        }
+        // Skewness 0 and kurtosis 3: standard errors √(6/n) = 0.0017, √(24/n) = 0.0035.
+        let (skew, kurt) = (s3 / n as f64, s4 / n as f64);
+        assert!(skew.abs() < 5.0 * 0.0018, "skewness {skew}");
+        assert!((kurt - 3.0).abs() < 5.0 * 0.0035, "kurtosis {kurt}");
     }
 }

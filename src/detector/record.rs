@@ -23,7 +23,6 @@
 //! `rng::stream(seed, f / FRAMES_PER_BATCH)`, so the record is the same on any number of threads
 //! (acquisitions run in parallel with each other, never split).
 
-use rand::Rng;
 use serde::Serialize;
 
 use super::bap::{Bap, MONITOR_PLUS, RF};
@@ -104,16 +103,6 @@ impl Record {
             .filter(|&&b| b & (1 << o) != 0)
             .count()
     }
-}
-
-/// A pair of standard normal deviates (Box–Muller, both values used).
-#[inline]
-fn normal_pair<R: Rng + ?Sized>(r: &mut R) -> (f64, f64) {
-    let u1 = rng::uniform_open0(r);
-    let u2 = rng::uniform(r);
-    let rad = (-2.0 * u1.ln()).sqrt();
-    let (s, c) = (std::f64::consts::TAU * u2).sin_cos();
-    (rad * c, rad * s)
 }
 
 /// The steady, noise-free, unclipped outputs of every frame (V) with the lamp and ambient
@@ -219,10 +208,7 @@ pub fn record(
                 r = rng::stream(seed, batch as u64);
             }
             let (shot, amp) = sqrt_psd(i);
-            let (xp, xm) = normal_pair(&mut r);
-            let (e0, e1) = normal_pair(&mut r);
-            let (e2, s0) = normal_pair(&mut r);
-            let (s1, s2) = normal_pair(&mut r);
+            let [xp, xm, e0, e1, e2, s0, s1, s2] = std::array::from_fn(|_| rng::normal(&mut r));
             noise = [
                 inc[0] * (shot[0] * xp - shot[1] * xm + amp[0] * e0),
                 inc[1] * (shot[0] * xp + amp[1] * e1),
@@ -437,18 +423,14 @@ pub fn record_frames(
         let i = currents_at(f, mid);
         let x = bap.ideal_outputs_v(i);
         // Noise draws: shot of each diode, each amplifier, the oscilloscope, the ADC.
-        let mut z = [0.0; 12];
+        let mut z = [0.0; 11];
         if noisy && k > 0 {
             let batch = f / FRAMES_PER_BATCH;
             if batch != rng_batch {
                 rng_batch = batch;
                 r = rng::stream(seed, batch as u64);
             }
-            for pair in z.chunks_exact_mut(2) {
-                let (p, q) = normal_pair(&mut r);
-                pair[0] = p;
-                pair[1] = q;
-            }
+            z = std::array::from_fn(|_| rng::normal(&mut r));
         }
         let shot = if shot_on {
             [0, 1].map(|d| (2.0 * super::bap::ELEMENTARY_CHARGE_C * i[d].max(0.0)).sqrt())
