@@ -417,9 +417,22 @@ pub fn record_frames(
     };
     let mut rng_batch = usize::MAX;
     let mut r = rng::stream(seed, 0);
+    // Per-source variance of one unit-density white current through each stage's pole.
+    let unit_var = stages.map(|st| st.gain_v_per_a.powi(2) * st.noise_bandwidth_hz());
+    let mut terms: Option<((usize, i32, i32), [WindowTerms; 3])> = None;
     for f in 0..n_frames {
         let (k, k0, n, mid) = settled_window(f, start(f), start(f + 1), per_frame, settle, dt);
         counts[f] = k;
+        // The frames of a sequence share one or two windows: their terms computed once each.
+        let w = match terms {
+            Some((key, w)) if key == (k, k0, n) => w,
+            _ => {
+                let w =
+                    [0, 1, 2].map(|o| WindowTerms::new(a[o], unit_var[o], &channels[o], k, k0, n));
+                terms = Some(((k, k0, n), w));
+                w
+            }
+        };
         let i = currents_at(f, mid);
         let x = bap.ideal_outputs_v(i);
         // Noise draws: shot of each diode, each amplifier, the oscilloscope, the ADC.
@@ -437,18 +450,16 @@ pub fn record_frames(
         } else {
             [0.0; 2]
         };
-        let kf = k.max(1) as f64;
         for o in 0..3 {
             let st = &stages[o];
-            let ao = a[o];
+            let (ao, w) = (a[o], &w[o]);
             let v_start = x[o] + (v[o] - x[o]) * ao;
-            let v_end = x[o] + (v[o] - x[o]) * ao.powi(n.max(0));
+            let v_end = x[o] + (v[o] - x[o]) * w.a_n;
             if st.clip(v_start) != v_start || st.clip(v_end) != v_end {
                 clipped[f] |= 1 << o;
             }
             // Zero for an empty window (1 − a⁰ = 0) and for a pole too fast to remember (a = 0).
-            let transient =
-                (v[o] - x[o]) * ao.powi(k0 + 1) * (1.0 - ao.powi(k as i32)) / ((1.0 - ao) * kf);
+            let transient = (v[o] - x[o]) * w.a_k0 * w.one_minus_a_k / w.transient_den;
             let mean = st.clip(x[o] + transient);
             v[o] = v_end;
             if k == 0 {
@@ -466,17 +477,14 @@ pub fn record_frames(
                 MONITOR_PLUS => ([shot[0], 0.0, amp], [z[0], z[1], z[3]]),
                 _ => ([0.0, shot[1], amp], [z[0], z[1], z[4]]),
             };
-            // Stationary per-sample variance of one unit-density source through the pole.
-            let unit_var = st.gain_v_per_a.powi(2) * st.noise_bandwidth_hz();
-            let mean_scale = (unit_var * ar1_sum_variance(ao, k)).sqrt() / kf;
-            let det_noise: f64 = (0..3).map(|s| sources[s] * draws[s]).sum::<f64>() * mean_scale;
+            let det_noise: f64 = (0..3).map(|s| sources[s] * draws[s]).sum::<f64>() * w.mean_scale;
             let sample_var =
-                unit_var * sources.iter().map(|s| s * s).sum::<f64>() + ch.noise_v_rms.powi(2);
-            let mut value = mean + det_noise + ch.noise_v_rms / kf.sqrt() * z[5 + o];
+                unit_var[o] * sources.iter().map(|s| s * s).sum::<f64>() + ch.noise_v_rms.powi(2);
+            let mut value = mean + det_noise + w.scope_scale * z[5 + o];
             let (lo, hi) = ch.window();
             if ch.lsb_v > 0.0 {
                 if sample_var.sqrt() >= 0.5 * ch.lsb_v {
-                    value += ch.lsb_v / (12.0 * kf).sqrt() * z[8 + o];
+                    value += w.adc_scale * z[8 + o];
                 } else {
                     value = ch.digitise(value).0;
                 }
@@ -508,6 +516,41 @@ pub fn record_frames(
         ),
         samples: n_samples,
         trace,
+    }
+}
+
+/// What a frame's settled window (k samples from offset k0 of the frame's n) makes of one
+/// channel's pole (a per sample) and noise: the factors the frame loop of [`record_frames`]
+/// multiplies by, each the expression it evaluated per frame before, so the record is the same
+/// bit for bit. `unit_var` is the stationary per-sample variance of one unit-density source
+/// through the pole (V² per A²/Hz).
+#[derive(Debug, Clone, Copy)]
+struct WindowTerms {
+    /// a^n: the frame's end from its start.
+    a_n: f64,
+    /// a^(k0+1), 1 − a^k and (1 − a)·K (K = max(k, 1)): the settled mean's transient.
+    a_k0: f64,
+    one_minus_a_k: f64,
+    transient_den: f64,
+    /// √(unit_var·Σ a^|i−j|)/K: the detector noise of the window's mean per unit draw.
+    mean_scale: f64,
+    /// σ_scope/√K and LSB/√(12K): the oscilloscope's noise and the ADC's rounding in the mean.
+    scope_scale: f64,
+    adc_scale: f64,
+}
+
+impl WindowTerms {
+    fn new(a: f64, unit_var: f64, ch: &Channel, k: usize, k0: i32, n: i32) -> WindowTerms {
+        let kf = k.max(1) as f64;
+        WindowTerms {
+            a_n: a.powi(n.max(0)),
+            a_k0: a.powi(k0 + 1),
+            one_minus_a_k: 1.0 - a.powi(k as i32),
+            transient_den: (1.0 - a) * kf,
+            mean_scale: (unit_var * ar1_sum_variance(a, k)).sqrt() / kf,
+            scope_scale: ch.noise_v_rms / kf.sqrt(),
+            adc_scale: ch.lsb_v / (12.0 * kf).sqrt(),
+        }
     }
 }
 
