@@ -45,6 +45,7 @@ use crate::trace::kernel::{Kernel, ObjectGrid, trace_kernel};
 use crate::transport::Transport;
 
 mod check;
+mod shards;
 
 /// Stream tags of the objects and of the noise.
 const OBJECTS: u64 = 0x0B1E_C750_0000_0001;
@@ -1060,10 +1061,10 @@ pub struct Generated {
 }
 
 /// The seconds of the shards' commits, summed over the shards: making the arrays' files
-/// (encoded, hashed and written as they go, side by side; the rename), rewriting the manifest
-/// (with its fsync), and
-/// how long the sample loops waited for a commit that outlasted the next shard's samples
-/// (with the last shard's whole commit, which nothing overlaps).
+/// (encoded, hashed and written as they go, side by side), rewriting the manifest (with its
+/// fsync), and how long the job waited for shards' writing: between two shards' sample loops
+/// while [`shards::WRITES_IN_FLIGHT`] shards were still being written, and after the last
+/// loop, for the writes that nothing overlaps.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct CommitSeconds {
     pub arrays: f64,
@@ -1145,9 +1146,10 @@ pub fn generate(
     }
     let done: Vec<u64> = manifest.shards.iter().map(|s| s.index).collect();
     let todo: Vec<u64> = (range.0..range.1).filter(|b| !done.contains(b)).collect();
-    let (written, sample_seconds, commits) = make_shards(prep, lock, &mut manifest, &todo, &|b| {
-        progress(b + 1 - range.0, range.1 - range.0)
-    })?;
+    let (written, sample_seconds, commits) =
+        shards::make_shards(prep, lock, &mut manifest, &todo, &|b| {
+            progress(b + 1 - range.0, range.1 - range.0)
+        })?;
     let samples_written = manifest
         .shards
         .iter()
@@ -1162,106 +1164,6 @@ pub fn generate(
         sample_seconds,
         commits,
     })
-}
-
-/// Makes the shards `todo`, in order, into the folder `lock` holds, and commits each (its
-/// entry added to `manifest`, `committed(b)` called). The samples of a shard are computed while
-/// the last one's arrays are encoded, hashed and written (`rayon::join`, so on the threads of
-/// the pool the job runs in, as the encoding and hashing of the arrays within a shard): the
-/// writing of a shard used to stand between two parallel sample loops, the serial part that
-/// kept the job from using many cores. Shards are still committed one at a time, in index
-/// order, each by a rename followed by the manifest's rewrite, so the folder and a resume are
-/// the same as without the overlap; at most two shards are in memory. Returns the shards
-/// written, the seconds spent in the sample loops and where the commits' time went.
-fn make_shards(
-    prep: &Prepared,
-    lock: &FolderLock,
-    manifest: &mut Manifest,
-    todo: &[u64],
-    committed: &(dyn Fn(u64) + Sync),
-) -> Result<(u64, f64, CommitSeconds)> {
-    let mut times = CommitSeconds::default();
-    let mut commit = |(b, samples): (u64, Vec<Sample>)| -> Result<()> {
-        let [arrays, manifest_s] = commit_shard(prep, lock, manifest, b, &samples)?;
-        times.arrays += arrays;
-        times.manifest += manifest_s;
-        committed(b);
-        Ok(())
-    };
-    let mut sample_seconds = 0.0;
-    let mut waited = 0.0;
-    let mut pending = None;
-    for &b in todo {
-        let last = pending.take();
-        let both = std::time::Instant::now();
-        let ((samples, seconds), done) = rayon::join(
-            || {
-                let t = std::time::Instant::now();
-                (prep.shard_samples(b), t.elapsed().as_secs_f64())
-            },
-            || last.map(&mut commit).transpose(),
-        );
-        sample_seconds += seconds;
-        // Shard b − 1's error first; with a later shard's error, the earlier shards stay
-        // committed (a resume continues from them).
-        done?;
-        // The join lasts as long as the longer of the two: beyond the samples, it waited.
-        waited += (both.elapsed().as_secs_f64() - seconds).max(0.0);
-        pending = Some((b, samples?));
-    }
-    let last = std::time::Instant::now();
-    pending.map(&mut commit).transpose()?;
-    times.waited = waited + last.elapsed().as_secs_f64();
-    Ok((todo.len() as u64, sample_seconds, times))
-}
-
-/// Writes shard b of `samples` in a staging folder, commits it by rename and rewrites the
-/// manifest with its entry. Returns the seconds spent making the files (encoding, hashing,
-/// writing, the rename) and rewriting the manifest.
-fn commit_shard(
-    prep: &Prepared,
-    lock: &FolderLock,
-    manifest: &mut Manifest,
-    b: u64,
-    samples: &[Sample],
-) -> Result<[f64; 2]> {
-    let t0 = std::time::Instant::now();
-    let dir = lock.dir();
-    let name = shard_dir_name(b);
-    let staging = dir.join(format!(".{name}.partial"));
-    let _ = std::fs::remove_dir_all(&staging);
-    lock.staging(Some(&staging));
-    std::fs::create_dir_all(&staging).map_err(|e| Error::write(&staging, e))?;
-    // The arrays side by side (a shard of the scaling spec is ~30 MB in 13 files), each
-    // encoded, hashed and written as it goes: on many threads the commit of shard b − 1 must
-    // end within shard b's sample loop.
-    let files = prep
-        .schema()
-        .into_par_iter()
-        .map(|a| {
-            let file = format!("{}.npy", a.name);
-            let sha256 = prep.write_array(&staging.join(&file), &a, b, samples)?;
-            Ok(FileHash {
-                name: a.name,
-                file,
-                sha256,
-            })
-        })
-        .collect::<Result<Vec<_>>>()?;
-    let final_dir = dir.join(&name);
-    std::fs::rename(&staging, &final_dir).map_err(|e| Error::write(&final_dir, e))?;
-    lock.staging(None);
-    let written = t0.elapsed().as_secs_f64();
-    let first = b * prep.spec.file.shard_samples;
-    manifest.shards.push(ShardEntry {
-        index: b,
-        first_sample: first,
-        samples: samples.len() as u64,
-        dir: name,
-        files,
-    });
-    write_manifest(dir, manifest)?;
-    Ok([written, t0.elapsed().as_secs_f64() - written])
 }
 
 /// Merges dataset folders (each one job's shards) into `out`: the same spec, bench and seed in

@@ -45,8 +45,9 @@ static LIVE: Mutex<Vec<Live>> = Mutex::new(Vec::new());
 #[derive(Debug)]
 struct Live {
     id: u64,
-    /// The staging folder (none for a [`FolderLock`] between two staged shards).
-    staging: Option<PathBuf>,
+    /// The staging folders (one for an [`OutputDir`]; a [`FolderLock`]'s shards being written,
+    /// none between them).
+    staging: Vec<PathBuf>,
     lock_file: PathBuf,
 }
 
@@ -75,7 +76,7 @@ pub fn install_signal_cleanup() {
                     if let Some(sig) = signals.forever().next() {
                         let entries = live();
                         for e in entries.iter() {
-                            if let Some(s) = &e.staging {
+                            for s in &e.staging {
                                 let _ = std::fs::remove_dir_all(s);
                             }
                             let _ = std::fs::remove_file(&e.lock_file);
@@ -172,7 +173,7 @@ impl OutputDir {
                 Ok(()) => {
                     live_entries.push(Live {
                         id,
-                        staging: Some(staging.clone()),
+                        staging: vec![staging.clone()],
                         lock_file: lock.path.clone(),
                     });
                     return Ok(OutputDir {
@@ -430,7 +431,7 @@ impl Destination {
 /// (a dataset, which is resumable shard by shard): the same lock file as
 /// [`OutputDir::create`] takes, so that no two runs of any command write one folder at once.
 /// The folder's parents are created; the folder itself is left to the caller. While a piece
-/// of the folder is staged ([`FolderLock::staging`]), SIGINT and SIGTERM remove that piece
+/// of the folder is staged ([`FolderLock::stage`]), SIGINT and SIGTERM remove that piece
 /// and the lock file; dropping the lock removes the lock file.
 #[derive(Debug)]
 pub struct FolderLock {
@@ -465,7 +466,7 @@ impl FolderLock {
         let id = COUNTER.fetch_add(1, Ordering::Relaxed);
         live().push(Live {
             id,
-            staging: None,
+            staging: Vec::new(),
             lock_file: lock.path.clone(),
         });
         Ok(FolderLock {
@@ -481,11 +482,18 @@ impl FolderLock {
         &self.dir
     }
 
-    /// Marks `staging` (a folder being filled, to be renamed into place) as the piece a signal
-    /// removes, or none.
-    pub fn staging(&self, staging: Option<&Path>) {
+    /// Marks `staging` (a folder being filled, to be renamed into place) as a piece a signal
+    /// removes; several may be staged at once.
+    pub fn stage(&self, staging: &Path) {
         for e in live().iter_mut().filter(|e| e.id == self.id) {
-            e.staging = staging.map(Path::to_path_buf);
+            e.staging.push(staging.to_path_buf());
+        }
+    }
+
+    /// Unmarks `staging` (renamed into place, or removed).
+    pub fn unstage(&self, staging: &Path) {
+        for e in live().iter_mut().filter(|e| e.id == self.id) {
+            e.staging.retain(|s| s != staging);
         }
     }
 }
@@ -662,7 +670,7 @@ fn pid_in(name: &str, prefix: &str) -> Option<u32> {
 /// is stale too (left by an earlier process with the same id).
 fn is_dead(pid: u32, path: &Path) -> bool {
     if pid == std::process::id() {
-        return !live().iter().any(|e| e.staging.as_deref() == Some(path));
+        return !live().iter().any(|e| e.staging.iter().any(|s| s == path));
     }
     Path::new("/proc/self").exists() && !Path::new("/proc").join(pid.to_string()).exists()
 }
@@ -1015,13 +1023,25 @@ mod tests {
         );
         let e = OutputDir::create(&fin).unwrap_err();
         assert!(e.to_string().contains("another spibench run"), "{e}");
-        lock.staging(Some(&fin.join(".shard_000000.partial")));
-        assert!(
+        // Two shards staged at once, unstaged in either order.
+        let (s0, s1) = (
+            fin.join(".shard_000000.partial"),
+            fin.join(".shard_000001.partial"),
+        );
+        lock.stage(&s0);
+        lock.stage(&s1);
+        let staged = || {
             live()
                 .iter()
-                .any(|e| e.staging.is_some() && e.id == lock.id)
-        );
-        lock.staging(None);
+                .filter(|e| e.id == lock.id)
+                .flat_map(|e| e.staging.clone())
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(staged(), [s0.clone(), s1.clone()]);
+        lock.unstage(&s1);
+        assert_eq!(staged(), std::slice::from_ref(&s0));
+        lock.unstage(&s0);
+        assert!(staged().is_empty());
         drop(lock);
         // The parent it made goes again with the lock file.
         assert!(!root.join("deeper").exists());
