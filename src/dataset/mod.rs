@@ -1063,8 +1063,8 @@ pub struct Generated {
 /// The seconds of the shards' commits, summed over the shards: making the arrays' files
 /// (encoded, hashed and written as they go, side by side), rewriting the manifest (with its
 /// fsync), and how long the job waited for shards' writing: between two shards' sample loops
-/// while [`shards::WRITES_IN_FLIGHT`] shards were still being written, and after the last
-/// loop, for the writes that nothing overlaps.
+/// while as many shards as may be written at once (three) were still being written, and after
+/// the last loop, for the writes that nothing overlaps.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct CommitSeconds {
     pub arrays: f64,
