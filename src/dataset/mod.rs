@@ -22,7 +22,9 @@
 //! A shard is written in a staging folder `.shard_NNNNNN.partial` and committed by rename; the
 //! manifest is rewritten (through a temporary name and a rename) after each commit. Killed at
 //! any point, a `--resume` finds the committed shards in the manifest, checks their checksums,
-//! removes staging leftovers and shards the manifest does not list, and continues.
+//! removes staging leftovers and shards the manifest does not list, and continues; a folder
+//! stopped before its first manifest (only setup files in it) is started afresh. SIGINT and
+//! SIGTERM remove the shards being written and any temporary copy of a setup file or manifest.
 
 use std::path::{Path, PathBuf};
 
@@ -958,9 +960,49 @@ fn shard_dir_name(b: u64) -> String {
 }
 
 fn write_manifest(dir: &Path, m: &Manifest) -> Result<()> {
-    let text = serde_json::to_string_pretty(m)
-        .map_err(|e| Error::input(format!("cannot write the manifest: {e}")))?;
-    crate::report::npy::write_atomic(&dir.join("manifest.json"), text.as_bytes())
+    crate::report::npy::write_atomic(&dir.join("manifest.json"), manifest_text(m)?.as_bytes())
+}
+
+fn manifest_text(m: &Manifest) -> Result<String> {
+    serde_json::to_string_pretty(m)
+        .map_err(|e| Error::input(format!("cannot write the manifest: {e}")))
+}
+
+/// Writes `name` in the dataset folder `lock` holds, atomically, its temporary copy staged so
+/// that SIGINT or SIGTERM removes it.
+fn write_locked(lock: &FolderLock, name: &str, bytes: &[u8]) -> Result<()> {
+    let path = lock.dir().join(name);
+    let tmp = crate::report::npy::atomic_temp(&path);
+    lock.stage(&tmp);
+    let written = crate::report::npy::write_atomic(&path, bytes);
+    lock.unstage(&tmp);
+    written
+}
+
+/// The files a dataset folder gets before its first manifest, in the order they are written.
+const SETUP_FILES: [&str; 5] = [
+    "spec.ron",
+    "bench.ron",
+    "tolerances.ron",
+    "patterns.npy",
+    "manifest.json",
+];
+
+/// True when the folder `dir` holds nothing but a fresh run's setup files (complete or
+/// temporary) and lock files: a run stopped before its first manifest, which a resume starts
+/// afresh.
+fn only_setup_files(dir: &Path) -> bool {
+    let setup = |n: &str| {
+        SETUP_FILES
+            .iter()
+            .any(|f| n == *f || n == format!("{f}.partial"))
+    };
+    dir.read_dir().is_ok_and(|d| {
+        d.flatten().all(|e| {
+            let n = e.file_name().to_string_lossy().to_string();
+            n.starts_with(".spibench-") || (setup(&n) && e.file_type().is_ok_and(|t| t.is_file()))
+        })
+    })
 }
 
 /// Reads a dataset folder's manifest. It is untrusted (another tool or person may have edited
@@ -1023,15 +1065,7 @@ fn remove_leftovers(dir: &Path, manifest: &Manifest) -> Result<()> {
             .is_some_and(is_shard);
         let unlisted = is_shard(&name) && !manifest.shards.iter().any(|s| s.dir == name);
         // `write_atomic`'s temporary copies of the folder's own files.
-        let temporary = [
-            "manifest.json",
-            "spec.ron",
-            "bench.ron",
-            "tolerances.ron",
-            "patterns.npy",
-        ]
-        .iter()
-        .any(|f| name == format!("{f}.partial"));
+        let temporary = SETUP_FILES.iter().any(|f| name == format!("{f}.partial"));
         if !(staging || unlisted || temporary) {
             continue;
         }
@@ -1125,7 +1159,21 @@ pub fn generate(
             d.flatten()
                 .any(|e| !e.file_name().to_string_lossy().starts_with(".spibench-"))
         };
-        if exists || dir.read_dir().is_ok_and(content) {
+        let restart = resume && !exists && only_setup_files(dir);
+        if restart {
+            // Stopped before its first manifest: nothing of it to keep.
+            for f in SETUP_FILES
+                .iter()
+                .flat_map(|f| [f.to_string(), format!("{f}.partial")])
+            {
+                match std::fs::remove_file(dir.join(&f)) {
+                    Err(e) if e.kind() != std::io::ErrorKind::NotFound => {
+                        return Err(Error::write(&dir.join(&f), e));
+                    }
+                    _ => {}
+                }
+            }
+        } else if exists || dir.read_dir().is_ok_and(content) {
             return Err(Error::input(
                 "the output folder exists and is not empty: choose another, or continue it \
                  with --resume",
@@ -1134,15 +1182,15 @@ pub fn generate(
         }
         std::fs::create_dir_all(dir).map_err(|e| Error::write(dir, e))?;
         manifest = prep.manifest(command, range);
-        crate::report::npy::write_atomic(&dir.join("spec.ron"), prep.spec.text.as_bytes())?;
-        crate::report::npy::write_atomic(&dir.join("bench.ron"), prep.bench_text.as_bytes())?;
+        write_locked(lock, "spec.ron", prep.spec.text.as_bytes())?;
+        write_locked(lock, "bench.ron", prep.bench_text.as_bytes())?;
         if let Some(d) = &prep.drawn {
-            crate::report::npy::write_atomic(&dir.join("tolerances.ron"), d.text.as_bytes())?;
+            write_locked(lock, "tolerances.ron", d.text.as_bytes())?;
         }
         if prep.spec.file.write.patterns {
-            crate::report::npy::write_atomic(&dir.join("patterns.npy"), &prep.packed_patterns())?;
+            write_locked(lock, "patterns.npy", &prep.packed_patterns())?;
         }
-        write_manifest(dir, &manifest)?;
+        write_locked(lock, "manifest.json", manifest_text(&manifest)?.as_bytes())?;
     }
     let done: Vec<u64> = manifest.shards.iter().map(|s| s.index).collect();
     let todo: Vec<u64> = (range.0..range.1).filter(|b| !done.contains(b)).collect();

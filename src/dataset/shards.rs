@@ -17,7 +17,8 @@ use std::time::{Duration, Instant};
 use rayon::prelude::*;
 
 use super::{
-    CommitSeconds, FileHash, Manifest, Prepared, Sample, ShardEntry, shard_dir_name, write_manifest,
+    CommitSeconds, FileHash, Manifest, Prepared, Sample, ShardEntry, manifest_text, shard_dir_name,
+    write_locked,
 };
 use crate::error::{Error, Result};
 use crate::report::output::FolderLock;
@@ -284,7 +285,7 @@ fn commit_written(
         dir: name,
         files: w.files,
     });
-    write_manifest(dir, manifest)?;
+    write_locked(lock, "manifest.json", manifest_text(manifest)?.as_bytes())?;
     Ok(t.elapsed().as_secs_f64())
 }
 

@@ -163,12 +163,17 @@ pub fn encode_u8(shape: &[usize], data: &[u8]) -> Vec<u8> {
     out
 }
 
-/// Writes bytes to a file through a temporary name, so that a failed run leaves nothing half written.
-pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    let tmp = path.with_extension(format!(
+/// The temporary name [`write_atomic`] writes `path` under before renaming it: `NAME.EXT.partial`.
+pub fn atomic_temp(path: &Path) -> std::path::PathBuf {
+    path.with_extension(format!(
         "{}.partial",
         path.extension().and_then(|e| e.to_str()).unwrap_or("")
-    ));
+    ))
+}
+
+/// Writes bytes to a file through a temporary name, so that a failed run leaves nothing half written.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+    let tmp = atomic_temp(path);
     let res = (|| {
         let mut f = std::fs::File::create(&tmp)?;
         f.write_all(bytes)?;

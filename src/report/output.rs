@@ -77,7 +77,9 @@ pub fn install_signal_cleanup() {
                         let entries = live();
                         for e in entries.iter() {
                             for s in &e.staging {
-                                let _ = std::fs::remove_dir_all(s);
+                                // A staged folder, or a file being written in place.
+                                let _ =
+                                    std::fs::remove_dir_all(s).or_else(|_| std::fs::remove_file(s));
                             }
                             let _ = std::fs::remove_file(&e.lock_file);
                         }
@@ -482,8 +484,8 @@ impl FolderLock {
         &self.dir
     }
 
-    /// Marks `staging` (a folder being filled, to be renamed into place) as a piece a signal
-    /// removes; several may be staged at once.
+    /// Marks `staging` (a folder being filled, or a temporary file being written, to be renamed
+    /// into place) as a piece a signal removes; several may be staged at once.
     pub fn stage(&self, staging: &Path) {
         for e in live().iter_mut().filter(|e| e.id == self.id) {
             e.staging.push(staging.to_path_buf());

@@ -198,6 +198,84 @@ fn killed_run_resumes_to_the_same_samples() {
     assert!(names.iter().all(|n| !n.contains("partial")), "{names:?}");
 }
 
+/// SIGTERM while the folder is set up (its first files and manifest) or while shards are being
+/// written (up to three at once, each in its own staging folder) leaves no temporary file or
+/// staging folder and no lock file, exits with 143, and `--resume` makes the bytes of an
+/// uninterrupted run (from the committed shards, or afresh when no manifest was written). A run
+/// that ends before the signal arrives must leave the same.
+#[cfg(unix)]
+#[test]
+fn sigterm_while_setting_up_or_writing_shards_leaves_a_resumable_folder() {
+    let t = TempDir::new("dataset-sigterm");
+    let spec = write_spec(
+        &t.0,
+        &[
+            ("samples: 10", "samples: 160"),
+            ("shard_samples: 3", "shard_samples: 4"),
+        ],
+    );
+    let s = spec.to_str().unwrap();
+    let one = t.join("one");
+    ok(&spibench(
+        &["dataset", s, "--out", one.to_str().unwrap()],
+        &[],
+    ));
+    let names = |d: &Path| -> Vec<String> {
+        std::fs::read_dir(d)
+            .map(|r| {
+                r.flatten()
+                    .map(|e| e.file_name().to_string_lossy().to_string())
+                    .collect()
+            })
+            .unwrap_or_default()
+    };
+    let setup = |n: &str| n.ends_with(".partial") && !n.starts_with(".shard_");
+    let shard = |n: &str| n.starts_with(".shard_");
+    for (when, staged) in [
+        ("setup", &setup as &dyn Fn(&str) -> bool),
+        ("shards", &shard),
+    ] {
+        let out = t.join(when);
+        let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_spibench"))
+            .args(["dataset", s, "--out", out.to_str().unwrap()])
+            .stderr(std::process::Stdio::null())
+            .stdout(std::process::Stdio::null())
+            .spawn()
+            .unwrap();
+        // Signal once such a piece is staged (or the run has ended).
+        let start = std::time::Instant::now();
+        while start.elapsed() < std::time::Duration::from_secs(60)
+            && !names(&out).iter().any(|n| staged(n))
+            && child.try_wait().unwrap().is_none()
+        {
+            std::thread::sleep(std::time::Duration::from_millis(1));
+        }
+        let killed = std::process::Command::new("kill")
+            .args(["-TERM", &child.id().to_string()])
+            .status()
+            .unwrap();
+        let status = child.wait().unwrap();
+        if killed.success() && !status.success() {
+            assert_eq!(status.code(), Some(143), "{when}");
+        }
+        let left = names(&out);
+        assert!(
+            left.iter().all(|n| !n.contains("partial")),
+            "{when}: {left:?}"
+        );
+        assert!(
+            names(&t.0).iter().all(|n| !n.contains("spibench-lock")),
+            "{when}: {:?}",
+            names(&t.0)
+        );
+        ok(&spibench(
+            &["dataset", s, "--out", out.to_str().unwrap(), "--resume"],
+            &[],
+        ));
+        assert_eq!(shard_files(&one), shard_files(&out), "{when}");
+    }
+}
+
 #[test]
 fn bad_specs_are_located_input_errors() {
     let t = TempDir::new("dataset-bad");
