@@ -20,7 +20,8 @@
 # slower clock rather than idle threads); `out%`, the share of the dataset command's
 # own time spent outside its parallel sample loops (printed by binaries that report it, else
 # "-"), and below a dataset row where its shards' writing went (the arrays' files, the
-# manifest, and how long the sample loops waited for it); `same`, whether the outputs equal the first run's
+# manifest, how long the sample loops waited for it, and by how long they outlasted their last
+# samples: a loop's thread held by other work such as a file's writing); `same`, whether the outputs equal the first run's
 # of that binary byte for byte (the dataset's arrays, and its manifest less the command line)
 # and, for binaries after the first, whether the dataset's arrays equal b1's. Exit status 1 if any output differs. A run's output
 # folder is removed once compared (only each binary's first is kept), so that a large dataset

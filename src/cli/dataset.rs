@@ -139,10 +139,11 @@ pub fn run(args: &DatasetArgs) -> anyhow::Result<()> {
     let c = &g.commits;
     crate::note!(
         "shard writing: arrays {:.2} s (encoded, hashed and written), manifest {:.2} s; the \
-         sample loops waited {:.2} s for it",
+         sample loops waited {:.2} s for it, and outlasted their last samples by {:.3} s",
         c.arrays,
         c.manifest,
-        c.waited
+        c.waited,
+        c.held
     );
     // Reference values for readers (the CI's numpy check reads this line).
     if range.0 < range.1 {

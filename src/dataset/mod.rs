@@ -800,6 +800,15 @@ impl Prepared {
     /// The samples of shard b, computed in parallel (the drawn benches they see traced first,
     /// each once, in index order; a kernel trace is itself parallel).
     pub fn shard_samples(&self, b: u64) -> Result<Vec<Sample>> {
+        self.shard_samples_timed(b).map(|(v, _)| v)
+    }
+
+    /// [`Prepared::shard_samples`], with the seconds by which the parallel loop outlasted its
+    /// last sample. A thread of the pool that waits for its part of the loop runs any pending
+    /// work of the pool meanwhile, a shard's file writing included, and the loop ends only
+    /// when that thread is back: this measures what such work holds the loop up (the tail
+    /// between its end and the end of its last sample).
+    pub fn shard_samples_timed(&self, b: u64) -> Result<(Vec<Sample>, f64)> {
         let f = &self.spec.file;
         let first = b * f.shard_samples;
         let end = (first + f.shard_samples).min(f.samples);
@@ -810,13 +819,21 @@ impl Prepared {
                 .collect::<Result<_>>()?,
             None => Vec::new(),
         };
-        (first..end)
+        let start = std::time::Instant::now();
+        // The latest end of a sample, in nanoseconds since `start` (one atomic store a sample).
+        let last_end = std::sync::atomic::AtomicU64::new(0);
+        let samples = (first..end)
             .into_par_iter()
             .map(|s| {
                 let bench = benches.get((self.bench_index(s) - t0) as usize);
-                self.sample_on(s, bench)
+                let v = self.sample_on(s, bench);
+                let ns = u64::try_from(start.elapsed().as_nanos()).unwrap_or(u64::MAX);
+                last_end.fetch_max(ns, std::sync::atomic::Ordering::Relaxed);
+                v
             })
-            .collect()
+            .collect::<Result<Vec<_>>>()?;
+        let last = std::time::Duration::from_nanos(last_end.into_inner());
+        Ok((samples, start.elapsed().saturating_sub(last).as_secs_f64()))
     }
 
     /// The values of array `name` of the shard whose first sample is `first`, made of its
@@ -1104,6 +1121,10 @@ pub struct CommitSeconds {
     pub arrays: f64,
     pub manifest: f64,
     pub waited: f64,
+    /// How long the sample loops outlasted their last samples, summed: a thread of the loop
+    /// held by other work of the pool (a write) when the loop's samples were done
+    /// ([`Prepared::shard_samples_timed`]).
+    pub held: f64,
 }
 
 /// Makes (or, with `resume`, continues) the shards `range` of a dataset in the folder `lock`

@@ -53,7 +53,7 @@ pub(super) fn make_shards(
     todo: &[u64],
     committed: &(dyn Fn(u64) + Sync),
 ) -> Result<(u64, f64, CommitSeconds)> {
-    let (mut sample_seconds, mut waited) = (0.0, 0.0);
+    let (mut sample_seconds, mut waited, mut held) = (0.0, 0.0, 0.0);
     // A write's end, as a wake-up call for a loop waiting for room.
     let (tx, rx) = mpsc::channel::<()>();
     let state = Mutex::new(State {
@@ -82,10 +82,13 @@ pub(super) fn make_shards(
                 break;
             }
             let t = Instant::now();
-            let samples = prep.shard_samples(b);
+            let samples = prep.shard_samples_timed(b);
             sample_seconds += t.elapsed().as_secs_f64();
             let samples = match samples {
-                Ok(v) => v,
+                Ok((v, tail)) => {
+                    held += tail;
+                    v
+                }
                 Err(e) => {
                     locked(shared).order.fail(b, e);
                     break;
@@ -119,7 +122,11 @@ pub(super) fn make_shards(
         None => Ok((
             todo.len() as u64,
             sample_seconds,
-            CommitSeconds { waited, ..times },
+            CommitSeconds {
+                waited,
+                held,
+                ..times
+            },
         )),
     }
 }

@@ -27,6 +27,35 @@ fn ok(o: &std::process::Output) {
 }
 
 /// Every shard file of a dataset folder, by relative path.
+/// The stderr line on the shards' writing gives four durations (arrays, manifest, waits, the
+/// loops' tails past their last samples), each a time of this run: finite, not negative, the
+/// tails no longer than the run (the summary line's seconds).
+fn writing_figures_are_times_within_the_run(o: &std::process::Output) {
+    let seconds = |line: &str| -> Vec<f64> {
+        line.split_whitespace()
+            .zip(line.split_whitespace().skip(1))
+            .filter(|(_, unit)| unit.trim_end_matches([',', ';', ')']) == "s")
+            .map(|(v, _)| v.parse::<f64>().unwrap_or(f64::NAN))
+            .collect()
+    };
+    let err = stderr(o);
+    let line = err
+        .lines()
+        .find(|l| l.starts_with("shard writing:"))
+        .unwrap_or_else(|| panic!("no shard writing line: {err}"));
+    assert!(line.contains("outlasted their last samples by"), "{line}");
+    let w = seconds(line);
+    assert_eq!(w.len(), 4, "{line}");
+    assert!(w.iter().all(|v| v.is_finite() && *v >= 0.0), "{line}");
+    let out = String::from_utf8_lossy(&o.stdout);
+    let summary = out
+        .lines()
+        .find(|l| l.contains("outside the sample loops"))
+        .unwrap_or_else(|| panic!("no summary line: {out}"));
+    let total = *seconds(summary).last().unwrap();
+    assert!(total > 0.0 && w[3] <= total, "{line} / {summary}");
+}
+
 fn shard_files(dir: &Path) -> Vec<(String, Vec<u8>)> {
     let mut v = Vec::new();
     for e in std::fs::read_dir(dir).unwrap().flatten() {
@@ -50,10 +79,9 @@ fn shards_in_separate_processes_merge_bit_identically() {
     let spec = write_spec(&t.0, &[]);
     let s = spec.to_str().unwrap();
     let one = t.join("one");
-    ok(&spibench(
-        &["dataset", s, "--out", one.to_str().unwrap()],
-        &[],
-    ));
+    let o = spibench(&["dataset", s, "--out", one.to_str().unwrap()], &[]);
+    ok(&o);
+    writing_figures_are_times_within_the_run(&o);
     let jobs: Vec<PathBuf> = (0..3).map(|i| t.join(&format!("job{i}"))).collect();
     let children: Vec<_> = jobs
         .iter()
