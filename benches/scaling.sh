@@ -1,15 +1,16 @@
 #!/usr/bin/env bash
-# Thread scaling of the two parallel jobs on the machine it runs on: a trace of RAYS lamp rays
-# and a dataset of SAMPLES 96 × 96 objects (3 schemes × 3 ratios, a kernel of 200 000 rays),
-# each at 1, 2, 4, … threads up to the core count; wall time of the whole command (kernel trace,
-# setup and writing included). Runs unattended and prints one compact table.
+# Thread scaling of the parallel jobs on the machine it runs on: a trace of RAYS lamp rays, a
+# dataset of SAMPLES 96 × 96 objects (3 schemes × 3 ratios, a kernel of 200 000 rays) and, with
+# JOBS=run, the default `spibench run` (rate column: runs per second), each at 1, 2, 4, …
+# threads up to the core count; wall time of the whole command (kernel trace, setup and writing
+# included). Runs unattended and prints one compact table.
 #
 #   benches/scaling.sh [BIN …]          (default: target/release/spibench)
 #
 # Several binaries (say the commit before a change and after it) run in turn on the same machine,
 # so their figures compare; each is labelled by its position (b1, b2, …) and listed first.
 # Environment: OUT (work folder, default /tmp/spibench-scaling, emptied first), SAMPLES (4000),
-# RAYS (4000000), THREADS (default "1 2 4 … cores"), JOBS ("trace dataset"; either alone, or
+# RAYS (4000000), THREADS (default "1 2 4 … cores"), JOBS ("trace dataset"; either alone, "run", or
 # "processes" and "dataset-processes" for the machine's own ceiling, below), PROCESS_RAYS
 # (1000000).
 #
@@ -99,7 +100,12 @@ for job in $jobs; do
                 n=$samples
                 cmd=("$bin" dataset "$out/spec.ron" --threads "$t" --out "$dir")
                 ;;
-            *) echo "scaling: unknown job $job (JOBS: trace, dataset, processes)" >&2; exit 2 ;;
+            run)
+                # The default run (the paper's bench, every scheme and ratio): one job a row.
+                n=1
+                cmd=("$bin" run --threads "$t" --out "$dir" -q)
+                ;;
+            *) echo "scaling: unknown job $job (JOBS: trace, dataset, run, processes, dataset-processes)" >&2; exit 2 ;;
             esac
             s=$(now)
             # bash's `time` keyword: the child's user and system CPU seconds, on any machine.
@@ -119,6 +125,10 @@ for job in $jobs; do
             first="$out/$job-$tag-${threads[0]}"
             if [ "$job" = trace ]; then
                 cmp -s "$first/maps.exr" "$dir/maps.exr" || same=DIFFERS
+            elif [ "$job" = run ]; then
+                # Everything but the provenance (summary.json) and the stage times.
+                diff -rq -x summary.json -x timings.json -x report.html "$first" "$dir" >/dev/null ||
+                    same=DIFFERS
             else
                 diff -rq -x manifest.json "$first" "$dir" >/dev/null || same=DIFFERS
                 if [ "$have_python" = 1 ] && [ "$same" = ok ] &&
