@@ -149,6 +149,9 @@ pub fn run(exp: &Experiment, progress: &(dyn Fn(usize, usize) + Sync)) -> Result
             progress(d, total);
             out
         })
+        .collect::<Vec<Result<_>>>()
+        .into_iter()
+        // The first failing cell's error in index order, on any thread count.
         .collect::<Result<_>>()?;
     let (cells, reconstructions) = results.into_iter().unzip();
     Ok(SimulationOutput {

@@ -336,6 +336,9 @@ fn write_outputs(
                     write_unit_map(&map, &dir.path(&svg), &dir.path(&png))?;
                     Ok([svg, png, format!("{stem}.pdf")])
                 })
+                .collect::<Vec<Result<_>>>()
+                .into_iter()
+                // The first failing map's error in order, on any thread count.
                 .collect::<Result<Vec<_>>>()
         },
     );

@@ -831,6 +831,9 @@ impl Prepared {
                 last_end.fetch_max(ns, std::sync::atomic::Ordering::Relaxed);
                 v
             })
+            .collect::<Vec<Result<Sample>>>()
+            .into_iter()
+            // The first failing sample's error in index order, on any thread count.
             .collect::<Result<Vec<_>>>()?;
         let last = std::time::Duration::from_nanos(last_end.into_inner());
         Ok((samples, start.elapsed().saturating_sub(last).as_secs_f64()))

@@ -252,6 +252,9 @@ fn write_shard(prep: &Prepared, lock: &FolderLock, b: u64, samples: &[Sample]) -
                         sha256,
                     })
                 })
+                .collect::<Vec<Result<FileHash>>>()
+                .into_iter()
+                // The first failing array's error in schema order, on any thread count.
                 .collect::<Result<Vec<_>>>()
         });
     match files {

@@ -429,7 +429,9 @@ fn dot(a: &[f64], b: &[f64]) -> f64 {
     a.iter().zip(b).map(|(x, y)| x * y).sum()
 }
 
-/// `f` on each chunk of `n` values of `v`, in parallel, concatenated in order.
+/// `f` on each chunk of `n` values of `v`, in parallel, concatenated in order; the error of the
+/// first failing chunk in order (rayon's collect into a `Result` returns whichever error a
+/// thread met first, so a message could change with the thread count).
 fn batch(
     v: &[f64],
     n: usize,
@@ -441,7 +443,8 @@ fn batch(
             format!("{} values are not a whole number of items of {n}", v.len()),
         ));
     }
-    let parts: Vec<Vec<f64>> = v.par_chunks(n).map(f).collect::<Result<_>>()?;
+    let parts: Vec<Result<Vec<f64>>> = v.par_chunks(n).map(f).collect();
+    let parts = parts.into_iter().collect::<Result<Vec<_>>>()?;
     Ok(parts.concat())
 }
 

@@ -263,5 +263,8 @@ pub fn solve_stage(
             progress(Stage::Solve, d, total as u64);
             Ok(out)
         })
+        .collect::<Vec<Result<_>>>()
+        .into_iter()
+        // The first failing cell's error in index order, on any thread count.
         .collect()
 }

@@ -129,3 +129,31 @@ fn bad_sizes_and_values_are_named() {
     .to_string();
     assert!(e.contains("nope"), "{e}");
 }
+
+#[test]
+fn a_batch_reports_its_first_failing_item_on_any_thread_count() {
+    // Items 2 and 5 of 8 fail; item 5 fails at once and item 2 late, so a collect that keeps
+    // whichever error a thread meets first would often report item 5 on four threads.
+    let v: Vec<f64> = (0..8).map(f64::from).collect();
+    let f = |x: &[f64]| -> Result<Vec<f64>> {
+        match x[0] as usize {
+            2 => {
+                std::thread::sleep(std::time::Duration::from_millis(20));
+                Err(Error::input("item 2"))
+            }
+            5 => Err(Error::input("item 5")),
+            _ => Ok(x.to_vec()),
+        }
+    };
+    for threads in [1, 4] {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        for _ in 0..5 {
+            let e = pool.install(|| batch(&v, 1, f)).unwrap_err();
+            assert!(e.to_string().contains("item 2"), "{threads} threads: {e}");
+        }
+    }
+    assert_eq!(batch(&v[..2], 1, f).unwrap(), [0.0, 1.0]);
+}
