@@ -993,8 +993,9 @@ fn manifest_text(m: &Manifest) -> Result<String> {
 fn write_locked(lock: &FolderLock, name: &str, bytes: &[u8]) -> Result<()> {
     let path = lock.dir().join(name);
     let tmp = crate::report::npy::atomic_temp(&path);
-    lock.stage(&tmp);
-    let written = crate::report::npy::write_atomic(&path, bytes);
+    let written = crate::report::npy::write_atomic_with(&path, bytes, |t| {
+        lock.stage_created(t, |p| std::fs::File::create(p))
+    });
     lock.unstage(&tmp);
     written
 }

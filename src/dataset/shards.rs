@@ -237,8 +237,8 @@ fn write_shard(prep: &Prepared, lock: &FolderLock, b: u64, samples: &[Sample]) -
     let t0 = Instant::now();
     let staging = lock.dir().join(format!(".{}.partial", shard_dir_name(b)));
     let _ = std::fs::remove_dir_all(&staging);
-    lock.stage(&staging);
-    let files = std::fs::create_dir_all(&staging)
+    let files = lock
+        .stage_created(&staging, |p| std::fs::create_dir_all(p))
         .map_err(|e| Error::write(&staging, e))
         .and_then(|()| {
             prep.schema()

@@ -173,9 +173,18 @@ pub fn atomic_temp(path: &Path) -> std::path::PathBuf {
 
 /// Writes bytes to a file through a temporary name, so that a failed run leaves nothing half written.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+    write_atomic_with(path, bytes, |tmp| std::fs::File::create(tmp))
+}
+
+/// [`write_atomic`], the temporary file ([`atomic_temp`]) made by `create`.
+pub fn write_atomic_with(
+    path: &Path,
+    bytes: &[u8],
+    create: impl FnOnce(&Path) -> std::io::Result<std::fs::File>,
+) -> Result<()> {
     let tmp = atomic_temp(path);
     let res = (|| {
-        let mut f = std::fs::File::create(&tmp)?;
+        let mut f = create(&tmp)?;
         f.write_all(bytes)?;
         f.sync_all()?;
         std::fs::rename(&tmp, path)

@@ -74,12 +74,12 @@ pub fn install_signal_cleanup() {
             if let Ok(mut signals) = signal_hook::iterator::Signals::new([SIGINT, SIGTERM]) {
                 std::thread::spawn(move || {
                     if let Some(sig) = signals.forever().next() {
+                        // Held until the exit: nothing is staged and created meanwhile
+                        // (`FolderLock::stage_created`).
                         let entries = live();
                         for e in entries.iter() {
                             for s in &e.staging {
-                                // A staged folder, or a file being written in place.
-                                let _ =
-                                    std::fs::remove_dir_all(s).or_else(|_| std::fs::remove_file(s));
+                                remove_staged(s);
                             }
                             let _ = std::fs::remove_file(&e.lock_file);
                         }
@@ -89,6 +89,21 @@ pub fn install_signal_cleanup() {
             }
         }
     });
+}
+
+/// Removes a staged folder or file. Other threads may still be writing files into a staged
+/// folder (a dataset's shard), so a removal can meet a file created after it listed the folder
+/// and fail; it is tried again until the path is gone (a file cannot be created in a folder
+/// that no longer exists), a few hundred milliseconds at most.
+#[cfg(unix)]
+fn remove_staged(s: &Path) {
+    for _ in 0..200 {
+        let _ = std::fs::remove_dir_all(s).or_else(|_| std::fs::remove_file(s));
+        if std::fs::symlink_metadata(s).is_err() {
+            return;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(1));
+    }
 }
 
 /// Where the staging folder lives relative to the destination.
@@ -490,6 +505,24 @@ impl FolderLock {
         for e in live().iter_mut().filter(|e| e.id == self.id) {
             e.staging.push(staging.to_path_buf());
         }
+    }
+
+    /// Creates `path` with `create` (a folder, or a file opened for writing) and marks it staged,
+    /// both while holding the registry that a signal's cleanup holds until the process exits:
+    /// the cleanup either finds the piece created and staged, and removes it, or comes first,
+    /// and then nothing is created after it (with [`FolderLock::stage`] then a creation, a
+    /// signal between the two left the piece behind).
+    pub fn stage_created<T>(
+        &self,
+        path: &Path,
+        create: impl FnOnce(&Path) -> std::io::Result<T>,
+    ) -> std::io::Result<T> {
+        let mut entries = live();
+        let made = create(path)?;
+        for e in entries.iter_mut().filter(|e| e.id == self.id) {
+            e.staging.push(path.to_path_buf());
+        }
+        Ok(made)
     }
 
     /// Unmarks `staging` (renamed into place, or removed).
