@@ -57,6 +57,14 @@ pub enum Error {
 
 pub type Result<T, E = Error> = std::result::Result<T, E>;
 
+/// The results of a parallel loop that can fail (collected into a `Vec` in index order), as
+/// the items, or the first failing item's error in index order, as a sequential loop reports
+/// it. rayon's own `collect::<Result<_>>` keeps whichever error a thread met first, so with two
+/// failing items its message could change with the thread count.
+pub fn in_order<T, E>(results: Vec<std::result::Result<T, E>>) -> std::result::Result<Vec<T>, E> {
+    results.into_iter().collect()
+}
+
 impl Error {
     /// Bad input with no location yet; add it with [`Error::in_file`] and [`Error::at_field`].
     pub fn input(message: impl Into<String>) -> Self {

@@ -139,7 +139,7 @@ pub fn run(exp: &Experiment, progress: &(dyn Fn(usize, usize) + Sync)) -> Result
     );
     let total = n_obj * n_ratio * n_case;
     let done = std::sync::atomic::AtomicUsize::new(0);
-    let results: Vec<(Cell, Raster)> = (0..total)
+    let results: Vec<Result<(Cell, Raster)>> = (0..total)
         .into_par_iter()
         .map(|idx| {
             let (o, rest) = (idx / (n_ratio * n_case), idx % (n_ratio * n_case));
@@ -149,11 +149,8 @@ pub fn run(exp: &Experiment, progress: &(dyn Fn(usize, usize) + Sync)) -> Result
             progress(d, total);
             out
         })
-        .collect::<Vec<Result<_>>>()
-        .into_iter()
-        // The first failing cell's error in index order, on any thread count.
-        .collect::<Result<_>>()?;
-    let (cells, reconstructions) = results.into_iter().unzip();
+        .collect();
+    let (cells, reconstructions) = crate::error::in_order(results)?.into_iter().unzip();
     Ok(SimulationOutput {
         cells,
         reconstructions,

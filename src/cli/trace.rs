@@ -337,14 +337,12 @@ fn write_outputs(
                     Ok([svg, png, format!("{stem}.pdf")])
                 })
                 .collect::<Vec<Result<_>>>()
-                .into_iter()
-                // The first failing map's error in order, on any thread count.
-                .collect::<Result<Vec<_>>>()
         },
     );
     exr?;
     files.push("maps.exr".to_string());
-    files.extend(written?.into_iter().flatten());
+    // The first failing map's error in order, on any thread count.
+    files.extend(crate::error::in_order(written)?.into_iter().flatten());
     if let Some(c) = collections {
         let (plot, opts) = collection_plot(c, bench);
         write_plot_with(

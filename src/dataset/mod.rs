@@ -822,7 +822,7 @@ impl Prepared {
         let start = std::time::Instant::now();
         // The latest end of a sample, in nanoseconds since `start` (one atomic store a sample).
         let last_end = std::sync::atomic::AtomicU64::new(0);
-        let samples = (first..end)
+        let samples: Vec<Result<Sample>> = (first..end)
             .into_par_iter()
             .map(|s| {
                 let bench = benches.get((self.bench_index(s) - t0) as usize);
@@ -831,10 +831,8 @@ impl Prepared {
                 last_end.fetch_max(ns, std::sync::atomic::Ordering::Relaxed);
                 v
             })
-            .collect::<Vec<Result<Sample>>>()
-            .into_iter()
-            // The first failing sample's error in index order, on any thread count.
-            .collect::<Result<Vec<_>>>()?;
+            .collect();
+        let samples = crate::error::in_order(samples)?;
         let last = std::time::Duration::from_nanos(last_end.into_inner());
         Ok((samples, start.elapsed().saturating_sub(last).as_secs_f64()))
     }

@@ -241,7 +241,8 @@ fn write_shard(prep: &Prepared, lock: &FolderLock, b: u64, samples: &[Sample]) -
         .stage_created(&staging, |p| std::fs::create_dir_all(p))
         .map_err(|e| Error::write(&staging, e))
         .and_then(|()| {
-            prep.schema()
+            let files: Vec<Result<FileHash>> = prep
+                .schema()
                 .into_par_iter()
                 .map(|a| {
                     let file = format!("{}.npy", a.name);
@@ -252,10 +253,9 @@ fn write_shard(prep: &Prepared, lock: &FolderLock, b: u64, samples: &[Sample]) -
                         sha256,
                     })
                 })
-                .collect::<Vec<Result<FileHash>>>()
-                .into_iter()
-                // The first failing array's error in schema order, on any thread count.
-                .collect::<Result<Vec<_>>>()
+                .collect();
+            // The first failing array's error in schema order, on any thread count.
+            crate::error::in_order(files)
         });
     match files {
         Ok(files) => Ok(Written {

@@ -430,8 +430,7 @@ fn dot(a: &[f64], b: &[f64]) -> f64 {
 }
 
 /// `f` on each chunk of `n` values of `v`, in parallel, concatenated in order; the error of the
-/// first failing chunk in order (rayon's collect into a `Result` returns whichever error a
-/// thread met first, so a message could change with the thread count).
+/// first failing chunk in order ([`crate::error::in_order`]).
 fn batch(
     v: &[f64],
     n: usize,
@@ -443,8 +442,7 @@ fn batch(
             format!("{} values are not a whole number of items of {n}", v.len()),
         ));
     }
-    let parts: Vec<Result<Vec<f64>>> = v.par_chunks(n).map(f).collect();
-    let parts = parts.into_iter().collect::<Result<Vec<_>>>()?;
+    let parts = crate::error::in_order(v.par_chunks(n).map(f).collect())?;
     Ok(parts.concat())
 }
 

@@ -201,7 +201,7 @@ pub fn solve_stage(
     let total = schemes.len() * n_ratio;
     let done = std::sync::atomic::AtomicU64::new(0);
     progress(Stage::Solve, 0, total as u64);
-    (0..total)
+    let cells: Vec<Result<SchemeResult>> = (0..total)
         .into_par_iter()
         .map(|idx| {
             let scheme = schemes[idx / n_ratio];
@@ -263,8 +263,7 @@ pub fn solve_stage(
             progress(Stage::Solve, d, total as u64);
             Ok(out)
         })
-        .collect::<Vec<Result<_>>>()
-        .into_iter()
-        // The first failing cell's error in index order, on any thread count.
-        .collect()
+        .collect();
+    // The first failing cell's error in index order, on any thread count.
+    crate::error::in_order(cells)
 }

@@ -448,7 +448,7 @@ impl Destination {
 /// (a dataset, which is resumable shard by shard): the same lock file as
 /// [`OutputDir::create`] takes, so that no two runs of any command write one folder at once.
 /// The folder's parents are created; the folder itself is left to the caller. While a piece
-/// of the folder is staged ([`FolderLock::stage`]), SIGINT and SIGTERM remove that piece
+/// of the folder is staged ([`FolderLock::stage_created`]), SIGINT and SIGTERM remove that piece
 /// and the lock file; dropping the lock removes the lock file.
 #[derive(Debug)]
 pub struct FolderLock {
@@ -499,18 +499,11 @@ impl FolderLock {
         &self.dir
     }
 
-    /// Marks `staging` (a folder being filled, or a temporary file being written, to be renamed
-    /// into place) as a piece a signal removes; several may be staged at once.
-    pub fn stage(&self, staging: &Path) {
-        for e in live().iter_mut().filter(|e| e.id == self.id) {
-            e.staging.push(staging.to_path_buf());
-        }
-    }
-
-    /// Creates `path` with `create` (a folder, or a file opened for writing) and marks it staged,
-    /// both while holding the registry that a signal's cleanup holds until the process exits:
-    /// the cleanup either finds the piece created and staged, and removes it, or comes first,
-    /// and then nothing is created after it (with [`FolderLock::stage`] then a creation, a
+    /// Creates `path` with `create` (a folder being filled, or a temporary file being written,
+    /// to be renamed into place) and marks it as a piece a signal removes; several may be staged
+    /// at once. Both happen while holding the registry that a signal's cleanup holds until the
+    /// process exits: the cleanup either finds the piece created and staged, and removes it, or
+    /// comes first, and then nothing is created after it (marking first and creating after, a
     /// signal between the two left the piece behind).
     pub fn stage_created<T>(
         &self,
@@ -1058,13 +1051,14 @@ mod tests {
         );
         let e = OutputDir::create(&fin).unwrap_err();
         assert!(e.to_string().contains("another spibench run"), "{e}");
-        // Two shards staged at once, unstaged in either order.
+        // Two shards staged at once, unstaged in either order (the registry alone: nothing is
+        // created on disk).
         let (s0, s1) = (
             fin.join(".shard_000000.partial"),
             fin.join(".shard_000001.partial"),
         );
-        lock.stage(&s0);
-        lock.stage(&s1);
+        lock.stage_created(&s0, |_| Ok(())).unwrap();
+        lock.stage_created(&s1, |_| Ok(())).unwrap();
         let staged = || {
             live()
                 .iter()
