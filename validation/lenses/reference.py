@@ -454,6 +454,39 @@ def agreement(ref: dict) -> dict:
     return worst
 
 
+def check_agf(path: Path = HERE / "test_catalogue.agf") -> dict:
+    """Read the test catalogue's NM/CD/LD records and check each glass's nd against its NM line
+    (1e-5) and the Sellmeier entries against GLASSES; returns {name: n_d}."""
+    glasses, cur = {}, None
+    for line in path.read_text(encoding="ascii").splitlines():
+        tok = line.split()
+        if not tok:
+            continue
+        if tok[0] == "NM":
+            cur = glasses[tok[1]] = {"formula": int(tok[2]), "nd": float(tok[4])}
+        elif tok[0] == "CD":
+            cur["cd"] = [float(t) for t in tok[1:]]
+        elif tok[0] == "LD":
+            cur["ld"] = (float(tok[1]), float(tok[2]))
+    out = {}
+    for name, g in glasses.items():
+        l2 = 0.5875618 ** 2
+        c = g["cd"]
+        if g["formula"] == 2:  # Sellmeier 1: K1 L1 K2 L2 K3 L3
+            n = math.sqrt(1 + sum(c[2 * i] * l2 / (l2 - c[2 * i + 1]) for i in range(3)))
+            if name in GLASSES:
+                b, cc, rng = GLASSES[name]
+                assert tuple(c[0:6:2]) == b and tuple(c[1:6:2]) == cc, name
+                assert g["ld"] == rng, name
+        elif g["formula"] == 1:  # Schott: A0 + A1 l^2 + A2 l^-2 + A3 l^-4 + A4 l^-6 + A5 l^-8
+            n = math.sqrt(c[0] + c[1] * l2 + sum(c[k] * l2 ** (1 - k) for k in range(2, 6)))
+        else:
+            raise ValueError(f"{name}: formula {g['formula']}")
+        assert abs(n - g["nd"]) < 1e-5, (name, n, g["nd"])
+        out[name] = n
+    return out
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--check", action="store_true",
@@ -462,6 +495,7 @@ def main() -> int:
     warnings.simplefilter("ignore")
     ref = compute()
     ref["agreement"] = agreement(ref)
+    ref["test_catalogue_nd"] = check_agf()
     # Encodings: the same prescription in six encodings must give the same numbers.
     enc = [e for e in ref["entries"] if Path(e["file"]).name.startswith("enc_")]
     for e in enc:
