@@ -20,7 +20,7 @@
 # SPIBENCH_DOCS_QUICK=1 (what CI sets) runs the same commands at small sizes: `run`, `trace`,
 # `sweep`, `tolerance` and `align` get `--rays SPIBENCH_DOCS_RAYS` (default 20000; an existing
 # `--rays` value is replaced, and `--max-rays`, `--start-rays` are lowered to it),
-# `--trials` at most 4, `--repeats` at most 2. The text shows the real command; its numbers
+# `--trials` at most 4 (unless `--trial K` names one trial of the full count), `--repeats` at most 2. The text shows the real command; its numbers
 # are those of the real sizes. SPIBENCH_DOCS_KEEP=DIR keeps the scratch folders in DIR.
 set -euo pipefail
 repo=$(cd "$(dirname "$0")/.." && pwd)
@@ -136,13 +136,18 @@ spibench() {
     if [ -n "$__quick" ]; then
         case "$sub" in
         run | trace | sweep | tolerance | align)
+            # `--trial K` names a trial of the full count: keep that count.
+            local keep_trials=""
+            case " $* " in *" --trial "*) keep_trials=1 ;; esac
             while [ "$#" -gt 0 ]; do
                 a=$1; shift
                 case "$a" in
                 --rays | --max-rays | --start-rays)
                     [ "$a" = --rays ] && rays_seen=1
                     args+=("$a" "$__rays"); shift ;;
-                --trials) args+=("$a" "$(( $1 < 4 ? $1 : 4 ))"); shift ;;
+                --trials)
+                    if [ -n "$keep_trials" ]; then args+=("$a" "$1"); else args+=("$a" "$(( $1 < 4 ? $1 : 4 ))"); fi
+                    shift ;;
                 --repeats) args+=("$a" "$(( $1 < 2 ? $1 : 2 ))"); shift ;;
                 *) args+=("$a") ;;
                 esac
