@@ -68,9 +68,10 @@ for f in files:
         if line.lstrip().startswith("```"):
             fence = not fence
             continue
-        if fence:
+        # Code is not a link: fenced and indented blocks, inline code spans.
+        if fence or line.startswith(("    ", "\t")):
             continue
-        for m in link.finditer(line):
+        for m in link.finditer(re.sub(r"`[^`]*`", "", line)):
             target = m.group(1) or m.group(2)
             if re.match(r"^[a-z][a-z0-9+.-]*:", target) or target.startswith("#"):
                 continue
