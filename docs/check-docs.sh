@@ -18,7 +18,7 @@
 # CI's venv target/ci-python/venv/bin/python when it exists, else python3), which needs numpy.
 #
 # SPIBENCH_DOCS_QUICK=1 (what CI sets) runs the same commands at small sizes: `run`, `trace`,
-# `sweep`, `tolerance` and `align` get `--rays SPIBENCH_DOCS_RAYS` (default 20000; an existing
+# `sweep`, `tolerance` and `align` get `--rays SPIBENCH_DOCS_RAYS` (default 8192; an existing
 # `--rays` value is replaced, and `--max-rays`, `--start-rays` are lowered to it),
 # `--trials` at most 4 (unless `--trial K` names one trial of the full count), `--repeats` at most 2. The text shows the real command; its numbers
 # are those of the real sizes. SPIBENCH_DOCS_KEEP=DIR keeps the scratch folders in DIR.
@@ -126,7 +126,7 @@ set -euo pipefail
 __bin='$bin'
 __py='$py'
 __quick='${SPIBENCH_DOCS_QUICK:-}'
-__rays='${SPIBENCH_DOCS_RAYS:-20000}'
+__rays='${SPIBENCH_DOCS_RAYS:-8192}'
 PRELUDE
     cat <<'PRELUDE'
 __where=start
