@@ -53,8 +53,9 @@ else
 fi
 start=$(date +%s)
 
+status=0
 # Relative links and images: [text](target), ![alt](target) and <img src="target">.
-python3 - "$repo" <<'LINKS'
+python3 - "$repo" <<'LINKS' || status=1
 import pathlib, re, sys
 repo = pathlib.Path(sys.argv[1])
 files = [repo / "README.md", repo / "CONTRIBUTING.md"] + sorted((repo / "docs").rglob("*.md"))
@@ -177,7 +178,6 @@ export -f spibench python3
 PRELUDE
 }
 
-status=0
 for page in "${pages[@]}"; do
     name=$(basename "$page" .md)
     [ "$page" = README.md ] && name=README
