@@ -13,7 +13,8 @@
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
 
-use super::{FORMAT, Manifest, shard_dir_name};
+use super::manifest::shard_dir_name;
+use super::{FORMAT, Manifest};
 use crate::acquisition::{Scheme, Sequence};
 use crate::error::Result;
 use crate::report::untrusted::{Folder, PlainName, bad_field, is_sha256_hex};
