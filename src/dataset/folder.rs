@@ -3,6 +3,10 @@
 
 use std::path::Path;
 
+use super::contract::{
+    BENCH_COPY, MANIFEST, PATTERNS, SETUP_FILES, SPEC_COPY, SampleArray, TOLERANCE_COPY,
+    is_shard_dir, is_shard_staging, temporary,
+};
 use super::manifest::{manifest_text, objects_differ};
 use super::{ArraySchema, Manifest, Prepared, Sample, read_manifest, shards, verify_shard};
 use crate::error::{Error, Result};
@@ -26,14 +30,15 @@ impl Prepared {
         let index = |put: &mut dyn FnMut(&[f64]) -> Result<()>, f: &dyn Fn(u64) -> u64| {
             (first..first + samples.len() as u64).try_for_each(|s| put(&[f(s) as f64]))
         };
-        match name {
-            "sample" => index(put, &|s| s),
-            "object" => rows(put, &|s| &s.object),
-            "k" => rows(put, &|s| &s.k_a_per_w),
-            "b" => rows(put, &|s| &s.b_a),
-            "bench" => index(put, &|s| self.bench_index(s)),
-            "deviations" => rows(put, &|s| &s.deviations),
-            name => {
+        match SampleArray::parse(name) {
+            Some(SampleArray::Sample) => index(put, &|s| s),
+            Some(SampleArray::Object) => rows(put, &|s| &s.object),
+            Some(SampleArray::K) => rows(put, &|s| &s.k_a_per_w),
+            Some(SampleArray::B) => rows(put, &|s| &s.b_a),
+            Some(SampleArray::Bench) => index(put, &|s| self.bench_index(s)),
+            Some(SampleArray::Deviations) => rows(put, &|s| &s.deviations),
+            // The reconstructions' DMD image is one of the optional arrays.
+            Some(SampleArray::DmdImage) | None => {
                 if let Some(i) = self.measurement_names().iter().position(|m| m.0 == name) {
                     rows(put, &|s| &s.measurements[i])
                 } else {
@@ -100,24 +105,11 @@ pub(super) fn write_locked(lock: &FolderLock, name: &str, bytes: &[u8]) -> Resul
     written
 }
 
-/// The files a dataset folder gets before its first manifest, in the order they are written.
-const SETUP_FILES: [&str; 5] = [
-    "spec.ron",
-    "bench.ron",
-    "tolerances.ron",
-    "patterns.npy",
-    "manifest.json",
-];
-
 /// True when the folder `dir` holds nothing but a fresh run's setup files (complete or
 /// temporary) and lock files: a run stopped before its first manifest, which a resume starts
 /// afresh.
 fn only_setup_files(dir: &Path) -> bool {
-    let setup = |n: &str| {
-        SETUP_FILES
-            .iter()
-            .any(|f| n == *f || n == format!("{f}.partial"))
-    };
+    let setup = |n: &str| SETUP_FILES.iter().any(|f| n == *f || n == temporary(f));
     dir.read_dir().is_ok_and(|d| {
         d.flatten().all(|e| {
             let n = e.file_name().to_string_lossy().to_string();
@@ -131,23 +123,16 @@ fn only_setup_files(dir: &Path) -> bool {
 /// entries with exactly these names go; a symbolic link among them is removed itself, never
 /// followed.
 fn remove_leftovers(dir: &Path, manifest: &Manifest) -> Result<()> {
-    let is_shard = |n: &str| {
-        n.strip_prefix("shard_")
-            .is_some_and(|d| d.len() >= 6 && d.bytes().all(|b| b.is_ascii_digit()))
-    };
     for e in std::fs::read_dir(dir)
         .map_err(|e| Error::read(dir, e))?
         .flatten()
     {
         let name = e.file_name().to_string_lossy().to_string();
-        let staging = name
-            .strip_prefix('.')
-            .and_then(|n| n.strip_suffix(".partial"))
-            .is_some_and(is_shard);
-        let unlisted = is_shard(&name) && !manifest.shards.iter().any(|s| s.dir == name);
+        let staging = is_shard_staging(&name);
+        let unlisted = is_shard_dir(&name) && !manifest.shards.iter().any(|s| s.dir == name);
         // `write_atomic`'s temporary copies of the folder's own files.
-        let temporary = SETUP_FILES.iter().any(|f| name == format!("{f}.partial"));
-        if !(staging || unlisted || temporary) {
+        let partial = SETUP_FILES.iter().any(|f| name == temporary(f));
+        if !(staging || unlisted || partial) {
             continue;
         }
         let path = e.path();
@@ -205,7 +190,7 @@ pub fn generate(
     let start = std::time::Instant::now();
     let dir = lock.dir();
     let mut manifest;
-    let exists = dir.join("manifest.json").exists();
+    let exists = dir.join(MANIFEST).exists();
     if resume && exists {
         manifest = read_manifest(dir)?;
         let fresh = prep.manifest(command, range);
@@ -224,7 +209,7 @@ pub fn generate(
             objects_differ(&fresh.provenance.objects, &manifest.provenance.objects)
         {
             return Err(bad_field(
-                &dir.join("manifest.json"),
+                &dir.join(MANIFEST),
                 &format!("provenance.objects[{i}]"),
                 format!(
                     "the folder's dataset was made from other object images than the spec reads \
@@ -249,7 +234,7 @@ pub fn generate(
             // Stopped before its first manifest: nothing of it to keep.
             for f in SETUP_FILES
                 .iter()
-                .flat_map(|f| [f.to_string(), format!("{f}.partial")])
+                .flat_map(|f| [f.to_string(), temporary(f)])
             {
                 match std::fs::remove_file(dir.join(&f)) {
                     Err(e) if e.kind() != std::io::ErrorKind::NotFound => {
@@ -267,15 +252,15 @@ pub fn generate(
         }
         std::fs::create_dir_all(dir).map_err(|e| Error::write(dir, e))?;
         manifest = prep.manifest(command, range);
-        write_locked(lock, "spec.ron", prep.spec.text.as_bytes())?;
-        write_locked(lock, "bench.ron", prep.bench_text.as_bytes())?;
+        write_locked(lock, SPEC_COPY, prep.spec.text.as_bytes())?;
+        write_locked(lock, BENCH_COPY, prep.bench_text.as_bytes())?;
         if let Some(d) = &prep.drawn {
-            write_locked(lock, "tolerances.ron", d.text.as_bytes())?;
+            write_locked(lock, TOLERANCE_COPY, d.text.as_bytes())?;
         }
         if prep.spec.file.write.patterns {
-            write_locked(lock, "patterns.npy", &prep.packed_patterns())?;
+            write_locked(lock, PATTERNS, &prep.packed_patterns())?;
         }
-        write_locked(lock, "manifest.json", manifest_text(&manifest)?.as_bytes())?;
+        write_locked(lock, MANIFEST, manifest_text(&manifest)?.as_bytes())?;
     }
     let done: Vec<u64> = manifest.shards.iter().map(|s| s.index).collect();
     let todo: Vec<u64> = (range.0..range.1).filter(|b| !done.contains(b)).collect();

@@ -7,7 +7,11 @@ use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
-use super::{FORMAT, ObjectFile, Prepared, check, sha256_hex};
+use super::contract::{
+    self, BENCH_COPY, CellArray, FORMAT, MANIFEST, PATTERNS, SPEC_COPY, SampleArray,
+    TOLERANCE_COPY, scope_array,
+};
+use super::{ObjectFile, Prepared, sha256_hex};
 use crate::acquisition::{Scheme, patterns_for_ratio};
 use crate::error::{Error, Result};
 
@@ -121,7 +125,7 @@ impl Prepared {
         for s in &self.schemes {
             for r in &self.ratios {
                 let m = patterns_for_ratio(*r, self.units());
-                v.push((format!("meas_{}_r{:.4}", s.key(), r), *s, m));
+                v.push((CellArray::Measurements.name(s.key(), *r), *s, m));
             }
         }
         v
@@ -132,14 +136,14 @@ impl Prepared {
         let g = self.spec.file.kernel.grid_px;
         let mut v = vec![
             ArraySchema {
-                name: "sample".into(),
+                name: SampleArray::Sample.name().into(),
                 dtype: "<f8".into(),
                 sample_shape: vec![],
                 units: "1".into(),
                 description: "the sample index s".into(),
             },
             ArraySchema {
-                name: "object".into(),
+                name: SampleArray::Object.name().into(),
                 dtype: "<f8".into(),
                 sample_shape: vec![g.1, g.0],
                 units: "transmittance".into(),
@@ -159,14 +163,14 @@ impl Prepared {
             });
         }
         v.push(ArraySchema {
-            name: "k".into(),
+            name: SampleArray::K.name().into(),
             dtype: "<f8".into(),
             sample_shape: vec![2],
             units: "A/W".into(),
             description: "k+ and k- of the sample's transport".into(),
         });
         v.push(ArraySchema {
-            name: "b".into(),
+            name: SampleArray::B.name().into(),
             dtype: "<f8".into(),
             sample_shape: vec![2],
             units: "A".into(),
@@ -176,7 +180,7 @@ impl Prepared {
         v.extend(self.optional_arrays());
         if self.drawn.is_some() {
             v.push(ArraySchema {
-                name: "bench".into(),
+                name: SampleArray::Bench.name().into(),
                 dtype: "<f8".into(),
                 sample_shape: vec![],
                 units: "1".into(),
@@ -185,7 +189,7 @@ impl Prepared {
             });
             let names = self.deviation_names();
             v.push(ArraySchema {
-                name: "deviations".into(),
+                name: SampleArray::Deviations.name().into(),
                 dtype: "<f8".into(),
                 sample_shape: vec![names.len()],
                 units: "the unit of each variable (mm, degrees or 1)".into(),
@@ -210,7 +214,7 @@ impl Prepared {
             .collect();
         if w.reconstructions {
             v.push(ArraySchema {
-                name: "dmd_image".into(),
+                name: SampleArray::DmdImage.name().into(),
                 dtype: "<f8".into(),
                 sample_shape: vec![down, across],
                 units: "W".into(),
@@ -221,7 +225,7 @@ impl Prepared {
             });
             for (sch, r) in &cells {
                 v.push(ArraySchema {
-                    name: format!("recon_{}_r{r:.4}", sch.key()),
+                    name: CellArray::Reconstruction.name(sch.key(), *r),
                     dtype: "<f8".into(),
                     sample_shape: vec![down, across],
                     units: "arbitrary (as TVAL3 returns it)".into(),
@@ -234,7 +238,7 @@ impl Prepared {
             }
             for (sch, r) in &cells {
                 v.push(ArraySchema {
-                    name: format!("score_{}_r{r:.4}", sch.key()),
+                    name: CellArray::Score.name(sch.key(), *r),
                     dtype: "<f8".into(),
                     sample_shape: vec![2],
                     units: "dB, 1".into(),
@@ -250,7 +254,7 @@ impl Prepared {
         if w.scope_frames > 0 {
             for (q, len) in self.scope_sequences() {
                 v.push(ArraySchema {
-                    name: format!("scope_{}", q.key()),
+                    name: scope_array(q),
                     dtype: "<f8".into(),
                     sample_shape: vec![3, len],
                     units: "V".into(),
@@ -274,11 +278,11 @@ impl Prepared {
             provenance: ManifestProvenance {
                 spibench_version: env!("CARGO_PKG_VERSION").into(),
                 command: command.to_vec(),
-                spec_file: "spec.ron".into(),
+                spec_file: SPEC_COPY.into(),
                 spec_sha256: sha256_hex(self.spec.text.as_bytes()),
-                bench_file: "bench.ron".into(),
+                bench_file: BENCH_COPY.into(),
                 bench_sha256: sha256_hex(self.bench_text.as_bytes()),
-                tolerance_file: self.drawn.as_ref().map(|_| "tolerances.ron".into()),
+                tolerance_file: self.drawn.as_ref().map(|_| TOLERANCE_COPY.into()),
                 tolerance_sha256: self.drawn.as_ref().map(|d| sha256_hex(d.text.as_bytes())),
                 objects: self.spec.object_files.clone(),
                 merged_from: Vec::new(),
@@ -305,7 +309,7 @@ impl Prepared {
             schemes: self.schemes.iter().map(|s| s.key().to_string()).collect(),
             ratios: self.ratios.clone(),
             schema: self.schema(),
-            patterns_file: self.spec.file.write.patterns.then(|| "patterns.npy".into()),
+            patterns_file: self.spec.file.write.patterns.then(|| PATTERNS.into()),
             patterns_sha256: self
                 .spec
                 .file
@@ -317,12 +321,8 @@ impl Prepared {
     }
 }
 
-pub(super) fn shard_dir_name(b: u64) -> String {
-    format!("shard_{b:06}")
-}
-
 pub(super) fn write_manifest(dir: &Path, m: &Manifest) -> Result<()> {
-    crate::report::npy::write_atomic(&dir.join("manifest.json"), manifest_text(m)?.as_bytes())
+    crate::report::npy::write_atomic(&dir.join(MANIFEST), manifest_text(m)?.as_bytes())
 }
 
 pub(super) fn manifest_text(m: &Manifest) -> Result<String> {
@@ -332,15 +332,15 @@ pub(super) fn manifest_text(m: &Manifest) -> Result<String> {
 
 /// Reads a dataset folder's manifest. It is untrusted (another tool or person may have edited
 /// it): every name in it is checked, and every path it names must stay inside `dir`, before
-/// any file but the manifest is opened (`check`).
+/// any file but the manifest is opened ([`contract::check_manifest`]).
 pub fn read_manifest(dir: &Path) -> Result<Manifest> {
     let folder = crate::report::untrusted::Folder::new(dir)?;
-    let p = dir.join("manifest.json");
-    let (_, bytes) = folder.read(Path::new("manifest.json"), &p, "manifest.json")?;
+    let p = dir.join(MANIFEST);
+    let (_, bytes) = folder.read(Path::new(MANIFEST), &p, MANIFEST)?;
     let m: Manifest = serde_json::from_slice(&bytes)
         .map_err(|e| Error::input(format!("not a spibench dataset manifest: {e}")).in_file(&p))?;
-    check::check_manifest(&m, &p)?;
-    check::check_paths(&folder, &m, &p)?;
+    contract::check_manifest(&m, &p)?;
+    contract::check_paths(&folder, &m, &p)?;
     Ok(m)
 }
 

@@ -2,6 +2,7 @@
 
 use std::path::{Path, PathBuf};
 
+use super::contract::MANIFEST;
 use super::manifest::{objects_differ, verified, write_manifest};
 use super::{Manifest, MergedInput, read_manifest};
 use crate::error::{Error, Result};
@@ -45,7 +46,7 @@ pub fn merge(inputs: &[PathBuf], out: &Path, command: &[String]) -> Result<Manif
     for (d, m) in inputs.iter().zip(&manifests).skip(1) {
         if let Some((i, why)) = objects_differ(&m0.provenance.objects, &m.provenance.objects) {
             return Err(bad_field(
-                &d.join("manifest.json"),
+                &d.join(MANIFEST),
                 &format!("provenance.objects[{i}]"),
                 format!(
                     "cannot merge: {} was made from other object images than {}: {why}",

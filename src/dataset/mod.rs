@@ -35,13 +35,14 @@ use crate::scene::doc::BenchDoc;
 use crate::scene::run::RunScene;
 use crate::trace::kernel::{Kernel, ObjectGrid, trace_kernel};
 
-mod check;
+pub mod contract;
 mod folder;
 mod manifest;
 mod merge;
 mod sampler;
 mod shards;
 
+pub use contract::FORMAT;
 pub use folder::{CommitSeconds, Generated, generate};
 pub use manifest::{
     ArraySchema, FileHash, KernelInfo, Manifest, ManifestProvenance, MergedInput, ShardEntry,
@@ -50,8 +51,9 @@ pub use manifest::{
 pub use merge::merge;
 pub use sampler::{BenchKernel, Sample};
 // The names the shard writer (`shards`) uses from its parent.
+use contract::shard_dir as shard_dir_name;
 use folder::write_locked;
-use manifest::{manifest_text, shard_dir_name};
+use manifest::manifest_text;
 
 /// Stream tags of the objects and of the noise.
 const OBJECTS: u64 = 0x0B1E_C750_0000_0001;
@@ -61,9 +63,6 @@ const NOISE: u64 = 0x0015_E000_0000_0002;
 pub fn noise_seed(seed: u64, s: u64) -> u64 {
     rng::mix64(rng::mix64(seed ^ NOISE) ^ s)
 }
-
-/// The manifest's format name.
-pub const FORMAT: &str = "spibench-dataset-1";
 
 /// Everything a sample needs, made once per process.
 pub struct Prepared {

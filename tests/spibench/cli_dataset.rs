@@ -4,6 +4,12 @@
 
 use std::path::{Path, PathBuf};
 
+use spibench::acquisition::Sequence;
+use spibench::dataset::contract::{
+    CellArray, MANIFEST, PATTERNS, SampleArray, TOLERANCE_COPY, array_file, is_shard_dir,
+    is_shard_staging, scope_array, shard_dir,
+};
+
 use crate::common::{TempDir, assert_input_error, read_json, spibench, stderr};
 
 /// A tiny spec (a kernel of 8192 rays, 24×24 objects, 10 samples in shards of 3) in `dir`.
@@ -60,7 +66,7 @@ fn shard_files(dir: &Path) -> Vec<(String, Vec<u8>)> {
     let mut v = Vec::new();
     for e in std::fs::read_dir(dir).unwrap().flatten() {
         let name = e.file_name().to_string_lossy().to_string();
-        if name.starts_with("shard_") {
+        if is_shard_dir(&name) {
             for f in std::fs::read_dir(e.path()).unwrap().flatten() {
                 v.push((
                     format!("{name}/{}", f.file_name().to_string_lossy()),
@@ -104,15 +110,15 @@ fn shards_in_separate_processes_merge_bit_identically() {
     assert_eq!(a.len(), 4 * 6, "4 shards of 6 arrays");
     assert_eq!(a, shard_files(&merged));
     // The manifest's schema matches the arrays: names, dtype, shapes (read with spibench's reader).
-    crate::outputs_schema::check_file(&merged.join("manifest.json"), "DatasetManifest");
-    crate::outputs_schema::check_file(&one.join("manifest.json"), "DatasetManifest");
-    let m = read_json(&merged.join("manifest.json"));
+    crate::outputs_schema::check_file(&merged.join(MANIFEST), "DatasetManifest");
+    crate::outputs_schema::check_file(&one.join(MANIFEST), "DatasetManifest");
+    let m = read_json(&merged.join(MANIFEST));
     for shard in m["shards"].as_array().unwrap() {
         let n = shard["samples"].as_u64().unwrap() as usize;
         for a in m["schema"].as_array().unwrap() {
             let p = merged
                 .join(shard["dir"].as_str().unwrap())
-                .join(format!("{}.npy", a["name"].as_str().unwrap()));
+                .join(array_file(a["name"].as_str().unwrap()));
             let arr = spibench::report::npy::read(&p).unwrap();
             let mut shape = vec![n];
             shape.extend(
@@ -156,14 +162,15 @@ fn shards_in_separate_processes_merge_bit_identically() {
     );
     assert_input_error(&o, &["missing"], &bad);
     // A flipped byte in a shard: merge and resume both find it.
-    let victim = jobs[2].join("shard_000003/object.npy");
+    let object = array_file(SampleArray::Object.name());
+    let victim = jobs[2].join(shard_dir(3)).join(&object);
     let mut bytes = std::fs::read(&victim).unwrap();
     let k = bytes.len() - 5;
     bytes[k] ^= 0x10;
     std::fs::write(&victim, bytes).unwrap();
     let mut args = vec!["dataset", "--out", bad.to_str().unwrap(), "--merge"];
     args.extend(jobs.iter().map(|j| j.to_str().unwrap()));
-    assert_input_error(&spibench(&args, &[]), &["corrupted", "object.npy"], &bad);
+    assert_input_error(&spibench(&args, &[]), &["corrupted", &object], &bad);
     let o = spibench(
         &[
             "dataset",
@@ -199,10 +206,10 @@ fn killed_run_resumes_to_the_same_samples() {
         .spawn()
         .unwrap();
     // Wait until at least one shard is committed (or the run ends), then SIGKILL.
-    let manifest = killed.join("manifest.json");
+    let manifest = killed.join(MANIFEST);
     for _ in 0..6000 {
         if let Ok(text) = std::fs::read_to_string(&manifest)
-            && text.contains("\"shard_000000\"")
+            && text.contains(&format!("{:?}", shard_dir(0)))
         {
             break;
         }
@@ -257,8 +264,8 @@ fn sigterm_while_setting_up_or_writing_shards_leaves_a_resumable_folder() {
             })
             .unwrap_or_default()
     };
-    let setup = |n: &str| n.ends_with(".partial") && !n.starts_with(".shard_");
-    let shard = |n: &str| n.starts_with(".shard_");
+    let setup = |n: &str| n.ends_with(".partial") && !is_shard_staging(n);
+    let shard = |n: &str| is_shard_staging(n);
     for (when, staged) in [
         ("setup", &setup as &dyn Fn(&str) -> bool),
         ("shards", &shard),
@@ -493,15 +500,14 @@ fn patterns_default_to_the_benchs_dmd() {
 
 /// One array of a dataset folder, every shard's rows in sample order.
 fn dataset_array(dir: &Path, name: &str) -> (Vec<usize>, Vec<f64>) {
-    let m = read_json(&dir.join("manifest.json"));
+    let m = read_json(&dir.join(MANIFEST));
     let mut shards: Vec<&serde_json::Value> = m["shards"].as_array().unwrap().iter().collect();
     shards.sort_by_key(|s| s["index"].as_u64().unwrap());
     let mut shape = Vec::new();
     let mut data = Vec::new();
     for s in shards {
         let a = spibench::report::npy::read(
-            &dir.join(s["dir"].as_str().unwrap())
-                .join(format!("{name}.npy")),
+            &dir.join(s["dir"].as_str().unwrap()).join(array_file(name)),
         )
         .unwrap();
         shape = a.shape[1..].to_vec();
@@ -541,10 +547,10 @@ fn drawn_benches_serve_samples_per_bench_samples() {
     let (one, nout, zout) = (&outs[0], &outs[1], &outs[2]);
     let spec = one.parent().unwrap().join("spec.ron");
     let s = spec.to_str().unwrap();
-    crate::outputs_schema::check_file(&one.join("manifest.json"), "DatasetManifest");
-    let m = read_json(&one.join("manifest.json"));
-    assert_eq!(m["provenance"]["tolerance_file"], "tolerances.ron");
-    assert!(one.join("tolerances.ron").is_file());
+    crate::outputs_schema::check_file(&one.join(MANIFEST), "DatasetManifest");
+    let m = read_json(&one.join(MANIFEST));
+    assert_eq!(m["provenance"]["tolerance_file"], TOLERANCE_COPY);
+    assert!(one.join(TOLERANCE_COPY).is_file());
     let (_, bench) = dataset_array(one, "bench");
     assert_eq!(bench, [0., 0., 0., 0., 1., 1., 1., 1., 2., 2.]);
     let (shape, dev) = dataset_array(one, "deviations");
@@ -591,9 +597,9 @@ fn drawn_benches_serve_samples_per_bench_samples() {
     args.extend(jobs.iter().map(|j| j.to_str().unwrap()));
     ok(&spibench(&args, &[]));
     assert_eq!(shard_files(one), shard_files(&merged));
-    assert!(merged.join("tolerances.ron").is_file());
+    assert!(merged.join(TOLERANCE_COPY).is_file());
 
-    let m = read_json(&nout.join("manifest.json"));
+    let m = read_json(&nout.join(MANIFEST));
     for a in m["schema"].as_array().unwrap() {
         let name = a["name"].as_str().unwrap();
         assert_eq!(
@@ -623,23 +629,24 @@ fn optional_arrays_hold_scope_records_and_scored_reconstructions() {
         ),
     ];
     let out = made_datasets(&t.0, &[&edits]).remove(0);
-    crate::outputs_schema::check_file(&out.join("manifest.json"), "DatasetManifest");
+    crate::outputs_schema::check_file(&out.join(MANIFEST), "DatasetManifest");
     // SCB reads the complementary sequence, double-arm the base one: 2 frames of 440.009
     // samples (1/22 727 Hz at 10 MS/s) each, so 881 samples begin in them.
-    for q in ["base", "complementary"] {
-        let (shape, v) = dataset_array(&out, &format!("scope_{q}"));
-        assert_eq!(shape, [3, 881], "scope_{q}");
+    for q in [Sequence::Base, Sequence::Complementary] {
+        let q = scope_array(q);
+        let (shape, v) = dataset_array(&out, &q);
+        assert_eq!(shape, [3, 881], "{q}");
         assert_eq!(v.len(), 3 * 3 * 881);
         assert!(v.iter().all(|x| x.is_finite()));
         // A noisy record: not constant within a channel.
-        assert!(v[..881].iter().any(|x| *x != v[0]), "scope_{q}");
+        assert!(v[..881].iter().any(|x| *x != v[0]), "{q}");
     }
     let (shape, image) = dataset_array(&out, "dmd_image");
     assert_eq!(shape, [48, 48]);
     for scheme in ["secondary_complementary_balancing", "double_arm"] {
-        let (shape, recon) = dataset_array(&out, &format!("recon_{scheme}_r0.0500"));
+        let (shape, recon) = dataset_array(&out, &CellArray::Reconstruction.name(scheme, 0.05));
         assert_eq!(shape, [48, 48]);
-        let (_, scores) = dataset_array(&out, &format!("score_{scheme}_r0.0500"));
+        let (_, scores) = dataset_array(&out, &CellArray::Score.name(scheme, 0.05));
         for s in 0..3 {
             let x = spibench::raster::Raster::new(48, 48, image[s * 2304..(s + 1) * 2304].to_vec())
                 .unwrap();
@@ -721,7 +728,7 @@ fn the_spec_names_the_pattern_family() {
     let mut other = plain.clone();
     other[0].1 = acq.replace("]),", "], patterns: Random(seed: 5)),");
     let outs = made_datasets(&t.0, &[&plain, &other]);
-    let label = |o: &Path| read_json(&o.join("manifest.json"))["pattern_family"].clone();
+    let label = |o: &Path| read_json(&o.join(MANIFEST))["pattern_family"].clone();
     assert_ne!(label(&outs[0]), label(&outs[1]));
     assert!(
         label(&outs[1]).to_string().contains('5'),
@@ -732,11 +739,11 @@ fn the_spec_names_the_pattern_family() {
         dataset_array(&outs[0], "object"),
         dataset_array(&outs[1], "object")
     );
-    let m = "meas_double_arm_r0.0500";
+    let m = &CellArray::Measurements.name("double_arm", 0.05);
     assert_ne!(dataset_array(&outs[0], m), dataset_array(&outs[1], m));
     assert_ne!(
-        std::fs::read(outs[0].join("patterns.npy")).unwrap(),
-        std::fs::read(outs[1].join("patterns.npy")).unwrap()
+        std::fs::read(outs[0].join(PATTERNS)).unwrap(),
+        std::fs::read(outs[1].join(PATTERNS)).unwrap()
     );
 }
 
@@ -755,7 +762,7 @@ fn the_spec_names_the_electronics() {
         dataset_array(&outs[0], "object"),
         dataset_array(&outs[1], "object")
     );
-    let m = "meas_double_arm_r0.0500";
+    let m = &CellArray::Measurements.name("double_arm", 0.05);
     let (_, high_z) = dataset_array(&outs[0], m);
     let (_, fifty) = dataset_array(&outs[1], m);
     let mean = |v: &[f64]| v.iter().map(|x| x.abs()).sum::<f64>() / v.len() as f64;

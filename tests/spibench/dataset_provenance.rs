@@ -7,6 +7,7 @@
 use std::path::{Path, PathBuf};
 
 use serde_json::Value;
+use spibench::dataset::contract::MANIFEST;
 use spibench::dataset::sha256_hex;
 
 use crate::common::{TempDir, assert_input_error, read_json, spibench, stderr};
@@ -59,7 +60,7 @@ fn merge(out: &Path, inputs: &[&Path]) -> std::process::Output {
 
 /// A manifest less what a merge changes by design: the command and the folders merged.
 fn comparable(dir: &Path) -> Value {
-    let mut m = read_json(&dir.join("manifest.json"));
+    let mut m = read_json(&dir.join(MANIFEST));
     let p = m["provenance"].as_object_mut().unwrap();
     p.remove("command");
     p.remove("merged_from");
@@ -72,7 +73,7 @@ fn the_manifest_lists_every_object_image_and_a_merge_keeps_them() {
     let spec = setup(&t.0);
     let one = t.join("one");
     ok(&make(&spec, &one, &[]));
-    let m = read_json(&one.join("manifest.json"));
+    let m = read_json(&one.join(MANIFEST));
     let objects = m["provenance"]["objects"].as_array().unwrap();
     let listed: Vec<(&str, &str)> = objects
         .iter()
@@ -80,7 +81,7 @@ fn the_manifest_lists_every_object_image_and_a_merge_keeps_them() {
         .collect();
     let (a, b) = (sha256_hex(&image(1)), sha256_hex(&image(2)));
     assert_eq!(listed, [("a.npy", a.as_str()), ("b.npy", b.as_str())]);
-    crate::outputs_schema::check_file(&one.join("manifest.json"), "DatasetManifest");
+    crate::outputs_schema::check_file(&one.join(MANIFEST), "DatasetManifest");
     // Shipped test images are listed too, by name, with the hash of the shipped bytes.
     let text = std::fs::read_to_string(&spec).unwrap().replace(
         "Folder(path: \"imgs\", rule: RandomCrop)",
@@ -90,7 +91,7 @@ fn the_manifest_lists_every_object_image_and_a_merge_keeps_them() {
     std::fs::write(&shipped, text).unwrap();
     let s = t.join("shipped");
     ok(&make(&shipped, &s, &["--shard", "0/4"]));
-    let m = read_json(&s.join("manifest.json"));
+    let m = read_json(&s.join(MANIFEST));
     let o = &m["provenance"]["objects"][0];
     assert_eq!(o["name"], "coffee");
     assert_eq!(
@@ -121,7 +122,7 @@ fn a_merge_of_jobs_over_other_images_is_refused_naming_the_object() {
     let o = merge(&out, &[&job0, &job1]);
     let field = format!(
         "{}, field `provenance.objects[1]`",
-        job1.join("manifest.json").display()
+        job1.join(MANIFEST).display()
     );
     assert_input_error(&o, &[&field, "b.npy", "other object images"], &out);
     // An image added to the folder between the jobs.
@@ -144,7 +145,7 @@ fn a_resume_over_changed_images_is_refused_naming_the_object() {
     let spec = setup(&t.0);
     let job = t.join("job");
     ok(&make(&spec, &job, &["--shard", "0/2"]));
-    let before = std::fs::read(job.join("manifest.json")).unwrap();
+    let before = std::fs::read(job.join(MANIFEST)).unwrap();
     std::fs::write(t.join("imgs/a.npy"), image(5)).unwrap();
     let o = make(&spec, &job, &["--shard", "0/2", "--resume"]);
     let err = stderr(&o);
@@ -154,7 +155,7 @@ fn a_resume_over_changed_images_is_refused_naming_the_object() {
     }
     assert!(!err.contains("panicked"), "{err}");
     // The folder is left as it was.
-    assert_eq!(before, std::fs::read(job.join("manifest.json")).unwrap());
+    assert_eq!(before, std::fs::read(job.join(MANIFEST)).unwrap());
     std::fs::write(t.join("imgs/a.npy"), image(1)).unwrap();
     ok(&make(&spec, &job, &["--shard", "0/2", "--resume"]));
 }

@@ -1,37 +1,211 @@
-//! A dataset manifest read back from a folder is untrusted (crate::report::untrusted): before
-//! any file it names is opened, every name in it is checked against what `spibench dataset`
-//! writes, and every path it names must stay inside the folder.
+//! The dataset folder's contract, in one place: the names of its files, folders and arrays,
+//! and the rules a manifest read back from a folder must follow. The writer (`dataset`), the
+//! Python package (through its extension) and the readers' tests take the names from here;
+//! `examples/dataset_numpy.py`, which must run with numpy alone, keeps its own copy of these
+//! tables, and a Python test compares it with this module's.
+//!
+//! A dataset folder holds
+//! - [`MANIFEST`], the manifest ([`super::Manifest`], format [`FORMAT`]);
+//! - the copies of its inputs, [`COPIES`] (`spec.ron`, `bench.ron` and, for benches drawn from a
+//!   tolerance file, `tolerances.ron`), and optionally [`PATTERNS`], the packed base patterns;
+//! - one folder per shard, [`shard_dir`] (`shard_NNNNNN`), holding one [`array_file`]
+//!   (`NAME.npy`) per array of the manifest's schema.
+//!
+//! The arrays are the per-sample [`SampleArray`]s (`sample`, `object`, `k`, …), one
+//! [`CellArray`] of each kind per scheme and ratio (`meas_SCHEME_rRATIO`, the ratio with four
+//! decimals), and one oscilloscope record per sequence ([`scope_array`], `scope_SEQUENCE`).
+//! While a run writes, a shard is staged as [`shard_staging`] (`.shard_NNNNNN.partial`) and a
+//! setup file or the manifest as [`temporary`] (`NAME.partial`).
+//!
+//! A manifest read back from a folder is untrusted (crate::report::untrusted): before any file
+//! it names is opened, every name in it is checked against what `spibench dataset` writes, and
+//! every path it names must stay inside the folder ([`check_manifest`], [`check_paths`]):
 //!
 //! - a shard folder is exactly `shard_NNNNNN` of its own index, its samples those of that index;
 //! - an array name is one of the names the manifest's schemes, ratios and sequences allow
-//!   (`object`, `meas_SCHEME_rRATIO`, `scope_SEQUENCE`, …), its file exactly `NAME.npy`, and
-//!   every shard holds exactly the schema's arrays in the schema's order;
-//! - the copies of the inputs are exactly `spec.ron`, `bench.ron`, `tolerances.ron` and
-//!   `patterns.npy`, each with a SHA-256; every object image listed has a name and a SHA-256;
+//!   ([`array_names`]), its file exactly `NAME.npy`, and every shard holds exactly the schema's
+//!   arrays in the schema's order;
+//! - the copies of the inputs are exactly the names of [`COPIES`] and [`PATTERNS`], each with a
+//!   SHA-256; every object image listed has a name and a SHA-256;
 //! - none of these resolves, through a symbolic link, outside the folder.
 
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
 
-use super::manifest::shard_dir_name;
-use super::{FORMAT, Manifest};
+use super::Manifest;
 use crate::acquisition::{Scheme, Sequence};
 use crate::error::Result;
 use crate::report::untrusted::{Folder, PlainName, bad_field, is_sha256_hex};
 
-/// The array names a manifest with these schemes and ratios may hold.
+/// The manifest's format name.
+pub const FORMAT: &str = "spibench-dataset-1";
+/// The manifest's file.
+pub const MANIFEST: &str = "manifest.json";
+/// The copy of the dataset spec.
+pub const SPEC_COPY: &str = "spec.ron";
+/// The copy of the bench file.
+pub const BENCH_COPY: &str = "bench.ron";
+/// The copy of the tolerance file the benches were drawn from.
+pub const TOLERANCE_COPY: &str = "tolerances.ron";
+/// The packed base patterns (`write: (patterns: true)`).
+pub const PATTERNS: &str = "patterns.npy";
+/// The copies of the inputs, each with the field of the manifest's `provenance` that names it.
+pub const COPIES: [(&str, &str); 3] = [
+    ("spec_file", SPEC_COPY),
+    ("bench_file", BENCH_COPY),
+    ("tolerance_file", TOLERANCE_COPY),
+];
+/// The files a dataset folder gets before its first shard, in the order they are written.
+pub const SETUP_FILES: [&str; 5] = [SPEC_COPY, BENCH_COPY, TOLERANCE_COPY, PATTERNS, MANIFEST];
+/// The suffix of what a run is still writing: a staged shard, a file's temporary copy.
+pub const PARTIAL: &str = ".partial";
+
+/// The temporary copy of the folder's file `name` while it is written (as
+/// `report::npy::atomic_temp` names it).
+pub fn temporary(name: &str) -> String {
+    format!("{name}{PARTIAL}")
+}
+
+/// The folder of shard `b`: `shard_NNNNNN`, the index with at least six digits.
+pub fn shard_dir(b: u64) -> String {
+    format!("shard_{b:06}")
+}
+
+/// The staging folder of shard `b` while its files are written: `.shard_NNNNNN.partial`.
+pub fn shard_staging(b: u64) -> String {
+    format!(".{}{PARTIAL}", shard_dir(b))
+}
+
+/// Whether `name` has the form of a shard folder (`shard_` and six or more digits).
+pub fn is_shard_dir(name: &str) -> bool {
+    name.strip_prefix("shard_")
+        .is_some_and(|d| d.len() >= 6 && d.bytes().all(|b| b.is_ascii_digit()))
+}
+
+/// Whether `name` has the form of a shard's staging folder.
+pub fn is_shard_staging(name: &str) -> bool {
+    name.strip_prefix('.')
+        .and_then(|n| n.strip_suffix(PARTIAL))
+        .is_some_and(is_shard_dir)
+}
+
+/// The file of array `name` in a shard folder: `NAME.npy`.
+pub fn array_file(name: &str) -> String {
+    format!("{name}.npy")
+}
+
+/// The arrays of a sample whatever its schemes and ratios (each optional but `sample`,
+/// `object`, `k` and `b`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SampleArray {
+    /// The sample index s.
+    Sample,
+    /// The ideal object on the kernel grid.
+    Object,
+    /// k± of the sample's transport.
+    K,
+    /// b± of the sample's transport.
+    B,
+    /// The index of the drawn bench (benches drawn from a tolerance file).
+    Bench,
+    /// The drawn bench's deviations (benches drawn from a tolerance file).
+    Deviations,
+    /// The object's light on the DMD units (with the reconstructions).
+    DmdImage,
+}
+
+impl SampleArray {
+    pub const ALL: [SampleArray; 7] = [
+        SampleArray::Sample,
+        SampleArray::Object,
+        SampleArray::K,
+        SampleArray::B,
+        SampleArray::Bench,
+        SampleArray::Deviations,
+        SampleArray::DmdImage,
+    ];
+
+    /// The array's name in a manifest and its file's stem.
+    pub fn name(self) -> &'static str {
+        match self {
+            SampleArray::Sample => "sample",
+            SampleArray::Object => "object",
+            SampleArray::K => "k",
+            SampleArray::B => "b",
+            SampleArray::Bench => "bench",
+            SampleArray::Deviations => "deviations",
+            SampleArray::DmdImage => "dmd_image",
+        }
+    }
+
+    /// The array named `name`, if it is one of these.
+    pub fn parse(name: &str) -> Option<SampleArray> {
+        SampleArray::ALL.into_iter().find(|a| a.name() == name)
+    }
+}
+
+/// The arrays a sample holds per (scheme, ratio): `KIND_SCHEME_rRATIO`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum CellArray {
+    /// The scheme's measurements (`meas`).
+    Measurements,
+    /// The scheme's TVAL3 reconstruction (`recon`).
+    Reconstruction,
+    /// Its PSNR and MSSIM (`score`).
+    Score,
+}
+
+impl CellArray {
+    pub const ALL: [CellArray; 3] = [
+        CellArray::Measurements,
+        CellArray::Reconstruction,
+        CellArray::Score,
+    ];
+
+    /// The kind's prefix in an array name.
+    pub fn prefix(self) -> &'static str {
+        match self {
+            CellArray::Measurements => "meas",
+            CellArray::Reconstruction => "recon",
+            CellArray::Score => "score",
+        }
+    }
+
+    /// The kind with prefix `prefix`, if there is one.
+    pub fn parse(prefix: &str) -> Option<CellArray> {
+        CellArray::ALL.into_iter().find(|c| c.prefix() == prefix)
+    }
+
+    /// The array of scheme `scheme` (its key, as a manifest's `schemes` list it) at sampling
+    /// ratio `ratio`, the ratio written with four decimals.
+    pub fn name(self, scheme: &str, ratio: f64) -> String {
+        format!("{}_{scheme}_r{ratio:.4}", self.prefix())
+    }
+}
+
+/// The oscilloscope record of sequence `q`: `scope_SEQUENCE`.
+pub fn scope_array(q: Sequence) -> String {
+    format!("scope_{}", q.key())
+}
+
+/// Every array name a dataset of these schemes (their keys) and ratios may hold.
+pub fn array_names(schemes: &[String], ratios: &[f64]) -> BTreeSet<String> {
+    let mut names: BTreeSet<String> = SampleArray::ALL
+        .iter()
+        .map(|a| a.name().to_string())
+        .collect();
+    for s in schemes {
+        for r in ratios {
+            names.extend(CellArray::ALL.iter().map(|c| c.name(s, *r)));
+        }
+    }
+    names.extend(Sequence::all().map(scope_array));
+    names
+}
+
+/// The array names a manifest with these schemes and ratios may hold, each scheme checked, and
+/// the ratios with the first.
 fn allowed_names(m: &Manifest, file: &Path) -> Result<BTreeSet<String>> {
-    let mut names: BTreeSet<String> = [
-        "sample",
-        "object",
-        "k",
-        "b",
-        "bench",
-        "deviations",
-        "dmd_image",
-    ]
-    .map(String::from)
-    .into();
     for (i, s) in m.schemes.iter().enumerate() {
         if !Scheme::all().iter().any(|k| k.key() == s) {
             return Err(bad_field(
@@ -39,6 +213,9 @@ fn allowed_names(m: &Manifest, file: &Path) -> Result<BTreeSet<String>> {
                 &format!("schemes[{i}]"),
                 format!("{s:?} is not a scheme of spibench"),
             ));
+        }
+        if i > 0 {
+            continue;
         }
         for (j, r) in m.ratios.iter().enumerate() {
             if !(r.is_finite() && *r > 0.0 && *r <= 1.0) {
@@ -48,27 +225,23 @@ fn allowed_names(m: &Manifest, file: &Path) -> Result<BTreeSet<String>> {
                     format!("a sampling ratio in (0, 1], got {r}"),
                 ));
             }
-            for kind in ["meas", "recon", "score"] {
-                names.insert(format!("{kind}_{s}_r{r:.4}"));
-            }
         }
     }
-    names.extend(Sequence::all().map(|q| format!("scope_{}", q.key())));
-    Ok(names)
+    Ok(array_names(&m.schemes, &m.ratios))
 }
 
 /// The fixed file names of a dataset folder and their checksums.
 fn check_copies(m: &Manifest, file: &Path) -> Result<()> {
     let p = &m.provenance;
     let fixed = [
-        ("provenance.spec_file", Some(&p.spec_file), "spec.ron"),
-        ("provenance.bench_file", Some(&p.bench_file), "bench.ron"),
+        ("provenance.spec_file", Some(&p.spec_file), SPEC_COPY),
+        ("provenance.bench_file", Some(&p.bench_file), BENCH_COPY),
         (
             "provenance.tolerance_file",
             p.tolerance_file.as_ref(),
-            "tolerances.ron",
+            TOLERANCE_COPY,
         ),
-        ("patterns_file", m.patterns_file.as_ref(), "patterns.npy"),
+        ("patterns_file", m.patterns_file.as_ref(), PATTERNS),
     ];
     for (field, got, want) in fixed {
         if let Some(got) = got
@@ -144,7 +317,7 @@ fn check_copies(m: &Manifest, file: &Path) -> Result<()> {
 }
 
 /// Checks every name, count and checksum of a manifest read from `file` (no file is opened).
-pub(super) fn check_manifest(m: &Manifest, file: &Path) -> Result<()> {
+pub fn check_manifest(m: &Manifest, file: &Path) -> Result<()> {
     if m.format != FORMAT {
         return Err(bad_field(
             file,
@@ -222,7 +395,7 @@ fn check_shard(m: &Manifest, i: usize, file: &Path, indices: &mut BTreeSet<u64>)
             ),
         ));
     }
-    let want = shard_dir_name(s.index);
+    let want = shard_dir(s.index);
     if s.dir != want {
         PlainName::parse(&s.dir, file, &at("dir"))?;
         return Err(bad_field(
@@ -270,7 +443,7 @@ fn check_shard(m: &Manifest, i: usize, file: &Path, indices: &mut BTreeSet<u64>)
                 format!("array {k} of the schema is {:?}, not {:?}", a.name, f.name),
             ));
         }
-        if f.file != format!("{}.npy", a.name) {
+        if f.file != array_file(&a.name) {
             return Err(bad_field(
                 file,
                 &field("file"),
@@ -295,7 +468,7 @@ fn check_shard(m: &Manifest, i: usize, file: &Path, indices: &mut BTreeSet<u64>)
 }
 
 /// Every path a checked manifest names, relative to its folder, with the field that names it.
-pub(super) fn named_paths(m: &Manifest) -> Vec<(PathBuf, String)> {
+pub fn named_paths(m: &Manifest) -> Vec<(PathBuf, String)> {
     let mut v = vec![
         (
             PathBuf::from(&m.provenance.spec_file),
@@ -325,7 +498,7 @@ pub(super) fn named_paths(m: &Manifest) -> Vec<(PathBuf, String)> {
 }
 
 /// Checks that no path the manifest names leads out of `folder` (nothing is opened).
-pub(super) fn check_paths(folder: &Folder, m: &Manifest, file: &Path) -> Result<()> {
+pub fn check_paths(folder: &Folder, m: &Manifest, file: &Path) -> Result<()> {
     for (rel, field) in named_paths(m) {
         folder.inside(&rel, file, &field)?;
     }
@@ -423,6 +596,45 @@ mod tests {
             s.contains("d/manifest.json") && s.contains(&format!("field `{field}`")),
             "{field}: {s}"
         );
+    }
+
+    #[test]
+    fn the_names_are_the_folder_layout() {
+        assert_eq!(
+            CellArray::Measurements.name("double_arm", 0.05),
+            "meas_double_arm_r0.0500"
+        );
+        assert_eq!(
+            CellArray::Score.name("traditional", 1.0),
+            "score_traditional_r1.0000"
+        );
+        assert_eq!(scope_array(Sequence::Complementary), "scope_complementary");
+        assert_eq!(array_file("k"), "k.npy");
+        assert_eq!(shard_dir(12), "shard_000012");
+        assert_eq!(shard_dir(1_234_567), "shard_1234567");
+        assert_eq!(shard_staging(12), ".shard_000012.partial");
+        assert!(is_shard_dir(&shard_dir(3)) && is_shard_staging(&shard_staging(3)));
+        for bad in ["shard_12", "shard_00001x", "xshard_000001", ".shard_000001"] {
+            assert!(!is_shard_dir(bad), "{bad}");
+        }
+        assert!(!is_shard_staging("shard_000001.partial"));
+        // A setup file's temporary copy is named as `write_atomic` names it.
+        for f in SETUP_FILES {
+            let tmp = crate::report::npy::atomic_temp(Path::new(f));
+            assert_eq!(tmp, Path::new(&temporary(f)), "{f}");
+        }
+        for a in SampleArray::ALL {
+            assert_eq!(SampleArray::parse(a.name()), Some(a));
+        }
+        for c in CellArray::ALL {
+            assert_eq!(CellArray::parse(c.prefix()), Some(c));
+        }
+        let names = array_names(&["double_arm".into()], &[0.05, 0.1]);
+        assert_eq!(
+            names.len(),
+            SampleArray::ALL.len() + 2 * 3 + Sequence::all().len()
+        );
+        assert!(names.contains("recon_double_arm_r0.1000") && names.contains("scope_base"));
     }
 
     #[test]
