@@ -26,9 +26,9 @@ use spibench::error::{Error, Result};
 use spibench::pipeline::evaluate::{self, Evaluation, evaluation_of};
 use spibench::pipeline::operator::{self, KernelMatrices, TracedOperator};
 use spibench::pipeline::{TraceRequest, Traced, trace_stage};
+use spibench::scene::dataset::KernelSpec;
 use spibench::scene::doc::BenchDoc;
 use spibench::scene::run::RunScene;
-use spibench::trace::TraceOptions;
 use spibench::trace::kernel::Kernel as LibKernel;
 use spibench::transport::Transport;
 
@@ -69,6 +69,22 @@ fn run<T: Send>(
             .install(f),
     })
     .map_err(to_py)
+}
+
+/// A kernel spec's error as the error of `Bench.kernel`'s argument: `grid_px` is `grid` there.
+fn kernel_argument(e: Error) -> Error {
+    match e {
+        Error::Input {
+            mut location,
+            message,
+        } if location.file.is_none() => {
+            if location.field.as_deref() == Some("grid_px") {
+                location.field = Some("grid".into());
+            }
+            Error::Input { location, message }
+        }
+        e => e,
+    }
 }
 
 fn scheme_named(name: &str) -> Result<Scheme> {
@@ -212,14 +228,15 @@ impl Bench {
         let doc = &self.doc;
         run(py, threads, || {
             let scene = doc.run_scene()?;
-            let options = TraceOptions::new(rays, seed);
-            let kernel = operator::clear_chart_kernel(
-                doc,
-                chart.as_deref(),
-                (grid.1, grid.0),
-                (field_mm.1, field_mm.0),
-                &options,
-            )?;
+            // The spec of a dataset's `kernel:` section, which writes (across, down).
+            let spec = KernelSpec {
+                rays,
+                seed,
+                grid_px: (grid.1, grid.0),
+                field_mm: (field_mm.1, field_mm.0),
+                chart,
+            };
+            let kernel = operator::clear_chart_kernel(doc, &spec).map_err(kernel_argument)?;
             Ok(Kernel::new(scene, kernel))
         })
     }

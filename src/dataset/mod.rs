@@ -28,12 +28,13 @@
 
 use crate::acquisition::{PackedPatterns, Scheme, patterns_for_ratio};
 use crate::error::Result;
+use crate::pipeline::operator::ClearChart;
 use crate::rng;
 pub use crate::scene::dataset::ObjectFile;
 use crate::scene::dataset::{BenchesSpec, DatasetSpec};
 use crate::scene::doc::BenchDoc;
 use crate::scene::run::RunScene;
-use crate::trace::kernel::{Kernel, ObjectGrid, trace_kernel};
+use crate::trace::kernel::Kernel;
 
 pub mod contract;
 mod folder;
@@ -87,50 +88,6 @@ pub struct DrawnBenches {
     pub samples_per_bench: u64,
 }
 
-/// The index of the chart `name` (or the only chart) among the bench file's charts, and the
-/// bench with that chart made clear glass.
-fn clear_chart(
-    doc: &BenchDoc,
-    name: Option<&str>,
-    spec: &DatasetSpec,
-) -> Result<(BenchDoc, usize)> {
-    use crate::scene::bench::{ChartPatternSpec, ElementSpec};
-    let mut doc = doc.clone();
-    let mut found = None;
-    let mut k = 0;
-    let mut n_charts = 0;
-    for el in doc.file.elements.iter_mut() {
-        if let ElementSpec::Chart {
-            name: n,
-            pattern,
-            center_on,
-            ..
-        } = el
-        {
-            n_charts += 1;
-            if name.is_none_or(|want| want == n) && found.is_none() {
-                // Clear glass, its centre at `position_mm` (where the bench puts the chart
-                // point it images): the object grid is centred there.
-                *pattern = ChartPatternSpec::Clear;
-                *center_on = None;
-                found = Some(k);
-            }
-            k += 1;
-        }
-    }
-    match (found, name) {
-        (Some(i), Some(_)) => Ok((doc, i)),
-        (Some(i), None) if n_charts == 1 => Ok((doc, i)),
-        (_, Some(n)) => Err(spec.error("chart", format!("the bench has no chart named {n:?}"))),
-        _ => Err(spec.error(
-            "bench",
-            format!(
-                "the bench needs exactly one chart (it has {n_charts}); name it in kernel.chart"
-            ),
-        )),
-    }
-}
-
 /// The run scene of a dataset's bench `doc`, which must have a DMD.
 fn checked_scene(doc: &BenchDoc, spec: &DatasetSpec) -> Result<RunScene> {
     let scene = doc.run_scene()?;
@@ -153,23 +110,12 @@ fn dataset_scene(mut scene: RunScene, spec: &DatasetSpec, schemes: &[Scheme]) ->
     scene
 }
 
-/// The object kernel of a dataset's bench `doc`.
+/// The object kernel of a dataset's bench `doc` (the spec's `kernel:` section), its chart and
+/// numbers checked by the one kernel builder and its errors located in the spec.
 fn bench_kernel(doc: &BenchDoc, spec: &DatasetSpec) -> Result<Kernel> {
-    let k = &spec.file.kernel;
-    let (clear, chart) = clear_chart(doc, k.chart.as_deref(), spec)?;
-    let kernel_bench = clear.build()?;
-    let grid = ObjectGrid {
-        chart,
-        width_px: k.grid_px.0,
-        height_px: k.grid_px.1,
-        width_m: k.field_mm.0 * 1e-3,
-        height_m: k.field_mm.1 * 1e-3,
-    };
-    trace_kernel(
-        &kernel_bench,
-        grid,
-        &crate::trace::TraceOptions::new(k.rays, k.seed),
-    )
+    ClearChart::new(doc, &spec.file.kernel)
+        .map_err(|e| spec.kernel_error(e))?
+        .trace()
 }
 
 impl Prepared {

@@ -41,6 +41,7 @@ use crate::detector::Bap;
 use crate::error::{Error, Result};
 use crate::optics::Arm;
 use crate::reconstruction::{LinearOperator, PatternForm};
+use crate::scene::dataset::KernelSpec;
 use crate::scene::doc::BenchDoc;
 use crate::scene::run::RunScene;
 use crate::trace::kernel::{Kernel, ObjectGrid, trace_kernel};
@@ -446,66 +447,94 @@ fn batch(
     Ok(parts.concat())
 }
 
-/// The object kernel of `doc` on a grid of `grid_px` (across, down) pixels covering
-/// `field_mm` (across, down) of chart `chart` (or the bench's only chart), traced with that
-/// chart made clear glass centred on its position, as `spibench dataset` traces it.
-pub fn clear_chart_kernel(
-    doc: &BenchDoc,
-    chart: Option<&str>,
-    grid_px: (usize, usize),
-    field_mm: (f64, f64),
-    options: &TraceOptions,
-) -> Result<Kernel> {
-    use crate::scene::bench::{ChartPatternSpec, ElementSpec};
-    if !(field_mm.0.is_finite() && field_mm.1.is_finite() && field_mm.0 > 0.0 && field_mm.1 > 0.0) {
-        return Err(Error::field(
-            "field_mm",
-            format!("the field must be finite and positive, got {field_mm:?}"),
-        ));
-    }
-    let mut doc = doc.clone();
-    let (mut found, mut k) = (None, 0);
-    for el in doc.file.elements.iter_mut() {
-        if let ElementSpec::Chart {
-            name: n,
-            pattern,
-            center_on,
-            ..
-        } = el
-        {
-            if chart.is_none_or(|want| want == n) && found.is_none() {
-                *pattern = ChartPatternSpec::Clear;
-                *center_on = None;
-                found = Some(k);
+/// A bench made ready for its clear-chart object kernel, the one way `spibench dataset` and the
+/// Python package's `Bench.kernel` trace one: the chart the kernel spec names (or the bench's
+/// only chart) made clear glass centred on its `position_mm` (where the bench puts the chart
+/// point it images), and the spec's object grid on it.
+pub struct ClearChart {
+    doc: BenchDoc,
+    grid: ObjectGrid,
+    rays: u64,
+    seed: u64,
+}
+
+impl ClearChart {
+    /// Checks `spec` ([`KernelSpec::check`]) and picks its chart in `doc`; nothing is built or
+    /// traced. Every error names its field of `spec` (`grid_px`, `field_mm`, `rays`, `chart`)
+    /// and no file, for the caller to locate (a dataset spec, a Python argument).
+    pub fn new(doc: &BenchDoc, spec: &KernelSpec) -> Result<ClearChart> {
+        use crate::scene::bench::{ChartPatternSpec, ElementSpec};
+        spec.check()?;
+        let mut doc = doc.clone();
+        let (mut found, mut names) = (None, Vec::new());
+        for el in doc.file.elements.iter_mut() {
+            if let ElementSpec::Chart {
+                name,
+                pattern,
+                center_on,
+                ..
+            } = el
+            {
+                if found.is_none() && spec.chart.as_ref().is_none_or(|want| want == name) {
+                    *pattern = ChartPatternSpec::Clear;
+                    *center_on = None;
+                    found = Some(names.len());
+                }
+                names.push(format!("{name:?}"));
             }
-            k += 1;
         }
+        let chart = match (found, &spec.chart) {
+            (Some(i), Some(_)) => i,
+            (Some(i), None) if names.len() == 1 => i,
+            (_, Some(want)) => {
+                return Err(Error::field(
+                    "chart",
+                    format!(
+                        "the bench has no chart named {want:?} (its charts: {})",
+                        if names.is_empty() {
+                            "none".to_string()
+                        } else {
+                            names.join(", ")
+                        }
+                    ),
+                ));
+            }
+            (_, None) => {
+                return Err(Error::field(
+                    "chart",
+                    match names.len() {
+                        0 => "the bench has no chart: an object kernel needs one".to_string(),
+                        n => format!("the bench has {n} charts ({}): name one", names.join(", ")),
+                    },
+                ));
+            }
+        };
+        let (w, h) = spec.grid_px;
+        let grid = ObjectGrid {
+            chart,
+            width_px: w,
+            height_px: h,
+            width_m: spec.field_mm.0 * 1e-3,
+            height_m: spec.field_mm.1 * 1e-3,
+        };
+        Ok(ClearChart {
+            doc,
+            grid,
+            rays: spec.rays,
+            seed: spec.seed,
+        })
     }
-    let index = match (found, chart) {
-        (Some(i), Some(_)) => i,
-        (Some(i), None) if k == 1 => i,
-        (_, Some(n)) => {
-            return Err(Error::field(
-                "chart",
-                format!("the bench has no chart named {n:?}"),
-            ));
-        }
-        _ => {
-            return Err(Error::field(
-                "chart",
-                format!("the bench has {k} charts: name one"),
-            ));
-        }
-    };
-    let bench = doc.build()?;
-    let grid = ObjectGrid {
-        chart: index,
-        width_px: grid_px.0,
-        height_px: grid_px.1,
-        width_m: field_mm.0 * 1e-3,
-        height_m: field_mm.1 * 1e-3,
-    };
-    trace_kernel(&bench, grid, options)
+
+    /// Builds the bench with its chart clear and traces the kernel.
+    pub fn trace(&self) -> Result<Kernel> {
+        let options = TraceOptions::new(self.rays, self.seed);
+        trace_kernel(&self.doc.build()?, self.grid, &options)
+    }
+}
+
+/// The clear-chart object kernel of `doc` that `spec` describes ([`ClearChart`]).
+pub fn clear_chart_kernel(doc: &BenchDoc, spec: &KernelSpec) -> Result<Kernel> {
+    ClearChart::new(doc, spec)?.trace()
 }
 
 /// The patterns `scene`'s settings name, enough for sampling ratio `ratio`, and M.

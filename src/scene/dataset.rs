@@ -164,6 +164,22 @@ pub struct KernelSpec {
     pub chart: Option<String>,
 }
 
+impl KernelSpec {
+    /// Checks the numbers as a spec's `kernel:` section reads them (for a kernel spec made in
+    /// code: the Python package's `Bench.kernel`); each error names its field (`grid_px`,
+    /// `field_mm`, `rays`) and nothing else, for the caller to locate.
+    pub fn check(&self) -> Result<()> {
+        for side in [self.grid_px.0, self.grid_px.1] {
+            GridSide::try_from(side as u64).map_err(|m| Error::field("grid_px", m))?;
+        }
+        for side in [self.field_mm.0, self.field_mm.1] {
+            FieldMm::try_from(side).map_err(|m| Error::field("field_mm", m))?;
+        }
+        KernelRays::try_from(self.rays).map_err(|m| Error::field("rays", m))?;
+        Ok(())
+    }
+}
+
 /// How an image larger than the grid becomes an object.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
 pub enum FitRule {
@@ -469,6 +485,25 @@ impl DatasetSpec {
             .acquisition
             .as_ref()
             .and_then(|a| a.patterns.as_ref())
+    }
+
+    /// An error of the spec's `kernel:` section found by code that took the section as a value
+    /// (the kernel builder, `pipeline::operator::ClearChart`), located in the spec at its field,
+    /// or at `kernel:` when the field is not written (a default chart). Other errors (the
+    /// bench's own, located in the bench file) are returned as they are.
+    pub fn kernel_error(&self, e: Error) -> Error {
+        match e {
+            Error::Input { location, message } if location.file.is_none() => {
+                let field = location.field.unwrap_or_else(|| "kernel".to_string());
+                let pos = locate::key_after(&self.text, "kernel", &field);
+                locate::at(
+                    Error::field(field, message).in_file(&self.path),
+                    &self.text,
+                    pos,
+                )
+            }
+            e => e,
+        }
     }
 
     /// An input error located at `field` of the spec.

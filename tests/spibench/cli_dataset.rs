@@ -379,12 +379,25 @@ fn bad_specs_are_located_input_errors() {
             format!("seed: 7, benches: Tolerance(file: {bad_tol:?}, samples_per_bench: 2),"),
             vec!["bad_tolerances.ron", "no_such_lens", "line 1"],
         ),
+        (
+            "kernel: (rays: 8192, seed: 1, grid_px: (24, 24), field_mm: (7.88, 7.88), \
+             chart: \"nope\"),"
+                .into(),
+            vec![
+                "no chart named \"nope\"",
+                "its charts",
+                "field `chart`",
+                "line 3",
+            ],
+        ),
     ];
     for (k, (replacement, fragments)) in cases.iter().enumerate() {
         let from = if replacement.starts_with("objects") {
             "objects: TestImages(names: [\"astronaut\", \"coffee\"], rule: RandomCrop),"
         } else if replacement.starts_with("seed") {
             "seed: 7,"
+        } else if replacement.starts_with("kernel") {
+            "kernel: (rays: 8192, seed: 1, grid_px: (24, 24), field_mm: (7.88, 7.88)),"
         } else if replacement.starts_with("acquisition") {
             "acquisition: (schemes: [SecondaryComplementaryBalancing, DoubleArm], ratios: [0.05]),"
         } else {

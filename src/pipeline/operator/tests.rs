@@ -7,6 +7,17 @@ use crate::pipeline::evaluate;
 use crate::rng::{self, uniform};
 use crate::transport::Transport;
 
+/// The kernel spec of `rays` rays (seed 3) on a `grid` of pixels over `field_mm`.
+fn spec(chart: Option<&str>, grid: (usize, usize), field_mm: (f64, f64), rays: u64) -> KernelSpec {
+    KernelSpec {
+        rays,
+        seed: 3,
+        grid_px: grid,
+        field_mm,
+        chart: chart.map(String::from),
+    }
+}
+
 fn paper_doc() -> BenchDoc {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/paper_bench.ron");
     BenchDoc::read(&path).unwrap()
@@ -16,8 +27,8 @@ fn paper_doc() -> BenchDoc {
 /// run scene, noise off, recorded frame by frame.
 fn setup() -> (RunScene, Kernel) {
     let doc = paper_doc();
-    let options = TraceOptions::new(8 * crate::trace::RAYS_PER_BATCH, 3);
-    let kernel = clear_chart_kernel(&doc, None, (12, 12), (7.88, 7.88), &options).unwrap();
+    let rays = 8 * crate::trace::RAYS_PER_BATCH;
+    let kernel = clear_chart_kernel(&doc, &spec(None, (12, 12), (7.88, 7.88), rays)).unwrap();
     let mut scene = doc.run_scene().unwrap();
     scene.settings.noise = false;
     scene.settings.additive_noise = None;
@@ -118,16 +129,71 @@ fn bad_sizes_and_values_are_named() {
     let e = op.apply_adjoint(&y).unwrap_err().to_string();
     assert!(e.contains("`y`") && e.contains("value 2"), "{e}");
     assert!(patterns_for(&scene, 1.5).is_err());
-    let e = clear_chart_kernel(
-        &paper_doc(),
-        Some("nope"),
-        (4, 4),
-        (1.0, 1.0),
-        &TraceOptions::new(1024, 1),
-    )
-    .unwrap_err()
-    .to_string();
-    assert!(e.contains("nope"), "{e}");
+}
+
+/// The kernel builder's checks, each naming its field of the kernel spec and nothing traced:
+/// the bounds of a dataset spec's `kernel:` section, and the chart.
+#[test]
+fn a_kernel_spec_is_checked_before_anything_is_traced() {
+    use crate::scene::bench::ElementSpec;
+    let refused = |doc: &BenchDoc, s: KernelSpec, field: &str, words: &[&str]| {
+        let e = ClearChart::new(doc, &s).err().expect("refused");
+        let text = e.to_string();
+        assert!(e.is_user_error(), "{text}");
+        assert!(text.starts_with(&format!("field `{field}`: ")), "{text}");
+        for w in words {
+            assert!(text.contains(w), "{text} lacks {w:?}");
+        }
+    };
+    let doc = paper_doc();
+    assert!(ClearChart::new(&doc, &spec(None, (4, 4), (1.0, 1.0), 2048)).is_ok());
+    let cases = [
+        (
+            spec(Some("nope"), (4, 4), (1.0, 1.0), 2048),
+            "chart",
+            "its charts: \"chart\"",
+        ),
+        (
+            spec(None, (0, 4), (1.0, 1.0), 2048),
+            "grid_px",
+            "from 1 to 1024, got 0",
+        ),
+        (
+            spec(None, (4, 2000), (1.0, 1.0), 2048),
+            "grid_px",
+            "got 2000",
+        ),
+        (
+            spec(None, (4, 4), (f64::NAN, 1.0), 2048),
+            "field_mm",
+            "positive",
+        ),
+        (
+            spec(None, (4, 4), (1.0, -1.0), 2048),
+            "field_mm",
+            "positive",
+        ),
+        (spec(None, (4, 4), (1.0, 1.0), 1024), "rays", "from 2048"),
+    ];
+    for (s, field, words) in cases {
+        refused(&doc, s, field, &[words]);
+    }
+    // Two charts, none named.
+    let mut two = doc.clone();
+    let mut second = two
+        .file
+        .elements
+        .iter()
+        .find(|e| matches!(e, ElementSpec::Chart { .. }))
+        .cloned()
+        .unwrap();
+    if let ElementSpec::Chart { name, .. } = &mut second {
+        *name = "second".into();
+    }
+    two.file.elements.push(second);
+    let words = ["2 charts", "\"second\"", "name one"];
+    refused(&two, spec(None, (4, 4), (1.0, 1.0), 2048), "chart", &words);
+    assert!(ClearChart::new(&two, &spec(Some("second"), (4, 4), (1.0, 1.0), 2048)).is_ok());
 }
 
 #[test]
