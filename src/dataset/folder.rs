@@ -199,9 +199,10 @@ pub fn generate(
             || manifest.provenance.tolerance_sha256 != fresh.provenance.tolerance_sha256
             || manifest.shard_range != range
         {
-            return Err(Error::input(
+            return Err(Error::field(
+                "resume",
                 "the folder holds another dataset (its spec, bench or shard range differ): \
-                 resume it with the same spec and --shard",
+                 resume it with the same spec and shard range",
             )
             .in_file(dir));
         }
@@ -244,9 +245,10 @@ pub fn generate(
                 }
             }
         } else if exists || dir.read_dir().is_ok_and(content) {
-            return Err(Error::input(
-                "the output folder exists and is not empty: choose another, or continue it \
-                 with --resume",
+            return Err(Error::field(
+                "out",
+                "the output folder exists and is not empty: choose another, or resume the \
+                 dataset it holds",
             )
             .in_file(dir));
         }

@@ -16,9 +16,9 @@ use crate::report::untrusted::bad_field;
 /// command (`provenance.merged_from`). A merge of one folder is a complete copy of it.
 pub fn merge(inputs: &[PathBuf], out: &Path, command: &[String]) -> Result<Manifest> {
     if inputs.is_empty() {
-        return Err(Error::field("--merge", "name the folders to merge"));
+        return Err(Error::field("merge", "name the folders to merge"));
     }
-    crate::report::output::refuse_overlap(out, inputs, "--out")?;
+    crate::report::output::refuse_overlap(out, inputs, "out")?;
     let manifests: Vec<Manifest> = inputs
         .iter()
         .map(|d| read_manifest(d))
@@ -124,12 +124,15 @@ fn shard_owners(
     if listed < m0.shards_total {
         // Every index below the count is either listed or the first missing one.
         let first = (0..=listed).find(|i| !owner.contains_key(i)).unwrap_or(0);
-        return Err(Error::input(format!(
-            "cannot merge: {} shard(s) missing, first shard {first} (samples from {}); the \
-             folders give no sample there (an unfinished job? resume it with --resume)",
-            m0.shards_total - listed,
-            first * m0.shard_samples
-        )));
+        return Err(Error::field(
+            "merge",
+            format!(
+                "cannot merge: {} shard(s) missing, first shard {first} (samples from {}); the \
+                 folders give no sample there (an unfinished job? resume it)",
+                m0.shards_total - listed,
+                first * m0.shard_samples
+            ),
+        ));
     }
     Ok(owner)
 }
