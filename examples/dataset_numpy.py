@@ -12,6 +12,10 @@ A manifest may have been edited by someone else: `manifest(dir)` refuses, as spi
 any shard folder that is not exactly shard_NNNNNN of its index, any array name that the
 manifest's schemes and ratios do not allow, any file that is not NAME.npy, and any path that
 leads out of the folder through a symbolic link, before a single array is opened.
+
+The names below are the dataset folder's contract as spibench defines it (its
+`dataset::contract` module); the Python package's tests compare these tables with the
+library's, so this reader needs numpy alone and still follows spibench.
 """
 import hashlib
 import json
@@ -19,6 +23,8 @@ import os
 import re
 import sys
 
+FORMAT = "spibench-dataset-1"
+MANIFEST = "manifest.json"
 SCHEMES = {
     "traditional",
     "single_arm_complementary",
@@ -30,7 +36,11 @@ SCHEMES = {
 }
 SEQUENCES = ("base", "complementary", "calibrated_base")
 FIXED = {"sample", "object", "k", "b", "bench", "deviations", "dmd_image"}
+CELL_KINDS = ("meas", "recon", "score")
 COPIES = {"spec_file": "spec.ron", "bench_file": "bench.ron", "tolerance_file": "tolerances.ron"}
+PATTERNS = "patterns.npy"
+SHARD_DIR = "shard_%06d"
+ARRAY_FILE = "%s.npy"
 
 
 class UntrustedManifest(ValueError):
@@ -48,7 +58,7 @@ def allowed_names(m, path="manifest.json"):
         if s not in SCHEMES:
             _refuse(path, f"schemes[{i}]", f"{s!r} is not a scheme of spibench")
         for r in m["ratios"]:
-            for kind in ("meas", "recon", "score"):
+            for kind in CELL_KINDS:
                 names.add(f"{kind}_{s}_r{float(r):.4f}")
     names.update(f"scope_{q}" for q in SEQUENCES)
     return names
@@ -67,35 +77,37 @@ def _inside(root, rel, path, field):
 
 def checked(m, root, path="manifest.json"):
     """Checks every name and path of manifest m of folder root; returns m."""
+    if m.get("format") != FORMAT:
+        _refuse(path, "format", f"{m.get('format')!r} is not {FORMAT!r}")
     prov = m["provenance"]
     for key, want in COPIES.items():
         got = prov.get(key)
         if got != want and not (key == "tolerance_file" and got is None):
             _refuse(path, f"provenance.{key}", f"must be {want!r}, not {got!r}")
-    if m.get("patterns_file") not in (None, "patterns.npy"):
-        _refuse(path, "patterns_file", f"must be 'patterns.npy', not {m['patterns_file']!r}")
+    if m.get("patterns_file") not in (None, PATTERNS):
+        _refuse(path, "patterns_file", f"must be {PATTERNS!r}, not {m['patterns_file']!r}")
     allowed = allowed_names(m, path)
     schema = [a["name"] for a in m["schema"]]
     for i, name in enumerate(schema):
         if not isinstance(name, str) or name not in allowed or schema.index(name) != i:
             _refuse(path, f"schema[{i}].name", f"{name!r} is not an array of this dataset")
     for i, s in enumerate(m["shards"]):
-        want = "shard_%06d" % s["index"]
+        want = SHARD_DIR % s["index"]
         if s["dir"] != want:
             _refuse(path, f"shards[{i}].dir", f"the folder of shard {s['index']} is {want!r}, not {s['dir']!r}")
         _inside(root, s["dir"], path, f"shards[{i}].dir")
         if [f["name"] for f in s["files"]] != schema:
             _refuse(path, f"shards[{i}].files", "the files are not the schema's arrays")
         for k, f in enumerate(s["files"]):
-            if f["file"] != f["name"] + ".npy":
-                _refuse(path, f"shards[{i}].files[{k}].file", f"{f['file']!r} is not {f['name'] + '.npy'!r}")
+            if f["file"] != ARRAY_FILE % f["name"]:
+                _refuse(path, f"shards[{i}].files[{k}].file", f"{f['file']!r} is not {ARRAY_FILE % f['name']!r}")
             _inside(root, os.path.join(s["dir"], f["file"]), path, f"shards[{i}].files[{k}].file")
     return m
 
 
 def manifest(root):
     """The manifest of dataset folder root, checked (see the module docstring)."""
-    path = _inside(root, "manifest.json", os.path.join(root, "manifest.json"), "manifest.json")
+    path = _inside(root, MANIFEST, os.path.join(root, MANIFEST), MANIFEST)
     with open(path) as f:
         return checked(json.load(f), root, path)
 

@@ -17,6 +17,7 @@ import numpy as np
 import torch
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from dataset_numpy import ARRAY_FILE, CELL_KINDS  # noqa: E402
 from dataset_numpy import manifest as checked_manifest  # noqa: E402
 
 
@@ -24,7 +25,8 @@ class SpibenchDataset(torch.utils.data.Dataset):
     def __init__(self, root, measurement=None):
         self.manifest = checked_manifest(root)
         names = [a["name"] for a in self.manifest["schema"]]
-        self.measurement = measurement or next(n for n in names if n.startswith("meas_"))
+        meas = CELL_KINDS[0] + "_"
+        self.measurement = measurement or next(n for n in names if n.startswith(meas))
         if self.measurement not in names:
             raise ValueError(f"{self.measurement!r} is not an array of this dataset: {names}")
         shards = sorted(self.manifest["shards"], key=lambda s: s["index"])
@@ -32,8 +34,8 @@ class SpibenchDataset(torch.utils.data.Dataset):
         n = 0
         for s in shards:
             d = os.path.join(root, s["dir"])
-            self.y.append(np.load(os.path.join(d, self.measurement + ".npy"), mmap_mode="r"))
-            self.x.append(np.load(os.path.join(d, "object.npy"), mmap_mode="r"))
+            self.y.append(np.load(os.path.join(d, ARRAY_FILE % self.measurement), mmap_mode="r"))
+            self.x.append(np.load(os.path.join(d, ARRAY_FILE % "object"), mmap_mode="r"))
             self.starts.append(n)
             n += s["samples"]
         self.n = n

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from . import InputError
+from . import InputError, dataset_array_name
 
 
 class MeasurementDataset(torch.utils.data.Dataset):
@@ -18,7 +18,7 @@ class MeasurementDataset(torch.utils.data.Dataset):
     """
 
     def __init__(self, dataset, scheme: str, ratio: float):
-        name = f"meas_{scheme}_r{ratio:.4f}"
+        name = dataset_array_name("meas", scheme, ratio)
         if name not in dataset.names:
             raise InputError(f"argument `scheme`/`ratio`: the dataset has no {name}")
         self.y = dataset.array(name)

@@ -163,11 +163,16 @@ impl Acquisition {
         vec1(py, self.op.offset.clone())
     }
 
-    /// The coefficients (ka, kb, ks₊, ks₋, kc₊, kc₋) of the operator's measurement model.
+    /// The coefficients of the operator's measurement model.
     #[getter]
-    fn coefficients(&self) -> [f64; 6] {
+    fn coefficients(&self) -> Coefficients {
         let k = &self.op.coefficients;
-        [k.ka, k.kb, k.ks[0], k.ks[1], k.kc[0], k.kc[1]]
+        Coefficients {
+            ka: k.ka,
+            kb: k.kb,
+            ks: (k.ks[0], k.ks[1]),
+            kc: (k.kc[0], k.kc[1]),
+        }
     }
 
     /// The first M base patterns, one row of units (row-major) per pattern, as 0/1 bytes.
@@ -288,16 +293,14 @@ impl Acquisition {
         })
     }
 
-    /// TVAL3 on the DMD units, as `spibench run` solves this scheme: (image (down × across),
-    /// iterations, stop reason, converged, relative residual, seconds).
+    /// TVAL3 on the DMD units, as `spibench run` solves this scheme.
     #[pyo3(signature = (y, threads=None))]
-    #[allow(clippy::type_complexity)]
     fn reconstruct<'py>(
         &self,
         py: Python<'py>,
         y: PyReadonlyArray1<'py, f64>,
         threads: Option<usize>,
-    ) -> PyResult<(Bound<'py, PyArray2<f64>>, usize, String, bool, f64, f64)> {
+    ) -> PyResult<Solution> {
         let y = y.as_slice().map_err(PyErr::from)?.to_vec();
         let scheme = self.op.scheme;
         let m = self.op.measurements;
@@ -320,13 +323,37 @@ impl Acquisition {
             let sol = solver.solve(op.as_ref(), &y, across, down, scheme.form())?;
             Ok((sol, start.elapsed().as_secs_f64()))
         })?;
-        Ok((
-            vec2(py, sol.image.data, down, across)?,
-            sol.iterations,
-            format!("{:?}", sol.stop),
-            sol.converged,
-            sol.relative_residual,
+        Ok(Solution {
+            image: vec2(py, sol.image.data, down, across)?.unbind(),
+            iterations: sol.iterations,
+            stop: format!("{:?}", sol.stop),
+            converged: sol.converged,
+            relative_residual: sol.relative_residual,
             seconds,
-        ))
+        })
     }
+}
+
+/// The coefficients of y_i = ka·a_i + kb·b_i + ks₊·S₊ + ks₋·S₋ + kc₊·c₊ + kc₋·c₋ + const
+/// (`pipeline::operator::Coefficients`), in V/A (the calibrated scheme: 1/A); `ks` and `kc`
+/// per arm (+, −).
+#[pyclass(frozen, get_all, module = "spibench._spibench")]
+pub(crate) struct Coefficients {
+    ka: f64,
+    kb: f64,
+    ks: (f64, f64),
+    kc: (f64, f64),
+}
+
+/// A TVAL3 reconstruction: the image (down × across), the iterations, why it stopped
+/// (`Tolerance`, `MaxOuter`, `MaxIterations`), whether it converged, its relative residual and
+/// the seconds it took.
+#[pyclass(frozen, get_all, module = "spibench._spibench")]
+pub(crate) struct Solution {
+    image: Py<PyArray2<f64>>,
+    iterations: usize,
+    stop: String,
+    converged: bool,
+    relative_residual: f64,
+    seconds: f64,
 }

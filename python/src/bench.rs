@@ -90,10 +90,11 @@ impl Bench {
         self.doc.to_ron().map_err(to_py)
     }
 
-    /// Builds the bench and its electronics; returns the DMD units (across, down).
+    /// Builds the bench and its electronics; returns the DMD units (down, across).
     fn check(&self) -> PyResult<(usize, usize)> {
         let scene = self.doc.run_scene().map_err(to_py)?;
-        Ok(scene.bench.units_shape())
+        let (across, down) = scene.bench.units_shape();
+        Ok((down, across))
     }
 
     #[pyo3(signature = (rays, seed, threads=None))]

@@ -6,7 +6,7 @@ use std::sync::Arc;
 
 use pyo3::prelude::*;
 
-use spibench::dataset::{self, Prepared};
+use spibench::dataset::{self, Prepared, contract};
 use spibench::error::{Error, Result};
 use spibench::pipeline::operator::KernelMatrices;
 use spibench::trace::kernel::Kernel as LibKernel;
@@ -27,14 +27,14 @@ pub(crate) struct Dataset {
 /// original (same SHA-256) is still in place (relative paths in it then resolve as before).
 fn dataset_spec(dir: &Path) -> Result<spibench::scene::dataset::DatasetSpec> {
     let manifest = dataset::read_manifest(dir)?;
-    let copy = dir.join("spec.ron");
+    let copy = dir.join(contract::SPEC_COPY);
     let text = std::fs::read_to_string(&copy).map_err(|e| Error::read(&copy, e))?;
     let original = PathBuf::from(&manifest.provenance.spec_file);
     let mut spec = spibench::scene::dataset::parse_dataset(&text, &original)?;
     let same = std::fs::read(&spec.bench_path)
         .is_ok_and(|b| dataset::sha256_hex(&b) == manifest.provenance.bench_sha256);
     if !same {
-        spec.bench_path = dir.join("bench.ron");
+        spec.bench_path = dir.join(contract::BENCH_COPY);
     }
     Ok(spec)
 }

@@ -5,9 +5,11 @@ use std::sync::Arc;
 use numpy::{IntoPyArray, PyArray1, PyArray2, PyReadonlyArray1, PyReadonlyArray2};
 use pyo3::prelude::*;
 
-use spibench::error::Error;
+use spibench::optics::Arm;
+use spibench::optics::dmd::MirrorState;
 use spibench::pipeline::operator::{self, KernelMatrices};
 use spibench::scene::run::RunScene;
+use spibench::trace::BatchTally;
 use spibench::trace::kernel::Kernel as LibKernel;
 use spibench::transport::Transport;
 
@@ -29,28 +31,6 @@ impl Kernel {
             kernel: Arc::new(kernel),
             matrices: Arc::new(matrices),
         }
-    }
-
-    #[allow(clippy::type_complexity)]
-    fn csr_parts<'py>(
-        py: Python<'py>,
-        m: &operator::Csr,
-    ) -> (
-        Bound<'py, PyArray1<f64>>,
-        Bound<'py, PyArray1<u32>>,
-        Bound<'py, PyArray1<u64>>,
-        (usize, usize),
-    ) {
-        (
-            m.data.clone().into_pyarray(py),
-            m.indices.clone().into_pyarray(py),
-            m.indptr
-                .iter()
-                .map(|&v| v as u64)
-                .collect::<Vec<_>>()
-                .into_pyarray(py),
-            (m.rows, m.cols),
-        )
     }
 }
 
@@ -109,77 +89,76 @@ impl Kernel {
         self.kernel.multi_crossing_current_a
     }
 
-    /// A sparse matrix (data, indices, indptr, shape): kind "t" (block 0–3), "g", "g_stderr"
-    /// (arm 0–1) or "x".
-    #[allow(clippy::type_complexity)]
-    fn csr<'py>(
-        &self,
-        py: Python<'py>,
-        kind: &str,
-        index: usize,
-    ) -> PyResult<(
-        Bound<'py, PyArray1<f64>>,
-        Bound<'py, PyArray1<u32>>,
-        Bound<'py, PyArray1<u64>>,
-        (usize, usize),
-    )> {
-        let m = &self.matrices;
-        let mat = match (kind, index) {
-            ("t", 0..4) => &m.t[index],
-            ("g", 0..2) => &m.g[index],
-            ("g_stderr", 0..2) => &m.g_stderr[index],
-            ("x", 0) => &m.x,
-            _ => {
-                return Err(to_py(Error::field(
-                    "kind",
-                    format!("no matrix {kind:?}[{index}]"),
-                )));
-            }
-        };
-        Ok(Self::csr_parts(py, mat))
+    /// T[arm][state] (units × pixels, A per unit transmittance).
+    fn t(&self, py: Python<'_>, arm: PyArm, state: PyMirrorState) -> PyResult<Csr> {
+        Csr::new(py, &self.matrices.t[block(arm, state)])
     }
 
-    /// An object-independent column or per-pixel vector: "t0" (block 0–3), "g0" (arm), "x0",
-    /// "c" (arm, per pixel), "c0" (arm, one value).
-    fn vector<'py>(
+    /// The object-independent T[arm][state] (A, per unit).
+    fn t0<'py>(
         &self,
         py: Python<'py>,
-        kind: &str,
-        index: usize,
-    ) -> PyResult<Bound<'py, PyArray1<f64>>> {
-        let m = &self.matrices;
-        let v = match (kind, index) {
-            ("t0", 0..4) => m.t0[index].clone(),
-            ("g0", 0..2) => m.g0[index].clone(),
-            ("x0", 0) => m.x0.clone(),
-            ("c", 0..2) => m.c[index].clone(),
-            ("c0", 0..2) => vec![m.c0[index]],
-            _ => {
-                return Err(to_py(Error::field(
-                    "kind",
-                    format!("no vector {kind:?}[{index}]"),
-                )));
-            }
-        };
-        Ok(vec1(py, v))
+        arm: PyArm,
+        state: PyMirrorState,
+    ) -> Bound<'py, PyArray1<f64>> {
+        vec1(py, self.matrices.t0[block(arm, state)].clone())
+    }
+
+    /// The gain matrix G of `arm` (units × pixels, A per unit transmittance).
+    fn g(&self, py: Python<'_>, arm: PyArm) -> PyResult<Csr> {
+        Csr::new(py, &self.matrices.g[Arm::from(arm)])
+    }
+
+    /// The standard error of each entry of G of `arm` (A), G's sparsity.
+    fn g_stderr(&self, py: Python<'_>, arm: PyArm) -> PyResult<Csr> {
+        Csr::new(py, &self.matrices.g_stderr[Arm::from(arm)])
+    }
+
+    /// The object-independent gains of `arm` (A, per unit).
+    fn g0<'py>(&self, py: Python<'py>, arm: PyArm) -> Bound<'py, PyArray1<f64>> {
+        vec1(py, self.matrices.g0[Arm::from(arm)].clone())
+    }
+
+    /// The power on the units X (units × pixels, W per unit transmittance).
+    fn x(&self, py: Python<'_>) -> PyResult<Csr> {
+        Csr::new(py, &self.matrices.x)
+    }
+
+    /// The object-independent power on the units (W).
+    fn x0<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        vec1(py, self.matrices.x0.clone())
+    }
+
+    /// The pattern-independent traced current of `arm`'s diode per pixel (A).
+    fn c<'py>(&self, py: Python<'py>, arm: PyArm) -> Bound<'py, PyArray1<f64>> {
+        vec1(py, self.matrices.c[Arm::from(arm)].clone())
+    }
+
+    /// Its object-independent part (A).
+    fn c0(&self, arm: PyArm) -> f64 {
+        self.matrices.c0[Arm::from(arm)]
     }
 
     /// The transport of one object through the kernel (`Transport::from_kernel`): its scalars
-    /// with standard errors, (name, value, stderr), names as a trace's metrics.
+    /// with standard errors by name, the names as a trace's metrics.
     fn transport_metrics(
         &self,
         object: PyReadonlyArray1<'_, f64>,
-    ) -> PyResult<Vec<(&'static str, f64, f64)>> {
+    ) -> PyResult<Vec<(&'static str, Estimate)>> {
         let o = object.as_slice().map_err(PyErr::from)?;
         let t = Transport::from_kernel(&self.scene.bench, &self.kernel, o).map_err(to_py)?;
+        let e = |v: &spibench::transport::Estimate| Estimate {
+            value: v.value,
+            stderr: v.stderr,
+        };
         Ok(vec![
-            ("x_total_w", t.x_total.value, t.x_total.stderr),
-            ("k_plus", t.k[0].value, t.k[0].stderr),
-            ("k_minus", t.k[1].value, t.k[1].stderr),
-            ("k_prime", t.k_prime.value, t.k_prime.stderr),
-            ("imbalance", t.imbalance.value, t.imbalance.stderr),
-            ("b_plus", t.b[0].value, t.b[0].stderr),
-            ("b_minus", t.b[1].value, t.b[1].stderr),
+            ("x_total_w", e(&t.x_total)),
+            ("k_plus", e(&t.k[0])),
+            ("k_minus", e(&t.k[1])),
+            ("k_prime", e(&t.k_prime)),
+            ("imbalance", e(&t.imbalance)),
+            ("b_plus", e(&t.b[0])),
+            ("b_minus", e(&t.b[1])),
         ])
     }
 
@@ -188,14 +167,13 @@ impl Kernel {
     /// its linear part (`Kernel::apply_linear`: light that meets the chart more than once
     /// weighted by its first pixel only), which the sparse matrices hold.
     #[pyo3(signature = (objects, threads=None, linear=false))]
-    #[allow(clippy::type_complexity)]
     fn product<'py>(
         &self,
         py: Python<'py>,
         objects: PyReadonlyArray2<'py, f64>,
         threads: Option<usize>,
         linear: bool,
-    ) -> PyResult<(Bound<'py, PyArray2<f64>>, Bound<'py, PyArray2<f64>>)> {
+    ) -> PyResult<Product> {
         use rayon::prelude::*;
         let pixels = self.kernel.grid.pixels();
         let units = self.kernel.units();
@@ -219,6 +197,99 @@ impl Kernel {
             let (x, t): (Vec<Vec<f64>>, Vec<Vec<f64>>) = parts.into_iter().unzip();
             Ok((x.concat(), t.concat()))
         })?;
-        Ok((vec2(py, x, n, units)?, vec2(py, t, n, 4 * units)?))
+        Ok(Product {
+            x_w: vec2(py, x, n, units)?.unbind(),
+            t_a: vec2(py, t, n, 4 * units)?.unbind(),
+        })
     }
+}
+
+/// A detection arm (its photodiode): + or −, as `spibench::optics::Arm`.
+#[pyclass(
+    name = "Arm",
+    eq,
+    eq_int,
+    frozen,
+    from_py_object,
+    module = "spibench._spibench"
+)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum PyArm {
+    Plus = 0,
+    Minus = 1,
+}
+
+impl From<PyArm> for Arm {
+    fn from(a: PyArm) -> Arm {
+        match a {
+            PyArm::Plus => Arm::Plus,
+            PyArm::Minus => Arm::Minus,
+        }
+    }
+}
+
+/// A powered mirror's state, + or − (the states of T).
+#[pyclass(
+    name = "MirrorState",
+    eq,
+    eq_int,
+    frozen,
+    from_py_object,
+    module = "spibench._spibench"
+)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum PyMirrorState {
+    Plus = 0,
+    Minus = 1,
+}
+
+impl From<PyMirrorState> for MirrorState {
+    fn from(s: PyMirrorState) -> MirrorState {
+        match s {
+            PyMirrorState::Plus => MirrorState::Plus,
+            PyMirrorState::Minus => MirrorState::Minus,
+        }
+    }
+}
+
+/// The kernel matrices' block of T[arm][state].
+fn block(arm: PyArm, state: PyMirrorState) -> usize {
+    BatchTally::t_block(arm.into(), state.into())
+}
+
+/// A sparse matrix in compressed rows, as `scipy.sparse.csr_matrix` takes it.
+#[pyclass(frozen, get_all, module = "spibench._spibench")]
+pub(crate) struct Csr {
+    data: Py<PyArray1<f64>>,
+    indices: Py<PyArray1<u32>>,
+    indptr: Py<PyArray1<u64>>,
+    /// (rows, columns).
+    shape: (usize, usize),
+}
+
+impl Csr {
+    fn new(py: Python<'_>, m: &operator::Csr) -> PyResult<Csr> {
+        let indptr: Vec<u64> = m.indptr.iter().map(|&v| v as u64).collect();
+        Ok(Csr {
+            data: m.data.clone().into_pyarray(py).unbind(),
+            indices: m.indices.clone().into_pyarray(py).unbind(),
+            indptr: indptr.into_pyarray(py).unbind(),
+            shape: (m.rows, m.cols),
+        })
+    }
+}
+
+/// A traced number with its standard error.
+#[pyclass(frozen, get_all, module = "spibench._spibench")]
+pub(crate) struct Estimate {
+    value: f64,
+    stderr: f64,
+}
+
+/// The kernel product of a batch of objects: the power on each unit x_j (W), (N, units), and
+/// the four T blocks (A), (N, 4·units), in `BatchTally::t_block` order.
+#[pyclass(frozen, get_all, module = "spibench._spibench")]
+pub(crate) struct Product {
+    x_w: Py<PyArray2<f64>>,
+    t_a: Py<PyArray2<f64>>,
 }

@@ -4,7 +4,10 @@
 //! evaluate step's trace, the object kernel, `Transport::from_kernel` with the record stage,
 //! `pipeline::operator::TracedOperator`, the TVAL3 solver, `dataset::generate`). Arrays cross as
 //! contiguous float64 numpy arrays, already checked for shape and dtype by the Python layer
-//! (`spibench/__init__.py`), and checked again here for length and finiteness. Errors become
+//! (`spibench/`), and checked again here for length and finiteness. Closed sets cross as
+//! classes (`Arm`, `MirrorState`), results with several parts as classes with named fields
+//! (`Csr`, `Product`, `Estimate`, `Coefficients`, `Solution`); strings only where the public
+//! API takes them (scheme keys, the record model, variable paths). Errors become
 //! `InputError` (a `ValueError`) for input a user can fix, `OSError` for files, `RuntimeError`
 //! otherwise, each with the library's located message. Long calls release the GIL and run on
 //! the library's threads (`threads=`, default the global pool); results do not depend on the
@@ -20,6 +23,7 @@ use spibench::error::{Error, Result};
 
 mod acquisition;
 mod bench;
+mod contract;
 mod dataset;
 mod kernel;
 mod trace;
@@ -116,6 +120,22 @@ fn _spibench(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<kernel::Kernel>()?;
     m.add_class::<acquisition::Acquisition>()?;
     m.add_class::<dataset::Dataset>()?;
+    m.add_class::<kernel::PyArm>()?;
+    m.add_class::<kernel::PyMirrorState>()?;
+    m.add_class::<kernel::Csr>()?;
+    m.add_class::<kernel::Estimate>()?;
+    m.add_class::<kernel::Product>()?;
+    m.add_class::<acquisition::Coefficients>()?;
+    m.add_class::<acquisition::Solution>()?;
+    m.add(
+        "SCHEMES",
+        pyo3::types::PyTuple::new(m.py(), contract::scheme_keys())?,
+    )?;
+    m.add_function(wrap_pyfunction!(contract::dataset_contract, m)?)?;
+    m.add_function(wrap_pyfunction!(contract::dataset_array_name, m)?)?;
+    m.add_function(wrap_pyfunction!(contract::dataset_array_names, m)?)?;
+    m.add_function(wrap_pyfunction!(contract::dataset_shard_dir, m)?)?;
+    m.add_function(wrap_pyfunction!(contract::read_dataset_manifest, m)?)?;
     m.add_function(wrap_pyfunction!(dataset::make_dataset, m)?)?;
     m.add_function(wrap_pyfunction!(dataset::dataset_noise_seed, m)?)?;
     m.add_function(wrap_pyfunction!(version, m)?)?;

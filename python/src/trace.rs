@@ -4,11 +4,12 @@ use numpy::PyArray1;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use spibench::error::Error;
+use spibench::optics::Arm;
 use spibench::pipeline::Traced;
 use spibench::pipeline::evaluate::{self, Evaluation};
 
-use crate::{to_py, vec1};
+use crate::kernel::PyArm;
+use crate::vec1;
 
 /// A traced bench (see `spibench.Trace`).
 #[pyclass(frozen, module = "spibench._spibench")]
@@ -42,21 +43,32 @@ impl Trace {
         (t.units_down, t.units_across)
     }
 
-    /// The per-unit maps by name: x_w, g_plus_a, g_minus_a, k_plus_a_per_w, …, t_a (4 blocks).
-    fn map<'py>(&self, py: Python<'py>, name: &str) -> PyResult<Bound<'py, PyArray1<f64>>> {
-        let t = &self.traced.transport;
-        let v = match name {
-            "x_w" => t.x_w.clone(),
-            "g_plus_a" => t.g_a[0].clone(),
-            "g_minus_a" => t.g_a[1].clone(),
-            "k_plus_a_per_w" => t.k_map[0].clone(),
-            "k_minus_a_per_w" => t.k_map[1].clone(),
-            "k_plus_stderr_a_per_w" => t.k_map_stderr[0].clone(),
-            "k_minus_stderr_a_per_w" => t.k_map_stderr[1].clone(),
-            "t_a" => t.t_a.clone(),
-            _ => return Err(to_py(Error::field("name", format!("no map {name:?}")))),
-        };
-        Ok(vec1(py, v))
+    /// The power incident on each unit x_j (W), units row-major (down, across).
+    fn x_w<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        vec1(py, self.traced.transport.x_w.clone())
+    }
+
+    /// The per-unit gains g_j of `arm` (A).
+    fn g_a<'py>(&self, py: Python<'py>, arm: PyArm) -> Bound<'py, PyArray1<f64>> {
+        vec1(py, self.traced.transport.g_a[Arm::from(arm)].clone())
+    }
+
+    /// k_j = g_j / x_j of `arm` (A/W).
+    fn k_a_per_w<'py>(&self, py: Python<'py>, arm: PyArm) -> Bound<'py, PyArray1<f64>> {
+        vec1(py, self.traced.transport.k_map[Arm::from(arm)].clone())
+    }
+
+    /// The standard errors of k_j of `arm` (A/W).
+    fn k_stderr_a_per_w<'py>(&self, py: Python<'py>, arm: PyArm) -> Bound<'py, PyArray1<f64>> {
+        vec1(
+            py,
+            self.traced.transport.k_map_stderr[Arm::from(arm)].clone(),
+        )
+    }
+
+    /// T[d][s][j] (A), the four blocks in `BatchTally::t_block` order (d·2 + s).
+    fn t_a<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        vec1(py, self.traced.transport.t_a.clone())
     }
 
     /// The flux ledger: per world (+, −) absorbed per element, escaped, path cap, detected.

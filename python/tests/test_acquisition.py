@@ -29,7 +29,7 @@ def test_forward_equals_the_dataset_bit_for_bit(dataset):
             acq = ds.acquisition(key, ratio)
             assert acq.noise_default == noise
             y = acq.forward(objects, noise=noise, seed=ds.seed)
-            want = np.asarray(ds.array(f"meas_{key}_r{ratio:.4f}"))
+            want = np.asarray(ds.array(spibench.dataset_array_name("meas", key, ratio)))
             assert y.shape == want.shape
             assert np.array_equal(y, want), (scheme, ratio)
             # One sample alone, with its own record seed.
@@ -40,7 +40,7 @@ def test_forward_equals_the_dataset_bit_for_bit(dataset):
     if noise:
         acq = ds.acquisition("double_arm", 0.1)
         assert not np.array_equal(acq.forward(objects, noise=True, seed=ds.seed + 1),
-                                  np.asarray(ds.array("meas_double_arm_r0.1000")))
+                                  np.asarray(ds.array(spibench.dataset_array_name("meas", "double_arm", 0.1))))
 
 
 def test_forward_is_the_same_on_one_thread(dataset):
@@ -68,7 +68,7 @@ def test_forward_equals_the_command_line_dataset(tmp_path):
     objects = np.asarray(ds.array("object"))
     for key in ("secondary_complementary_balancing", "double_arm"):
         y = ds.acquisition(key, 0.05).forward(objects, noise=True, seed=ds.seed)
-        assert np.array_equal(y, np.asarray(ds.array(f"meas_{key}_r0.0500")))
+        assert np.array_equal(y, np.asarray(ds.array(spibench.dataset_array_name("meas", key, 0.05))))
 
 
 @pytest.mark.parametrize("scheme", spibench.SCHEMES)
@@ -129,3 +129,11 @@ def test_patterns(kernel):
     # The traditional scheme reads P x: its linear part is a gain times the pattern's light.
     t = spibench.Acquisition(kernel, "traditional", 0.05)
     assert np.array_equal(t.patterns, p)
+
+
+def test_public_constructors_take_no_private_keyword():
+    import inspect
+
+    for cls in (spibench.Acquisition, spibench.Bench, spibench.OpenDataset):
+        private = [p for p in inspect.signature(cls).parameters if p.startswith("_")]
+        assert not private, (cls, private)

@@ -62,10 +62,20 @@ def test_arguments(paper, kernel):
         paper.trace(rays=-1)
     with pytest.raises(InputError, match="threads"):
         paper.trace(rays=10, threads=0)
-    with pytest.raises(InputError, match="chart"):
-        paper.kernel(grid=(4, 4), field_mm=1.0, rays=1024, chart="nope")
-    with pytest.raises(InputError, match="field_mm"):
-        paper.kernel(grid=(4, 4), field_mm=-1.0, rays=1024)
+    # The kernel's arguments are checked by the library's one kernel builder, with the bounds of
+    # a dataset spec's `kernel:` section.
+    with pytest.raises(InputError, match=r"field `chart`.*no chart named \"nope\".*\"chart\""):
+        paper.kernel(grid=(4, 4), field_mm=1.0, rays=2048, chart="nope")
+    with pytest.raises(InputError, match="field `field_mm`"):
+        paper.kernel(grid=(4, 4), field_mm=-1.0, rays=2048)
+    with pytest.raises(InputError, match="field `field_mm`"):
+        paper.kernel(grid=(4, 4), field_mm=(1.0, float("nan")), rays=2048)
+    with pytest.raises(InputError, match="field `grid`.*from 1 to 1024"):
+        paper.kernel(grid=(0, 4), field_mm=1.0, rays=2048)
+    with pytest.raises(InputError, match="argument `grid`"):
+        paper.kernel(grid=(-1, 4), field_mm=1.0, rays=2048)
+    with pytest.raises(InputError, match="field `rays`.*from 2048"):
+        paper.kernel(grid=(4, 4), field_mm=1.0, rays=1024)
     with pytest.raises(InputError, match="no manifest"):
         spibench.open_dataset("/nonexistent")
 

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import spibench
-from conftest import spibench_binary
+from conftest import paper_text, spibench_binary
 
 VAR = "detectors.minus.decenter_mm.x"
 
@@ -26,6 +26,23 @@ def test_bench_basics(paper):
     assert moved.edits == {VAR: 0.3} and moved.get(VAR) == 0.0
     assert moved.to_ron() != paper.to_ron()
     assert paper.check() == (48, 48)
+
+
+def test_units_are_down_across_everywhere(tmp_path):
+    """One axis order for DMD units, numpy's (down, across): the bench's check, a kernel's
+    units, a trace's maps, an acquisition's patterns and a reconstruction (a bench of 40 units
+    down and 48 across)."""
+    bench = spibench.Bench.parse(
+        paper_text(**{"units_across: 48, units_down: 48": "units_across: 48, units_down: 40"}),
+        tmp_path / "wide.ron",
+    )
+    assert bench.check() == (40, 48)
+    assert bench.trace(rays=2048, seed=1).x_w.shape == (40, 48)
+    kernel = bench.kernel(grid=(4, 6), field_mm=(3.0, 4.5), rays=2048, seed=1)
+    assert kernel.units == (40, 48) and kernel.grid == (4, 6)
+    acq = spibench.Acquisition(kernel, "double_arm", 0.05)
+    assert acq.units == (40, 48) and acq.patterns.shape[1:] == (40, 48)
+    assert spibench.reconstruct(acq.forward(np.ones(acq.grid)), acq).image.shape == (40, 48)
 
 
 def test_trace_maps_and_ledger(paper):

@@ -325,7 +325,7 @@ pub(super) fn write_manifest(dir: &Path, m: &Manifest) -> Result<()> {
     crate::report::npy::write_atomic(&dir.join(MANIFEST), manifest_text(m)?.as_bytes())
 }
 
-pub(super) fn manifest_text(m: &Manifest) -> Result<String> {
+pub fn manifest_text(m: &Manifest) -> Result<String> {
     serde_json::to_string_pretty(m)
         .map_err(|e| Error::input(format!("cannot write the manifest: {e}")))
 }

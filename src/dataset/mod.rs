@@ -47,14 +47,13 @@ pub use contract::FORMAT;
 pub use folder::{CommitSeconds, Generated, generate};
 pub use manifest::{
     ArraySchema, FileHash, KernelInfo, Manifest, ManifestProvenance, MergedInput, ShardEntry,
-    read_manifest, verify_shard,
+    manifest_text, read_manifest, verify_shard,
 };
 pub use merge::merge;
 pub use sampler::{BenchKernel, Sample};
 // The names the shard writer (`shards`) uses from its parent.
 use contract::shard_dir as shard_dir_name;
 use folder::write_locked;
-use manifest::manifest_text;
 
 /// Stream tags of the objects and of the noise.
 const OBJECTS: u64 = 0x0B1E_C750_0000_0001;
