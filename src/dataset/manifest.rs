@@ -202,7 +202,7 @@ impl Prepared {
         v
     }
 
-    /// The schema of the optional arrays (`write:` of the spec), in [`Sample::optional`] order.
+    /// The schema of the optional arrays (`write:` of the spec), in [`Sample::optional`](super::Sample::optional) order.
     pub fn optional_arrays(&self) -> Vec<ArraySchema> {
         let mut v = Vec::new();
         let w = &self.spec.file.write;

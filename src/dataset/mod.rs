@@ -10,7 +10,8 @@
 //! the thread count or a resume. Samples are grouped in shards of `shard_samples` consecutive
 //! samples; shard b holds samples b·S … (b+1)·S − 1.
 //!
-//! On disk (a dataset folder):
+//! On disk (a dataset folder; every name of it is defined in [`contract`], beside the rules a
+//! manifest read back must follow):
 //! - `manifest.json`: schema (array names, dtypes, per-sample shapes, units), provenance
 //!   (spibench version, spec and bench SHA-256 and copies `spec.ron`, `bench.ron`, seeds, the
 //!   command), the shard range this folder is responsible for, and every committed shard with
@@ -25,6 +26,11 @@
 //! removes staging leftovers and shards the manifest does not list, and continues; a folder
 //! stopped before its first manifest (only setup files in it) is started afresh. SIGINT and
 //! SIGTERM remove the shards being written and any temporary copy of a setup file or manifest.
+//!
+//! Here: the setup of a dataset (its bench, schemes, patterns and kernel: [`Prepared::new`]);
+//! `manifest` (the manifest's types, the arrays' schema, reading it back), `sampler` (the
+//! samples), `folder` (the folder written in place: [`generate`]), `shards` (a shard's writing
+//! and commit) and `merge`.
 
 use crate::acquisition::{PackedPatterns, Scheme, patterns_for_ratio};
 use crate::error::Result;
