@@ -97,6 +97,18 @@ impl<A: Plain<X>, X> Plain<Option<X>> for Option<A> {
     }
 }
 
+/// A number as a user writes it, for messages: the shortest text that reads back as the same
+/// value, in exponent form where plain decimals would run long (`1e308`, not a 309-digit
+/// integer; `2.5e-7`, not `0.00000025`).
+pub fn shown(v: f64) -> String {
+    let a = v.abs();
+    if v.is_finite() && a != 0.0 && !(1e-4..1e16).contains(&a) {
+        format!("{v:e}")
+    } else {
+        format!("{v}")
+    }
+}
+
 /// Reads a field through its checked type `C` and keeps its plain form `T`:
 /// `#[serde(deserialize_with = "via::<Count<1, 1000>, _, _>")] max_count: usize`. The check
 /// runs while the file is read, so its error carries the line and column like any other.
@@ -261,5 +273,21 @@ impl<const LO: i64, const HI: i64> TryFrom<i64> for Whole<LO, HI> {
         } else {
             Err(format!("must be a whole number from {LO} to {HI}, got {v}"))
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::shown;
+
+    #[test]
+    fn numbers_are_shown_as_written() {
+        assert_eq!(shown(1e308), "1e308");
+        assert_eq!(shown(-1.5e20), "-1.5e20");
+        assert_eq!(shown(2.5e-7), "2.5e-7");
+        assert_eq!(shown(12.25), "12.25");
+        assert_eq!(shown(0.0), "0");
+        assert_eq!(shown(1e15), "1000000000000000");
+        assert_eq!(shown(f64::NAN), "NaN");
     }
 }

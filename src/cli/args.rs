@@ -105,8 +105,9 @@ pub const MAX_WORK_BYTES: f64 = 1e11;
 /// it with [`Work`] before they start and refuse above the limits unless this flag is given.
 #[derive(Debug, Clone, Copy, Default, Args)]
 pub struct WorkArgs {
-    /// Start even when the estimated work exceeds the limits (10¹⁰ traced rays in all, 10⁷
-    /// dataset samples, 10¹¹ bytes written); without it such a run is refused with its estimate.
+    /// Start even when the estimated work or memory exceeds the limits (10¹⁰ traced rays in all,
+    /// 10⁷ dataset samples, 10¹¹ bytes written, 2 GB for one table or array); without it such a
+    /// run is refused with its estimate.
     #[arg(long)]
     pub allow_large: bool,
 }

@@ -40,6 +40,8 @@ pub struct CheckArgs {
     /// Write `check.json` into this directory (nothing is written without it).
     #[arg(long)]
     pub out: Option<PathBuf>,
+    #[command(flatten)]
+    pub work: super::args::WorkArgs,
 }
 
 /// One element of the bench.

@@ -45,6 +45,8 @@ pub struct ExportArgs {
     /// Samples per irradiancemeter for Mitsuba's own `path` integrator.
     #[arg(long, default_value_t = 1_000_000)]
     pub sensor_samples: u32,
+    #[command(flatten)]
+    pub work: super::args::WorkArgs,
 }
 
 /// `summary.json` of an export.
@@ -179,6 +181,7 @@ mod tests {
             as_is: false,
             spectral: false,
             sensor_samples: 1000,
+            work: Default::default(),
         }
     }
 

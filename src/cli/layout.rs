@@ -31,6 +31,8 @@ pub struct LayoutArgs {
     pub scene: PathBuf,
     #[command(flatten)]
     pub opts: super::args::RunOpts,
+    #[command(flatten)]
+    pub work: super::args::WorkArgs,
 }
 
 // The fan's default as `--help` shows it.

@@ -86,6 +86,27 @@ enum Command {
     Patterns(patterns::PatternsArgs),
 }
 
+impl Command {
+    /// `--allow-large`, which lifts the memory limit (`crate::memory`) as well as the work limits.
+    fn allow_large(&self) -> bool {
+        let work = match self {
+            Command::Run(a) => a.work,
+            Command::Sweep(a) => a.work,
+            Command::Tolerance(a) => a.work,
+            Command::Align(a) => a.work,
+            Command::Reconstruct(a) => a.work,
+            Command::Trace(a) => a.work,
+            Command::ExportMitsuba(a) => a.work,
+            Command::Layout(a) => a.work,
+            Command::Check(a) => a.work,
+            Command::Dataset(a) => a.work,
+            Command::Patterns(a) => a.work,
+            Command::Simulate(_) | Command::Completions(_) | Command::Man(_) => return false,
+        };
+        work.allow_large
+    }
+}
+
 /// Runs the command line and returns the process exit status.
 pub fn main() -> i32 {
     let cli = match Cli::try_parse() {
@@ -117,6 +138,9 @@ pub fn main() -> i32 {
     }
     // SIGINT and SIGTERM remove the staging folders of a run in progress (exit 130, 143).
     crate::report::output::install_signal_cleanup();
+    if cli.command.allow_large() {
+        crate::memory::allow_large();
+    }
     let result = match &cli.command {
         Command::Simulate(a) => simulate::run(a),
         Command::Reconstruct(a) => reconstruct::run(a),

@@ -66,6 +66,8 @@ pub struct ReconstructArgs {
     /// Do not project onto u ≥ 0.
     #[arg(long)]
     pub allow_negative: bool,
+    #[command(flatten)]
+    pub work: super::args::WorkArgs,
 }
 
 fn parse_size(s: &str) -> std::result::Result<(usize, usize), String> {
@@ -147,7 +149,12 @@ struct Summary {
 }
 
 fn load_patterns(path: &Path, n: usize) -> crate::Result<(BitMatrix, &'static str)> {
-    let arr = npy::read(path)?;
+    // The bit rows made of it: M rows of N bits in 64-bit words.
+    let rows = |h: &npy::Header| {
+        let m = h.shape.first().copied().unwrap_or(0) as f64;
+        (m * (n.div_ceil(64) * 8) as f64, "of bit rows".to_string())
+    };
+    let arr = npy::read_bounded(path, "the pattern array", rows)?;
     let bad = |msg: String| Error::input(msg).in_file(path);
     if arr.shape.len() != 2 {
         return Err(bad(format!(

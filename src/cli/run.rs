@@ -83,6 +83,8 @@ pub struct RunArgs {
     /// the plain run.
     #[arg(long, default_value_t = 1, value_name = "N")]
     pub repeats: usize,
+    #[command(flatten)]
+    pub work: super::args::WorkArgs,
 }
 
 /// Reads the bench named on the command line (or the built-in bench) and applies `--set`.
@@ -703,6 +705,7 @@ mod tests {
             },
             cache: None,
             repeats: 1,
+            work: Default::default(),
         };
         let (name, _, scene) = load_scene(&args).unwrap();
         assert_eq!(name, PAPER_BENCH_NAME);

@@ -40,6 +40,8 @@ pub struct TraceArgs {
     pub scene: PathBuf,
     #[command(flatten)]
     pub opts: super::args::RunOpts,
+    #[command(flatten)]
+    pub work: super::args::WorkArgs,
 }
 
 /// `trace`'s default ray count (also set on the flag, for `--help`).
@@ -388,6 +390,7 @@ mod tests {
         let out = dir.join("out");
         let args = TraceArgs {
             scene,
+            work: Default::default(),
             opts: super::super::args::RunOpts {
                 rays: Some(20_000),
                 seed: Some(3),
@@ -431,6 +434,7 @@ mod tests {
         let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/tests/symmetric_arms.ron");
         let args = TraceArgs {
             scene,
+            work: Default::default(),
             opts: super::super::args::RunOpts {
                 rays: Some(20_000),
                 seed: Some(3),
@@ -565,6 +569,7 @@ mod tests {
         std::fs::write(&scene, text).unwrap();
         let args = TraceArgs {
             scene,
+            work: Default::default(),
             opts: super::super::args::RunOpts {
                 rays: Some(1000),
                 seed: Some(1),

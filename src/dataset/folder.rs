@@ -98,8 +98,9 @@ impl Prepared {
 pub(super) fn write_locked(lock: &FolderLock, name: &str, bytes: &[u8]) -> Result<()> {
     let path = lock.dir().join(name);
     let tmp = crate::report::npy::atomic_temp(&path);
+    crate::report::output::refuse_link(&tmp, "temporary copy")?;
     let written = crate::report::npy::write_atomic_with(&path, bytes, |t| {
-        lock.stage_created(t, |p| std::fs::File::create(p))
+        lock.stage_created(t, crate::report::output::create_fresh)
     });
     lock.unstage(&tmp);
     written

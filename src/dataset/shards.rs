@@ -30,6 +30,14 @@ use crate::report::output::FolderLock;
 /// two before).
 pub(super) const WRITES_IN_FLIGHT: usize = 3;
 
+/// The shards in writing at once on `threads` threads: [`WRITES_IN_FLIGHT`], but one on a
+/// single thread, where no write overlaps a sample loop (the thread runs the write only when it
+/// waits): each shard is then written and committed before the next one's samples, so that an
+/// interrupted run keeps every shard but the one in progress.
+fn writes_in_flight(threads: usize) -> usize {
+    if threads <= 1 { 1 } else { WRITES_IN_FLIGHT }
+}
+
 /// A shard's files, written in its staging folder and not yet renamed into place.
 struct Written {
     staging: PathBuf,
@@ -68,13 +76,17 @@ pub(super) fn make_shards(
         times: CommitSeconds::default(),
     });
     let shared = &state;
-    let last_writes = rayon::scope(|s| {
+    let most = writes_in_flight(rayon::current_num_threads());
+    // FIFO: a thread that runs pending writes while it waits (`wait`) takes the oldest first,
+    // the next to commit; newest first (rayon's `spawn`) left every older shard unwritten, and
+    // so nothing committed, until the last sample loop had ended.
+    let last_writes = rayon::scope_fifo(|s| {
         // Moved in: a receiver is not shared between threads.
         let rx = rx;
         for &b in todo {
             // The memory bound: wait for a write to end when as many are in flight.
             let t = Instant::now();
-            while locked(shared).order.in_flight >= WRITES_IN_FLIGHT {
+            while locked(shared).order.in_flight >= most {
                 wait(&rx);
             }
             waited += t.elapsed().as_secs_f64();
@@ -96,7 +108,7 @@ pub(super) fn make_shards(
             };
             locked(shared).order.in_flight += 1;
             let tx = tx.clone();
-            s.spawn(move |_| {
+            s.spawn_fifo(move |_| {
                 let w = write_shard(prep, lock, b, &samples);
                 drop(samples);
                 locked(shared).finish(prep, lock, committed, b, w);
@@ -236,6 +248,7 @@ fn wait(rx: &mpsc::Receiver<()>) {
 fn write_shard(prep: &Prepared, lock: &FolderLock, b: u64, samples: &[Sample]) -> Result<Written> {
     let t0 = Instant::now();
     let staging = lock.dir().join(format!(".{}.partial", shard_dir_name(b)));
+    crate::report::output::refuse_link(&staging, "shard staging folder")?;
     let _ = std::fs::remove_dir_all(&staging);
     let files = lock
         .stage_created(&staging, |p| std::fs::create_dir_all(p))

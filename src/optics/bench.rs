@@ -295,6 +295,8 @@ pub struct DmdSetup {
     pub mirrors_element: ElementId,
     /// Light that falls between mirrors.
     pub gaps_element: ElementId,
+    /// The package around and behind the array (light from behind ends there).
+    pub package_element: ElementId,
 }
 
 /// The validated bench.

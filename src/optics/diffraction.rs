@@ -263,8 +263,7 @@ impl Diffraction {
         bin: f64,
         used: [bool; 3],
     ) -> Diffraction {
-        let bins = (((band.1 - band.0) / bin).ceil() as usize).max(1);
-        let bin = (band.1 - band.0) / bins as f64;
+        let (bins, bin) = bins_of(band, bin);
         let tails = (0..bins)
             .map(|b| {
                 let wl = band.0 + (b as f64 + 0.5) * bin;
@@ -405,7 +404,7 @@ fn tail_table(g: Grating, facet: &Facet, wl: f64) -> Vec<TailEntry> {
             j: FAR,
         }];
     };
-    let r = ((2.0 * g.pitch / wl).ceil() as i32 + 1).clamp(CORE_RADIUS + 1, TAIL_RADIUS_MAX);
+    let r = tail_radius(g, wl);
     let core_sum = env.core().1;
     let tail_mass = 1.0 - core_sum;
     let mut entries = Vec::with_capacity(((2 * r + 1) * (2 * r + 1)) as usize);
@@ -439,6 +438,91 @@ fn tail_table(g: Grating, facet: &Facet, wl: f64) -> Vec<TailEntry> {
         j: FAR,
     });
     table
+}
+
+/// The tail tables' wavelength bins: the band cut into `bins` equal bins of at most `bin` (m).
+fn bins_of(band: (f64, f64), bin: f64) -> (usize, f64) {
+    let bins = (((band.1 - band.0) / bin).ceil() as usize).max(1);
+    (bins, (band.1 - band.0) / bins as f64)
+}
+
+/// The orders on each side of the peak that the tail table at `wl` holds: every propagating
+/// order of any incidence (2p/λ + 1), within the core's edge and [`TAIL_RADIUS_MAX`].
+fn tail_radius(g: Grating, wl: f64) -> i32 {
+    ((2.0 * g.pitch / wl).ceil() as i32 + 1).clamp(CORE_RADIUS + 1, TAIL_RADIUS_MAX)
+}
+
+/// The memory the tail tables of [`Diffraction::new`] take at most, and the settings that make
+/// it: every order within each bin's table radius, in each state used, plus the one table being
+/// built (its entries in f64) and each bin's slots. Estimated in closed form before anything is
+/// allocated (a loop over the bins, none over the orders).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TableSize {
+    pub bytes: f64,
+    pub bins: usize,
+    /// The width of a bin (m) and the band (m).
+    pub bin: f64,
+    pub band: (f64, f64),
+    pub states: usize,
+    /// The orders of the largest table.
+    pub largest: usize,
+    pub pitch: f64,
+}
+
+impl TableSize {
+    pub fn new(g: Grating, band: (f64, f64), bin: f64, used: [bool; 3]) -> TableSize {
+        let (bins, bin) = bins_of(band, bin);
+        let states = used.iter().filter(|u| **u).count();
+        let side = |r: i32| (2 * r as usize + 1).pow(2);
+        let most = side(TAIL_RADIUS_MAX) - CORE + 1;
+        // Beyond a million bins every table is taken at the largest size (an upper bound
+        // without a long loop).
+        let (entries, largest) = if bins > 1_000_000 {
+            (bins as f64 * most as f64, most)
+        } else {
+            let (mut sum, mut largest) = (0.0, 0);
+            for b in 0..bins {
+                let wl = band.0 + (b as f64 + 0.5) * bin;
+                let n = side(tail_radius(g, wl)) - CORE + 1;
+                sum += n as f64;
+                largest = largest.max(n);
+            }
+            (sum, largest)
+        };
+        let bytes = states as f64 * entries * std::mem::size_of::<TailEntry>() as f64
+            + largest as f64 * std::mem::size_of::<(f64, i8, i8)>() as f64
+            + bins as f64 * std::mem::size_of::<[Option<Vec<TailEntry>>; 3]>() as f64;
+        TableSize {
+            bytes,
+            bins,
+            bin,
+            band,
+            states,
+            largest,
+            pitch: g.pitch,
+        }
+    }
+
+    /// The settings in words: "5400 wavelength bins of 0.5 nm over 300–3000 nm × 3 mirror
+    /// states × up to 37249 orders each (a 60 µm pitch)".
+    pub fn settings(&self) -> String {
+        format!(
+            "{} wavelength bins of {} nm over {}–{} nm × {} mirror states × up to {} orders \
+             each (a {} µm pitch)",
+            self.bins,
+            round(self.bin * 1e9),
+            round(self.band.0 * 1e9),
+            round(self.band.1 * 1e9),
+            self.states,
+            self.largest,
+            round(self.pitch * 1e6)
+        )
+    }
+}
+
+/// A length in a unit, rounded to what a file would write (floating-point noise dropped).
+fn round(v: f64) -> f64 {
+    (v * 1e6).round() / 1e6
 }
 
 /// The probability of the absolute order (m, n) under the envelope for a ray along `d` at `wl`

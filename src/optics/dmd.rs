@@ -17,7 +17,7 @@ use std::sync::Arc;
 use glam::{DMat3, DVec3};
 
 use super::arm::Arm;
-use super::diffraction::{Diffraction, Facet, Grating, Order};
+use super::diffraction::{Diffraction, Facet, Grating, Order, TableSize};
 use super::fresnel::reflect;
 use super::geometry::SURFACE_OFFSET;
 use super::spectrum::Spectrum;
@@ -155,6 +155,10 @@ pub enum DmdOutcome {
     /// The ray went down between the mirrors (into the gaps or onto the back of a mirror): the
     /// CMOS substrate and hinges absorb it.
     Absorbed,
+    /// The ray came from behind the array: the silicon chip and the ceramic package it is
+    /// bonded to are opaque, so it ends on the package's back (on the real device no light
+    /// reaches the mirrors, or passes the array, from behind).
+    Behind,
     /// An upward ray that met no neighbouring mirror: it carries on in its direction from
     /// `origin`, just above the slab that holds the mirrors.
     Left { origin: DVec3 },
@@ -216,15 +220,30 @@ impl Dmd {
     /// for the traced `band` (m) in bins of `bin` (m), for the states the mirrors take (+, −
     /// and the outside state).
     pub fn with_diffraction(mut self, band: (f64, f64), bin: f64) -> Dmd {
-        let mut used = [true, true, false];
-        used[state_index(self.outside)] = true;
         let facets = [0, 1, 2].map(|s| Facet::rotated(self.rot[s]));
-        let grating = Grating {
-            pitch: self.pitch,
-            side: self.side,
-        };
+        let (grating, used) = (self.grating(), self.states_used());
         self.diffraction = Some(Arc::new(Diffraction::new(grating, facets, band, bin, used)));
         self
+    }
+
+    /// The memory [`Dmd::with_diffraction`] would take for its tables, estimated without
+    /// building them.
+    pub fn diffraction_size(&self, band: (f64, f64), bin: f64) -> TableSize {
+        TableSize::new(self.grating(), band, bin, self.states_used())
+    }
+
+    fn grating(&self) -> Grating {
+        Grating {
+            pitch: self.pitch,
+            side: self.side,
+        }
+    }
+
+    /// The states the mirrors take: +, − and the outside state.
+    fn states_used(&self) -> [bool; 3] {
+        let mut used = [true, true, false];
+        used[state_index(self.outside)] = true;
+        used
     }
 
     /// The same array reflecting geometrically.
@@ -280,7 +299,9 @@ impl Dmd {
     /// Where a ray starts interacting with the array, if it does: for a downward ray that
     /// crosses z = 0 inside the array, the parameter where it enters the slab |z| ≤ h; for an
     /// upward ray that starts inside the slab over the array (just reflected by a mirror), `t_min`
-    /// (it may still meet a neighbouring mirror). Otherwise None: the ray misses the array (the
+    /// (it may still meet a neighbouring mirror); for an upward ray from behind the array, where
+    /// it meets the slab's back face inside the array's outline (the chip and its package are
+    /// opaque: [`Dmd::interact`] absorbs it there). Otherwise None: the ray misses the array (the
     /// package around it is an ordinary surface).
     #[inline]
     pub fn slab_entry(&self, o: DVec3, d: DVec3, t_min: f64) -> Option<f64> {
@@ -296,6 +317,13 @@ impl Dmd {
             } else {
                 None
             }
+        } else if o.z < -self.h {
+            if d.z <= 0.0 {
+                return None;
+            }
+            let t0 = (-self.h - o.z) / d.z;
+            let p = o + t0 * d;
+            (t0 > t_min && p.x.abs() <= hx && p.y.abs() <= hy).then_some(t0)
         } else if o.z <= self.h && o.z >= -self.h && o.x.abs() <= hx && o.y.abs() <= hy {
             Some(t_min)
         } else {
@@ -417,6 +445,9 @@ impl Dmd {
         states: PatternStates,
         order_u: f64,
     ) -> DmdOutcome {
+        if d.z > 0.0 && o.z < -self.h {
+            return DmdOutcome::Behind;
+        }
         let pattern = self.pattern;
         let outside = self.outside;
         let state_of = |c: usize, r: usize| -> MirrorState {

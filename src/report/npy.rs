@@ -11,7 +11,7 @@ use std::io::Write;
 use std::path::Path;
 
 use crate::error::{Error, Result};
-pub use crate::npy::{NpyArray, NpyData, parse};
+pub use crate::npy::{Header, NpyArray, NpyData, parse};
 
 fn bad(path: &Path, msg: impl Into<String>) -> Error {
     Error::input(format!("not a readable .npy array: {}", msg.into())).in_file(path)
@@ -27,7 +27,12 @@ pub const MAX_NPY_BYTES: u64 = 1 << 30;
 pub fn read(path: &Path) -> Result<NpyArray> {
     use std::io::Read;
     let file = std::fs::File::open(path).map_err(|e| Error::read(path, e))?;
-    let mut bytes = Vec::new();
+    // The file's size, reserved at once (growing as it reads could take twice as much).
+    let size = file
+        .metadata()
+        .map_or(0, |m| m.len())
+        .min(MAX_NPY_BYTES + 1);
+    let mut bytes = Vec::with_capacity(size as usize);
     file.take(MAX_NPY_BYTES + 1)
         .read_to_end(&mut bytes)
         .map_err(|e| Error::read(path, e))?;
@@ -38,6 +43,101 @@ pub fn read(path: &Path) -> Result<NpyArray> {
         ));
     }
     parse(&bytes).map_err(|m| bad(path, m))
+}
+
+/// Reads a `.npy` file as [`read`] does, but first reads its header alone and estimates the
+/// memory the array takes: the file's bytes, its elements decoded (one copy, in C order
+/// whatever the file's order), and `extra` bytes that the caller makes of it (`extra(header)`,
+/// with its description). An estimate above the memory limit (`crate::memory`) is refused as
+/// bad input about the file, naming the estimate and the array's shape, before anything large
+/// is allocated.
+pub fn read_bounded(
+    path: &Path,
+    what: &str,
+    extra: impl Fn(&Header) -> (f64, String),
+) -> Result<NpyArray> {
+    use std::io::Read;
+    let file = std::fs::File::open(path).map_err(|e| Error::read(path, e))?;
+    let mut reader = file.take(MAX_NPY_BYTES + 1);
+    // The magic, the version and the header's length, then the header.
+    let mut bytes = vec![0u8; 12];
+    let n = read_up_to(&mut reader, &mut bytes).map_err(|e| Error::read(path, e))?;
+    bytes.truncate(n);
+    let start = match bytes.get(6) {
+        Some(1) if n >= 10 => 10 + u16::from_le_bytes([bytes[8], bytes[9]]) as usize,
+        Some(2 | 3) if n >= 12 => {
+            12 + u32::from_le_bytes([bytes[8], bytes[9], bytes[10], bytes[11]]) as usize
+        }
+        // Not a readable header: `parse` says why.
+        _ => 0,
+    };
+    if start as u64 > MAX_NPY_BYTES {
+        return Err(bad(path, "the header is longer than the largest file read"));
+    }
+    if start > bytes.len() {
+        let have = bytes.len();
+        bytes.resize(start, 0);
+        let got = read_up_to(&mut reader, &mut bytes[have..]).map_err(|e| Error::read(path, e))?;
+        bytes.truncate(have + got);
+    }
+    if let Ok(h) = crate::npy::header(&bytes) {
+        let elements = h.count().map_or(f64::INFINITY, |c| c as f64);
+        let item = h.item_bytes().unwrap_or(8) as f64;
+        let data = elements * item;
+        let (more, more_what) = extra(&h);
+        let order = if h.fortran_order { "Fortran" } else { "C" };
+        let dims: Vec<String> = h.shape.iter().map(|d| d.to_string()).collect();
+        let settings = format!(
+            "a {} array of '{}' in {order} order: the file's {} read, {} decoded{}",
+            dims.join(" × "),
+            h.descr,
+            crate::memory::bytes_text(h.data_start as f64 + data),
+            crate::memory::bytes_text(data),
+            if more_what.is_empty() {
+                String::new()
+            } else {
+                format!(", {} {more_what}", crate::memory::bytes_text(more))
+            }
+        );
+        crate::memory::check(
+            h.data_start as f64 + 2.0 * data + more,
+            what,
+            &settings,
+            "use a smaller array",
+        )
+        .map_err(|e| e.in_file(path))?;
+    }
+    // The rest at once, as far as the file has it (growing as it reads could take twice as
+    // much as the file).
+    let size = reader.get_ref().metadata().map_or(0, |m| m.len());
+    bytes.reserve_exact(
+        size.min(MAX_NPY_BYTES + 1)
+            .saturating_sub(bytes.len() as u64) as usize,
+    );
+    reader
+        .read_to_end(&mut bytes)
+        .map_err(|e| Error::read(path, e))?;
+    if bytes.len() as u64 > MAX_NPY_BYTES {
+        return Err(bad(
+            path,
+            format!("the file is larger than {} MiB", MAX_NPY_BYTES >> 20),
+        ));
+    }
+    parse(&bytes).map_err(|m| bad(path, m))
+}
+
+/// Fills `buf` from `r` as far as it has bytes; returns how many it read.
+fn read_up_to(r: &mut impl std::io::Read, buf: &mut [u8]) -> std::io::Result<usize> {
+    let mut n = 0;
+    while n < buf.len() {
+        match r.read(&mut buf[n..]) {
+            Ok(0) => break,
+            Ok(k) => n += k,
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+            Err(e) => return Err(e),
+        }
+    }
+    Ok(n)
 }
 
 fn header_bytes(descr: &str, shape: &[usize]) -> Vec<u8> {
@@ -218,10 +318,12 @@ mod tests {
         let a = parse(&bytes).unwrap();
         assert_eq!(a.shape, vec![2, 3]);
         assert_eq!(a.data, NpyData::U8(vec![0, 1, 2, 3, 4, 5]));
-        assert_eq!(
-            crate::npy::fortran_to_c(&[2, 2, 2]),
-            vec![0, 4, 2, 6, 1, 5, 3, 7]
-        );
+        // 3-D: the element at C index (a, b, c) is the one stored at a + 2b + 4c.
+        let mut bytes = encode_u8(&[2, 2, 2], &[0, 1, 2, 3, 4, 5, 6, 7]);
+        let at = bytes.windows(5).position(|w| w == b"False").unwrap();
+        bytes[at..at + 5].copy_from_slice(b"True ");
+        let a = parse(&bytes).unwrap();
+        assert_eq!(a.data, NpyData::U8(vec![0, 4, 2, 6, 1, 5, 3, 7]));
     }
 
     #[test]

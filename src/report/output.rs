@@ -176,7 +176,10 @@ impl OutputDir {
             }
             Mode::Inside => DirLock::acquire(&target.join(".spibench-lock"), final_dir)?,
         };
-        sweep_stale(&parent, &name, &target);
+        if let Err(e) = sweep_stale(&parent, &name, &target) {
+            drop(lock);
+            return Err(abandon(e));
+        }
 
         let pid = std::process::id();
         let mut live_entries = live();
@@ -634,12 +637,7 @@ impl DirLock {
     /// Takes the lock or reports the run that holds it as an input error about `dest`.
     fn acquire(path: &Path, dest: &Path) -> Result<DirLock> {
         loop {
-            let file = std::fs::OpenOptions::new()
-                .create(true)
-                .truncate(false)
-                .write(true)
-                .open(path)
-                .map_err(|e| Error::write(path, e))?;
+            let file = open_lock_file(path)?;
             match file.try_lock() {
                 Ok(()) => {}
                 Err(std::fs::TryLockError::WouldBlock) => {
@@ -664,6 +662,32 @@ impl DirLock {
     }
 }
 
+/// Opens the lock file `path` without ever following a symbolic link: a new one is created
+/// exclusively (`create_new`, which fails on any entry there, a dangling link included, instead
+/// of creating the file the link names), an existing one (left by a run that was killed) is
+/// opened, without creating anything, only after its entry showed a plain file; `same_file`
+/// then checks that the file locked is the entry at `path` still.
+fn open_lock_file(path: &Path) -> Result<File> {
+    loop {
+        match std::fs::OpenOptions::new()
+            .write(true)
+            .create_new(true)
+            .open(path)
+        {
+            Ok(f) => return Ok(f),
+            Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {}
+            Err(e) => return Err(Error::write(path, e)),
+        }
+        refuse_link(path, "lock file")?;
+        match std::fs::OpenOptions::new().write(true).open(path) {
+            Ok(f) => return Ok(f),
+            // Removed meanwhile by the run that held it: create it again.
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => continue,
+            Err(e) => return Err(Error::write(path, e)),
+        }
+    }
+}
+
 impl Drop for DirLock {
     fn drop(&mut self) {
         // Removed while still locked (the file closes after this), so a waiting run re-checks.
@@ -674,7 +698,8 @@ impl Drop for DirLock {
 #[cfg(unix)]
 fn same_file(file: &File, path: &Path) -> bool {
     use std::os::unix::fs::MetadataExt;
-    match (file.metadata(), std::fs::metadata(path)) {
+    // The entry itself: a link put in the file's place is not the file.
+    match (file.metadata(), std::fs::symlink_metadata(path)) {
         (Ok(a), Ok(b)) => a.dev() == b.dev() && a.ino() == b.ino(),
         _ => false,
     }
@@ -682,7 +707,7 @@ fn same_file(file: &File, path: &Path) -> bool {
 
 #[cfg(not(unix))]
 fn same_file(_file: &File, path: &Path) -> bool {
-    path.exists()
+    std::fs::symlink_metadata(path).is_ok_and(|m| m.is_file())
 }
 
 /// The process id in a name `PREFIX{pid}-{n}`, if it has that shape.
@@ -705,8 +730,10 @@ fn is_dead(pid: u32, path: &Path) -> bool {
 
 /// Removes what dead runs left for destination `target` (named `name`, in `parent`): staging
 /// folders, and replaced folders (put back first when the destination is missing). Called with
-/// the destination's lock held.
-fn sweep_stale(parent: &Path, name: &str, target: &Path) {
+/// the destination's lock held. An entry with such a name that is a symbolic link was not made
+/// by spibench: it is neither followed nor removed, and the run stops with an input error naming
+/// it (following it would move or delete the files it leads to).
+fn sweep_stale(parent: &Path, name: &str, target: &Path) -> Result<()> {
     let partial = format!(".{name}.spibench-partial-");
     let old = format!(".{name}.spibench-old-");
     for entry in sorted_names(parent) {
@@ -714,11 +741,13 @@ fn sweep_stale(parent: &Path, name: &str, target: &Path) {
         let path = parent.join(&entry);
         if let Some(pid) = pid_in(s, &partial) {
             if is_dead(pid, &path) {
+                refuse_link(&path, "staging folder")?;
                 let _ = std::fs::remove_dir_all(&path);
             }
         } else if let Some(pid) = pid_in(s, &old)
             && is_dead(pid, &path)
         {
+            refuse_link(&path, "replaced output folder")?;
             if std::fs::symlink_metadata(target).is_err() {
                 let _ = std::fs::rename(&path, target);
             } else {
@@ -726,17 +755,20 @@ fn sweep_stale(parent: &Path, name: &str, target: &Path) {
             }
         }
     }
+    // The destination itself as the user named it may be a link (trusted); its entries are not.
     if target.is_dir() {
         for entry in sorted_names(target) {
             let Some(s) = entry.to_str() else { continue };
             let path = target.join(&entry);
             if let Some(pid) = pid_in(s, ".spibench-partial-") {
                 if is_dead(pid, &path) {
+                    refuse_link(&path, "staging folder")?;
                     let _ = std::fs::remove_dir_all(&path);
                 }
             } else if let Some(pid) = pid_in(s, ".spibench-old-")
                 && is_dead(pid, &path)
             {
+                refuse_link(&path, "folder of replaced entries")?;
                 // An entry-by-entry swap cut short: the old entries go back where they were.
                 for e in sorted_names(&path) {
                     let back = target.join(&e);
@@ -747,6 +779,46 @@ fn sweep_stale(parent: &Path, name: &str, target: &Path) {
             }
         }
     }
+    Ok(())
+}
+
+/// The input error for a symbolic link found where spibench keeps an entry of its own (`what`:
+/// a lock file, a staging or swap folder, a temporary file). spibench makes no links there, so
+/// someone else did: it is neither followed (it may lead anywhere, and what spibench does to its
+/// own entries is move, write and delete) nor removed.
+pub fn planted_link(path: &Path, what: &str) -> Error {
+    let to = std::fs::read_link(path).unwrap_or_default();
+    Error::input(format!(
+        "a symbolic link (to {}) stands where spibench keeps its own {what}; spibench never \
+         follows a link there, since it would write, move or delete what the link leads to: \
+         remove the link (or choose another output folder)",
+        to.display()
+    ))
+    .in_file(path)
+}
+
+/// Refuses a symbolic link at `path` ([`planted_link`]); anything else, or nothing, passes.
+/// Looks at the entry itself (`symlink_metadata`), never at what it leads to.
+pub fn refuse_link(path: &Path, what: &str) -> Result<()> {
+    match std::fs::symlink_metadata(path) {
+        Ok(m) if m.file_type().is_symlink() => Err(planted_link(path, what)),
+        _ => Ok(()),
+    }
+}
+
+/// Creates a fresh file at `path` to write, without following a symbolic link: a plain file
+/// left there (a temporary copy of a run that was killed) is removed first, and the new file is
+/// created exclusively (`create_new`: an entry that appears meanwhile, a link included, makes it
+/// fail instead of being written through). Callers refuse a link first ([`refuse_link`]).
+pub fn create_fresh(path: &Path) -> std::io::Result<File> {
+    match std::fs::symlink_metadata(path) {
+        Ok(m) if m.file_type().is_file() => std::fs::remove_file(path)?,
+        _ => {}
+    }
+    std::fs::OpenOptions::new()
+        .write(true)
+        .create_new(true)
+        .open(path)
 }
 
 fn sorted_names(dir: &Path) -> Vec<OsString> {

@@ -418,7 +418,7 @@ pub fn parse(text: &str, path: &Path, base_dir: &Path) -> Result<Experiment> {
 /// path, `cases[1].label`) is written; a field left at its default is located at the nearest
 /// enclosing field that is written.
 fn locate(e: Error, text: &str, path: &Path) -> Error {
-    let e = e.in_file(path);
+    let e = image_file_into_message(e, path).in_file(path);
     let field = match &e {
         Error::Input { location, .. } if location.line.is_none() => location.field.clone(),
         _ => None,
@@ -443,6 +443,26 @@ fn locate(e: Error, text: &str, path: &Path) -> Error {
         return e.at_line(1, 1);
     }
     e
+}
+
+/// An error about a field of the experiment that names another file (an object's image that
+/// cannot be decoded): the file goes into the message, so that the location (the experiment's
+/// file, line and field) is the experiment's and the image is named after it, not before a line
+/// of the experiment.
+fn image_file_into_message(e: Error, path: &Path) -> Error {
+    match e {
+        Error::Input {
+            mut location,
+            message,
+        } if location.field.is_some() && location.file.as_deref().is_some_and(|f| f != path) => {
+            let other = location.file.take().unwrap_or_default();
+            Error::Input {
+                location,
+                message: format!("{}: {message}", other.display()),
+            }
+        }
+        e => e,
+    }
 }
 
 /// A curve's `at_ratio` must be one of the sampling ratios and its `at_k_prime` the k' of a case

@@ -31,6 +31,7 @@
 use glam::{DMat3, DVec3};
 use serde_json::Value;
 
+use crate::checked::shown;
 use crate::error::{Error, Result};
 use crate::optics::geometry::Frame;
 use crate::scene::bench::{BenchFile, Direction, ElementSpec, Mm3};
@@ -78,7 +79,10 @@ pub fn set(file: &mut BenchFile, path: &str, value: f64) -> Result<()> {
     if !value.is_finite() {
         return Err(Error::field(
             path,
-            format!("a bench variable must be a finite number, got {value}"),
+            format!(
+                "a bench variable must be a finite number, got {}",
+                shown(value)
+            ),
         ));
     }
     if let Some(turn) = parse_turn(path) {
@@ -94,19 +98,19 @@ pub fn set(file: &mut BenchFile, path: &str, value: f64) -> Result<()> {
             if value.fract() != 0.0 {
                 return Err(Error::field(
                     path,
-                    format!("this field is a whole number, got {value}"),
+                    format!("this field is a whole number, got {}", shown(value)),
                 ));
             }
             if n.is_u64() && value < 0.0 {
                 return Err(Error::field(
                     path,
-                    format!("this field is a count (≥ 0), got {value}"),
+                    format!("this field is a count (≥ 0), got {}", shown(value)),
                 ));
             }
             if value.abs() > 9.0e15 {
                 return Err(Error::field(
                     path,
-                    format!("{value} is too large for a whole-number field"),
+                    format!("{} is too large for a whole-number field", shown(value)),
                 ));
             }
             if n.is_u64() {
@@ -132,8 +136,12 @@ pub fn set(file: &mut BenchFile, path: &str, value: f64) -> Result<()> {
             ));
         }
     };
-    *file = serde_json::from_value::<BenchFile>(root)
-        .map_err(|e| Error::field(path, format!("value {value} refused: {}", clean_serde(&e))))?;
+    *file = serde_json::from_value::<BenchFile>(root).map_err(|e| {
+        Error::field(
+            path,
+            format!("value {} refused: {}", shown(value), clean_serde(&e)),
+        )
+    })?;
     Ok(())
 }
 
@@ -767,6 +775,8 @@ fn groups(file: &BenchFile, d: DVec3, normals: [DVec3; 2], path: &str) -> Result
 /// state's specular direction to the new one, so the arms stay on the geometric reflection of
 /// the incoming chief ray (the diodes as one mount where both arms are folded: [`track_arms`]).
 fn apply_turn(file: &mut BenchFile, turn: Turn, deg: f64, path: &str) -> Result<()> {
+    // The range of every orientation angle of a bench file (±360°).
+    crate::scene::numbers::DirectionDeg::try_from(deg).map_err(|m| Error::field(path, m))?;
     let Some(dmd) = file.dmd.as_ref() else {
         return Err(Error::field(
             path,

@@ -339,7 +339,17 @@ pub fn chief_ray(
                 }
             }
             Target::Dmd => {
-                let dmd = &bench.dmd().expect("DMD target implies a DMD").dmd;
+                let setup = bench.dmd().expect("DMD target implies a DMD");
+                let dmd = &setup.dmd;
+                let h = dmd.slab_half_height();
+                if d.z > 0.0 && o.z < -h {
+                    // From behind: the chip and its package block it (`Dmd::interact`).
+                    ray.points.push(o + ((-h - o.z) / d.z) * d);
+                    ray.elements.push(Some(setup.package_element));
+                    ray.surfaces.push(None);
+                    ray.end = ChiefEnd::Blocked(setup.package_element);
+                    return ray;
+                }
                 let Some(q) = dmd.plane_crossing(o, d).filter(|q| {
                     let (hx, hy) = dmd.half_size();
                     q.x.abs() <= hx && q.y.abs() <= hy

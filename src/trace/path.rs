@@ -733,6 +733,10 @@ fn meet_dmd<R: Recorder>(
             book(tally, p.world, setup.gaps_element, p.w);
             Flow::End
         }
+        DmdOutcome::Behind => {
+            book(tally, p.world, setup.package_element, p.w);
+            Flow::End
+        }
         DmdOutcome::Left { origin } => {
             p.o = origin;
             Flow::Go

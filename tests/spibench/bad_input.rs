@@ -712,3 +712,48 @@ fn tolerance_pdfs_are_byte_identical_between_runs() {
     }
     assert_eq!(a.len(), b.len());
 }
+
+/// A refused value is printed as it was given (1e308, not a 309-digit integer), and a corrupt
+/// object image is reported at the experiment's file, line and field, the image named after
+/// them (not the experiment's line after the image's name, as if it were the image's).
+#[test]
+fn values_and_images_are_reported_as_given_and_where_given() {
+    let dir = TempDir::new("bad-as-given");
+    let out = dir.join("out");
+    let o = out.to_str().unwrap();
+    for (args, field) in [
+        (
+            vec!["run", "--set", "dmd.pattern.units_across=1e308", "--out", o],
+            "dmd.pattern.units_across",
+        ),
+        (
+            vec!["sweep", "--vary", "dmd.tilt_deg=1:1e308:2", "--out", o],
+            "dmd.tilt_deg",
+        ),
+    ] {
+        let r = spibench(&args, &[]);
+        assert_input_error(&r, &[&format!("field `{field}`"), "1e308"], &out);
+        assert!(!stderr(&r).contains("0000000000"), "{}", stderr(&r));
+    }
+    let (exp, line) = edited(
+        &dir,
+        EXPERIMENT,
+        "(name: \"phantom\", object: Phantom)",
+        "(name: \"phantom\", object: File(path: \"broken.png\"))",
+        "File(path",
+    );
+    std::fs::write(dir.join("broken.png"), b"\x89PNG\r\n\x1a\nnot really a png").unwrap();
+    let r = spibench(&["simulate", exp.to_str().unwrap(), "--out", o], &[]);
+    let err = stderr(&r);
+    let at = format!("fig1.ron, line {line}, column ");
+    assert_input_error(
+        &r,
+        &[&at, "field `objects[0].object`: ", "broken.png: "],
+        &out,
+    );
+    assert!(
+        err.find(&at) < err.find("broken.png"),
+        "the experiment's location comes first: {err}"
+    );
+    assert!(!err.contains("broken.png, line"), "{err}");
+}

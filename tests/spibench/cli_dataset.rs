@@ -785,3 +785,87 @@ fn the_spec_names_the_electronics() {
         "50 Ω / high-Z measurement ratio {ratio}"
     );
 }
+
+/// On one thread each shard is written and committed before the next one's samples (before,
+/// on one thread no shard committed until the last sample loop had ended, so an interrupt lost
+/// the whole run): SIGTERM once two shards are committed and the last is not yet made, and
+/// `--resume` continues from the committed ones to the bytes of an uninterrupted run.
+#[cfg(unix)]
+#[test]
+fn one_thread_commits_shards_as_they_finish() {
+    let t = TempDir::new("dataset-one-thread");
+    // Eight shards of one sample each, with reconstructions: some 0.1 s of work per shard.
+    let spec = write_spec(
+        &t.0,
+        &[
+            ("samples: 10", "samples: 8"),
+            ("shard_samples: 3", "shard_samples: 1"),
+            ("seed: 7,", "seed: 7,\n    write: (reconstructions: true),"),
+        ],
+    );
+    let s = spec.to_str().unwrap();
+    let one = t.join("one");
+    let (o1, k1) = (one.to_str().unwrap(), t.join("killed"));
+    ok(&spibench(
+        &["--threads", "1", "dataset", s, "--out", o1],
+        &[],
+    ));
+    let killed = k1.to_str().unwrap();
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_spibench"))
+        .args(["--threads", "1", "dataset", s, "--out", killed])
+        .stderr(std::process::Stdio::null())
+        .stdout(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let committed = |d: &Path| -> usize {
+        std::fs::read_to_string(d.join("manifest.json"))
+            .ok()
+            .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
+            .and_then(|m| m["shards"].as_array().map(|a| a.len()))
+            .unwrap_or(0)
+    };
+    let last_made =
+        |d: &Path| d.join("shard_000007").exists() || d.join(".shard_000007.partial").exists();
+    let start = std::time::Instant::now();
+    loop {
+        if committed(&k1) >= 2 && !last_made(&k1) {
+            break;
+        }
+        assert!(
+            child.try_wait().unwrap().is_none(),
+            "the run ended before two shards were committed with the last one still to make"
+        );
+        assert!(
+            start.elapsed().as_secs() < 300,
+            "no shard committed in 300 s"
+        );
+        std::thread::sleep(std::time::Duration::from_millis(2));
+    }
+    let term = std::process::Command::new("kill")
+        .args(["-TERM", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(term.success());
+    assert_eq!(child.wait().unwrap().code(), Some(143));
+    let kept = committed(&k1);
+    assert!((2..8).contains(&kept), "{kept} shards kept");
+    let o = spibench(
+        &["--threads", "1", "dataset", s, "--out", killed, "--resume"],
+        &[],
+    );
+    ok(&o);
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        out.contains(&format!(
+            "{} shards written ({kept} already there)",
+            8 - kept
+        )),
+        "{out}"
+    );
+    assert_eq!(shard_files(&one), shard_files(&k1));
+    let (m1, mk) = (
+        read_json(&one.join("manifest.json")),
+        read_json(&k1.join("manifest.json")),
+    );
+    assert_eq!(m1["shards"], mk["shards"]);
+}

@@ -151,3 +151,97 @@ fn blaze_matching_grid() {
         shares(&doc, turn, true);
     }
 }
+
+/// The chip and its package are opaque from behind, as on the real device (a silicon chip on a
+/// ceramic carrier): with the illumination turned by 180° about the hinge (the lamp and its
+/// optics behind the array) no light reaches the mirrors or, through the array, the diodes
+/// (before, k± read 0.32 A/W, light passing the array from behind): a sweep's point has no
+/// detected power and no k±, and `trace` of a bench file with the lamp behind reports that no
+/// light reaches the pattern area. A turn outside ±360° is refused, as every angle of a bench
+/// file is.
+#[test]
+fn no_light_passes_the_array_from_behind() {
+    use crate::common::{TempDir, read_json, spibench, stderr};
+    let t = TempDir::new("dmd-behind");
+    let out = t.join("sweep");
+    let o = spibench(
+        &[
+            "sweep",
+            "--vary",
+            "illumination.turn_deg.hinge=0:180:2",
+            "--rays",
+            "20000",
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        &[],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let rows = read_json(&out.join("summary.json"))["rows"].clone();
+    let k = |r: &serde_json::Value, key: &str| r[key].as_f64();
+    assert!(k(&rows[0], "k_plus").unwrap() > 0.3, "{}", rows[0]);
+    let behind = &rows[1];
+    for key in ["power_plus_w", "power_minus_w", "x_total_w"] {
+        assert_eq!(k(behind, key), Some(0.0), "{key}: {behind}");
+    }
+    // k± = detected / incident on the mirrors: none incident, so none reported.
+    for key in ["k_plus", "k_minus"] {
+        assert!(
+            k(behind, key).is_none_or(|v| v.abs() < 1e-3),
+            "{key}: {behind}"
+        );
+    }
+    // A bench file with the lamp behind the DMD: no light reaches the pattern area, which
+    // `trace` reports as the input error it is (before, it traced k± of 0.33 A/W).
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/paper_bench.ron");
+    let mut doc = BenchDoc::read(&path).unwrap();
+    doc.set("illumination.turn_deg.hinge", 180.0).unwrap();
+    let scene = t.join("behind.ron");
+    std::fs::write(&scene, doc.to_ron().unwrap()).unwrap();
+    let out = t.join("trace");
+    let o = spibench(
+        &[
+            "trace",
+            scene.to_str().unwrap(),
+            "--rays",
+            "20000",
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        &[],
+    );
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("no traced light reached the DMD's pattern area")
+            && err.contains("0 arrivals"),
+        "{err}"
+    );
+    // Turns are angles of a bench: within ±360°.
+    for (args, value) in [
+        (
+            vec!["sweep", "--vary", "illumination.turn_deg.hinge=0:1e20:2"],
+            "1e20",
+        ),
+        (
+            vec![
+                "align",
+                "--free",
+                "illumination.turn_deg.across=-1e300:1e300",
+            ],
+            "1e300",
+        ),
+    ] {
+        let out = t.join("refused");
+        let mut a = args.clone();
+        a.extend(["--rays", "20000", "--out", out.to_str().unwrap()]);
+        let o = spibench(&a, &[]);
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
+        assert!(
+            err.contains("illumination.turn_deg") && err.contains("±360") && err.contains(value),
+            "{args:?}: {err}"
+        );
+        assert!(!out.exists());
+    }
+}

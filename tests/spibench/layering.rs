@@ -11,7 +11,7 @@ use std::path::{Path, PathBuf};
 /// compose `pipeline`, not each other). Every top-level module must be listed.
 const FLOORS: &[&[&str]] = &[
     &["error", "rng", "npy", "checked", "lib", "main"],
-    &["raster", "detector", "provenance"],
+    &["raster", "detector", "provenance", "memory"],
     &["objects", "reconstruction"],
     &["acquisition", "metrics", "optics"],
     &["scene", "trace"],

@@ -14,7 +14,7 @@ use serde_json::Value;
 use crate::common::{TempDir, assert_input_error, read_json, spibench, stderr, stdout};
 
 /// A tiny dataset spec (10 samples in shards of 3: 4 shards) in `dir`.
-fn write_spec(dir: &Path) -> PathBuf {
+pub(crate) fn write_spec(dir: &Path) -> PathBuf {
     let bench = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/paper_bench.ron");
     let text = format!(
         "Dataset(\n    bench: {:?},\n    kernel: (rays: 8192, seed: 1, grid_px: (24, 24), field_mm: (7.88, 7.88)),\n    objects: TestImages(names: [\"astronaut\", \"coffee\"], rule: RandomCrop),\n    acquisition: (schemes: [SecondaryComplementaryBalancing, DoubleArm], ratios: [0.05]),\n    seed: 7,\n    samples: 10,\n    shard_samples: 3,\n    write: (patterns: true),\n)\n",
@@ -25,16 +25,16 @@ fn write_spec(dir: &Path) -> PathBuf {
     p
 }
 
-fn ok(o: &std::process::Output) {
+pub(crate) fn ok(o: &std::process::Output) {
     assert!(o.status.success(), "spibench failed: {}", stderr(o));
 }
 
-fn s(p: &Path) -> &str {
+pub(crate) fn s(p: &Path) -> &str {
     p.to_str().unwrap()
 }
 
 /// Every file below `dir` (links not followed), by relative path, with its bytes.
-fn tree(dir: &Path) -> Vec<(String, Vec<u8>)> {
+pub(crate) fn tree(dir: &Path) -> Vec<(String, Vec<u8>)> {
     fn walk(root: &Path, dir: &Path, out: &mut Vec<(String, Vec<u8>)>) {
         for e in std::fs::read_dir(dir).unwrap().flatten() {
             let p = e.path();
@@ -347,7 +347,7 @@ fn a_dataset_folder_is_locked_and_quiet_means_quiet() {
     assert_eq!(tree(&d).len(), before.len());
 }
 
-fn tolerance(args: &[&str], out: &Path) -> std::process::Output {
+pub(crate) fn tolerance(args: &[&str], out: &Path) -> std::process::Output {
     let scenes = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");
     let bench = scenes.join("tests/symmetric_arms.ron");
     let tol = scenes.join("tolerances/symmetric_arms.ron");
@@ -366,7 +366,7 @@ fn tolerance(args: &[&str], out: &Path) -> std::process::Output {
     spibench(&a, &[])
 }
 
-fn merge_tolerance(inputs: &[&Path], out: &Path) -> std::process::Output {
+pub(crate) fn merge_tolerance(inputs: &[&Path], out: &Path) -> std::process::Output {
     let mut a = vec!["tolerance", "--merge"];
     a.extend(inputs.iter().map(|p| s(p)));
     a.extend(["--out", s(out)]);

@@ -306,9 +306,12 @@ impl Builder<'_> {
         for el in &file.elements {
             self.element(el)?;
         }
-        let dmd = match &file.dmd {
-            Some(d) => Some(self.dmd(d, band)?),
-            None => None,
+        let (dmd, tail_bin) = match &file.dmd {
+            Some(d) => {
+                let (setup, bin) = self.dmd(d, band)?;
+                (Some(setup), bin)
+            }
+            None => (None, None),
         };
         let detectors = [
             self.photodiode(&file.detectors.plus, Arm::Plus)?,
@@ -347,6 +350,14 @@ impl Builder<'_> {
                 })
             }
         };
+        // The diffractive DMD's tail tables (seconds and up to the memory limit at fine
+        // bins) only now that every input is checked.
+        let dmd = dmd.map(|mut s| {
+            if let Some(bin) = tail_bin {
+                s.dmd = s.dmd.with_diffraction(band, bin);
+            }
+            s
+        });
         Bench::assemble(Assembly {
             band,
             lamp,

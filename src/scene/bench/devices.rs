@@ -22,7 +22,9 @@ use super::schema::{
 };
 
 impl Builder<'_> {
-    pub(super) fn dmd(&mut self, d: &DmdSpec, band: (f64, f64)) -> Result<DmdSetup> {
+    /// The DMD, its window and package, checked; with the diffractive model, the tail tables'
+    /// bin (m), for `Builder::build` to build them once the whole bench is checked.
+    pub(super) fn dmd(&mut self, d: &DmdSpec, band: (f64, f64)) -> Result<(DmdSetup, Option<f64>)> {
         let e = |f: &str, m: String| self.ctx.err_path(&["dmd", f], m);
         if d.tilt_deg.0 >= 45.0 {
             return Err(e("tilt_deg", "the tilt must be below 45°".into()));
@@ -71,13 +73,16 @@ impl Builder<'_> {
             state,
             refl,
         );
-        let dmd = match d.model {
-            DmdModelSpec::Geometric => dmd,
+        // The diffractive model's tables are built last (`Builder::build`), once every input
+        // is checked: here only their bin and their memory.
+        let tail_bin = match d.model {
+            DmdModelSpec::Geometric => None,
             DmdModelSpec::Diffractive { tail_bin_nm } => {
                 let width_nm = (band.1 - band.0) * 1e9;
+                let field = ["dmd", "model", "tail_bin_nm"];
                 if !(0.5..=width_nm).contains(&tail_bin_nm.0) {
                     return Err(self.ctx.err_path(
-                        &["dmd", "model", "tail_bin_nm"],
+                        &field,
                         format!(
                             "the tail table's wavelength bin must be 0.5 nm to the band's \
                              {width_nm:.0} nm, got {}",
@@ -85,7 +90,20 @@ impl Builder<'_> {
                         ),
                     ));
                 }
-                dmd.with_diffraction(band, tail_bin_nm.0 * 1e-9)
+                let size = dmd.diffraction_size(band, tail_bin_nm.0 * 1e-9);
+                // The tables shrink as the bin widens: the bin that brings them under the limit.
+                let wider = tail_bin_nm.0 * size.bytes / crate::memory::MAX_MEMORY_BYTES;
+                crate::memory::check(
+                    size.bytes,
+                    "the diffractive DMD's tail tables",
+                    &size.settings(),
+                    &format!(
+                        "widen `tail_bin_nm` to at least {:.1} nm or narrow `band_nm`",
+                        (wider * 10.0).ceil() / 10.0
+                    ),
+                )
+                .map_err(|e| self.ctx.err_path(&field, e.message()))?;
+                Some(tail_bin_nm.0 * 1e-9)
             }
         };
         let (hx, hy) = dmd.half_size();
@@ -132,11 +150,15 @@ impl Builder<'_> {
                 half: DVec3::new(px, py, 0.5 * top + 1e-3),
             },
         ));
-        Ok(DmdSetup {
-            dmd,
-            mirrors_element,
-            gaps_element,
-        })
+        Ok((
+            DmdSetup {
+                dmd,
+                mirrors_element,
+                gaps_element,
+                package_element: package,
+            },
+            tail_bin,
+        ))
     }
 
     pub(super) fn photodiode(&mut self, s: &PhotodiodeSpec, arm: Arm) -> Result<Photodiode> {
