@@ -496,8 +496,8 @@ fn check_curves(f: &ExperimentFile) -> Result<()> {
 
 /// Random patterns for the highest sampling ratio must fit the pattern store
 /// (`acquisition::patterns::MAX_RANDOM_BITS`). Checked here, so that the error names the
-/// ratios and the image size the user wrote, not a field `measurements` that no file has (it
-/// was located at line 1).
+/// image size the user wrote (at `width`, the ratio in the message), not a field
+/// `measurements` that no file has.
 fn check_pattern_sizes(f: &ExperimentFile) -> Result<()> {
     use crate::acquisition::patterns::{MAX_RANDOM_BITS, patterns_for_ratio};
     if !matches!(f.patterns, PatternsSpec::Random { .. }) {
@@ -508,7 +508,7 @@ fn check_pattern_sizes(f: &ExperimentFile) -> Result<()> {
     let m = patterns_for_ratio(r, n);
     if m.saturating_mul(n) > MAX_RANDOM_BITS {
         return Err(Error::field(
-            "sampling_ratios",
+            "width",
             format!(
                 "{m} random patterns of {}×{} units (ratio {r}) would take {:.1} GiB of bits \
                  (limit {} GiB): lower the ratio or the image size",

@@ -705,13 +705,19 @@ fn check_relations(bench: &Bench, scope: &Scope, s: &RunSettings) -> FieldResult
             )),
         ));
     }
+    // Checked here, where the bench file's `run.patterns` is located, and not first when the
+    // patterns are built (a field `patterns` of no file).
     if let PatternFamily::Hadamard { .. } = s.patterns
-        && across != down
+        && (across != down || !across.is_power_of_two())
     {
         return Err((
             "patterns",
             Error::input(format!(
-                "Hadamard patterns need a square pattern area, got {across}×{down} units"
+                "Hadamard patterns need a square pattern area of 2^m × 2^m units (Sylvester \
+                 construction), got {across}×{down} units: use Random patterns, or a side such \
+                 as {} or {}",
+                across.next_power_of_two() / 2,
+                across.next_power_of_two()
             )),
         ));
     }

@@ -172,14 +172,14 @@ fn simulate_errors_name_file_line_and_the_full_field_path() {
         "width: 5000",
         "width",
     );
-    // Too many random pattern bits: named at the ratios, not at line 1 as a field
-    // `measurements` that no file has.
+    // Too many random pattern bits: named at the image size that makes them (lines 7–8), not
+    // at line 1 as a field `measurements` that no file has, nor at the ratios.
     experiment_case(
         "pattern-bits",
         "width: 128,\n    height: 128,",
         "width: 1024,\n    height: 1024,",
-        "sampling_ratios",
-        "sampling_ratios",
+        "width: 1024",
+        "width",
     );
 }
 
@@ -756,4 +756,30 @@ fn values_and_images_are_reported_as_given_and_where_given() {
         "the experiment's location comes first: {err}"
     );
     assert!(!err.contains("broken.png, line"), "{err}");
+}
+
+/// Hadamard patterns on the paper bench's 48 × 48 units are refused at the bench file's
+/// `run: (patterns: …)`, with its line (they were refused when the patterns were built, as a field
+/// `patterns` of no file).
+#[test]
+fn hadamard_patterns_on_a_side_of_48_units_are_located_in_the_bench_file() {
+    let dir = TempDir::new("bad-hadamard-48");
+    let (scene, line) = edited(
+        &dir,
+        PAPER,
+        "    detectors: (",
+        "    run: (patterns: Hadamard(ordering: Natural)),\n    detectors: (",
+        "run: (patterns",
+    );
+    run_case(
+        &dir,
+        &["run", scene.to_str().unwrap(), "--rays", "2048"],
+        &[
+            "paper_bench.ron",
+            &format!("line {line},"),
+            "field `patterns`",
+            "48×48",
+            "32 or 64",
+        ],
+    );
 }
