@@ -197,7 +197,7 @@ fn load_patterns(path: &Path, n: usize) -> crate::Result<(BitMatrix, &'static st
 /// shape is an input error even when it holds N values: a (4, 8, 8) stack or an 8 × 32 array
 /// for a 16 × 16 image is not that image.
 fn load_truth(path: &Path, w: usize, h: usize) -> crate::Result<Raster> {
-    let shape = npy::read(path)?.shape;
+    let shape = npy::read_bounded(path, "the truth array", |_| (0.0, String::new()))?.shape;
     let n = w * h;
     let fits = match shape.as_slice() {
         [k] => *k == n,
@@ -245,7 +245,11 @@ fn range_warnings(truth: &Raster, image: &Raster, range: metrics::DataRange) -> 
 }
 
 fn load_vector(path: &Path, what: &str, one_d: bool) -> crate::Result<Vec<f64>> {
-    let arr = npy::read(path)?;
+    let as_f64 = |h: &npy::Header| {
+        let n = h.count().map_or(f64::INFINITY, |c| c as f64);
+        (8.0 * n, "as float64".to_string())
+    };
+    let arr = npy::read_bounded(path, &format!("the {what} array"), as_f64)?;
     // Measurements are 1-D, or a column or row (M, 1) / (1, M): a (64, 2) array is not 128
     // measurements. A truth image may be 2-D (its size is checked against --size).
     let vector = match arr.shape.as_slice() {

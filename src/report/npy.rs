@@ -80,8 +80,22 @@ pub fn read_bounded(
         let got = read_up_to(&mut reader, &mut bytes[have..]).map_err(|e| Error::read(path, e))?;
         bytes.truncate(have + got);
     }
-    if let Ok(h) = crate::npy::header(&bytes) {
-        let elements = h.count().map_or(f64::INFINITY, |c| c as f64);
+    let file_len = reader
+        .get_ref()
+        .metadata()
+        .ok()
+        .filter(|m| m.is_file())
+        .map(|m| m.len());
+    let header = crate::npy::header(&bytes).ok().filter(|h| {
+        // A file shorter than its header claims is reported as truncated by `parse`.
+        let claimed = h
+            .count()
+            .zip(h.item_bytes())
+            .map(|(c, i)| c as f64 * i as f64);
+        claimed.is_some_and(|d| file_len.is_none_or(|l| h.data_start as f64 + d <= l as f64))
+    });
+    if let Some(h) = header {
+        let elements = h.count().unwrap_or(0) as f64;
         let item = h.item_bytes().unwrap_or(8) as f64;
         let data = elements * item;
         let (more, more_what) = extra(&h);
@@ -324,6 +338,46 @@ mod tests {
         bytes[at..at + 5].copy_from_slice(b"True ");
         let a = parse(&bytes).unwrap();
         assert_eq!(a.data, NpyData::U8(vec![0, 4, 2, 6, 1, 5, 3, 7]));
+    }
+
+    /// `read_bounded` refuses from the header alone an array whose reading would exceed the
+    /// memory limit (a sparse 1.2 GB-claiming file is never read), reads a small one as `read`
+    /// does, and leaves a file shorter than its header claims to `parse`'s "truncated".
+    #[test]
+    fn bounded_reads_estimate_from_the_header() {
+        let dir = std::env::temp_dir().join(format!("spibench-npy-bounded-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let small = dir.join("small.npy");
+        write_u8(&small, &[2, 3], &[0, 1, 0, 1, 1, 0]).unwrap();
+        let none = |_: &Header| (0.0, String::new());
+        assert_eq!(
+            read_bounded(&small, "x", none).unwrap(),
+            read(&small).unwrap()
+        );
+        // 1e9 elements of float64 claimed, 64 bytes there: truncated, not a memory estimate.
+        let mut short = header_bytes("<f8", &[1000, 1_000_000]);
+        short.extend_from_slice(&[0; 64]);
+        let trunc = dir.join("trunc.npy");
+        std::fs::write(&trunc, &short).unwrap();
+        let e = read_bounded(&trunc, "x", none).unwrap_err().to_string();
+        assert!(e.contains("truncated"), "{e}");
+        // A sparse file of 1 GB of bytes: file, decoded copy and 0.5 GB of the caller's.
+        let big = dir.join("big.npy");
+        let h = header_bytes("|u1", &[1000, 1_000_000]);
+        std::fs::write(&big, &h).unwrap();
+        let f = std::fs::File::options().write(true).open(&big).unwrap();
+        f.set_len(h.len() as u64 + 1_000_000_000).unwrap();
+        let rows = |h: &Header| (0.5 * h.count().unwrap() as f64, "of rows".to_string());
+        let e = read_bounded(&big, "the big array", rows).unwrap_err();
+        let m = e.to_string();
+        assert!(e.is_user_error() && m.contains("big.npy"), "{m}");
+        assert!(
+            m.contains("the big array would take about 2.50 GB")
+                && m.contains("a 1000 × 1000000 array of '|u1' in C order")
+                && m.contains("500.00 MB of rows"),
+            "{m}"
+        );
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]
