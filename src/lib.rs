@@ -19,6 +19,7 @@ pub mod metrics;
 pub mod npy;
 pub mod objects;
 pub mod optics;
+pub mod outputs;
 pub mod pipeline;
 pub mod provenance;
 pub mod raster;

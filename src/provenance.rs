@@ -5,7 +5,9 @@
 //! Nothing in it changes between two runs of the same command on the same inputs, so summaries
 //! stay byte-identical; the date of a run is a timing and lives with the timings. It is not
 //! tied to the command line: a caller that is not the `spibench` binary (a dataset manifest,
-//! the Python package) names its own command words with [`Provenance::with_command`].
+//! the Python package) names its own command words with [`Provenance::with_command`]. A bench's
+//! provenance is `Provenance::of_bench` (in `scene::doc`, above this module in the module
+//! graph): the bench document's text and the images it loads.
 
 use std::path::Path;
 
@@ -71,6 +73,11 @@ impl Provenance {
     pub fn file(mut self, path: &Path) -> crate::Result<Provenance> {
         self.inputs.push(hash_file(path)?);
         Ok(self)
+    }
+
+    /// Adds input files in order ([`Provenance::file`] each).
+    pub fn files(self, paths: &[std::path::PathBuf]) -> crate::Result<Provenance> {
+        paths.iter().try_fold(self, |p, f| p.file(f))
     }
 
     /// Adds an input held in memory (a built-in bench or experiment).

@@ -1,5 +1,6 @@
-//! The arguments the bench commands share, declared once: the scene, `--set PATH=VALUE`,
-//! `--rays N`, `--seed S`, `--out DIR` ([`BenchArgs`], [`RunOpts`]) and `--shard I/N`
+//! The arguments the bench commands share, declared once: the scene and `--set PATH=VALUE`
+//! ([`BenchArgs`], the one entrance for a bench), `--rays N`, `--seed S`, `--out DIR`
+//! ([`RunOpts`]) and `--shard I/N`
 //! ([`Shard`]), each with one validation, and `--allow-large` ([`WorkArgs`]): the one switch over
 //! the limits on a command's total work ([`Work`]).
 //!
@@ -39,10 +40,22 @@ impl RunOpts {
         self.out.clone().unwrap_or_else(|| PathBuf::from(default))
     }
 
-    /// The ray count, `default` unless given, checked against `min` … [`MAX_RAYS`].
-    pub fn rays_or(&self, default: u64, min: u64) -> crate::Result<u64> {
-        check_rays(self.rays.unwrap_or(default), min)
+    /// The one rule for the ray count of a command that traces `doc`: `--rays`, else the
+    /// bench file's `run.rays` when the file states one, else the command's `default`; checked
+    /// against two batches … [`MAX_RAYS`] ([`check_rays`]).
+    pub fn rays(&self, doc: &BenchDoc, default: u64) -> crate::Result<u64> {
+        let rays = self.rays.or_else(|| doc.stated_rays()).unwrap_or(default);
+        check_rays(rays, MIN_RAYS_WITH_STDERR)
     }
+}
+
+/// The `--help` text of `--rays` for a command that traces: `what`, and the one rule
+/// ([`RunOpts::rays`]) with the command's `default`.
+pub fn rays_help(what: &str, default: u64) -> String {
+    format!(
+        "{what} (default: the bench file's `run.rays` when it states one, else {default}; \
+         at least {MIN_RAYS_WITH_STDERR}, two batches)"
+    )
 }
 
 /// The one check of `--rays`: between the command's `min` and [`MAX_RAYS`]. A minimum of two
@@ -68,8 +81,9 @@ pub fn check_rays(rays: u64, min: u64) -> crate::Result<u64> {
 /// align, trace), and of a bench file's `run.rays`: two batches.
 pub const MIN_RAYS_WITH_STDERR: u64 = crate::scene::run::MIN_RAYS;
 
-/// The bench, its `--set` edits and [`RunOpts`]: the arguments of `run`, `sweep`,
-/// `tolerance` and `align`.
+/// The one entrance for a bench: SCENE (a bench file; without it the paper's bench built into
+/// the program) and `--set PATH=VALUE`, read and edited once ([`BenchArgs::load`]). Every
+/// command that reads a bench takes these arguments.
 #[derive(Debug, Clone, Default, Args)]
 pub struct BenchArgs {
     /// Bench file (RON); default: the paper's bench built into the binary.
@@ -78,14 +92,17 @@ pub struct BenchArgs {
     /// (repeatable; paths as in `spibench sweep`).
     #[arg(long = "set", value_name = "PATH=VALUE")]
     pub set: Vec<String>,
-    #[command(flatten)]
-    pub opts: RunOpts,
 }
 
 impl BenchArgs {
-    /// Reads the bench (or the built-in one) and applies `--set`: its name and document.
-    pub fn load(&self) -> crate::Result<(String, BenchDoc)> {
-        super::run::load_doc(self.scene.as_deref(), &self.set)
+    /// Reads the bench (or the built-in one) and applies `--set`, in order.
+    pub fn load(&self) -> crate::Result<BenchDoc> {
+        let mut doc = BenchDoc::open(self.scene.as_deref())?;
+        for a in &self.set {
+            let (path, value) = super::parse_assignment(a, "--set")?;
+            doc.set(&path, value)?;
+        }
+        Ok(doc)
     }
 }
 

@@ -1,30 +1,28 @@
-//! `spibench export-mitsuba SCENE --out DIR [--pattern SPEC] [--wavelength-nm NM] [--as-is]`:
-//! the bench as a Mitsuba 3 scene (mitsuba==3.9.1).
+//! `spibench export-mitsuba [SCENE] [--set PATH=VALUE …] --out DIR [--pattern SPEC]
+//! [--wavelength-nm NM] [--as-is]`: the bench as a Mitsuba 3 scene (mitsuba==3.9.1).
 //!
 //! By default the monochromatic, constant-index substitute at `--wavelength-nm` (850 nm) is
 //! exported (crate::optics::monochromatic): every change it makes is printed and written to
 //! `substitutions.txt`. `--as-is` exports the bench unchanged and fails, naming the element, if
 //! Mitsuba cannot represent it. Output (DIR): `scene.xml`, `meshes/*.ply`, `charts/*.pfm`,
-//! `manifest.json`, `substitutions.txt` and `summary.json`, written into a staging directory and
-//! moved into place only when everything succeeded. Mitsuba cannot model the DMD's diffraction:
+//! `manifest.json`, `substitutions.txt` and `summary.json` (crate::outputs::export), written
+//! into a staging directory and moved into place only when everything succeeded. Mitsuba cannot model the DMD's diffraction:
 //! a bench with `model: Diffractive` is exported with geometric mirrors and a note saying so
 //! (`--as-is` refuses it).
 
 use std::path::PathBuf;
 
-use serde::Serialize;
-
 use crate::error::{Error, Result};
 use crate::export::{ExportOptions, PatternSpec, export_mitsuba};
 use crate::optics::monochromatic::{MonochromaticOptions, monochromatic};
+use crate::outputs::export::{DIFFRACTION_NOTE, ExportSummary, write};
 use crate::report::output::OutputDir;
-use crate::scene::bench::read_bench;
 
 /// Arguments of `spibench export-mitsuba`.
 #[derive(Debug, Clone, clap::Args)]
 pub struct ExportArgs {
-    /// Bench file (RON).
-    pub scene: PathBuf,
+    #[command(flatten)]
+    pub bench: super::args::BenchArgs,
     /// Output directory.
     #[arg(long)]
     pub out: PathBuf,
@@ -49,19 +47,6 @@ pub struct ExportArgs {
     pub work: super::args::WorkArgs,
 }
 
-/// `summary.json` of an export.
-#[derive(Debug, Clone, Serialize)]
-pub struct ExportSummary {
-    pub scene: String,
-    pub pattern: String,
-    /// The substitute's wavelength (nm), null with --as-is.
-    pub wavelength_nm: Option<f64>,
-    /// Every change the substitution made (empty for a bench Mitsuba represents as it is).
-    pub substitutions: Vec<String>,
-    /// Files written, relative to the output directory.
-    pub files: Vec<String>,
-}
-
 pub fn run(args: &ExportArgs) -> anyhow::Result<()> {
     let summary = export(args)?;
     for n in &summary.substitutions {
@@ -77,13 +62,9 @@ pub fn run(args: &ExportArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// What the export says of a bench whose DMD diffracts (docs/dmd_diffraction.md).
-const DIFFRACTION_NOTE: &str = "dmd: Mitsuba cannot model the DMD's diffraction (a ray tracer \
-     has no grating orders): the scene's mirrors reflect geometrically, as with `model: \
-     Geometric`; compare Mitsuba with spibench's geometric model only";
-
 fn export(args: &ExportArgs) -> Result<ExportSummary> {
-    let bench = read_bench(&args.scene)?;
+    let doc = args.bench.load()?;
+    let bench = doc.build()?;
     let diffractive = bench.dmd().is_some_and(|s| s.dmd.diffraction().is_some());
     if diffractive && args.as_is {
         return Err(Error::field(
@@ -91,7 +72,7 @@ fn export(args: &ExportArgs) -> Result<ExportSummary> {
             "Mitsuba cannot model the DMD's diffraction: export without --as-is (the scene's \
              mirrors then reflect geometrically) or set `model: Geometric`",
         )
-        .in_file(&args.scene));
+        .in_file(doc.path()));
     }
     let spec = PatternSpec::parse(&args.pattern).map_err(|e| e.at_field("--pattern"))?;
     let base = std::env::current_dir().unwrap_or_default();
@@ -109,7 +90,7 @@ fn export(args: &ExportArgs) -> Result<ExportSummary> {
                 "--wavelength-nm",
                 format!(
                     "{nm} nm is outside the traced band of {} ({lo_nm:.0}–{hi_nm:.0} nm)",
-                    args.scene.display()
+                    doc.name()
                 ),
             ));
         }
@@ -130,36 +111,22 @@ fn export(args: &ExportArgs) -> Result<ExportSummary> {
             spectral: args.spectral,
         },
     )
-    .map_err(|e| e.in_file(&args.scene))?;
+    .map_err(|e| e.in_file(doc.path()))?;
     let mut substitutions = notes;
     if diffractive {
         substitutions.insert(0, DIFFRACTION_NOTE.to_string());
     }
     substitutions.extend(scene.notes.iter().cloned());
-    let dir = OutputDir::create(&args.out)?;
-    let mut files = Vec::new();
-    for (name, bytes) in &scene.files {
-        let p = dir.try_path(name)?;
-        std::fs::write(&p, bytes).map_err(|e| Error::write(&p, e))?;
-        files.push(name.clone());
-    }
-    let p = dir.try_path("substitutions.txt")?;
-    let mut text = substitutions.join("\n");
-    text.push('\n');
-    std::fs::write(&p, text).map_err(|e| Error::write(&p, e))?;
-    files.push("substitutions.txt".into());
     let summary = ExportSummary {
-        scene: args.scene.display().to_string(),
+        scene: doc.name(),
         pattern: spec.label(),
         wavelength_nm: wl.map(|w| w * 1e9),
         substitutions,
-        files: files.clone(),
+        files: Vec::new(),
     };
-    let mut provenance = crate::provenance::Provenance::new(&[]).file(&args.scene)?;
-    for f in crate::scene::doc::BenchDoc::read(&args.scene)?.input_files() {
-        provenance = provenance.file(&f)?;
-    }
-    super::provenance::write_summary(&dir, &summary, &provenance)?;
+    let provenance = crate::provenance::Provenance::of_bench(&doc, &[])?;
+    let dir = OutputDir::create(&args.out)?;
+    let summary = write(&dir, &scene, summary, &provenance)?;
     dir.commit()?;
     Ok(summary)
 }
@@ -174,7 +141,10 @@ mod tests {
 
     fn args(scene: PathBuf, out: PathBuf, pattern: &str) -> ExportArgs {
         ExportArgs {
-            scene,
+            bench: crate::cli::args::BenchArgs {
+                scene: Some(scene),
+                set: Vec::new(),
+            },
             out,
             pattern: pattern.into(),
             wavelength_nm: 850.0,

@@ -9,16 +9,12 @@ mod check;
 mod completions;
 mod dataset;
 mod export;
+pub mod flags;
 mod layout;
 mod patterns;
 pub(crate) mod progress;
-mod provenance;
 mod reconstruct;
-mod rows;
 mod run;
-mod run_arrays;
-mod run_repeats;
-mod run_report;
 mod simulate;
 mod sweep;
 mod tolerance;
@@ -160,6 +156,7 @@ pub fn main() -> i32 {
     match result {
         Ok(()) => 0,
         Err(e) => {
+            let e = flags::relocate_any(e);
             eprintln!("error: {}", render_error(&e));
             exit_status(&e)
         }

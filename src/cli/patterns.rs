@@ -144,7 +144,8 @@ fn dmd_size(args: &PatternsArgs) -> crate::Result<((usize, usize), String)> {
     if let Some(d) = &args.dmd {
         return Ok((size(d, "--dmd")?, "--dmd".into()));
     }
-    let (name, doc) = super::run::load_doc(args.scene.as_deref(), &[])?;
+    let doc = crate::scene::doc::BenchDoc::open(args.scene.as_deref())?;
+    let name = doc.name();
     let Some(d) = &doc.file.dmd else {
         return Err(Error::field(
             "--dmd",

@@ -1,15 +1,16 @@
-//! `spibench reconstruct`: TVAL3 on measurements that came from elsewhere.
+//! `spibench reconstruct`: TVAL3 on measurements that came from elsewhere. The arrays it reads
+//! are checked here; the files it writes are crate::outputs::reconstruct's.
 
 use std::path::{Path, PathBuf};
 
 use anyhow::Result;
 use clap::{Args, ValueEnum};
-use serde::Serialize;
 
 use crate::error::Error;
 use crate::metrics;
+use crate::outputs::reconstruct::{ReconstructSummary, range_rule, range_warnings, write};
 use crate::raster::Raster;
-use crate::reconstruction::tval3::{StopReason, Tval3Options};
+use crate::reconstruction::tval3::Tval3Options;
 use crate::reconstruction::{BitMatrix, PackedOperator, PatternForm, Solver};
 use crate::report::npy::{self, NpyData};
 use crate::report::output::OutputDir;
@@ -105,49 +106,6 @@ fn parse_data_range(s: &str) -> std::result::Result<(f64, f64), String> {
     Ok((lo, hi))
 }
 
-/// summary.json of `reconstruct`.
-#[derive(Serialize)]
-struct Summary {
-    command: &'static str,
-    spibench_version: &'static str,
-    width: usize,
-    height: usize,
-    /// Patterns M and units N.
-    measurements: usize,
-    units: usize,
-    /// "01" or "pm1".
-    form: &'static str,
-    /// "uint8_01" or "packbits".
-    patterns_encoding: &'static str,
-    /// With form "01": "zero-mean" or "plain" (how the 0/1 system was solved).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    zero_one_handling: Option<&'static str>,
-    iterations: usize,
-    forward_applications: usize,
-    adjoint_applications: usize,
-    /// True only when TVAL3 met its outer tolerance (`stop` is "Tolerance").
-    converged: bool,
-    stop: StopReason,
-    /// ‖A u − y‖ / ‖y‖.
-    relative_residual: f64,
-    /// Solver CPU time, s.
-    time_s: f64,
-    /// Only with --truth: scores after the normalisation rule, on `data_range`.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    psnr_db: Option<f64>,
-    /// Only with --truth: [lo, hi], the clip, PSNR's peak (hi − lo) and SSIM's L.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    data_range: Option<metrics::DataRange>,
-    /// "truth" (its own min and max) or "--data-range".
-    #[serde(skip_serializing_if = "Option::is_none")]
-    data_range_from: Option<&'static str>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    mssim: Option<f64>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    normalization: Option<String>,
-    solver: Tval3Options,
-}
-
 fn load_patterns(path: &Path, n: usize) -> crate::Result<(BitMatrix, &'static str)> {
     // The bit rows made of it: M rows of N bits in 64-bit words.
     let rows = |h: &npy::Header| {
@@ -214,36 +172,6 @@ fn load_truth(path: &Path, w: usize, h: usize) -> crate::Result<Raster> {
     Raster::new(w, h, load_vector(path, "truth", false)?)
 }
 
-/// Warnings when the truth's range looks unlike the scale it is scored on or the image's.
-fn range_warnings(truth: &Raster, image: &Raster, range: metrics::DataRange) -> Vec<String> {
-    let (lo, hi) = (truth.min(), truth.max());
-    let mut w = Vec::new();
-    if lo < range.lo || hi > range.hi {
-        w.push(format!(
-            "the truth's values [{lo:.4e}, {hi:.4e}] leave the data range [{}, {}]: the scores \
-             compare a clipped image with values it cannot reach",
-            range.lo, range.hi
-        ));
-    } else if hi - lo < 0.25 * range.span() {
-        w.push(format!(
-            "the truth spans [{lo:.4e}, {hi:.4e}], under a quarter of the data range [{}, {}]: \
-             PSNR and MSSIM will look better than the image's structure is",
-            range.lo, range.hi
-        ));
-    }
-    let (ilo, ihi) = (image.min(), image.max());
-    let (ts, is) = (hi - lo, ihi - ilo);
-    if ts > 0.0 && is > 0.0 && (ts / is > 100.0 || is / ts > 100.0) {
-        w.push(format!(
-            "the truth spans {ts:.4e} and the reconstruction {is:.4e} (a factor {:.0}): the \
-             reconstruction is mapped onto the truth by a fitted gain and offset before scoring, \
-             so check that the truth is the object these measurements saw",
-            (ts / is).max(is / ts)
-        ));
-    }
-    w
-}
-
 fn load_vector(path: &Path, what: &str, one_d: bool) -> crate::Result<Vec<f64>> {
     let as_f64 = |h: &npy::Header| {
         let n = h.count().map_or(f64::INFINITY, |c| c as f64);
@@ -301,19 +229,6 @@ pub fn form_hint(y: &[f64], form: PatternForm) -> Option<String> {
         )),
         _ => None,
     }
-}
-
-/// The normalisation rule as applied on `r`.
-fn range_rule(r: metrics::DataRange) -> String {
-    format!(
-        "least-squares gain and offset mapping the reconstruction onto the ground truth, then \
-         clipping to the data range [{}, {}]; PSNR with peak {} (the range's span), MSSIM as \
-         Wang et al. 2004 with L = {}",
-        r.lo,
-        r.hi,
-        r.span(),
-        r.span()
-    )
 }
 
 pub fn run(args: &ReconstructArgs) -> Result<()> {
@@ -381,17 +296,7 @@ pub fn run(args: &ReconstructArgs) -> Result<()> {
         scores.as_ref().map(|s| s.mssim),
     );
 
-    // The image as computed (float64), and as pictures scaled over its own range.
-    let img = &sol.image;
-    npy::write_f64(&out.path("reconstruction.npy"), &[h, w], &img.data)?;
-    let (lo, hi) = (img.min(), img.max());
-    let hi = if hi > lo { hi } else { lo + 1.0 };
-    crate::report::png::write_gray8(&out.path("reconstruction.png"), img, lo, hi)?;
-    crate::report::png::write_gray16(&out.path("reconstruction16.png"), img, lo, hi)?;
-    let data32: Vec<f32> = img.data.iter().map(|&v| v as f32).collect();
-    crate::report::exr::write_channels(&out.path("reconstruction.exr"), w, h, &[("Y", &data32)])?;
-
-    let summary = Summary {
+    let summary = ReconstructSummary {
         command: "reconstruct",
         spibench_version: env!("CARGO_PKG_VERSION"),
         width: w,
@@ -424,7 +329,7 @@ pub fn run(args: &ReconstructArgs) -> Result<()> {
     if let Some(t) = &args.truth {
         provenance = provenance.file(t)?;
     }
-    super::provenance::write_summary(&out, &summary, &provenance)?;
+    write(&sol.image, &summary, &provenance, &out)?;
     let dir = out.commit()?;
     println!(
         "reconstructed {w}x{h} from {} measurements: {} iterations, {} + {} operator applications, {:.2} s; stopped because {}",

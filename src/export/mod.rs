@@ -409,7 +409,7 @@ const BLACK: &str = r#"<bsdf type="diffuse"><float name="reflectance" value="0"/
 fn unrepresentable(what: String) -> Error {
     Error::input(format!(
         "{what}; Mitsuba 3 cannot represent it: export the monochromatic substitute \
-         (spibench export-mitsuba --wavelength-nm)"
+         (`wavelength_nm`)"
     ))
 }
 

@@ -86,7 +86,7 @@ impl DataRange {
         let (lo, hi) = (truth.min(), truth.max());
         if lo.is_nan() || hi.is_nan() || hi <= lo {
             return Err(Error::input(format!(
-                "the truth is constant ({lo}): it has no range to score against; give one with --data-range"
+                "the truth is constant ({lo}): it has no range to score against; give one with `data_range`"
             )));
         }
         DataRange::new(lo, hi)

@@ -37,7 +37,6 @@ pub mod optimise;
 pub mod perturb;
 mod record;
 mod solve;
-pub mod summary;
 
 use serde::Serialize;
 

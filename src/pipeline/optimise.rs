@@ -60,7 +60,7 @@ pub struct Free {
 impl Free {
     /// Parses `PATH=LO:HI`.
     pub fn parse(text: &str) -> Result<Free> {
-        let bad = |why: &str| Error::field("--free", format!("`{text}`: {why}"));
+        let bad = |why: &str| Error::field("free", format!("`{text}`: {why}"));
         let (path, range) = text
             .split_once('=')
             .ok_or_else(|| bad("expected PATH=LO:HI"))?;
@@ -295,25 +295,25 @@ pub fn check_objective(obj: &Objective) -> Result<()> {
             if !(*min_fraction >= 0.0 && *min_fraction <= 1.0) =>
         {
             Err(Error::field(
-                "--min-fraction",
+                "min_fraction",
                 format!("must lie in [0, 1], got {min_fraction}"),
             ))
         }
         Objective::Balance { offset_weight, .. } if !offset_weight.is_finite() => {
             Err(Error::field(
-                "--offset-weight",
+                "offset_weight",
                 format!("must be finite, got {offset_weight}"),
             ))
         }
         Objective::Weighted(w) if w.is_empty() => Err(Error::field(
-            "--weight",
-            "the weighted objective needs at least one --weight METRIC=W",
+            "weight",
+            "the weighted objective needs at least one `weight` METRIC=W",
         )),
         Objective::Weighted(w) => {
             for (name, wt) in w {
                 if !METRICS.iter().any(|m| m.0 == name) || !wt.is_finite() {
                     return Err(Error::field(
-                        "--weight",
+                        "weight",
                         format!(
                             "`{name}={wt}`: the metrics are {}",
                             METRICS.map(|m| m.0).join(", ")
@@ -338,20 +338,17 @@ pub fn search(
 ) -> Result<Search> {
     check_objective(obj)?;
     if free.is_empty() {
-        return Err(Error::field("--free", "give at least one free variable"));
+        return Err(Error::field("free", "give at least one free variable"));
     }
     for (i, f) in free.iter().enumerate() {
         if f.lo.partial_cmp(&f.hi) != Some(std::cmp::Ordering::Less) {
             return Err(Error::field(
-                "--free",
+                "free",
                 format!("`{}`: LO must be below HI", f.path),
             ));
         }
         if free[..i].iter().any(|g| g.path == f.path) {
-            return Err(Error::field(
-                "--free",
-                format!("`{}` is free twice", f.path),
-            ));
+            return Err(Error::field("free", format!("`{}` is free twice", f.path)));
         }
     }
     let n = free.len();
@@ -481,7 +478,7 @@ pub fn check_start(doc: &BenchDoc, free: &[Free], strict: bool) -> Result<Vec<f6
         for (end, v) in [("LO", f.lo), ("HI", f.hi)] {
             doc.with(&[(f.path.clone(), v)]).map_err(|e| {
                 e.with_note(format!(
-                    "--free {}={}:{}: its {end} bound",
+                    "`free` {}={}:{}: its {end} bound",
                     f.path, f.lo, f.hi
                 ))
             })?;
@@ -489,7 +486,7 @@ pub fn check_start(doc: &BenchDoc, free: &[Free], strict: bool) -> Result<Vec<f6
         let v = doc.get(&f.path)?;
         if strict && !(v >= f.lo && v <= f.hi) {
             return Err(Error::field(
-                "--free",
+                "free",
                 format!(
                     "`{}`: the starting bench has {v}, outside the bounds {}:{} (a rigid-body \
                      move starts at 0)",

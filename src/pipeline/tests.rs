@@ -79,8 +79,8 @@ fn a_cached_trace_gives_identical_downstream_results() {
         ..TraceRequest::new(40_000, 9)
     };
     let quiet: Progress = &|_, _, _| {};
-    let first = crate::run::run(&scene, 9, &req, quiet).unwrap();
-    let second = crate::run::run(&scene, 9, &req, quiet).unwrap();
+    let first = crate::run::run(&scene, &req, quiet).unwrap();
+    let second = crate::run::run(&scene, &req, quiet).unwrap();
     assert_eq!(first.cache, CacheStatus::Miss);
     assert_eq!(second.cache, CacheStatus::Hit);
     assert_eq!(first.transport, second.transport);
@@ -102,7 +102,7 @@ fn a_cached_trace_gives_identical_downstream_results() {
     let n = bytes.len();
     bytes[n / 2] ^= 1;
     std::fs::write(&entry, &bytes).unwrap();
-    let third = crate::run::run(&scene, 9, &req, quiet).unwrap();
+    let third = crate::run::run(&scene, &req, quiet).unwrap();
     assert!(
         matches!(third.cache, CacheStatus::Rebuilt(_)),
         "{:?}",

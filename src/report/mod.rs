@@ -1,5 +1,5 @@
-//! Output files: JSON summaries, images (PNG, EXR), arrays (.npy), plots and HTML reports.
-//! Together with `scene` and `cli`, the only module that touches files.
+//! Output files: JSON summaries, images (PNG, EXR), arrays (.npy), plots and HTML reports: the
+//! writers that each command's outputs (crate::outputs) are made with.
 //!
 //! The figure modules (plot, heatmap, montage, svg, outline, font: plotters, resvg, svg2pdf,
 //! ab_glyph and the embedded font) are built with the `figures` feature only; the plain writers are always there.
@@ -7,12 +7,11 @@
 pub mod csv;
 pub mod exr;
 #[cfg(feature = "figures")]
-mod font;
+pub(crate) mod font;
 #[cfg(feature = "figures")]
 pub mod heatmap;
 pub mod html;
 pub mod json;
-pub mod layout;
 #[cfg(feature = "figures")]
 pub mod montage;
 pub mod npy;

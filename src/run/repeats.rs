@@ -92,18 +92,20 @@ pub struct Repeats {
 }
 
 /// Runs the scene's trace once and its downstream stages `n` times ([`repeat_seed`],
-/// [`repeat_patterns`]), in repeat order. Returns the outcome of repeat 0 (the plain run),
-/// every repeat's outcome and the statistics.
+/// [`repeat_patterns`]), in repeat order. The run's seed is the trace's (`trace.seed`): it
+/// keys the trace, and repeat 0's noise and drift. Returns the outcome of repeat 0 (the plain
+/// run), every repeat's outcome and the statistics. A count out of range names the field
+/// `repeats`.
 pub fn run_repeats(
     scene: &RunScene,
-    seed: u64,
     trace: &TraceRequest,
     n: usize,
     progress: Progress,
 ) -> Result<(Vec<RunOutcome>, Repeats)> {
+    let seed = trace.seed;
     if n == 0 || n > MAX_REPEATS {
         return Err(Error::field(
-            "--repeats",
+            "repeats",
             format!("must lie between 1 and {MAX_REPEATS}, got {n}"),
         ));
     }
@@ -112,7 +114,7 @@ pub fn run_repeats(
         .map(|r| base_patterns(&repeat_patterns(&scene.settings.patterns, r), scene))
         .collect::<Result<Vec<_>>>()?;
     let t0 = std::time::Instant::now();
-    let traced = pipeline::trace_stage(&scene.bench, &TraceRequest { seed, ..*trace })?;
+    let traced = pipeline::trace_stage(&scene.bench, trace)?;
     let trace_s = t0.elapsed().as_secs_f64();
     let mut outcomes = Vec::with_capacity(n);
     for (r, p) in patterns.iter().enumerate() {

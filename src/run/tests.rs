@@ -170,7 +170,7 @@ fn scb_beats_double_arm_at_every_ratio_on_the_paper_bench() {
     let mut s = scene("", &[]);
     s.settings.rays = 400_000;
     s.settings.schemes = Scheme::paper().to_vec();
-    let o = run(&s, 1, &TraceRequest::new(s.settings.rays, 1), &|_, _, _| {}).unwrap();
+    let o = run(&s, &TraceRequest::new(s.settings.rays, 1), &|_, _, _| {}).unwrap();
     assert_eq!(o.results.len(), 32);
     for (r, &ratio) in s.settings.sampling_ratios.iter().enumerate() {
         let scb = o
@@ -227,7 +227,7 @@ fn fair_baselines_on_the_paper_bench() {
         Scheme::Traditional,
         Scheme::TraditionalZeroMean,
     ];
-    let o = run(&s, 2, &TraceRequest::new(s.settings.rays, 2), &|_, _, _| {}).unwrap();
+    let o = run(&s, &TraceRequest::new(s.settings.rays, 2), &|_, _, _| {}).unwrap();
     let psnr = |k| o.result(k, 0).unwrap().psnr_db;
     let (single, plain, zero_mean) = (
         psnr(Scheme::SingleArmComplementary),
@@ -254,7 +254,7 @@ fn fair_baselines_on_the_paper_bench() {
         Scheme::DoubleArmOffset,
         Scheme::SecondaryComplementaryBalancing,
     ];
-    let o = run(&s, 2, &TraceRequest::new(s.settings.rays, 2), &|_, _, _| {}).unwrap();
+    let o = run(&s, &TraceRequest::new(s.settings.rays, 2), &|_, _, _| {}).unwrap();
     let (plain, calibrated, offset, scb) = (
         o.result(Scheme::DoubleArm, 0).unwrap(),
         o.result(Scheme::DoubleArmCalibrated, 0).unwrap(),
@@ -298,7 +298,7 @@ fn saturation_is_reported() {
             ("power: FromFilament,", "power: InBand(watts: 1000.0),"),
         ],
     );
-    let o = run(&s, 3, &TraceRequest::new(s.settings.rays, 3), &|_, _, _| {}).unwrap();
+    let o = run(&s, &TraceRequest::new(s.settings.rays, 3), &|_, _, _| {}).unwrap();
     let rf: Vec<_> = o
         .saturation
         .iter()
@@ -312,7 +312,7 @@ fn saturation_is_reported() {
     assert!(scb.saturated);
     // The same bench at the default lamp power is clean.
     let s = scene("run: (sampling_ratios: [0.5], rays: 30000),", &[SMALL]);
-    let o = run(&s, 3, &TraceRequest::new(s.settings.rays, 3), &|_, _, _| {}).unwrap();
+    let o = run(&s, &TraceRequest::new(s.settings.rays, 3), &|_, _, _| {}).unwrap();
     assert!(o.saturation.is_empty(), "{:?}", o.saturation);
     assert!(o.results.iter().all(|r| !r.saturated));
 }
@@ -330,15 +330,7 @@ fn identical_for_one_and_two_threads() {
             .num_threads(threads)
             .build()
             .unwrap()
-            .install(|| {
-                run(
-                    &s,
-                    seed,
-                    &TraceRequest::new(s.settings.rays, seed),
-                    &|_, _, _| {},
-                )
-                .unwrap()
-            })
+            .install(|| run(&s, &TraceRequest::new(s.settings.rays, seed), &|_, _, _| {}).unwrap())
     };
     let (a, b) = (go(1, 5), go(2, 5));
     let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
@@ -382,7 +374,6 @@ fn repeats_are_deterministic_and_spread_with_noise() {
             .install(|| {
                 run_repeats(
                     scene,
-                    4,
                     &TraceRequest::new(scene.settings.rays, 4),
                     3,
                     &|_, _, _| {},
@@ -414,7 +405,7 @@ fn repeats_are_deterministic_and_spread_with_noise() {
         a.stats
     );
     // Repeat 0 is the plain run with the same seed.
-    let plain = run(&s, 4, &TraceRequest::new(s.settings.rays, 4), &|_, _, _| {}).unwrap();
+    let plain = run(&s, &TraceRequest::new(s.settings.rays, 4), &|_, _, _| {}).unwrap();
     assert_eq!(
         plain.results[0].psnr_db.to_bits(),
         oa[0].results[0].psnr_db.to_bits()

@@ -10,6 +10,10 @@
 //!
 //! [`BenchDoc::to_ron`] writes the bench back as RON that every command accepts; reading it
 //! again gives the identical file, and so the identical bench.
+//!
+//! Every command that reads a bench enters here, once: [`BenchDoc::open`] reads the named file
+//! or, without one, the paper's bench built into the program ([`BenchDoc::paper`]); the
+//! document's own text then gives the provenance of its outputs ([`BenchDoc::provenance`]).
 
 use std::path::{Path, PathBuf};
 
@@ -17,6 +21,12 @@ use crate::error::{Error, Result};
 use crate::optics::Bench;
 use crate::scene::bench::{BenchFile, build_bench};
 use crate::scene::run::{RunScene, run_scene};
+
+/// The paper's bench, built into the program (`scenes/paper_bench.ron`).
+pub const PAPER_BENCH: &str = include_str!("../../scenes/paper_bench.ron");
+
+/// The name the built-in bench has in messages and summaries.
+pub const PAPER_BENCH_NAME: &str = "<built-in scenes/paper_bench.ron>";
 
 /// A bench file with its origin, and the variables set on it since it was read.
 #[derive(Debug, Clone, PartialEq)]
@@ -36,6 +46,19 @@ impl BenchDoc {
     pub fn read(path: &Path) -> Result<BenchDoc> {
         let text = crate::scene::read_text(path)?;
         BenchDoc::parse(&text, path)
+    }
+
+    /// The paper's bench built into the program ([`PAPER_BENCH`], named [`PAPER_BENCH_NAME`]).
+    pub fn paper() -> Result<BenchDoc> {
+        BenchDoc::parse(PAPER_BENCH, Path::new(PAPER_BENCH_NAME))
+    }
+
+    /// The bench file at `path`, or without one the built-in paper bench.
+    pub fn open(path: Option<&Path>) -> Result<BenchDoc> {
+        match path {
+            Some(p) => BenchDoc::read(p),
+            None => BenchDoc::paper(),
+        }
     }
 
     /// Parses bench text; `path` names it in errors and anchors relative paths.
@@ -63,6 +86,29 @@ impl BenchDoc {
     /// The path that names this bench.
     pub fn path(&self) -> &Path {
         &self.path
+    }
+
+    /// The name of the bench in messages and summaries: its path as given, or
+    /// [`PAPER_BENCH_NAME`] for the built-in bench.
+    pub fn name(&self) -> String {
+        self.path.display().to_string()
+    }
+
+    /// Whether this is the built-in paper bench ([`BenchDoc::paper`]).
+    pub fn is_built_in(&self) -> bool {
+        self.path == Path::new(PAPER_BENCH_NAME)
+    }
+
+    /// The text the bench was read from (none for a bench made in code).
+    pub fn text(&self) -> Option<&str> {
+        self.text.as_deref()
+    }
+
+    /// The `run.rays` the bench file states, if it states one (a bench made in code states
+    /// none): the ray count every command that traces takes unless told otherwise.
+    pub fn stated_rays(&self) -> Option<u64> {
+        let text = self.text.as_deref()?;
+        crate::scene::locate::find_path(text, "run.rays").map(|_| self.file.run.rays)
     }
 
     /// The variables set since reading, in order.
@@ -139,6 +185,22 @@ impl BenchDoc {
             .map(|(p, v)| format!("{p} = {v}"))
             .collect();
         e.with_note(format!("with the bench variables {}", set.join(", ")))
+    }
+}
+
+impl crate::provenance::Provenance {
+    /// The provenance of an output made from the bench `doc` with `seeds`: the bench as the
+    /// text it was read from, under its name (so a file's entry is the file's own hash and
+    /// size, and the built-in bench's is its text's), and every image it loads, hashed as they
+    /// are on disk now. Defined here, beside the document, because `provenance` sits below
+    /// `scene` in the module graph.
+    pub fn of_bench(doc: &BenchDoc, seeds: &[u64]) -> Result<Self> {
+        let p = Self::new(seeds);
+        let p = match &doc.text {
+            Some(t) => p.text(&doc.name(), t),
+            None => p.file(&doc.path)?,
+        };
+        p.files(&doc.input_files())
     }
 }
 

@@ -485,7 +485,7 @@ pub fn merge(
     shards: &[crate::scene::tolerance::ShardFile],
 ) -> Result<crate::scene::tolerance::ShardFile> {
     let Some(first) = shards.first() else {
-        return Err(Error::field("--merge", "give the shard folders to merge"));
+        return Err(Error::field("merge", "give the shard folders to merge"));
     };
     for s in shards {
         if s.bench_ron != first.bench_ron
@@ -496,10 +496,10 @@ pub fn merge(
             || s.shard.1 != first.shard.1
         {
             return Err(Error::field(
-                "--merge",
+                "merge",
                 format!(
                     "shard {}/{} was not made by the same run as shard {}/{} (bench, tolerance \
-                     file, rays, seed, trials, --quality and the shard count must agree)",
+                     file, rays, seed, trials, quality and the shard count must agree)",
                     s.shard.0, s.shard.1, first.shard.0, first.shard.1
                 ),
             ));
@@ -512,7 +512,7 @@ pub fn merge(
         && records.iter().enumerate().all(|(k, r)| r.index == k as u64);
     if !complete {
         return Err(Error::field(
-            "--merge",
+            "merge",
             format!(
                 "the shards hold {} trial records, not each of the {} trials exactly once: \
                  merge every shard of the run, once",
@@ -543,7 +543,7 @@ fn check_shard_set(shards: &[crate::scene::tolerance::ShardFile]) -> Result<()> 
         let (i, _) = s.shard;
         if n == 0 || i >= n || !seen.insert(i) {
             return Err(Error::field(
-                "--merge",
+                "merge",
                 format!(
                     "shard {i}/{n} is given twice or is not a shard of the run: give every \
                      shard of the run exactly once"
@@ -552,7 +552,7 @@ fn check_shard_set(shards: &[crate::scene::tolerance::ShardFile]) -> Result<()> 
         }
         if (i == 0) != s.sensitivity.is_some() {
             return Err(Error::field(
-                "--merge",
+                "merge",
                 format!(
                     "shard {i}/{n} {} the sensitivity table, which shard 0 and only shard 0 \
                      holds: was its trials.ron edited?",
@@ -566,7 +566,7 @@ fn check_shard_set(shards: &[crate::scene::tolerance::ShardFile]) -> Result<()> 
             .find(|r| r.index >= s.trials || r.index % n != i)
         {
             return Err(Error::field(
-                "--merge",
+                "merge",
                 format!(
                     "shard {i}/{n} holds trial {}, which is not one of its trials (i ≡ {i} \
                      mod {n}, i < {})",
@@ -578,7 +578,7 @@ fn check_shard_set(shards: &[crate::scene::tolerance::ShardFile]) -> Result<()> 
     if (seen.len() as u64) < n {
         let missing = (0..n).find(|i| !seen.contains(i)).unwrap_or(0);
         return Err(Error::field(
-            "--merge",
+            "merge",
             format!(
                 "shard {missing}/{n} of the run is missing{}: give every shard of the run \
                  exactly once",

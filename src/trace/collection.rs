@@ -92,6 +92,21 @@ impl Recorder for Binned {
     }
 }
 
+/// Wavelength bins of [`diffraction_pair`] (20 nm over the default band).
+pub const PAIR_BINS: usize = 40;
+
+/// The collection of the bench's reflected light with geometric mirrors and with its
+/// diffractive model (what `spibench trace` reports on a diffractive bench), each from a
+/// quarter of `rays` (at least 50 000): the shares are ratios of powers on the same rays, well
+/// resolved by fewer rays. Returns the rays of each trace and the collections (geometric,
+/// diffractive), binned into [`PAIR_BINS`] wavelength bins.
+pub fn diffraction_pair(bench: &Bench, rays: u64, seed: u64) -> Result<(u64, [Collection; 2])> {
+    let n = (rays / 4).max(50_000);
+    let geometric = collection(&bench.with_geometric_dmd(), n, seed, PAIR_BINS)?;
+    let diffractive = collection(bench, n, seed, PAIR_BINS)?;
+    Ok((n, [geometric, diffractive]))
+}
+
 /// Traces `rays` lamp rays of `bench` (seed `seed`) and bins the collection into `bins`
 /// wavelength bins of the traced band.
 pub fn collection(bench: &Bench, rays: u64, seed: u64, bins: usize) -> Result<Collection> {

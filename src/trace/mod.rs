@@ -17,6 +17,7 @@
 pub mod collection;
 pub mod fan;
 pub mod kernel;
+pub mod paraxial;
 pub mod path;
 pub mod split;
 pub mod strata;

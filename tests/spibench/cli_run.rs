@@ -156,7 +156,7 @@ fn expected_run_files() -> Vec<String> {
             files.push(format!("images/{scheme}__r{r}.png"));
         }
     }
-    // The raw arrays (src/cli/run_arrays.rs).
+    // The raw arrays (src/outputs/run/arrays.rs).
     for f in [
         "transport_x_w",
         "patterns_packed",

@@ -19,6 +19,8 @@ const FLOORS: &[&[&str]] = &[
     &["pipeline", "export"],
     // The jobs.
     &["run", "sweep", "align", "tolerance", "dataset"],
+    // What each command writes, from what its job returned.
+    &["outputs"],
     &["cli"],
 ];
 
@@ -408,4 +410,168 @@ fn the_scanner_sees_grouped_and_plain_uses() {
     );
     let v: Vec<&str> = m.iter().map(|s| s.as_str()).collect();
     assert_eq!(v, ["optics", "run", "trace"]);
+}
+
+/// The calls whose string arguments are error messages (or a flag's name for one).
+const ERROR_CALLS: &[&str] = &[
+    "field",
+    "input",
+    "Numerical",
+    "with_note",
+    "at_field",
+    "within",
+    "bad",
+    "bad_field",
+    "refuse_overlap",
+    "Err",
+];
+
+/// Each string literal of `code` (comments skipped; raw and byte strings included) with the
+/// calls it is an argument of, innermost last: `Error::field("x", format!("…"))` gives
+/// `"…"` with `["field", "format"]`.
+fn literals_in_calls(code: &str) -> Vec<(String, Vec<String>)> {
+    let b = code.as_bytes();
+    let mut out = Vec::new();
+    // The open brackets: a call's name for `(` (empty when none), "{" or "[" otherwise.
+    let mut stack: Vec<String> = Vec::new();
+    let calls = |stack: &[String]| -> Vec<String> {
+        stack
+            .iter()
+            .filter(|s| *s != "{" && *s != "[" && !s.is_empty())
+            .cloned()
+            .collect()
+    };
+    let mut i = 0;
+    while i < b.len() {
+        let c = b[i];
+        if code[i..].starts_with("//") {
+            i = code[i..].find('\n').map_or(b.len(), |k| i + k);
+            continue;
+        }
+        if code[i..].starts_with("/*") {
+            i = code[i..].find("*/").map_or(b.len(), |k| i + k + 2);
+            continue;
+        }
+        let ident_before = i > 0 && (b[i - 1].is_ascii_alphanumeric() || b[i - 1] == b'_');
+        // Raw strings: r"…", r#"…"#, br"…".
+        let raw_at = if c == b'r' && !ident_before {
+            Some(i + 1)
+        } else if c == b'b' && !ident_before && b.get(i + 1) == Some(&b'r') {
+            Some(i + 2)
+        } else {
+            None
+        };
+        if let Some(mut j) = raw_at {
+            let hashes = b[j..].iter().take_while(|&&h| h == b'#').count();
+            j += hashes;
+            if b.get(j) == Some(&b'"') {
+                let close = format!("\"{}", "#".repeat(hashes));
+                let end = code[j + 1..].find(&close).map_or(b.len(), |k| j + 1 + k);
+                out.push((code[j + 1..end].to_string(), calls(&stack)));
+                i = end + close.len();
+                continue;
+            }
+        }
+        match c {
+            b'"' => {
+                let mut j = i + 1;
+                while j < b.len() && b[j] != b'"' {
+                    j += if b[j] == b'\\' { 2 } else { 1 };
+                }
+                out.push((code[i + 1..j.min(b.len())].to_string(), calls(&stack)));
+                i = j + 1;
+                continue;
+            }
+            // A char literal ('x', '\n', '"'), not a lifetime ('a).
+            b'\'' => {
+                if b.get(i + 1) == Some(&b'\\') {
+                    i = code[i + 2..].find('\'').map_or(b.len(), |k| i + 2 + k + 1);
+                    continue;
+                }
+                if code[i + 1..].chars().nth(1) == Some('\'') {
+                    i += 1 + code[i + 1..].chars().next().map_or(1, char::len_utf8) + 1;
+                    continue;
+                }
+            }
+            b'(' => {
+                let head = code[..i].trim_end().trim_end_matches('!');
+                let name: String = head
+                    .chars()
+                    .rev()
+                    .take_while(|c| c.is_alphanumeric() || *c == '_')
+                    .collect::<Vec<_>>()
+                    .into_iter()
+                    .rev()
+                    .collect();
+                stack.push(name);
+            }
+            b'{' => stack.push("{".into()),
+            b'[' => stack.push("[".into()),
+            b')' | b'}' | b']' => {
+                stack.pop();
+            }
+            _ => {}
+        }
+        i += 1;
+    }
+    out
+}
+
+/// A command-line flag (`--name`) in `text`.
+fn names_a_flag(text: &str) -> bool {
+    text.as_bytes()
+        .windows(3)
+        .any(|w| w[0] == b'-' && w[1] == b'-' && w[2].is_ascii_lowercase())
+}
+
+/// No error message of the library (everything outside `src/cli/`, test code aside) names a
+/// command-line flag: the library names its own fields (`vary`, `free`, `merge`; an option in
+/// a message in backquotes, `` `resume` ``), and the command line shows them as its flags
+/// (`cli::flags`). A Python caller never passed `--vary`.
+#[test]
+fn library_errors_name_no_flags() {
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
+    let mut files = Vec::new();
+    rust_files(&src, &mut files);
+    let mut found = Vec::new();
+    for f in &files {
+        let rel = f.strip_prefix(&src).unwrap();
+        if rel.starts_with("cli") || f.file_name().is_some_and(|n| n == "tests.rs") {
+            continue;
+        }
+        let text = std::fs::read_to_string(f).unwrap();
+        let code = text.split("#[cfg(test)]").next().unwrap_or("");
+        for (literal, calls) in literals_in_calls(code) {
+            if names_a_flag(&literal) && calls.iter().any(|c| ERROR_CALLS.contains(&c.as_str())) {
+                found.push(format!("{}: {literal:?} in {calls:?}", rel.display()));
+            }
+        }
+    }
+    assert!(
+        found.is_empty(),
+        "library error messages that name a command-line flag (name the library's field \
+         instead, and map it in src/cli/flags.rs):\n{}",
+        found.join("\n")
+    );
+}
+
+#[test]
+fn the_flag_scanner_finds_messages_in_error_calls() {
+    let code = r##"
+        fn f(t: &str) -> Result<()> {
+            let bad = |why: &str| Error::field("--vary", format!("`{t}`: {why}"));
+            let c = '"'; let l: &'static str = "x";
+            // Error::input("--commented")
+            if t.is_empty() { return Err(Error::input(format!("give it with --resume"))); }
+            let s = r#"raw "--quoted" text"#;
+            describe("the budget (--max-evaluations) ran out");
+            Err(e.with_note(r"--note"))
+        }
+    "##;
+    let flagged: Vec<String> = literals_in_calls(code)
+        .into_iter()
+        .filter(|(l, c)| names_a_flag(l) && c.iter().any(|c| ERROR_CALLS.contains(&c.as_str())))
+        .map(|(l, _)| l)
+        .collect();
+    assert_eq!(flagged, ["--vary", "give it with --resume", "--note"]);
 }

@@ -10,6 +10,7 @@ mod cli_run;
 mod cli_simulate;
 mod cli_sweep;
 mod cli_tolerance;
+mod cli_trace;
 mod common;
 mod dataset_provenance;
 mod dmd;

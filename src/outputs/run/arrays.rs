@@ -8,12 +8,13 @@ use crate::report::npy::{write_f64, write_u8};
 use crate::report::output::OutputDir;
 use crate::run::RunOutcome;
 
-pub fn write_arrays(o: &RunOutcome, out: &OutputDir) -> anyhow::Result<Vec<String>> {
+/// Writes the arrays into `out/arrays/` and returns their names.
+pub fn write_arrays(o: &RunOutcome, out: &OutputDir) -> crate::Result<Vec<String>> {
     let t = &o.transport;
     let (w, h) = (t.units_across, t.units_down);
     let units = w * h;
     let mut files = Vec::new();
-    let mut put = |name: String, shape: &[usize], data: &[f64]| -> anyhow::Result<()> {
+    let mut put = |name: String, shape: &[usize], data: &[f64]| -> crate::Result<()> {
         write_f64(&out.try_path(&format!("arrays/{name}"))?, shape, data)?;
         files.push(name);
         Ok(())

@@ -6,11 +6,16 @@
 //! built afresh (so no derived state can be stale) and traced with the same seed and ray count
 //! as the nominal bench. Each point reports its metrics with their standard errors and, against
 //! the nominal bench, their differences with the paired standard error. With `quality`, the
-//! whole pipeline (record, solve, score) runs on every point.
+//! whole pipeline (record, solve, score) runs on every point. [`limits`] finds where a metric
+//! crosses a limit along a 1-D sweep, with an interval from the points' standard errors.
+//!
+//! Errors about the swept variables name the field `vary`.
 
 use crate::error::{Error, Result};
 use crate::pipeline::evaluate::{EvaluateOptions, Evaluation, evaluate};
 use crate::scene::doc::BenchDoc;
+
+pub mod limits;
 
 /// The most grid points one sweep may have (each is a full trace).
 pub const MAX_POINTS: usize = 10_000;
@@ -28,7 +33,7 @@ impl Vary {
     /// Parses `PATH=START:STOP:N` (N ≥ 1 evenly spaced values, both ends included; N = 1 is
     /// START alone).
     pub fn parse(text: &str) -> Result<Vary> {
-        let bad = |why: &str| Error::field("--vary", format!("`{text}`: {why}"));
+        let bad = |why: &str| Error::field("vary", format!("`{text}`: {why}"));
         let (path, range) = text
             .split_once('=')
             .ok_or_else(|| bad("expected PATH=START:STOP:N"))?;
@@ -106,14 +111,14 @@ pub fn grid(vary: &[Vary]) -> Result<Vec<Vec<(String, f64)>>> {
         [a, b] => {
             if a.path == b.path {
                 return Err(Error::field(
-                    "--vary",
-                    "the two --vary flags name the same variable",
+                    "vary",
+                    "the two swept variables are the same variable",
                 ));
             }
             let (va, vb) = (a.values(), b.values());
             if va.len() * vb.len() > MAX_POINTS {
                 return Err(Error::field(
-                    "--vary",
+                    "vary",
                     format!(
                         "a grid of {} × {} points is more than {MAX_POINTS}",
                         va.len(),
@@ -129,7 +134,7 @@ pub fn grid(vary: &[Vary]) -> Result<Vec<Vec<(String, f64)>>> {
                 })
                 .collect())
         }
-        _ => Err(Error::field("--vary", "give one or two --vary flags")),
+        _ => Err(Error::field("vary", "give one or two swept variables")),
     }
 }
 
@@ -287,7 +292,7 @@ mod tests {
         for bad in ["a", "a=1:2", "a=1:2:0", "a=x:2:3", "a=1:inf:3", "a=1:2:3:4"] {
             let e = Vary::parse(bad).unwrap_err();
             assert!(
-                e.is_user_error() && e.to_string().contains("--vary"),
+                e.is_user_error() && e.to_string().contains("field `vary`"),
                 "{bad}: {e}"
             );
         }

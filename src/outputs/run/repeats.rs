@@ -1,6 +1,6 @@
-//! The repeat statistics of `spibench run` (crate::run::repeats): `repeats.json`,
+//! The repeat statistics of `spibench run --repeats N` (crate::run::repeats): `repeats.json`,
 //! `repeats.csv`, the scores against the frames shown (equal-cost comparison) with error bars,
-//! and a printed table of the paired differences.
+//! and the printed table of the paired differences ([`lines`]).
 //!
 //! Files (with `--repeats 1` the standard deviations are 0 and no intervals are given):
 //! - `repeats.json`: [`Repeats`] (per scheme × ratio: frames, acquisition time, mean and
@@ -10,16 +10,20 @@
 //!   the DMD frames it showed (calibration frames included), ± one SD, so schemes that show a
 //!   pattern and its complement are compared with those that show it once at equal cost.
 
-use crate::report::csv::write_csv;
-use crate::report::json::write_json;
-use crate::report::output::OutputDir;
-use crate::report::plot::{LinePlot, Series, write_plot};
-use crate::run::RunSettings;
-use crate::run::findings::short;
-use crate::run::repeats::{RepeatStats, Repeats};
+use crate::run::findings::{pct, short};
+use crate::run::repeats::Repeats;
 
 /// Writes the repeat files into `out` and returns their names.
-pub fn write(r: &Repeats, s: &RunSettings, out: &OutputDir) -> crate::Result<Vec<String>> {
+#[cfg(feature = "figures")]
+pub fn write(
+    r: &Repeats,
+    s: &crate::run::RunSettings,
+    out: &crate::report::output::OutputDir,
+) -> crate::Result<Vec<String>> {
+    use crate::report::csv::write_csv;
+    use crate::report::json::write_json;
+    use crate::report::plot::{LinePlot, Series, write_plot};
+    use crate::run::repeats::RepeatStats;
     let mut files = Vec::new();
     write_json(&out.path("repeats.json"), r)?;
     files.push("repeats.json".to_string());
@@ -102,15 +106,9 @@ pub fn write(r: &Repeats, s: &RunSettings, out: &OutputDir) -> crate::Result<Vec
     Ok(files)
 }
 
-/// The paired differences as a table under 100 columns (nothing for one repeat): one line per
-/// comparison and ratio, MSSIM and PSNR side by side, each with its 95 % interval.
-pub fn print(r: &Repeats) {
-    for l in lines(r) {
-        println!("{l}");
-    }
-}
-
-/// The lines [`print`] prints. Scheme names are the findings' short ones, the columns as wide
+/// The paired differences as printed lines under 100 columns (nothing for one repeat): one
+/// line per comparison and ratio, MSSIM and PSNR side by side, each with its 95 % interval.
+/// Scheme names are the findings' short ones, the columns as wide
 /// as their widest entry; a row that would still pass 100 columns (PSNR differences of tens of
 /// dB) puts its PSNR on a line of its own.
 pub fn lines(r: &Repeats) -> Vec<String> {
@@ -128,7 +126,7 @@ pub fn lines(r: &Repeats) -> Vec<String> {
             let [m, p] = pair else { return None };
             Some([
                 format!("{} − {}", short(m.a), short(m.b)),
-                super::run::pct(m.ratio),
+                pct(m.ratio),
                 ci(m, 4),
                 ci(p, 2),
             ])

@@ -14,6 +14,9 @@
 //!   lie in the plane perpendicular to the hinge), so it shows the whole unfolded path.
 //!
 //! Points off a view's plane are projected orthogonally onto it. All views share one scale.
+//!
+//! `spibench layout` writes the drawing alone ([`figure`], [`write_figure`]); the reports of `run`, `sweep`
+//! and `align` embed it ([`layout_block`]).
 
 use std::fmt::Write as _;
 
@@ -132,7 +135,7 @@ fn escape(s: &str) -> String {
 fn text_width(text: &str, font: f64) -> f64 {
     #[cfg(feature = "figures")]
     {
-        f64::from(super::font::text_width(text, font * 1.24))
+        f64::from(crate::report::font::text_width(text, font * 1.24))
     }
     #[cfg(not(feature = "figures"))]
     {
@@ -530,9 +533,60 @@ fn draw_legend(s: &mut String, lines: &[Vec<(&'static str, String)>], top: f64) 
 /// text set as outlines of the embedded DejaVu Sans (no system fonts are consulted).
 #[cfg(feature = "figures")]
 pub fn svg_to_png(svg: &str) -> Result<Vec<u8>> {
-    let svg = super::svg::at_print_size(&super::outline::outline_text(svg)?)?;
-    let (w, h, rgb) = super::svg::print_to_rgb(&svg)?;
-    super::png::encode_rgb8(w, h, &rgb)
+    let svg = crate::report::svg::at_print_size(&crate::report::outline::outline_text(svg)?)?;
+    let (w, h, rgb) = crate::report::svg::print_to_rgb(&svg)?;
+    crate::report::png::encode_rgb8(w, h, &rgb)
+}
+
+/// The bench's layout (three views with a ray fan of `trace::fan::DEFAULT_FAN_RAYS` rays, seed 1) as a
+/// report block, and the SVG text to write beside the report (`run`, `sweep` and `align` embed
+/// it).
+#[cfg(feature = "figures")]
+pub fn layout_block(bench: &Bench, title: &str) -> Result<(crate::report::html::Block, String)> {
+    let fan = crate::trace::fan::ray_fan(bench, crate::trace::fan::DEFAULT_FAN_RAYS, 1)?;
+    let svg = crate::report::svg::at_print_size(&crate::report::outline::outline_text(
+        &layout_svg(bench, &fan, title)?,
+    )?)?;
+    Ok((
+        crate::report::html::Block::Svg {
+            caption: format!(
+                "The bench: top view, side view and the plane of the two arms, with {} lamp rays \
+                 coloured by fate (layout.svg).",
+                fan.rays.len()
+            ),
+            svg: svg.clone(),
+        },
+        svg,
+    ))
+}
+
+/// The figure of `spibench layout`: the bench and `fan` drawn under `title`, its text as
+/// glyph outlines.
+#[cfg(feature = "figures")]
+pub fn figure(bench: &Bench, fan: &RayFan, title: &str) -> Result<String> {
+    crate::report::outline::outline_text(&layout_svg(bench, fan, title)?)
+}
+
+/// Writes the figure as `layout.svg`, `layout.png` and `layout.pdf` into `out`.
+#[cfg(feature = "figures")]
+pub fn write_figure(svg: &str, out: &crate::report::output::OutputDir) -> Result<()> {
+    crate::report::svg::write_figure(svg, &out.path("layout.svg"), &out.path("layout.png"), true)
+}
+
+/// What `spibench layout` prints: the fan's rays by fate and the files written.
+pub fn printed(name: &str, fan: &RayFan, dir: &std::path::Path) -> String {
+    let fates: Vec<String> = Fate::ALL
+        .iter()
+        .zip(fan.counts())
+        .filter(|(_, n)| *n > 0)
+        .map(|(f, n)| format!("{} {n}", f.label()))
+        .collect();
+    format!(
+        "{name}: {} rays ({}); wrote {}/layout.svg, layout.png and layout.pdf",
+        fan.rays.len(),
+        fates.join(", "),
+        dir.display()
+    )
 }
 
 #[cfg(test)]

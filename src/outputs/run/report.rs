@@ -13,10 +13,10 @@ use crate::report::html::{Block, Page, concise_unit, eng, render};
 use crate::report::output::OutputDir;
 use crate::run::RunOutcome;
 
-use super::run::findings::{Findings, Score};
-use super::run::{element_text, pct};
+use super::summary::RunSummary;
+use super::{RunPage, element_text};
+use crate::run::findings::{Findings, Score, pct};
 use crate::run::repeats::Repeats;
-use crate::run::summary::RunSummary;
 
 /// Reads a file already written into the staging folder.
 fn staged(out: &OutputDir, name: &str) -> Result<Vec<u8>> {
@@ -187,14 +187,6 @@ fn double_arm_blocks(t: &crate::transport::Transport, bap: &Bap) -> Vec<Block> {
     ]
 }
 
-/// The effective bench of a run as canonical RON (every default written out), with the ray
-/// count the run traced, which `spibench run` reads back.
-pub fn effective_ron(doc: &crate::scene::doc::BenchDoc, rays: u64) -> Result<String> {
-    let mut doc = doc.clone();
-    doc.file.run.rays = rays;
-    doc.to_ron()
-}
-
 /// What the sections of `report.html` are drawn from.
 struct ReportInput<'a> {
     name: &'a str,
@@ -209,7 +201,7 @@ struct ReportInput<'a> {
 
 /// Writes `report.html` into the staging folder.
 pub fn write_report(
-    page: &super::run::RunPage<'_>,
+    page: &RunPage<'_>,
     o: &RunOutcome,
     summary: &RunSummary<'_>,
     out: &OutputDir,
@@ -276,7 +268,7 @@ fn intro_blocks(r: &ReportInput<'_>) -> Vec<Block> {
 
 /// The findings, first: which scheme scores best at each ratio and at equal frames, its margin
 /// over every other scheme (the fair baselines included) and, with repeats, the paired 95 %
-/// intervals that decide whether a lead is a lead (cli::run::findings).
+/// intervals that decide whether a lead is a lead (crate::run::findings).
 fn findings_section(blocks: &mut Vec<Block>, r: &ReportInput<'_>) {
     let f = r.findings;
     blocks.push(Block::Heading {
@@ -341,7 +333,7 @@ fn bench_section(blocks: &mut Vec<Block>, r: &ReportInput<'_>) -> Result<()> {
         level: 2,
         text: "Bench: gains and offsets from the trace".into(),
     });
-    let (layout, svg) = super::layout::layout_block(bench, name)?;
+    let (layout, svg) = crate::outputs::layout::layout_block(bench, name)?;
     let path = out.path("layout.svg");
     std::fs::write(&path, &svg).map_err(|e| crate::Error::write(&path, e))?;
     blocks.push(layout);
@@ -741,25 +733,5 @@ mod tests {
             "{sum} vs {direct}"
         );
         assert!(parts.iter().all(|(_, v)| *v != 0.0));
-    }
-
-    /// "Settings that reproduce this page" is RON that `run` reads back into the same bench
-    /// and run settings.
-    #[test]
-    fn effective_bench_reads_back() {
-        let doc = crate::scene::doc::BenchDoc::parse(
-            super::super::run::PAPER_BENCH,
-            std::path::Path::new("paper_bench.ron"),
-        )
-        .unwrap();
-        let text = effective_ron(&doc, 12_345).unwrap();
-        let back =
-            crate::scene::doc::BenchDoc::parse(&text, std::path::Path::new("bench.ron")).unwrap();
-        assert_eq!(back.to_ron().unwrap(), text);
-        let scene = back.run_scene().unwrap();
-        assert_eq!(scene.settings.rays, 12_345);
-        let mut original = doc.clone();
-        original.file.run.rays = 12_345;
-        assert_eq!(back.file, original.file);
     }
 }

@@ -1,5 +1,5 @@
-//! The command line's side of provenance (crate::provenance holds the block itself): every
-//! summary is written with its `provenance` block first, and timings files carry the date.
+//! How every command writes its `summary.json`: with its `provenance` block first
+//! (crate::provenance holds the block itself), and `timings.json` beside it with the date.
 
 use serde::Serialize;
 

@@ -1,5 +1,5 @@
-//! `sweep --limit METRIC=VALUE`: where |METRIC| crosses VALUE along a 1-D sweep, with an
-//! interval.
+//! A limit on a metric along a 1-D sweep (`spibench sweep --limit METRIC=VALUE`): where
+//! |METRIC| crosses VALUE, with an interval.
 //!
 //! Between two neighbouring grid points on either side of the limit, the crossing is found by
 //! linear interpolation of |m| against the swept variable:
@@ -14,20 +14,21 @@
 
 use serde::Serialize;
 
-use super::super::rows::Row;
+use super::Sweep;
+use crate::error::{Error, Result};
 
-/// One `--limit`: |metric| ≤ value.
+/// A limit on one metric: |metric| ≤ value.
 #[derive(Debug, Clone, PartialEq)]
-pub struct Limit {
+pub struct MetricLimit {
     pub metric: String,
     pub value: f64,
 }
 
-impl Limit {
+impl MetricLimit {
     /// Parses `METRIC=VALUE` (VALUE finite and ≥ 0; METRIC a recorded metric, the image scores
-    /// only with the whole pipeline).
-    pub fn parse(text: &str, quality: bool) -> crate::Result<Limit> {
-        let bad = |why: String| crate::Error::field("--limit", format!("`{text}`: {why}"));
+    /// only with the whole pipeline, `quality`). Errors name the field `limit`.
+    pub fn parse(text: &str, quality: bool) -> Result<MetricLimit> {
+        let bad = |why: String| Error::field("limit", format!("`{text}`: {why}"));
         let (metric, value) = text
             .split_once('=')
             .ok_or_else(|| bad("expected METRIC=VALUE, e.g. imbalance=0.01".into()))?;
@@ -36,7 +37,7 @@ impl Limit {
             .iter()
             .any(|m| m.0 == metric)
             || crate::pipeline::evaluate::CMRR_VALUES.contains(&metric);
-        let known = traced || (quality && crate::tolerance::is_metric(metric));
+        let known = traced || (quality && crate::pipeline::evaluate::is_metric(metric));
         if !known {
             let names: Vec<&str> = crate::transport::metrics::METRICS
                 .iter()
@@ -44,7 +45,7 @@ impl Limit {
                 .chain(crate::pipeline::evaluate::CMRR_VALUES)
                 .collect();
             return Err(bad(format!(
-                "unknown metric `{metric}` (one of {}; image scores with --quality)",
+                "unknown metric `{metric}` (one of {}; image scores with `quality`)",
                 names.join(", ")
             )));
         }
@@ -57,7 +58,7 @@ impl Limit {
                 "VALUE is a limit on |{metric}|: finite and ≥ 0"
             )));
         }
-        Ok(Limit {
+        Ok(MetricLimit {
             metric: metric.to_string(),
             value,
         })
@@ -184,22 +185,47 @@ pub fn crossings(x: &[f64], y: &[f64], se: &[f64], limit: f64) -> Vec<Crossing> 
     out
 }
 
-/// The report of one limit over the rows of a 1-D sweep of `variable`.
-pub fn report(limit: &Limit, variable: &str, rows: &[Row]) -> crate::Result<LimitReport> {
-    if rows.iter().all(|r| r.get(&limit.metric).is_none()) {
-        return Err(crate::Error::field(
-            "--limit",
+/// The report of one limit over a 1-D sweep: the metric at every grid point, as
+/// [`crate::pipeline::evaluate::values`] records it against the nominal bench (the numbers of
+/// the sweep's metric rows), with its standard error.
+pub fn report(limit: &MetricLimit, s: &Sweep) -> Result<LimitReport> {
+    let [v] = s.vary.as_slice() else {
+        return Err(Error::field(
+            "limit",
+            "a crossing is found along one variable: sweep one",
+        ));
+    };
+    let rows: Vec<Vec<(String, f64)>> = s
+        .points
+        .iter()
+        .map(|p| crate::pipeline::evaluate::values(p, &s.nominal))
+        .collect();
+    let get = |r: &[(String, f64)], k: &str| r.iter().find(|(n, _)| n == k).map(|e| e.1);
+    if rows.iter().all(|r| get(r, &limit.metric).is_none()) {
+        return Err(Error::field(
+            "limit",
             format!("the sweep's rows have no `{}`", limit.metric),
         ));
     }
-    let col = |k: &str| -> Vec<f64> { rows.iter().map(|r| r.get(k).unwrap_or(f64::NAN)).collect() };
-    let (x, y) = (col(variable), col(&limit.metric));
+    let col =
+        |k: &str| -> Vec<f64> { rows.iter().map(|r| get(r, k).unwrap_or(f64::NAN)).collect() };
+    let x: Vec<f64> = s
+        .points
+        .iter()
+        .map(|p| {
+            p.settings
+                .iter()
+                .find(|(k, _)| *k == v.path)
+                .map_or(f64::NAN, |e| e.1)
+        })
+        .collect();
+    let y = col(&limit.metric);
     let se = col(&format!("{}_stderr", limit.metric));
     let valid: Vec<f64> = y.iter().copied().filter(|v| v.is_finite()).collect();
     Ok(LimitReport {
         metric: limit.metric.clone(),
         limit: limit.value,
-        variable: variable.to_string(),
+        variable: v.path.clone(),
         points_within: valid.iter().filter(|v| v.abs() <= limit.value).count(),
         points: valid.len(),
         crossings: crossings(&x, &y, &se, limit.value),
@@ -241,7 +267,7 @@ mod tests {
 
     #[test]
     fn limits_parse_and_reject() {
-        let l = Limit::parse("imbalance=0.01", false).unwrap();
+        let l = MetricLimit::parse("imbalance=0.01", false).unwrap();
         assert_eq!((l.metric.as_str(), l.value), ("imbalance", 0.01));
         for bad in [
             "imbalance",
@@ -251,13 +277,13 @@ mod tests {
             "nonsense=1",
             "secondary_complementary_balancing_40_mssim=0.9",
         ] {
-            let e = Limit::parse(bad, false).unwrap_err();
+            let e = MetricLimit::parse(bad, false).unwrap_err();
             assert!(
-                e.is_user_error() && e.to_string().contains("--limit"),
+                e.is_user_error() && e.to_string().contains("field `limit`"),
                 "{e}"
             );
         }
-        assert!(Limit::parse("secondary_complementary_balancing_40_mssim=0.9", true).is_ok());
+        assert!(MetricLimit::parse("secondary_complementary_balancing_40_mssim=0.9", true).is_ok());
     }
 
     #[test]

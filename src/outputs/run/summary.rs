@@ -1,15 +1,15 @@
-//! The schema of `spibench run`'s `summary.json`, in the library so that every command that
-//! reports a run writes the same keys (the transport block is crate::pipeline::summary's).
+//! The schema of `spibench run`'s `summary.json` (the transport block is `trace`'s,
+//! crate::outputs::trace).
 
 use serde::Serialize;
 
-use super::{
-    ResolutionContext, RunOutcome, RunSettings, Saturation, SchemeResult, SequenceSummary, Timings,
-};
 use crate::acquisition::Scheme;
 use crate::detector::{Bap, Channel, FrameTiming, Scope};
 use crate::metrics::NORMALIZATION_RULE;
-use crate::pipeline::summary::{TraceSummary, summarize};
+use crate::outputs::trace::{TraceSummary, summarize};
+use crate::run::{
+    ResolutionContext, RunOutcome, RunSettings, Saturation, SchemeResult, SequenceSummary, Timings,
+};
 
 /// `summary.json` of `run`. SI units unless the key says otherwise; NaN and ∞ are null.
 #[derive(Serialize)]
@@ -108,7 +108,7 @@ pub struct Findings {
     /// `repeats`, `basis`, `mssim` and `psnr_db`, each at every ratio and at equal frames.
     /// summarize_run fills them from its one outcome; `spibench run --repeats N` from all N.
     #[serde(flatten)]
-    pub standings: super::findings::Record,
+    pub standings: crate::run::findings::Record,
 }
 
 fn findings(o: &RunOutcome) -> Findings {
@@ -143,7 +143,7 @@ fn findings(o: &RunOutcome) -> Findings {
         scb_beats_double_arm_at: beats,
         scb_not_above_double_arm_at: not,
         scb_minus_traditional_mssim_at_max_ratio: scb_trad,
-        standings: super::findings::Findings::of(std::slice::from_ref(o)).record(),
+        standings: crate::run::findings::Findings::of(std::slice::from_ref(o)).record(),
     }
 }
 

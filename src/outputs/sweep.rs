@@ -1,0 +1,463 @@
+//! The outputs of `spibench sweep` (docs/outputs.md, "sweep"): `summary.json` (`rows`: one per
+//! grid point, the varied values and every metric with `_stderr`, `_diff` from the nominal
+//! bench and `_diff_stderr`; `limits`: where each limit is crossed), `sweep.csv` (the same
+//! columns), plots (1-D: each metric against the variable with ±1 standard-error bars; 2-D:
+//! heatmaps with a colour bar and the nominal bench marked), `layout.svg` and `report.html`.
+
+use serde::Serialize;
+
+use crate::pipeline::evaluate::Evaluation;
+use crate::report::csv::write_csv;
+use crate::report::heatmap::{Heatmap, write_heatmap};
+use crate::report::html::{Block, Page, write_page};
+use crate::report::output::OutputDir;
+use crate::report::plot::{LinePlot, Series, write_plot};
+use crate::sweep::limits::LimitReport;
+use crate::sweep::{Sweep, Vary};
+use crate::transport::metrics::METRICS;
+
+use super::rows::Row;
+
+/// The metrics plotted, with their axis labels.
+const PLOTTED: [(&str, &str); 6] = [
+    ("imbalance", "imbalance (k₊ − k₋)/(k₊ + k₋)"),
+    ("k_plus", "k₊ (A/W)"),
+    ("k_minus", "k₋ (A/W)"),
+    ("b_minus_minus_b_plus", "b₋ − b₊ (A)"),
+    ("leak_plus", "off-arm leak, all units + (ratio)"),
+    ("power_minus_w", "power on diode −, all units − (W)"),
+];
+
+/// `summary.json` of `sweep`.
+#[derive(Serialize)]
+struct SweepSummary<'a> {
+    command: &'static str,
+    spibench_version: &'static str,
+    scene: &'a str,
+    rays: u64,
+    seed: u64,
+    quality: bool,
+    vary: Vec<VarySummary<'a>>,
+    /// Metric names, units and meanings (every row has the keys of [`Row::metrics`]: `NAME`,
+    /// `NAME_stderr`, `NAME_diff`, `NAME_diff_stderr`, and `NAME_diff_stderr_independent`: the
+    /// standard error the difference would have between independent runs; `cmrr_db`, the
+    /// bench's common-mode rejection with the arms' k± in it (the same five keys),
+    /// `cmrr_electronics_db`, the detector's alone (exact; null when infinite), and
+    /// `arrivals` (lamp rays that reached the pattern area)).
+    metrics: Vec<MetricDoc>,
+    /// Where each limit is crossed (1-D sweeps; empty without limits).
+    limits: &'a [LimitReport],
+    nominal: Row,
+    rows: Vec<Row>,
+    files: Vec<String>,
+}
+
+#[derive(Serialize)]
+struct VarySummary<'a> {
+    path: &'a str,
+    start: f64,
+    stop: f64,
+    n: usize,
+    /// The variable's value in the nominal bench (0 for a rigid-body move).
+    nominal: f64,
+}
+
+#[derive(Serialize)]
+struct MetricDoc {
+    name: &'static str,
+    unit: &'static str,
+    meaning: &'static str,
+}
+
+/// One row: the varied values, then the point's metrics against the nominal bench
+/// ([`Row::metrics`]: the keys `tolerance` and `align` write too).
+fn row(p: &Evaluation, nominal: &Evaluation) -> Row {
+    Row::metrics(p, nominal).with_settings(&p.settings)
+}
+
+/// The sweep as a table under 100 columns for up to two varied variables: the variables, the
+/// imbalance, its paired change from the nominal bench and k'; every other metric, with its
+/// standard errors, is in `sweep.csv` and `summary.json`; then where each limit is crossed.
+pub fn printed(s: &Sweep, crossed: &[LimitReport]) -> Vec<String> {
+    let mut out = Vec::new();
+    let mut line = String::from(" ");
+    for v in &s.vary {
+        line += &format!(" {:>13}", short(&v.path));
+    }
+    for h in ["imbalance", "Δ imbalance", "k' (A/W)"] {
+        line += &format!(" {h:>20}");
+    }
+    out.push(line);
+    for p in &s.points {
+        let mut line = String::from(" ");
+        for (_, v) in &p.settings {
+            line += &format!(" {v:>13.6}");
+        }
+        for (n, diff) in [
+            ("imbalance", false),
+            ("imbalance", true),
+            ("k_prime", false),
+        ] {
+            let (Some(a), Some(b)) = (p.metrics.get(n), s.nominal.metrics.get(n)) else {
+                continue;
+            };
+            let e = if diff { a.diff(b) } else { a.estimate() };
+            line += &format!(" {:>20}", format!("{:.4e} ± {:.1e}", e.value, e.stderr));
+        }
+        out.push(line);
+    }
+    out.push("  (k±, b±, b₋ − b₊, powers and leaks with their standard errors: sweep.csv)".into());
+    for c in crossed {
+        out.extend(c.lines().into_iter().map(|l| format!("  {l}")));
+    }
+    out
+}
+
+/// The rows as CSV: the columns of the first row, in its order.
+fn write_rows_csv(path: &std::path::Path, rows: &[Row]) -> crate::Result<()> {
+    let header: Vec<String> = rows
+        .first()
+        .map_or_else(Vec::new, |r| r.keys().map(String::from).collect());
+    let cells: Vec<Vec<String>> = rows.iter().map(|r| r.csv_cells(&header)).collect();
+    let header_refs: Vec<&str> = header.iter().map(String::as_str).collect();
+    write_csv(path, &header_refs, &cells)
+}
+
+/// The last two segments of a path, for table headings.
+fn short(path: &str) -> String {
+    let segs: Vec<&str> = path.split('.').collect();
+    let k = segs.len().saturating_sub(2);
+    let s = segs[k..].join(".");
+    if s.chars().count() > 13 {
+        s.chars().take(12).collect::<String>() + "…"
+    } else {
+        s
+    }
+}
+
+/// Writes every output of a sweep of the bench `name` into `out` (a staging folder); returns
+/// the count of files. `nominal_values` are the swept variables' values in the nominal bench.
+pub fn write(
+    name: &str,
+    bench: &crate::optics::Bench,
+    s: &Sweep,
+    nominal_values: &[f64],
+    crossed: &[LimitReport],
+    provenance: &crate::provenance::Provenance,
+    out: &OutputDir,
+) -> crate::Result<usize> {
+    let mut files = vec![
+        "summary.json".to_string(),
+        "sweep.csv".to_string(),
+        "report.html".to_string(),
+    ];
+    let rows: Vec<Row> = s.points.iter().map(|p| row(p, &s.nominal)).collect();
+    write_rows_csv(&out.path("sweep.csv"), &rows)?;
+    let mut blocks = vec![Block::Paragraph(format!(
+        "{} grid point(s) of {name}, each traced with {} rays and seed {} (common random numbers: \
+         every point draws the same random numbers, so a difference from the nominal bench is \
+         resolved by its paired standard error, given beside the standard error independent \
+         runs would have). Error bars and ± are one standard error.",
+        s.points.len(),
+        s.options.rays,
+        s.options.seed
+    ))];
+    let (layout, svg) = super::layout::layout_block(bench, name)?;
+    let path = out.path("layout.svg");
+    std::fs::write(&path, &svg).map_err(|e| crate::Error::write(&path, e))?;
+    files.push("layout.svg".into());
+    blocks.push(layout);
+    if !crossed.is_empty() {
+        blocks.push(limits_block(crossed));
+    }
+    let figures = match s.vary.as_slice() {
+        [v] => line_plots(s, v, crossed, out, &mut files)?,
+        [a, b] => heatmaps(s, [a, b], nominal_values, out, &mut files)?,
+        _ => Vec::new(),
+    };
+    for (svg, caption) in figures {
+        let text = std::fs::read_to_string(out.path(&svg))
+            .map_err(|e| crate::Error::read(&out.path(&svg), e))?;
+        blocks.push(Block::Svg { caption, svg: text });
+    }
+    blocks.push(points_table(s));
+    write_page(
+        &out.path("report.html"),
+        &Page {
+            title: format!("spibench sweep of {name}"),
+            blocks,
+        },
+    )?;
+    let nominal = row(&s.nominal, &s.nominal);
+    let summary = SweepSummary {
+        command: "sweep",
+        spibench_version: env!("CARGO_PKG_VERSION"),
+        scene: name,
+        rays: s.options.rays,
+        seed: s.options.seed,
+        quality: s.options.quality,
+        vary: s
+            .vary
+            .iter()
+            .zip(nominal_values)
+            .map(|(v, &n)| VarySummary {
+                path: &v.path,
+                start: v.start,
+                stop: v.stop,
+                n: v.n,
+                nominal: n,
+            })
+            .collect(),
+        metrics: METRICS
+            .iter()
+            .map(|&(name, unit, meaning)| MetricDoc {
+                name,
+                unit,
+                meaning,
+            })
+            .collect(),
+        limits: crossed,
+        nominal,
+        rows,
+        files: files.clone(),
+    };
+    super::summary::write_summary(out, &summary, provenance)?;
+    Ok(files.len())
+}
+
+/// 1-D: each plotted metric against the variable with ±1 standard-error bars, and with the
+/// whole pipeline the MSSIM of each scheme; the figures (file, caption) written.
+fn line_plots(
+    s: &Sweep,
+    v: &Vary,
+    crossed: &[LimitReport],
+    out: &OutputDir,
+    files: &mut Vec<String>,
+) -> crate::Result<Vec<(String, String)>> {
+    let mut figures = Vec::new();
+    let xs: Vec<f64> = s.points.iter().map(|p| p.settings[0].1).collect();
+    for (metric, label) in PLOTTED {
+        let Some(i) = METRICS.iter().position(|m| m.0 == metric) else {
+            continue;
+        };
+        let ys: Vec<f64> = s.points.iter().map(|p| p.metrics.values[i].value).collect();
+        let mut series = vec![Series {
+            label: String::new(),
+            x: xs.clone(),
+            y: ys.clone(),
+            y_err: Some(
+                s.points
+                    .iter()
+                    .map(|p| {
+                        let e = p.metrics.values[i].stderr();
+                        if e.is_finite() { e } else { 0.0 }
+                    })
+                    .collect(),
+            ),
+        }];
+        series.extend(limit_lines(crossed, metric, &xs, &ys));
+        let plot = LinePlot {
+            title: String::new(),
+            x_label: v.path.clone(),
+            y_label: label.to_string(),
+            series,
+            log_x: false,
+        };
+        let (svg, png) = (format!("{metric}.svg"), format!("{metric}.png"));
+        write_plot(&plot, &out.path(&svg), &out.path(&png))?;
+        figures.push((svg.clone(), label.to_string()));
+        files.extend([svg, png]);
+    }
+    if let Some(q) = s.points.first().and_then(|p| p.quality.as_ref()) {
+        let last_ratio = q.iter().map(|r| r.ratio).fold(0.0, f64::max);
+        let schemes: Vec<_> = q
+            .iter()
+            .filter(|r| r.ratio == last_ratio)
+            .map(|r| r.scheme)
+            .collect();
+        let series = schemes
+            .iter()
+            .map(|&k| Series {
+                label: k.label().to_string(),
+                x: xs.clone(),
+                y: s.points
+                    .iter()
+                    .map(|p| {
+                        p.quality
+                            .as_ref()
+                            .and_then(|q| q.iter().find(|r| r.scheme == k && r.ratio == last_ratio))
+                            .map_or(f64::NAN, |r| r.mssim)
+                    })
+                    .collect(),
+                y_err: None,
+            })
+            .collect();
+        let plot = LinePlot {
+            title: String::new(),
+            x_label: v.path.clone(),
+            y_label: format!("MSSIM at {:.0} % sampling", last_ratio * 100.0),
+            series,
+            log_x: false,
+        };
+        write_plot(&plot, &out.path("mssim.svg"), &out.path("mssim.png"))?;
+        figures.push(("mssim.svg".into(), "MSSIM of each scheme".into()));
+        files.extend(["mssim.svg".to_string(), "mssim.png".to_string()]);
+    }
+    Ok(figures)
+}
+
+/// The limits on `metric` as horizontal lines across the plot (at ±L where the metric takes
+/// both signs, at the sign it takes otherwise).
+fn limit_lines(crossed: &[LimitReport], metric: &str, xs: &[f64], ys: &[f64]) -> Vec<Series> {
+    let (lo, hi) = xs
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| {
+            (a.min(x), b.max(x))
+        });
+    let negative = ys.iter().any(|&y| y < 0.0);
+    let positive = ys.iter().any(|&y| y > 0.0) || !negative;
+    let mut out = Vec::new();
+    for c in crossed.iter().filter(|c| c.metric == metric) {
+        for (sign, show) in [(1.0, positive), (-1.0, negative)] {
+            if show && lo.is_finite() {
+                out.push(Series {
+                    label: format!("limit |{metric}| = {}", c.limit),
+                    x: vec![lo, hi],
+                    y: vec![sign * c.limit; 2],
+                    y_err: None,
+                });
+            }
+        }
+    }
+    out
+}
+
+/// The report's table of limit crossings.
+fn limits_block(crossed: &[LimitReport]) -> Block {
+    let mut rows = Vec::new();
+    for c in crossed {
+        let head = vec![
+            format!("|{}| ≤ {}", c.metric, c.limit),
+            format!("{} of {}", c.points_within, c.points),
+        ];
+        if c.crossings.is_empty() {
+            let mut r = head.clone();
+            r.extend([
+                if c.points_within == c.points {
+                    "met at every point".to_string()
+                } else {
+                    "exceeded at every point".to_string()
+                },
+                String::new(),
+                String::new(),
+                String::new(),
+            ]);
+            rows.push(r);
+        }
+        for x in &c.crossings {
+            let mut r = head.clone();
+            r.extend([
+                x.direction.to_string(),
+                format!("{:.6} ± {:.2e}", x.at, x.stderr),
+                x.ci95
+                    .map_or_else(|| "–".into(), |[lo, hi]| format!("[{lo:.6}, {hi:.6}]")),
+                format!("{} … {}", x.between[0], x.between[1]),
+            ]);
+            rows.push(r);
+        }
+    }
+    Block::Table {
+        caption: Some(format!(
+            "Where each limit is crossed along {}: linear interpolation between the grid points \
+             on either side; ± the standard error from the two points' standard errors (added \
+             linearly: the points share their random numbers), 95 % interval ± 1.96 σ; the \
+             interpolation's own error is not included",
+            crossed.first().map_or("", |c| c.variable.as_str())
+        )),
+        header: [
+            "limit",
+            "points within",
+            "crossing",
+            "at ± SE",
+            "95 % interval",
+            "between grid points",
+        ]
+        .map(String::from)
+        .to_vec(),
+        rows,
+    }
+}
+
+/// 2-D: heatmaps of the first four plotted metrics with the nominal bench marked.
+fn heatmaps(
+    s: &Sweep,
+    [a, b]: [&Vary; 2],
+    nominal_values: &[f64],
+    out: &OutputDir,
+    files: &mut Vec<String>,
+) -> crate::Result<Vec<(String, String)>> {
+    let mut figures = Vec::new();
+    for (metric, label) in PLOTTED.iter().take(4) {
+        let Some(i) = METRICS.iter().position(|m| m.0 == *metric) else {
+            continue;
+        };
+        let h = Heatmap {
+            x_label: a.path.clone(),
+            y_label: b.path.clone(),
+            value_label: label.to_string(),
+            xs: a.values(),
+            ys: b.values(),
+            values: s.points.iter().map(|p| p.metrics.values[i].value).collect(),
+            mark: Some((nominal_values[0], nominal_values[1])),
+        };
+        let (svg, png) = (format!("{metric}.svg"), format!("{metric}.png"));
+        write_heatmap(&h, &out.path(&svg), &out.path(&png))?;
+        figures.push((svg.clone(), format!("{label}; + marks the nominal bench")));
+        files.extend([svg, png]);
+    }
+    Ok(figures)
+}
+
+/// The report's table of grid points: the variables, the imbalance and its change, k± and
+/// b₋ − b₊, each ± its standard error.
+fn points_table(s: &Sweep) -> Block {
+    let mut header_html: Vec<String> = s.vary.iter().map(|v| v.path.clone()).collect();
+    header_html.extend(
+        [
+            "imbalance",
+            "Δ imbalance",
+            "k₊ (A/W)",
+            "k₋ (A/W)",
+            "b₋ − b₊ (A)",
+        ]
+        .map(String::from),
+    );
+    let pm = |m: &crate::transport::Estimate| format!("{:.4e} ± {:.1e}", m.value, m.stderr);
+    let table_rows = s
+        .points
+        .iter()
+        .map(|p| {
+            let mut r: Vec<String> = p.settings.iter().map(|(_, v)| format!("{v}")).collect();
+            let g = |n: &str| p.metrics.get(n).map(|m| m.estimate());
+            let d = |n: &str| match (p.metrics.get(n), s.nominal.metrics.get(n)) {
+                (Some(a), Some(b)) => Some(a.diff(b)),
+                _ => None,
+            };
+            for e in [
+                g("imbalance"),
+                d("imbalance"),
+                g("k_plus"),
+                g("k_minus"),
+                g("b_minus_minus_b_plus"),
+            ] {
+                r.push(e.map_or_else(String::new, |e| pm(&e)));
+            }
+            r
+        })
+        .collect();
+    Block::Table {
+        caption: Some("Grid points (value ± standard error; Δ against the nominal bench ± its paired standard error)".into()),
+        header: header_html,
+        rows: table_rows,
+    }
+}

@@ -1,0 +1,231 @@
+//! The figures of `tolerance`: histograms and empirical CDFs of the main metrics over the
+//! trials, with the file's limits drawn.
+
+use crate::report::html::Block;
+use crate::report::output::OutputDir;
+use crate::report::plot::{LinePlot, Series, write_plot};
+use crate::scene::tolerance::{ShardFile, ToleranceSet};
+use crate::tolerance::Analysis;
+
+/// The file's limits on `metric` as vertical lines from 0 to `top`: on a plot of |value|
+/// (`abs`) the `abs_max` limits, on a plot of the value the `min` and `max` ones and ±`abs_max`.
+fn limit_lines(limits: &[(String, f64)], top: f64) -> Vec<Series> {
+    limits
+        .iter()
+        .map(|(label, x)| Series {
+            label: label.clone(),
+            x: vec![*x, *x],
+            y: vec![0.0, top],
+            y_err: None,
+        })
+        .collect()
+}
+
+/// The limits of the file (and the quality limit) on `metric`, as (label, x) on a plot of
+/// |value| (`abs`) or of the value.
+fn limits_on(set: &ToleranceSet, metric: &str, abs: bool) -> Vec<(String, f64)> {
+    let mut out = Vec::new();
+    for l in set.limits.iter().filter(|l| l.metric == metric) {
+        if let Some(m) = l.abs_max {
+            out.push((format!("limit |{metric}| ≤ {m}"), m));
+            if !abs {
+                out.push((format!("limit |{metric}| ≥ −{m}"), -m));
+            }
+        }
+        for (v, op) in [(l.min, "≥"), (l.max, "≤")] {
+            if let Some(v) = v
+                && (!abs || v > 0.0)
+            {
+                out.push((format!("limit {metric} {op} {v}"), v));
+            }
+        }
+    }
+    if let Some(q) = set.quality
+        && metric.ends_with(&format!("_{}_mssim", q.ratio_percent))
+    {
+        out.push((format!("limit MSSIM ≥ {}", q.min_mssim), q.min_mssim));
+    }
+    out
+}
+
+/// The metrics plotted (key, axis label).
+fn plotted_metrics(set: &ToleranceSet, analysis: &Analysis) -> Vec<(String, String)> {
+    let mut plotted: Vec<(String, String)> = [
+        ("imbalance", "imbalance (k₊ − k₋)/(k₊ + k₋)"),
+        ("k_prime", "k' = k₊ + k₋ (A/W)"),
+        ("b_minus_minus_b_plus", "b₋ − b₊ (A)"),
+        (
+            "leak_plus",
+            "off-arm leak, all units +: P₋/(P₊ + P₋) (fraction, 0–1)",
+        ),
+        (
+            "leak_minus",
+            "off-arm leak, all units −: P₊/(P₊ + P₋) (fraction, 0–1)",
+        ),
+    ]
+    .map(|(a, b)| (a.to_string(), b.to_string()))
+    .to_vec();
+    for (scheme, _) in &analysis.quality_yields {
+        if let Some(q) = set.quality {
+            plotted.push((
+                format!("{scheme}_{}_mssim", q.ratio_percent),
+                format!("MSSIM at {} %, {scheme}", q.ratio_percent),
+            ));
+        }
+    }
+    plotted
+}
+
+/// A histogram as steps: `bins` equal bins over the values' range.
+fn histogram_series(v: &[f64], bins: usize) -> (Series, f64) {
+    let n = v.len();
+    let (lo, hi) = (v[0], v[n - 1]);
+    let w = if hi > lo {
+        (hi - lo) / bins as f64
+    } else {
+        1.0
+    };
+    let mut counts = vec![0usize; bins];
+    for x in v {
+        counts[(((x - lo) / w) as usize).min(bins - 1)] += 1;
+    }
+    let (mut hx, mut hy) = (vec![lo], vec![0.0]);
+    for (b, c) in counts.iter().enumerate() {
+        let (a, z) = (lo + b as f64 * w, lo + (b + 1) as f64 * w);
+        hx.extend([a, z]);
+        hy.extend([*c as f64, *c as f64]);
+    }
+    hx.push(lo + bins as f64 * w);
+    hy.push(0.0);
+    let top = counts.iter().copied().max().unwrap_or(1) as f64;
+    (
+        Series {
+            label: String::new(),
+            x: hx,
+            y: hy,
+            y_err: None,
+        },
+        top,
+    )
+}
+
+/// Histograms (as steps, Freedman–Diaconis bins with a floor) and empirical CDFs of the main
+/// metrics over the trials, with the file's limits drawn, written as figures and returned as
+/// report blocks. The CDF is of |value| on a log axis for the metrics whose upper |·| tail
+/// matters (imbalance, offsets, leaks), of the value for those whose lower tail matters (k',
+/// MSSIM).
+pub(super) fn distribution_plots(
+    s: &ShardFile,
+    set: &ToleranceSet,
+    analysis: &Analysis,
+    out: &OutputDir,
+    files: &mut Vec<String>,
+) -> crate::Result<Vec<Block>> {
+    use crate::tolerance::summaries::{Tail, histogram_bins, shown, tail_of};
+    let mut figs = Vec::new();
+    for (metric, label) in plotted_metrics(set, analysis) {
+        // Leaks as bounded fractions (summaries::leak_fraction), their limits too.
+        let mut v: Vec<f64> = s
+            .records
+            .iter()
+            .filter_map(|r| r.value(&metric))
+            .map(|v| shown(&metric, v))
+            .filter(|v| v.is_finite())
+            .collect();
+        if v.len() < 2 {
+            continue;
+        }
+        v.sort_by(f64::total_cmp);
+        let n = v.len();
+        let upper = tail_of(&metric) == Tail::UpperAbs;
+        // |value| on a log axis: zeros cannot be drawn and are counted in the caption.
+        let mut cx: Vec<f64> = if upper {
+            v.iter().map(|x| x.abs()).filter(|x| *x > 0.0).collect()
+        } else {
+            v.clone()
+        };
+        cx.sort_by(f64::total_cmp);
+        let zeros = n - cx.len();
+        // Large magnitudes on a log axis; the lower tail of a value on a linear one.
+        let log_x = upper;
+        let mut cdf_series = vec![Series {
+            label: String::new(),
+            y: (0..cx.len())
+                .map(|i| (zeros + i + 1) as f64 / n as f64)
+                .collect(),
+            x: cx,
+            y_err: None,
+        }];
+        let limit_at = |abs: bool| -> Vec<(String, f64)> {
+            limits_on(set, &metric, abs)
+                .into_iter()
+                .map(|(l, x)| (l, shown(&metric, x)))
+                .collect()
+        };
+        cdf_series.extend(limit_lines(&limit_at(upper), 1.0));
+        let cdf = LinePlot {
+            title: String::new(),
+            x_label: if upper {
+                format!("|{label}| (log scale)")
+            } else {
+                label.clone()
+            },
+            y_label: "fraction of trials ≤ x".into(),
+            series: cdf_series,
+            log_x,
+        };
+        let bins = histogram_bins(&v);
+        let (steps, top) = histogram_series(&v, bins);
+        let mut hist_series = vec![steps];
+        hist_series.extend(limit_lines(&limit_at(false), top));
+        let hist = LinePlot {
+            title: String::new(),
+            x_label: label.clone(),
+            y_label: "trials".into(),
+            series: hist_series,
+            log_x: false,
+        };
+        let tail = if upper {
+            "the upper tail of |value| matters"
+        } else {
+            "the lower tail matters"
+        };
+        // Every trial at exactly 0 (a metric a symmetric bench holds at 0): no CDF on a log axis.
+        let plots = if cdf.series[0].x.is_empty() {
+            vec![("hist", hist)]
+        } else {
+            vec![("hist", hist), ("cdf", cdf)]
+        };
+        for (kind, plot) in plots {
+            let (svg, png) = (
+                format!("{kind}_{metric}.svg"),
+                format!("{kind}_{metric}.png"),
+            );
+            write_plot(&plot, &out.path(&svg), &out.path(&png))?;
+            let text = std::fs::read_to_string(out.path(&svg))
+                .map_err(|e| crate::Error::read(&out.path(&svg), e))?;
+            figs.push(Block::Svg {
+                caption: if kind == "hist" {
+                    format!(
+                        "Histogram of {label} over {n} trials ({bins} bins: Freedman–Diaconis, \
+                         at least max(10, √n)); vertical lines: the file's limits"
+                    )
+                } else {
+                    format!(
+                        "Empirical CDF of {}{label} over {n} trials ({tail}){}; vertical lines: \
+                         the file's limits",
+                        if upper { "|·| of " } else { "" },
+                        if zeros > 0 {
+                            format!("; {zeros} trial(s) at exactly 0 are counted but not drawn")
+                        } else {
+                            String::new()
+                        }
+                    )
+                },
+                svg: text,
+            });
+            files.extend([svg, png]);
+        }
+    }
+    Ok(figs)
+}
