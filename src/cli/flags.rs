@@ -24,6 +24,10 @@ pub const FLAGS: &[(&str, &str)] = &[
     ("wavelength_nm", "--wavelength-nm"),
 ];
 
+/// Options named in messages only: `quality` is also a tolerance file's section, whose errors
+/// keep their field.
+const IN_MESSAGES: &[(&str, &str)] = &[("quality", "--quality")];
+
 /// An input error as the command line shows it: its field, when it is one of [`FLAGS`], and
 /// each of their names in backquotes in its message, become the flag. Other errors are
 /// returned as they are.
@@ -34,7 +38,7 @@ pub fn relocate(mut e: crate::Error) -> crate::Error {
         {
             location.field = Some(flag.to_string());
         }
-        for (name, flag) in FLAGS {
+        for (name, flag) in FLAGS.iter().chain(IN_MESSAGES) {
             let quoted = format!("`{name}`");
             if message.contains(&quoted) {
                 *message = message.replace(&quoted, flag);
@@ -88,7 +92,7 @@ mod tests {
     /// Every library name is spelt as its flag would be (lower case, `_` for `-`).
     #[test]
     fn names_match_their_flags() {
-        for (name, flag) in FLAGS {
+        for (name, flag) in FLAGS.iter().chain(IN_MESSAGES) {
             assert_eq!(format!("--{}", name.replace('_', "-")), *flag);
         }
     }

@@ -499,7 +499,7 @@ pub fn merge(
                 "merge",
                 format!(
                     "shard {}/{} was not made by the same run as shard {}/{} (bench, tolerance \
-                     file, rays, seed, trials, quality and the shard count must agree)",
+                     file, rays, seed, trials, `quality` and the shard count must agree)",
                     s.shard.0, s.shard.1, first.shard.0, first.shard.1
                 ),
             ));

@@ -1,8 +1,6 @@
 //! The outputs of `spibench run` (docs/outputs.md, "run"), from the outcome of the traced
-//! experiment (crate::run). Written into a staging folder and moved into place only when
+//! experiment (crate::run), written into a staging folder that is moved into place only when
 //! complete:
-//!
-//! Output (DIR), written into a staging folder and moved into place only when complete:
 //!
 //! - `summary.json`: the transport (as `spibench trace`), the electronics and oscilloscope
 //!   settings, the run settings, the recorded sequences, saturation findings, and for every
@@ -32,7 +30,7 @@
 //!   the curves, the resolution read-out and the settings that reproduce the run.
 //!
 //! The modules: [`summary`] (`summary.json`), [`report`] (`report.html`), [`repeats`] (the files
-//! of `--repeats N`), [`arrays`] (`arrays/*.npy`); the figures are written here.
+//! of `--repeats N`), [`arrays`] (`arrays/*.npy`); the figures are `figures.rs`'s.
 
 use crate::report::csv::ResultRow;
 use crate::run::findings::{self, pct};
