@@ -56,25 +56,6 @@ fn work(
     }
 }
 
-/// The dataset job's errors with the fields it names by their library names (`merge`, `out`,
-/// `resume`, `shard`) named by this command's flags.
-fn as_flags(e: Error) -> Error {
-    match e {
-        Error::Input {
-            mut location,
-            message,
-        } => {
-            if let Some(f) = location.field.as_mut()
-                && ["merge", "out", "resume", "shard"].contains(&f.as_str())
-            {
-                *f = format!("--{f}");
-            }
-            Error::Input { location, message }
-        }
-        e => e,
-    }
-}
-
 pub fn run(args: &DatasetArgs) -> anyhow::Result<()> {
     let command: Vec<String> = std::env::args().collect();
     if !args.merge.is_empty() {
@@ -94,7 +75,9 @@ pub fn run(args: &DatasetArgs) -> anyhow::Result<()> {
                 return Err(Error::field(flag, "is not an option of --merge").into());
             }
         }
-        let m = merge(&args.merge, &args.out, &command).map_err(as_flags)?;
+        // The job's fields in its errors (`merge`, `out`, `resume`) are shown as the flags when the
+        // error is printed (super::flags).
+        let m = merge(&args.merge, &args.out, &command)?;
         println!(
             "merged {} folders: {} shards, {} samples → {}",
             args.merge.len(),
@@ -141,8 +124,7 @@ pub fn run(args: &DatasetArgs) -> anyhow::Result<()> {
         args.resume,
         &command,
         &|done, total| crate::note!("shard {done}/{total} committed"),
-    )
-    .map_err(as_flags)?;
+    )?;
     let m = read_manifest(&args.out)?;
     let samples: u64 = m.shards.iter().map(|s| s.samples).sum();
     println!(
