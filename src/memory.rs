@@ -68,7 +68,7 @@ pub fn check_within(
     }
     Err(Error::input(format!(
         "{what} would take about {} of memory ({settings}), above the limit of {}: {remedy}, \
-         or pass --allow-large to proceed anyway",
+         or pass `allow_large` to proceed anyway",
         bytes_text(bytes),
         bytes_text(max)
     )))
@@ -91,7 +91,7 @@ mod tests {
             "{s}"
         );
         assert!(
-            s.contains("widen them") && s.contains("--allow-large"),
+            s.contains("widen them") && s.contains("`allow_large`"),
             "{s}"
         );
         assert!(check_within(Some(1e9), f64::NAN, "x", "y", "z").is_err());

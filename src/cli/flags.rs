@@ -24,9 +24,9 @@ pub const FLAGS: &[(&str, &str)] = &[
     ("wavelength_nm", "--wavelength-nm"),
 ];
 
-/// Options named in messages only: `quality` is also a tolerance file's section, whose errors
-/// keep their field.
-const IN_MESSAGES: &[(&str, &str)] = &[("quality", "--quality")];
+/// Options named in messages only (`quality` is also a tolerance file's section, whose errors
+/// keep their field).
+const IN_MESSAGES: &[(&str, &str)] = &[("quality", "--quality"), ("allow_large", "--allow-large")];
 
 /// An input error as the command line shows it: its field, when it is one of [`FLAGS`], and
 /// each of their names in backquotes in its message, become the flag. Other errors are
