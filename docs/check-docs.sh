@@ -24,6 +24,11 @@
 # are those of the real sizes. SPIBENCH_DOCS_KEEP=DIR keeps the scratch folders in DIR.
 set -euo pipefail
 repo=$(cd "$(dirname "$0")/.." && pwd)
+# A relative SPIBENCH_BIN or SPIBENCH_DOCS_PYTHON names a file from where the script was started;
+# the blocks run in scratch folders, so make them absolute first.
+absolute() { case $1 in /* | "") printf '%s' "$1" ;; */*) printf '%s/%s' "$PWD" "$1" ;; *) printf '%s' "$1" ;; esac; }
+SPIBENCH_BIN=$(absolute "${SPIBENCH_BIN:-}")
+SPIBENCH_DOCS_PYTHON=$(absolute "${SPIBENCH_DOCS_PYTHON:-}")
 cd "$repo"
 bin=${SPIBENCH_BIN:-$repo/target/debug/spibench}
 if [ ! -x "$bin" ]; then
