@@ -13,20 +13,21 @@
 use std::path::Path;
 use std::time::Instant;
 
+use spibench::quantities::BenchMetric;
 use spibench::scene::doc::BenchDoc;
 use spibench::sweep::{Sweep, SweepOptions, Vary, sweep};
 
 /// The worst, over the points, of (paired SE, independent SE) of the difference from the
 /// nominal bench, in target units: Δk₋ / k₋ / 1e-3 and Δimbalance / 1e-3.
 fn worst(s: &Sweep) -> (f64, f64) {
-    let k0 = s.nominal.metrics.get("k_minus").unwrap().value;
+    let k0 = s.nominal.metrics[BenchMetric::KMinus].value;
     let mut out = (0.0f64, 0.0f64);
     for p in &s.points {
-        for (name, scale) in [("k_minus", k0 * 1e-3), ("imbalance", 1e-3)] {
-            let (a, b) = (
-                p.metrics.get(name).unwrap(),
-                s.nominal.metrics.get(name).unwrap(),
-            );
+        for (name, scale) in [
+            (BenchMetric::KMinus, k0 * 1e-3),
+            (BenchMetric::Imbalance, 1e-3),
+        ] {
+            let (a, b) = (&p.metrics[name], &s.nominal.metrics[name]);
             out.0 = out.0.max(a.diff(b).stderr / scale);
             out.1 = out.1.max(a.stderr().hypot(b.stderr()) / scale);
         }

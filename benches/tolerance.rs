@@ -18,7 +18,7 @@ use std::time::Instant;
 
 use spibench::scene::doc::BenchDoc;
 use spibench::scene::tolerance::{SensitivityRecord, ToleranceSet};
-use spibench::tolerance::{Resolve, ToleranceOptions, is_metric, nominal, sensitivity, trial};
+use spibench::tolerance::{Resolve, ToleranceOptions, nominal, sensitivity, trial};
 
 fn worst(rows: &[SensitivityRecord], rule: &Resolve) -> (f64, usize) {
     let mut worst = 0.0f64;
@@ -47,12 +47,8 @@ fn main() {
         .unwrap_or(100);
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let doc = BenchDoc::read(&root.join("scenes/paper_bench.ron")).expect("the paper bench");
-    let set = ToleranceSet::read(
-        &root.join("scenes/tolerances/paper_bench.ron"),
-        &doc,
-        &is_metric,
-    )
-    .expect("the shipped tolerance file");
+    let set = ToleranceSet::read(&root.join("scenes/tolerances/paper_bench.ron"), &doc)
+        .expect("the shipped tolerance file");
     let threads = rayon::current_num_threads();
     println!(
         "paper bench, {} tolerances, {threads} thread(s)",
@@ -138,7 +134,7 @@ fn main() {
          objective: Balance)],",
         1,
     );
-    let cset = ToleranceSet::parse(&text, Path::new("compensated.ron"), &doc, &is_metric).unwrap();
+    let cset = ToleranceSet::parse(&text, Path::new("compensated.ron"), &doc).unwrap();
     let n_comp = trials.min(10);
     let t = Instant::now();
     let (mut comp, mut tr) = (0.0, 0.0);

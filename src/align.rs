@@ -350,6 +350,7 @@ fn warnings(u: &[Uncertainty], history: &[Step]) -> Vec<String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::quantities::BenchMetric;
     use std::path::Path;
 
     fn symmetric() -> BenchDoc {
@@ -452,8 +453,8 @@ mod tests {
         let n0 = nominal.file.detectors.minus.normal.to_unit().unwrap();
         let n1 = aligned.file.detectors.minus.normal.to_unit().unwrap();
         let tilt = n0.dot(n1).clamp(-1.0, 1.0).acos().to_degrees();
-        let imb = a.best.metrics.get("imbalance").unwrap();
-        let start = a.start.metrics.get("imbalance").unwrap();
+        let imb = &a.best.metrics[BenchMetric::Imbalance];
+        let start = &a.start.metrics[BenchMetric::Imbalance];
         eprintln!(
             "{} evaluations; diode {miss:.3} mm and {tilt:.2}° from nominal; imbalance {:.2e} ± \
              {:.1e} (start {:.2e}); values {:?}",

@@ -22,6 +22,7 @@ pub mod optics;
 pub mod outputs;
 pub mod pipeline;
 pub mod provenance;
+pub mod quantities;
 pub mod raster;
 pub mod reconstruction;
 pub mod report;

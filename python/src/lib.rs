@@ -64,16 +64,7 @@ pub(crate) fn run<T: Send>(
 }
 
 pub(crate) fn scheme_named(name: &str) -> Result<Scheme> {
-    Scheme::all()
-        .into_iter()
-        .find(|s| s.key() == name)
-        .ok_or_else(|| {
-            let names: Vec<&str> = Scheme::all().iter().map(|s| s.key()).collect();
-            Error::field(
-                "scheme",
-                format!("unknown scheme {name:?}; one of {}", names.join(", ")),
-            )
-        })
+    name.parse()
 }
 
 pub(crate) fn vec1<'py>(py: Python<'py>, v: Vec<f64>) -> Bound<'py, PyArray1<f64>> {

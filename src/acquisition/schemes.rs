@@ -202,6 +202,24 @@ pub enum Scheme {
     DoubleArmOffset,
 }
 
+impl std::str::FromStr for Scheme {
+    type Err = Error;
+
+    /// A scheme's [`Scheme::key`] (an input error naming the keys otherwise).
+    fn from_str(name: &str) -> Result<Scheme> {
+        Scheme::all()
+            .into_iter()
+            .find(|s| s.key() == name)
+            .ok_or_else(|| {
+                let names: Vec<&str> = Scheme::all().iter().map(|s| s.key()).collect();
+                Error::field(
+                    "scheme",
+                    format!("unknown scheme {name:?}; one of {}", names.join(", ")),
+                )
+            })
+    }
+}
+
 /// The noise-free measurement as an affine function of the object:
 /// y = gain·(A x) + sum_coefficient·Σx + constant, with A the scheme's operator.
 #[derive(Debug, Clone, Copy, PartialEq)]

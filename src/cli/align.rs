@@ -11,6 +11,7 @@ use clap::{Args, ValueEnum};
 
 use crate::align::{AlignOptions, Free, Objective, align};
 use crate::outputs::align::{AlignRun, printed, write};
+use crate::quantities::BenchMetric;
 use crate::report::output::OutputDir;
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -99,13 +100,8 @@ fn check_counts(args: &AlignArgs, free: usize, rays: u64) -> crate::Result<u64> 
 
 /// The objective's weights within ±[`crate::checked::MAX_SCALAR`] (10¹⁵), as every weight of an
 /// input file: a weight of 10³⁰⁸ is finite, but its squared standard errors overflow.
-fn check_weights(objective: &Objective) -> crate::Result<()> {
+fn check_weights(weights: impl IntoIterator<Item = (&'static str, f64)>) -> crate::Result<()> {
     let max = crate::checked::MAX_SCALAR;
-    let weights: Vec<(&str, f64)> = match objective {
-        Objective::Balance { offset_weight, .. } => vec![("--offset-weight", *offset_weight)],
-        Objective::Power => Vec::new(),
-        Objective::Weighted(w) => w.iter().map(|(_, v)| ("--weight", *v)).collect(),
-    };
     match weights
         .into_iter()
         .find(|(_, w)| !(w.is_finite() && w.abs() <= max))
@@ -153,7 +149,6 @@ pub fn run(args: &AlignArgs) -> Result<()> {
         doc.get(&f.path)?;
     }
     let objective = objective(args)?;
-    check_weights(&objective)?;
     crate::align::check_objective(&objective)?;
     let opts = &args.opts;
     let rays = opts.rays(&doc, DEFAULT_RAYS)?;
@@ -196,17 +191,30 @@ pub fn run(args: &AlignArgs) -> Result<()> {
 /// The command's parsed objective.
 fn objective(args: &AlignArgs) -> crate::Result<Objective> {
     Ok(match args.objective {
-        ObjectiveArg::Balance => Objective::Balance {
-            min_fraction: args.min_fraction,
-            offset_weight: args.offset_weight,
-        },
+        ObjectiveArg::Balance => {
+            check_weights([("--offset-weight", args.offset_weight)])?;
+            Objective::Balance {
+                min_fraction: args.min_fraction,
+                offset_weight: args.offset_weight,
+            }
+        }
         ObjectiveArg::Power => Objective::Power,
-        ObjectiveArg::Weighted => Objective::Weighted(
-            args.weight
+        ObjectiveArg::Weighted => {
+            let w: Vec<(String, f64)> = args
+                .weight
                 .iter()
                 .map(|w| super::parse_assignment(w, "--weight"))
-                .collect::<crate::Result<_>>()?,
-        ),
+                .collect::<crate::Result<_>>()?;
+            check_weights(w.iter().map(|(_, v)| ("--weight", *v)))?;
+            let metric = |(name, wt): (String, f64)| match name.parse::<BenchMetric>() {
+                Ok(m) => Ok((m, wt)),
+                Err(_) => Err(crate::Error::field(
+                    "--weight",
+                    format!("`{name}={wt}`: the metrics are {}", BenchMetric::keys()),
+                )),
+            };
+            Objective::Weighted(w.into_iter().map(metric).collect::<crate::Result<_>>()?)
+        }
     })
 }
 

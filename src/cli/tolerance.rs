@@ -16,9 +16,7 @@ use crate::outputs::tolerance::{read_shard_record, trial_ron, write};
 use crate::report::output::OutputDir;
 use crate::scene::doc::BenchDoc;
 use crate::scene::tolerance::{ShardFile, ToleranceSet};
-use crate::tolerance::{
-    ToleranceOptions, is_metric, merge, nominal, sensitivity, trial, trial_doc,
-};
+use crate::tolerance::{ToleranceOptions, merge, nominal, sensitivity, trial, trial_doc};
 
 /// Arguments of `spibench tolerance`.
 #[derive(Debug, Clone, Args)]
@@ -86,7 +84,7 @@ pub fn run(args: &ToleranceArgs) -> Result<()> {
         .as_deref()
         .ok_or_else(|| crate::Error::field("--tolerances", "give the tolerance file"))?;
     let tol_text = crate::scene::read_text(tol_path)?;
-    let set = ToleranceSet::parse(&tol_text, tol_path, &doc, &is_metric)?;
+    let set = ToleranceSet::parse(&tol_text, tol_path, &doc)?;
     let (rays, seed) = (opts.rays(&doc, DEFAULT_RAYS)?, opts.seed());
     let resolve = resolve_option(args, rays)?;
     if args.trials > MAX_TRIALS {
@@ -336,7 +334,6 @@ fn run_merge(args: &ToleranceArgs) -> Result<()> {
         &merged.tolerances_text,
         Path::new(&merged.tolerances_path),
         &doc,
-        &is_metric,
     )?;
     for ((p, _), s) in read.iter().zip(&shards) {
         crate::tolerance::check_shard_names(s, &set, p)?;

@@ -207,7 +207,7 @@ pub fn array_names(schemes: &[String], ratios: &[f64]) -> BTreeSet<String> {
 /// the ratios with the first.
 fn allowed_names(m: &Manifest, file: &Path) -> Result<BTreeSet<String>> {
     for (i, s) in m.schemes.iter().enumerate() {
-        if !Scheme::all().iter().any(|k| k.key() == s) {
+        if s.parse::<Scheme>().is_err() {
             return Err(bad_field(
                 file,
                 &format!("schemes[{i}]"),

@@ -195,12 +195,7 @@ impl Prepared {
                 },
             ) => {
                 let text = crate::scene::read_text(path)?;
-                let set = crate::scene::tolerance::ToleranceSet::parse(
-                    &text,
-                    path,
-                    &doc,
-                    &crate::pipeline::evaluate::is_metric,
-                )?;
+                let set = crate::scene::tolerance::ToleranceSet::parse(&text, path, &doc)?;
                 Some(DrawnBenches {
                     doc: doc.clone(),
                     set,

@@ -7,12 +7,13 @@
 use serde::Serialize;
 
 use crate::align::{AlignOptions, Alignment, Free, Objective};
+use crate::quantities::BenchMetric;
 use crate::report::csv::write_csv;
 use crate::report::html::{Block, Page, write_page};
 use crate::report::output::OutputDir;
 use crate::report::plot::{LinePlot, Series, write_plot};
 use crate::scene::doc::BenchDoc;
-use crate::transport::metrics::{METRICS, MetricRow};
+use crate::transport::metrics::MetricRow;
 
 use super::rows::Row;
 
@@ -95,7 +96,7 @@ pub fn write(
 /// apart (`Alignment::warnings`).
 pub fn printed(r: &AlignRun<'_>, dir: &std::path::Path) -> Vec<String> {
     let a = r.alignment;
-    let imb = a.best.metrics.get("imbalance").map(|m| m.estimate());
+    let imb = a.best.metrics[BenchMetric::Imbalance].estimate();
     // One line per variable, so that the output fits a terminal whatever the paths.
     let mut out = vec![format!(
         "aligned; the search stopped because {}",
@@ -115,11 +116,9 @@ pub fn printed(r: &AlignRun<'_>, dir: &std::path::Path) -> Vec<String> {
         ));
     }
     out.push(format!(
-        "imbalance {}; wrote {}",
-        imb.map_or_else(String::new, |e| format!(
-            "{:.3e} ± {:.1e}",
-            e.value, e.stderr
-        )),
+        "imbalance {:.3e} ± {:.1e}; wrote {}",
+        imb.value,
+        imb.stderr,
         dir.display()
     ));
     out
@@ -453,11 +452,11 @@ fn tables(free: &[Free], a: &Alignment) -> Vec<Block> {
             .collect(),
     });
     let mut mrows = Vec::new();
-    for (i, (m, unit, _)) in METRICS.iter().enumerate() {
-        let (s, b) = (&a.start.metrics.values[i], &a.best.metrics.values[i]);
+    for m in BenchMetric::ALL {
+        let (s, b) = (&a.start.metrics[m], &a.best.metrics[m]);
         let r = MetricRow::new(b, s);
         mrows.push(vec![
-            format!("{m} ({unit})"),
+            format!("{m} ({})", m.unit()),
             format!("{:.4e} ± {:.1e}", s.value, s.stderr()),
             format!("{:.4e} ± {:.1e}", r.value, r.stderr),
             format!("{:+.4e} ± {:.1e}", r.diff, r.diff_stderr),

@@ -2,7 +2,7 @@
 //! `sweep.csv`), `tolerance` (its nominal bench, trial rows, `trials.csv`) and `align` (its
 //! start and aligned benches); docs/outputs.md, "Metric rows".
 //!
-//! For each metric M of `transport::metrics::METRICS` (unit in the metric's table): `M`,
+//! For each metric M of `quantities::BenchMetric` (unit: `BenchMetric::unit`): `M`,
 //! `M_stderr`, `M_diff` (against the reference bench: the nominal bench, or align's start),
 //! `M_diff_stderr` (paired: common random numbers) and `M_diff_stderr_independent` (what two
 //! independent traces would give); then the same five for `cmrr_db` (the bench's, with the

@@ -7,6 +7,7 @@
 use serde::Serialize;
 
 use crate::pipeline::evaluate::Evaluation;
+use crate::quantities::BenchMetric;
 use crate::report::csv::write_csv;
 use crate::report::heatmap::{Heatmap, write_heatmap};
 use crate::report::html::{Block, Page, write_page};
@@ -14,18 +15,20 @@ use crate::report::output::OutputDir;
 use crate::report::plot::{LinePlot, Series, write_plot};
 use crate::sweep::limits::LimitReport;
 use crate::sweep::{Sweep, Vary};
-use crate::transport::metrics::METRICS;
 
 use super::rows::Row;
 
 /// The metrics plotted, with their axis labels.
-const PLOTTED: [(&str, &str); 6] = [
-    ("imbalance", "imbalance (k₊ − k₋)/(k₊ + k₋)"),
-    ("k_plus", "k₊ (A/W)"),
-    ("k_minus", "k₋ (A/W)"),
-    ("b_minus_minus_b_plus", "b₋ − b₊ (A)"),
-    ("leak_plus", "off-arm leak, all units + (ratio)"),
-    ("power_minus_w", "power on diode −, all units − (W)"),
+const PLOTTED: [(BenchMetric, &str); 6] = [
+    (BenchMetric::Imbalance, "imbalance (k₊ − k₋)/(k₊ + k₋)"),
+    (BenchMetric::KPlus, "k₊ (A/W)"),
+    (BenchMetric::KMinus, "k₋ (A/W)"),
+    (BenchMetric::BMinusMinusBPlus, "b₋ − b₊ (A)"),
+    (BenchMetric::LeakPlus, "off-arm leak, all units + (ratio)"),
+    (
+        BenchMetric::PowerMinusW,
+        "power on diode −, all units − (W)",
+    ),
 ];
 
 /// `summary.json` of `sweep`.
@@ -94,13 +97,11 @@ pub fn printed(s: &Sweep, crossed: &[LimitReport]) -> Vec<String> {
             line += &format!(" {v:>13.6}");
         }
         for (n, diff) in [
-            ("imbalance", false),
-            ("imbalance", true),
-            ("k_prime", false),
+            (BenchMetric::Imbalance, false),
+            (BenchMetric::Imbalance, true),
+            (BenchMetric::KPrime, false),
         ] {
-            let (Some(a), Some(b)) = (p.metrics.get(n), s.nominal.metrics.get(n)) else {
-                continue;
-            };
+            let (a, b) = (&p.metrics[n], &s.nominal.metrics[n]);
             let e = if diff { a.diff(b) } else { a.estimate() };
             line += &format!(" {:>20}", format!("{:.4e} ± {:.1e}", e.value, e.stderr));
         }
@@ -208,12 +209,12 @@ pub fn write(
                 nominal: n,
             })
             .collect(),
-        metrics: METRICS
+        metrics: BenchMetric::ALL
             .iter()
-            .map(|&(name, unit, meaning)| MetricDoc {
-                name,
-                unit,
-                meaning,
+            .map(|m| MetricDoc {
+                name: m.key(),
+                unit: m.unit(),
+                meaning: m.meaning(),
             })
             .collect(),
         limits: crossed,
@@ -237,10 +238,7 @@ fn line_plots(
     let mut figures = Vec::new();
     let xs: Vec<f64> = s.points.iter().map(|p| p.settings[0].1).collect();
     for (metric, label) in PLOTTED {
-        let Some(i) = METRICS.iter().position(|m| m.0 == metric) else {
-            continue;
-        };
-        let ys: Vec<f64> = s.points.iter().map(|p| p.metrics.values[i].value).collect();
+        let ys: Vec<f64> = s.points.iter().map(|p| p.metrics[metric].value).collect();
         let mut series = vec![Series {
             label: String::new(),
             x: xs.clone(),
@@ -249,13 +247,13 @@ fn line_plots(
                 s.points
                     .iter()
                     .map(|p| {
-                        let e = p.metrics.values[i].stderr();
+                        let e = p.metrics[metric].stderr();
                         if e.is_finite() { e } else { 0.0 }
                     })
                     .collect(),
             ),
         }];
-        series.extend(limit_lines(crossed, metric, &xs, &ys));
+        series.extend(limit_lines(crossed, metric.key(), &xs, &ys));
         let plot = LinePlot {
             title: String::new(),
             x_label: v.path.clone(),
@@ -397,17 +395,14 @@ fn heatmaps(
     files: &mut Vec<String>,
 ) -> crate::Result<Vec<(String, String)>> {
     let mut figures = Vec::new();
-    for (metric, label) in PLOTTED.iter().take(4) {
-        let Some(i) = METRICS.iter().position(|m| m.0 == *metric) else {
-            continue;
-        };
+    for &(metric, label) in PLOTTED.iter().take(4) {
         let h = Heatmap {
             x_label: a.path.clone(),
             y_label: b.path.clone(),
             value_label: label.to_string(),
             xs: a.values(),
             ys: b.values(),
-            values: s.points.iter().map(|p| p.metrics.values[i].value).collect(),
+            values: s.points.iter().map(|p| p.metrics[metric].value).collect(),
             mark: Some((nominal_values[0], nominal_values[1])),
         };
         let (svg, png) = (format!("{metric}.svg"), format!("{metric}.png"));
@@ -438,19 +433,16 @@ fn points_table(s: &Sweep) -> Block {
         .iter()
         .map(|p| {
             let mut r: Vec<String> = p.settings.iter().map(|(_, v)| format!("{v}")).collect();
-            let g = |n: &str| p.metrics.get(n).map(|m| m.estimate());
-            let d = |n: &str| match (p.metrics.get(n), s.nominal.metrics.get(n)) {
-                (Some(a), Some(b)) => Some(a.diff(b)),
-                _ => None,
-            };
+            let g = |m: BenchMetric| p.metrics[m].estimate();
+            let d = |m: BenchMetric| p.metrics[m].diff(&s.nominal.metrics[m]);
             for e in [
-                g("imbalance"),
-                d("imbalance"),
-                g("k_plus"),
-                g("k_minus"),
-                g("b_minus_minus_b_plus"),
+                g(BenchMetric::Imbalance),
+                d(BenchMetric::Imbalance),
+                g(BenchMetric::KPlus),
+                g(BenchMetric::KMinus),
+                g(BenchMetric::BMinusMinusBPlus),
             ] {
-                r.push(e.map_or_else(String::new, |e| pm(&e)));
+                r.push(pm(&e));
             }
             r
         })

@@ -14,6 +14,7 @@ use std::collections::BTreeMap;
 use serde::Serialize;
 
 use crate::optics::Bench;
+use crate::quantities::BenchMetric;
 use crate::trace::collection::Collection;
 use crate::transport::metrics::BenchMetrics;
 use crate::transport::{LedgerWorld, Transport};
@@ -63,7 +64,7 @@ pub struct TraceSummary {
     pub b_ambient_minus: f64,
     pub b_dark_plus: f64,
     pub b_dark_minus: f64,
-    /// The metrics of [`crate::transport::metrics::METRICS`] not given above, each with its
+    /// The metrics of [`crate::quantities::BenchMetric`] not given above, each with its
     /// `_stderr`: the detected powers `power_plus_w`, `power_minus_w` (W), the off-arm leaks
     /// `leak_plus`, `leak_minus` and the offset `b_minus_minus_b_plus` (A).
     #[serde(flatten)]
@@ -180,16 +181,15 @@ pub fn summarize(
 ) -> TraceSummary {
     let mut extra = BTreeMap::new();
     for name in [
-        "power_plus_w",
-        "power_minus_w",
-        "leak_plus",
-        "leak_minus",
-        "b_minus_minus_b_plus",
+        BenchMetric::PowerPlusW,
+        BenchMetric::PowerMinusW,
+        BenchMetric::LeakPlus,
+        BenchMetric::LeakMinus,
+        BenchMetric::BMinusMinusBPlus,
     ] {
-        if let Some(m) = metrics.get(name) {
-            extra.insert(name.to_string(), m.value);
-            extra.insert(format!("{name}_stderr"), m.stderr());
-        }
+        let m = &metrics[name];
+        extra.insert(name.to_string(), m.value);
+        extra.insert(format!("{name}_stderr"), m.stderr());
     }
     TraceSummary {
         scene: scene.to_string(),

@@ -22,12 +22,13 @@ use crate::pipeline::{
     self, CacheStatus, Progress, Recorded, ResolutionContext, Saturation, SchemeResult,
     SequenceSummary, TraceRequest, Traced,
 };
+use crate::quantities::{BenchMetric, ImageScore, Quantity};
 use crate::raster::Raster;
 use crate::reconstruction::{Solver, ZeroOneHandling};
 use crate::scene::doc::BenchDoc;
 use crate::scene::run::{RunScene, RunSettings};
 use crate::transport::Transport;
-use crate::transport::metrics::{BenchMetrics, METRICS, Metric, MetricRow};
+use crate::transport::metrics::{BenchMetrics, MetricRow, TracedValue};
 
 pub use crate::acquisition::Sequence;
 
@@ -57,7 +58,7 @@ pub struct Evaluation {
     /// The bench's common-mode rejection (dB) with the arms' k± in it
     /// ([`crate::transport::metrics::cmrr_db`]), with its Monte Carlo influence; None when the
     /// electronics are invalid.
-    pub cmrr: Option<Metric>,
+    pub cmrr: Option<TracedValue>,
     /// The detector's common-mode rejection from its electronics alone (dB, not traced;
     /// infinite for matched diodes); None when the electronics are invalid.
     pub cmrr_electronics_db: Option<f64>,
@@ -100,12 +101,11 @@ pub fn evaluation_of(
 ) -> Evaluation {
     // The electronics alone (no bench build): the diodes' responsivity scales.
     let detector = crate::scene::run::detector_si(&doc.file.electronics.detector).ok();
-    let cmrr = detector.as_ref().and_then(|d| {
-        let imbalance = traced.metrics.get("imbalance")?;
-        Some(crate::transport::metrics::cmrr_db(
-            imbalance,
+    let cmrr = detector.as_ref().map(|d| {
+        crate::transport::metrics::cmrr_db(
+            &traced.metrics[BenchMetric::Imbalance],
             d.responsivity_scale,
-        ))
+        )
     });
     Evaluation {
         settings,
@@ -115,21 +115,6 @@ pub fn evaluation_of(
         metrics: traced.metrics.clone(),
         quality,
     }
-}
-
-/// The common-mode rejections every evaluation records beside the traced metrics: the bench's
-/// (with the arms' k±) and the electronics' alone. Value names elsewhere (tolerance records)
-/// are checked against this list, so a new one is added here once.
-pub const CMRR_VALUES: [&str; 2] = ["cmrr_db", "cmrr_electronics_db"];
-
-/// Whether `name` is a number recorded for every evaluated bench by [`values`] (quality scores
-/// are checked when the evaluations exist).
-pub fn is_metric(name: &str) -> bool {
-    METRICS.iter().any(|m| m.0 == name)
-        || CMRR_VALUES.contains(&name)
-        || name.ends_with("_mssim")
-        || name.ends_with("_psnr_db")
-        || name.ends_with("_finest_lp_per_mm")
 }
 
 /// `SCHEME_PERCENT`, e.g. `secondary_complementary_balancing_40`.
@@ -143,8 +128,9 @@ pub fn quality_key(scheme: &str, ratio: f64) -> String {
 /// USAF element (lp/mm; NaN when none is resolved).
 pub fn values(p: &Evaluation, nominal: &Evaluation) -> Vec<(String, f64)> {
     let mut v = Vec::new();
-    for (i, (name, _, _)) in METRICS.iter().enumerate() {
-        let r = MetricRow::new(&p.metrics.values[i], &nominal.metrics.values[i]);
+    for (m, value) in p.metrics.iter() {
+        let name = m.key();
+        let r = MetricRow::new(value, &nominal.metrics[m]);
         v.push((name.to_string(), r.value));
         v.push((format!("{name}_stderr"), r.stderr));
         v.push((format!("{name}_diff"), r.diff));
@@ -172,24 +158,33 @@ pub fn values(p: &Evaluation, nominal: &Evaluation) -> Vec<(String, f64)> {
         },
         _ => nan,
     };
-    v.push(("cmrr_db".into(), c.value));
-    v.push(("cmrr_db_stderr".into(), c.stderr));
-    v.push(("cmrr_db_diff".into(), c.diff));
-    v.push(("cmrr_db_diff_stderr".into(), c.diff_stderr));
+    let cmrr = Quantity::Cmrr;
+    v.push((cmrr.to_string(), c.value));
+    v.push((format!("{cmrr}_stderr"), c.stderr));
+    v.push((format!("{cmrr}_diff"), c.diff));
+    v.push((format!("{cmrr}_diff_stderr"), c.diff_stderr));
     v.push((
-        "cmrr_electronics_db".into(),
+        Quantity::CmrrElectronics.to_string(),
         p.cmrr_electronics_db.unwrap_or(f64::NAN),
     ));
     v.push(("arrivals".into(), p.arrivals as f64));
     if let Some(q) = &p.quality {
         for r in q {
             let key = quality_key(r.scheme.key(), r.ratio);
-            v.push((format!("{key}_mssim"), r.mssim));
-            v.push((format!("{key}_psnr_db"), r.psnr_db));
-            v.push((
-                format!("{key}_finest_lp_per_mm"),
-                r.finest_resolved.as_ref().map_or(f64::NAN, |e| e.lp_per_mm),
-            ));
+            for score in ImageScore::ALL {
+                let x = match score {
+                    ImageScore::Mssim => r.mssim,
+                    ImageScore::PsnrDb => r.psnr_db,
+                    ImageScore::FinestLpPerMm => {
+                        r.finest_resolved.as_ref().map_or(f64::NAN, |e| e.lp_per_mm)
+                    }
+                };
+                let q = Quantity::Score {
+                    key: key.clone(),
+                    score,
+                };
+                v.push((q.to_string(), x));
+            }
         }
     }
     v
@@ -264,13 +259,11 @@ pub struct RunOutcome {
 impl RunOutcome {
     /// The bench's common-mode rejection with the arms' k± in it (dB, with its influence):
     /// [`crate::transport::metrics::cmrr_db`] of the traced imbalance and the diodes' mismatch.
-    pub fn cmrr(&self) -> Metric {
-        let imbalance = self
-            .metrics
-            .get("imbalance")
-            .cloned()
-            .unwrap_or_else(|| Metric::exact(f64::NAN, 0));
-        crate::transport::metrics::cmrr_db(&imbalance, self.detector.responsivity_scale)
+    pub fn cmrr(&self) -> TracedValue {
+        crate::transport::metrics::cmrr_db(
+            &self.metrics[BenchMetric::Imbalance],
+            self.detector.responsivity_scale,
+        )
     }
 
     /// The result of `scheme` at ratio index `r`.

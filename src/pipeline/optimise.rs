@@ -45,8 +45,9 @@
 
 use crate::error::{Error, Result};
 use crate::pipeline::evaluate::{EvaluateOptions, Evaluation, evaluate};
+use crate::quantities::BenchMetric;
 use crate::scene::doc::BenchDoc;
-use crate::transport::metrics::{BenchMetrics, METRICS};
+use crate::transport::metrics::BenchMetrics;
 
 /// A free variable and its bounds (values of the bench variable as `variables::get` reads
 /// them: a field's value, or a rigid-body move relative to the starting bench).
@@ -95,7 +96,7 @@ pub enum Objective {
         offset_weight: f64,
     },
     Power,
-    Weighted(Vec<(String, f64)>),
+    Weighted(Vec<(BenchMetric, f64)>),
 }
 
 impl Objective {
@@ -195,9 +196,9 @@ pub fn settings(free: &[Free], x: &[f64]) -> Vec<(String, f64)> {
 /// An objective to minimise: the value and its standard error at a point of the unit box.
 type ObjectiveFn<'a> = dyn FnMut(&[f64]) -> Result<(f64, f64)> + 'a;
 
-fn value(m: &BenchMetrics, name: &str) -> (f64, f64) {
-    m.get(name)
-        .map_or((f64::NAN, f64::NAN), |x| (x.value, x.stderr()))
+fn value(m: &BenchMetrics, metric: BenchMetric) -> (f64, f64) {
+    let x = &m[metric];
+    (x.value, x.stderr())
 }
 
 /// The objective (to minimise) and its standard error, given the reference k (see the module
@@ -225,11 +226,11 @@ pub fn terms(
     k_ref: f64,
     paired: Option<&BenchMetrics>,
 ) -> Vec<Term> {
-    let value = |m: &BenchMetrics, name: &str| -> (f64, f64) {
-        let (v, se) = value(m, name);
-        match (paired.and_then(|p| p.get(name)), m.get(name)) {
-            (Some(r), Some(x)) => (v, x.diff(r).stderr),
-            _ => (v, se),
+    let value = |m: &BenchMetrics, metric: BenchMetric| -> (f64, f64) {
+        let (v, se) = value(m, metric);
+        match paired {
+            Some(p) => (v, m[metric].diff(&p[metric]).stderr),
+            None => (v, se),
         }
     };
     let term = |name: &str, value: f64, stderr: f64| Term {
@@ -242,9 +243,9 @@ pub fn terms(
             min_fraction,
             offset_weight,
         } => {
-            let (imb, imb_se) = value(m, "imbalance");
-            let (kp, _) = value(m, "k_plus");
-            let (km, _) = value(m, "k_minus");
+            let (imb, imb_se) = value(m, BenchMetric::Imbalance);
+            let (kp, _) = value(m, BenchMetric::KPlus);
+            let (km, _) = value(m, BenchMetric::KMinus);
             let short = |k: f64| (min_fraction * k_ref - k).max(0.0) / k_ref;
             let mut t = vec![term(
                 "|imbalance|",
@@ -252,9 +253,9 @@ pub fn terms(
                 imb_se,
             )];
             if *offset_weight != 0.0 {
-                let (bp, _) = value(m, "b_plus");
-                let (bm, _) = value(m, "b_minus");
-                let (db, db_se) = value(m, "b_minus_minus_b_plus");
+                let (bp, _) = value(m, BenchMetric::BPlus);
+                let (bm, _) = value(m, BenchMetric::BMinus);
+                let (db, db_se) = value(m, BenchMetric::BMinusMinusBPlus);
                 let scale = (bp + bm).abs();
                 let (off, off_se) = if scale > 0.0 {
                     (db.abs() / scale, db_se / scale)
@@ -275,14 +276,14 @@ pub fn terms(
             t
         }
         Objective::Power => {
-            let (k, se) = value(m, "k_prime");
+            let (k, se) = value(m, BenchMetric::KPrime);
             vec![term("−k'/k'_start", -k / k_ref, se / k_ref)]
         }
         Objective::Weighted(w) => w
             .iter()
-            .map(|(name, wt)| {
-                let (x, se) = value(m, name);
-                term(&format!("{wt}·{name}"), wt * x, (wt * se).abs())
+            .map(|&(metric, wt)| {
+                let (x, se) = value(m, metric);
+                term(&format!("{wt}·{metric}"), wt * x, (wt * se).abs())
             })
             .collect(),
     }
@@ -310,14 +311,11 @@ pub fn check_objective(obj: &Objective) -> Result<()> {
             "the weighted objective needs at least one `weight` METRIC=W",
         )),
         Objective::Weighted(w) => {
-            for (name, wt) in w {
-                if !METRICS.iter().any(|m| m.0 == name) || !wt.is_finite() {
+            for (metric, wt) in w {
+                if !wt.is_finite() {
                     return Err(Error::field(
                         "weight",
-                        format!(
-                            "`{name}={wt}`: the metrics are {}",
-                            METRICS.map(|m| m.0).join(", ")
-                        ),
+                        format!("`{metric}={wt}`: the metrics are {}", BenchMetric::keys()),
                     ));
                 }
             }
@@ -382,10 +380,10 @@ pub fn search(
         .ok_or_else(|| Error::input("the starting bench is not valid"))?;
     let mut stop;
     let k_ref = match obj {
-        Objective::Power => value(&first.metrics, "k_prime").0,
-        _ => value(&first.metrics, "k_plus")
+        Objective::Power => value(&first.metrics, BenchMetric::KPrime).0,
+        _ => value(&first.metrics, BenchMetric::KPlus)
             .0
-            .max(value(&first.metrics, "k_minus").0),
+            .max(value(&first.metrics, BenchMetric::KMinus).0),
     };
     if k_ref.is_nan() || k_ref <= 0.0 {
         return Err(Error::input(
@@ -418,7 +416,7 @@ pub fn search(
             *r = Some((stage, p.metrics.clone()));
         }
         let (f, se) = objective(obj, &p.metrics, k_ref, r.as_ref().map(|(_, m)| m));
-        let (imb, imb_se) = value(&p.metrics, "imbalance");
+        let (imb, imb_se) = value(&p.metrics, BenchMetric::Imbalance);
         history.borrow_mut().push(Step {
             stage,
             rays,
@@ -427,8 +425,8 @@ pub fn search(
             objective_stderr: se,
             imbalance: imb,
             imbalance_stderr: imb_se,
-            k_plus: value(&p.metrics, "k_plus").0,
-            k_minus: value(&p.metrics, "k_minus").0,
+            k_plus: value(&p.metrics, BenchMetric::KPlus).0,
+            k_minus: value(&p.metrics, BenchMetric::KMinus).0,
         });
         progress(history.borrow().len());
         Ok((if f.is_nan() { f64::INFINITY } else { f }, se))
@@ -640,9 +638,9 @@ mod tests {
     #[test]
     fn balance_terms_are_explicit_and_the_offset_is_off_by_default() {
         let n = [10u64; 4];
-        let metric = |v: f64| crate::transport::metrics::Metric::total(&n, &[v / 4.0; 4]);
+        let metric = |v: f64| crate::transport::metrics::TracedValue::total(&n, &[v / 4.0; 4]);
         // k₊ = 1.0, k₋ = 0.98: imbalance 0.0101; b₊ = 1, b₋ = 10: offset term 9/11 = 0.818.
-        let values = vec![
+        let values = [
             metric(1.0),
             metric(0.98),
             metric(1.98),

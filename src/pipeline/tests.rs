@@ -6,6 +6,7 @@ use std::path::{Path, PathBuf};
 
 use super::cache::{CacheKey, TraceCache};
 use super::*;
+use crate::quantities::BenchMetric;
 use crate::scene::doc::BenchDoc;
 
 fn scene_path(name: &str) -> PathBuf {
@@ -121,30 +122,30 @@ fn bench_metrics_agree_with_the_transport() {
     let tr = &t.transport;
     let close = |a: f64, b: f64| (a - b).abs() <= 1e-12 * a.abs().max(b.abs()).max(1e-30);
     for (name, e) in [
-        ("k_plus", tr.k[0]),
-        ("k_minus", tr.k[1]),
-        ("k_prime", tr.k_prime),
-        ("imbalance", tr.imbalance),
-        ("b_plus", tr.b[0]),
-        ("b_minus", tr.b[1]),
-        ("x_total_w", tr.x_total),
+        (BenchMetric::KPlus, tr.k[0]),
+        (BenchMetric::KMinus, tr.k[1]),
+        (BenchMetric::KPrime, tr.k_prime),
+        (BenchMetric::Imbalance, tr.imbalance),
+        (BenchMetric::BPlus, tr.b[0]),
+        (BenchMetric::BMinus, tr.b[1]),
+        (BenchMetric::XTotalW, tr.x_total),
     ] {
-        let v = m.get(name).unwrap().estimate();
+        let v = m[name].estimate();
         assert!(close(v.value, e.value), "{name}: {v:?} vs {e:?}");
         assert!(close(v.stderr, e.stderr), "{name}: {v:?} vs {e:?}");
     }
     // The detected powers are the ledger's.
     let l = &tr.ledger;
     assert!(close(
-        m.get("power_plus_w").unwrap().value,
+        m[BenchMetric::PowerPlusW].value,
         l.worlds[0].detected_w[0]
     ));
     assert!(close(
-        m.get("power_minus_w").unwrap().value,
+        m[BenchMetric::PowerMinusW].value,
         l.worlds[1].detected_w[1]
     ));
     assert!(close(
-        m.get("leak_plus").unwrap().value,
+        m[BenchMetric::LeakPlus].value,
         l.worlds[0].detected_w[1] / l.worlds[0].detected_w[0]
     ));
 }

@@ -32,6 +32,7 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Serialize};
 
 use crate::error::{Error, Result};
+use crate::quantities::Quantity;
 use crate::scene::doc::BenchDoc;
 use crate::scene::numbers::{Count, Finite, Mssim, NonNegative, Sigmas, via};
 
@@ -120,23 +121,33 @@ struct CompensatorSpec {
     objective: CompensatorObjective,
 }
 
-/// A limit a built bench must meet, on one recorded metric.
-#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
-#[serde(deny_unknown_fields)]
-pub struct Limit {
+/// A limit as written in a file (the name `Limit` is the one a file may write before it).
+#[derive(Debug, Clone, Deserialize)]
+#[serde(rename = "Limit", deny_unknown_fields)]
+struct LimitSpec {
     /// A metric name of the trial rows (`imbalance`, `k_prime`, `leak_plus`, …, or with
     /// `--quality` `SCHEME_RATIO_mssim` such as `scb_40_mssim`).
-    pub metric: String,
+    metric: String,
     #[serde(default, deserialize_with = "via::<Option<Finite>, _, _>")]
-    pub min: Option<f64>,
+    min: Option<f64>,
     #[serde(default, deserialize_with = "via::<Option<Finite>, _, _>")]
-    pub max: Option<f64>,
+    max: Option<f64>,
     /// |value| ≤ abs_max.
     #[serde(default, deserialize_with = "via::<Option<NonNegative>, _, _>")]
+    abs_max: Option<f64>,
+}
+
+/// A limit a built bench must meet, on one recorded quantity.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ToleranceLimit {
+    pub metric: Quantity,
+    pub min: Option<f64>,
+    pub max: Option<f64>,
+    /// |value| ≤ abs_max.
     pub abs_max: Option<f64>,
 }
 
-impl Limit {
+impl ToleranceLimit {
     /// Whether a value meets the limit (NaN never does).
     pub fn holds(&self, v: f64) -> bool {
         !v.is_nan()
@@ -179,7 +190,7 @@ struct ToleranceFileSpec {
     #[serde(default)]
     compensators: Vec<CompensatorSpec>,
     #[serde(default)]
-    limits: Vec<Limit>,
+    limits: Vec<LimitSpec>,
     #[serde(default)]
     quality: Option<QualityLimit>,
 }
@@ -211,7 +222,7 @@ pub struct ToleranceSet {
     pub path: PathBuf,
     pub tolerances: Vec<Tolerance>,
     pub compensators: Vec<Compensator>,
-    pub limits: Vec<Limit>,
+    pub limits: Vec<ToleranceLimit>,
     pub quality: Option<QualityLimit>,
 }
 
@@ -221,20 +232,14 @@ pub const MAX_ENTRIES: usize = 1000;
 impl ToleranceSet {
     /// Reads a tolerance file and checks it against the bench: every path must name a bench
     /// variable, every range must be finite and ordered, and the bench must accept both ends
-    /// (a field set outside its valid range is refused). `is_metric` says which limit metric
-    /// names exist.
-    pub fn read(path: &Path, doc: &BenchDoc, is_metric: &dyn Fn(&str) -> bool) -> Result<Self> {
+    /// (a field set outside its valid range is refused); every limit must name a [`Quantity`].
+    pub fn read(path: &Path, doc: &BenchDoc) -> Result<Self> {
         let text = crate::scene::read_text(path)?;
-        Self::parse(&text, path, doc, is_metric)
+        Self::parse(&text, path, doc)
     }
 
     /// Parses tolerance text; `path` names it in errors.
-    pub fn parse(
-        text: &str,
-        path: &Path,
-        doc: &BenchDoc,
-        is_metric: &dyn Fn(&str) -> bool,
-    ) -> Result<Self> {
+    pub fn parse(text: &str, path: &Path, doc: &BenchDoc) -> Result<Self> {
         let spec: ToleranceFileSpec = crate::scene::parse_ron(text, path)?;
         // An error at the line where `needle` (a path or a metric, a string) is first written.
         let locate = |needle: &str, field: &str, msg: String| -> Error {
@@ -321,8 +326,9 @@ impl ToleranceSet {
                 objective: c.objective,
             });
         }
+        let mut limits = Vec::with_capacity(spec.limits.len());
         for l in &spec.limits {
-            if !is_metric(&l.metric) {
+            let Ok(metric) = l.metric.parse::<Quantity>() else {
                 return Err(locate(
                     &l.metric,
                     "metric",
@@ -332,7 +338,7 @@ impl ToleranceSet {
                         l.metric
                     ),
                 ));
-            }
+            };
             if l.min.is_none() && l.max.is_none() && l.abs_max.is_none() {
                 return Err(locate(
                     &l.metric,
@@ -352,12 +358,18 @@ impl ToleranceSet {
                     ),
                 ));
             }
+            limits.push(ToleranceLimit {
+                metric,
+                min: l.min,
+                max: l.max,
+                abs_max: l.abs_max,
+            });
         }
         Ok(ToleranceSet {
             path: path.to_path_buf(),
             tolerances,
             compensators,
-            limits: spec.limits,
+            limits,
             quality: spec.quality,
         })
     }
@@ -394,9 +406,9 @@ impl ToleranceSet {
                 locate::first_key(text, "ratio_percent"),
             ));
         }
-        let scored = ["_mssim", "_psnr_db", "_finest_lp_per_mm"];
         for l in &self.limits {
-            if scored.iter().any(|s| l.metric.ends_with(s)) && !is_score(&l.metric) {
+            let name = l.metric.to_string();
+            if !l.metric.is_traced() && !is_score(&name) {
                 let example = ratios_percent.first().map_or(String::new(), |r| {
                     format!(", e.g. `secondary_complementary_balancing_{r}_mssim`")
                 });
@@ -409,7 +421,7 @@ impl ToleranceSet {
                     ),
                 )
                 .in_file(&self.path);
-                return Err(locate::at(e, text, locate::string_literal(text, &l.metric)));
+                return Err(locate::at(e, text, locate::string_literal(text, &name)));
             }
         }
         Ok(())
@@ -522,13 +534,13 @@ mod tests {
     }
 
     fn parse(text: &str) -> Result<ToleranceSet> {
-        ToleranceSet::parse(text, Path::new("t.ron"), &doc(), &|m| m == "imbalance")
+        ToleranceSet::parse(text, Path::new("t.ron"), &doc())
     }
 
     #[test]
     fn shipped_file_reads() {
         let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/tolerances/paper_bench.ron");
-        let s = ToleranceSet::read(&p, &doc(), &|_| true).unwrap();
+        let s = ToleranceSet::read(&p, &doc()).unwrap();
         assert!(s.tolerances.len() >= 10);
         assert!(s.tolerances.iter().any(|t| t.path == "dmd.tilt_deg"));
     }

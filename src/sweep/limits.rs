@@ -16,11 +16,12 @@ use serde::Serialize;
 
 use super::Sweep;
 use crate::error::{Error, Result};
+use crate::quantities::{BenchMetric, Quantity};
 
 /// A limit on one metric: |metric| ≤ value.
 #[derive(Debug, Clone, PartialEq)]
 pub struct MetricLimit {
-    pub metric: String,
+    pub metric: Quantity,
     pub value: f64,
 }
 
@@ -33,22 +34,22 @@ impl MetricLimit {
             .split_once('=')
             .ok_or_else(|| bad("expected METRIC=VALUE, e.g. imbalance=0.01".into()))?;
         let metric = metric.trim();
-        let traced = crate::transport::metrics::METRICS
-            .iter()
-            .any(|m| m.0 == metric)
-            || crate::pipeline::evaluate::CMRR_VALUES.contains(&metric);
-        let known = traced || (quality && crate::pipeline::evaluate::is_metric(metric));
-        if !known {
-            let names: Vec<&str> = crate::transport::metrics::METRICS
-                .iter()
-                .map(|m| m.0)
-                .chain(crate::pipeline::evaluate::CMRR_VALUES)
+        let Some(known) = metric
+            .parse::<Quantity>()
+            .ok()
+            .filter(|q| q.is_traced() || quality)
+        else {
+            let names: Vec<String> = BenchMetric::ALL
+                .map(Quantity::Metric)
+                .into_iter()
+                .chain(Quantity::CMRRS)
+                .map(|q| q.to_string())
                 .collect();
             return Err(bad(format!(
                 "unknown metric `{metric}` (one of {}; image scores with `quality`)",
                 names.join(", ")
             )));
-        }
+        };
         let value: f64 = value
             .trim()
             .parse()
@@ -59,7 +60,7 @@ impl MetricLimit {
             )));
         }
         Ok(MetricLimit {
-            metric: metric.to_string(),
+            metric: known,
             value,
         })
     }
@@ -201,10 +202,11 @@ pub fn report(limit: &MetricLimit, s: &Sweep) -> Result<LimitReport> {
         .map(|p| crate::pipeline::evaluate::values(p, &s.nominal))
         .collect();
     let get = |r: &[(String, f64)], k: &str| r.iter().find(|(n, _)| n == k).map(|e| e.1);
-    if rows.iter().all(|r| get(r, &limit.metric).is_none()) {
+    let metric = limit.metric.to_string();
+    if rows.iter().all(|r| get(r, &metric).is_none()) {
         return Err(Error::field(
             "limit",
-            format!("the sweep's rows have no `{}`", limit.metric),
+            format!("the sweep's rows have no `{metric}`"),
         ));
     }
     let col =
@@ -219,11 +221,11 @@ pub fn report(limit: &MetricLimit, s: &Sweep) -> Result<LimitReport> {
                 .map_or(f64::NAN, |e| e.1)
         })
         .collect();
-    let y = col(&limit.metric);
-    let se = col(&format!("{}_stderr", limit.metric));
+    let y = col(&metric);
+    let se = col(&format!("{metric}_stderr"));
     let valid: Vec<f64> = y.iter().copied().filter(|v| v.is_finite()).collect();
     Ok(LimitReport {
-        metric: limit.metric.clone(),
+        metric,
         limit: limit.value,
         variable: v.path.clone(),
         points_within: valid.iter().filter(|v| v.abs() <= limit.value).count(),
@@ -268,7 +270,10 @@ mod tests {
     #[test]
     fn limits_parse_and_reject() {
         let l = MetricLimit::parse("imbalance=0.01", false).unwrap();
-        assert_eq!((l.metric.as_str(), l.value), ("imbalance", 0.01));
+        assert_eq!(
+            (l.metric, l.value),
+            (Quantity::Metric(BenchMetric::Imbalance), 0.01)
+        );
         for bad in [
             "imbalance",
             "imbalance=x",

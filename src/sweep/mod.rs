@@ -171,6 +171,7 @@ pub fn sweep(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::quantities::BenchMetric;
     use std::path::Path;
 
     fn paper() -> BenchDoc {
@@ -187,8 +188,8 @@ mod tests {
         }
     }
 
-    fn metric<'a>(p: &'a Evaluation, name: &str) -> &'a crate::transport::metrics::Metric {
-        p.metrics.get(name).unwrap()
+    fn metric(p: &Evaluation, m: BenchMetric) -> &crate::transport::metrics::TracedValue {
+        &p.metrics[m]
     }
 
     /// With common random numbers, the standard error of the difference between two nearby
@@ -209,7 +210,7 @@ mod tests {
             ("detectors.minus.decenter_mm.x", 0.3),
         ] {
             let s = sweep(&doc, &[at(path, v, v, 1)], &o, &|_, _| {}).unwrap();
-            for name in ["imbalance", "k_minus"] {
+            for name in [BenchMetric::Imbalance, BenchMetric::KMinus] {
                 let (a, b) = (metric(&s.points[0], name), metric(&s.nominal, name));
                 let paired = a.diff(b).stderr;
                 let independent = a.stderr().hypot(b.stderr());
@@ -240,10 +241,11 @@ mod tests {
             at("detectors.minus.despace_mm", -10.0, -25.0, 4),
         ] {
             let s = sweep(&doc, std::slice::from_ref(&v), &o, &|_, _| {}).unwrap();
-            let nominal = metric(&s.nominal, "k_minus").value;
+            let nominal = metric(&s.nominal, BenchMetric::KMinus).value;
             for w in s.points.windows(2) {
-                let step = metric(&w[1], "k_minus").diff(metric(&w[0], "k_minus"));
-                let lit = metric(&w[0], "k_minus").value > 0.01 * nominal;
+                let step =
+                    metric(&w[1], BenchMetric::KMinus).diff(metric(&w[0], BenchMetric::KMinus));
+                let lit = metric(&w[0], BenchMetric::KMinus).value > 0.01 * nominal;
                 assert!(
                     if lit {
                         step.value < -3.0 * step.stderr

@@ -25,23 +25,23 @@ use serde::Serialize;
 
 use crate::error::{Error, Result};
 use crate::pipeline::evaluate::{EvaluateOptions, Evaluation, evaluate};
+use crate::quantities::{BenchMetric, ImageScore, Quantity};
 use crate::scene::doc::BenchDoc;
 use crate::scene::tolerance::{SensitivityRecord, ToleranceSet, TrialRecord, value_of};
-use crate::transport::metrics::METRICS;
 
-pub use crate::pipeline::evaluate::{is_metric, quality_key, values};
+pub use crate::pipeline::evaluate::{quality_key, values};
 
 pub mod summaries;
 pub use crate::pipeline::perturb::{TrialBench, draw, trial_doc};
 
 /// The metrics of the sensitivity table, in its column order.
-pub const SENSITIVITY_METRICS: [&str; 6] = [
-    "imbalance",
-    "k_prime",
-    "b_minus_minus_b_plus",
-    "leak_plus",
-    "leak_minus",
-    "cmrr_db",
+pub const SENSITIVITY_METRICS: [Quantity; 6] = [
+    Quantity::Metric(BenchMetric::Imbalance),
+    Quantity::Metric(BenchMetric::KPrime),
+    Quantity::Metric(BenchMetric::BMinusMinusBPlus),
+    Quantity::Metric(BenchMetric::LeakPlus),
+    Quantity::Metric(BenchMetric::LeakMinus),
+    Quantity::Cmrr,
 ];
 
 /// How to analyse: the rays and seed of every traced bench, and whether every trial runs the
@@ -330,14 +330,16 @@ pub fn percentile(sorted: &[f64], p: f64) -> f64 {
 }
 
 /// The metrics percentiles are reported for (and the quality scores present in the records).
-fn reported(records: &[TrialRecord]) -> Vec<String> {
-    let mut names: Vec<String> = METRICS.iter().map(|m| m.0.to_string()).collect();
-    names.push("cmrr_db".into());
+fn reported(records: &[TrialRecord]) -> Vec<Quantity> {
+    let mut names: Vec<Quantity> = BenchMetric::ALL.map(Quantity::Metric).to_vec();
+    names.push(Quantity::Cmrr);
     if let Some(r) = records.iter().find(|r| r.error.is_none()) {
         for (k, _) in &r.values {
-            if k.ends_with("_mssim") || k.ends_with("_psnr_db") || k.ends_with("_finest_lp_per_mm")
-            {
-                names.push(k.clone());
+            if let Some((key, score)) = ImageScore::split(k) {
+                names.push(Quantity::Score {
+                    key: key.to_string(),
+                    score,
+                });
             }
         }
     }
@@ -361,7 +363,8 @@ pub fn analyse(
     let mut percentiles = Vec::new();
     let names = reported(records);
     let tails = summaries::tails(&names, &ok, &set.limits);
-    for name in names {
+    for q in names {
+        let name = q.to_string();
         let mut v = column(&name);
         if v.is_empty() {
             continue;
@@ -390,20 +393,23 @@ pub fn analyse(
         .limits
         .iter()
         .map(|l| {
+            let name = l.metric.to_string();
             let passed = ok
                 .iter()
-                .filter(|r| r.value(&l.metric).is_some_and(|v| l.holds(v)))
+                .filter(|r| r.value(&name).is_some_and(|v| l.holds(v)))
                 .count();
             yield_row(l.describe(), passed, n)
         })
         .collect();
     if set.limits.len() > 1 {
+        let names: Vec<String> = set.limits.iter().map(|l| l.metric.to_string()).collect();
         let passed = ok
             .iter()
             .filter(|r| {
                 set.limits
                     .iter()
-                    .all(|l| r.value(&l.metric).is_some_and(|v| l.holds(v)))
+                    .zip(&names)
+                    .all(|(l, name)| r.value(name).is_some_and(|v| l.holds(v)))
             })
             .count();
         yields.push(yield_row("all limits".into(), passed, n));
@@ -451,7 +457,7 @@ pub fn analyse(
                     }
                 }
             }
-            let mc = column(m);
+            let mc = column(&m.to_string());
             let mean = mc.iter().sum::<f64>() / mc.len().max(1) as f64;
             let sd = (mc.iter().map(|x| (x - mean).powi(2)).sum::<f64>()
                 / (mc.len() as f64 - 1.0).max(1.0))
@@ -462,7 +468,7 @@ pub fn analyse(
                 monte_carlo_std_dev: if mc.len() >= 2 { sd } else { f64::NAN },
                 dominant: dominant.0,
                 dominant_share: if total > 0.0 { dominant.1 / total } else { 0.0 },
-                linearity_flags: summaries::linearity_flags(m, sens),
+                linearity_flags: summaries::linearity_flags(&m, sens),
             });
         }
     }
@@ -601,23 +607,16 @@ pub fn is_value_name(name: &str) -> bool {
         .iter()
         .find_map(|s| name.strip_suffix(s))
         .unwrap_or(name);
-    if METRICS.iter().any(|m| m.0 == base)
-        || crate::pipeline::evaluate::CMRR_VALUES.contains(&base)
-        || name == "arrivals"
-    {
+    if base.parse::<Quantity>().is_ok_and(|q| q.is_traced()) || name == "arrivals" {
         return true;
     }
-    ["_mssim", "_psnr_db", "_finest_lp_per_mm"]
-        .iter()
-        .filter_map(|s| name.strip_suffix(s))
-        .filter_map(|key| key.rsplit_once('_'))
-        .any(|(scheme, pct)| {
+    ImageScore::split(name)
+        .and_then(|(key, _)| key.rsplit_once('_'))
+        .is_some_and(|(scheme, pct)| {
             !pct.is_empty()
                 && pct.len() <= 3
                 && pct.bytes().all(|b| b.is_ascii_digit())
-                && crate::acquisition::Scheme::all()
-                    .iter()
-                    .any(|k| k.key() == scheme)
+                && scheme.parse::<crate::acquisition::Scheme>().is_ok()
         })
 }
 

@@ -4,7 +4,8 @@
 
 use serde::Serialize;
 
-use crate::scene::tolerance::{Compensator, Limit, SensitivityRecord, TrialRecord};
+use crate::quantities::{BenchMetric, Quantity};
+use crate::scene::tolerance::{Compensator, SensitivityRecord, ToleranceLimit, TrialRecord};
 
 /// Which end of a metric's distribution hurts a bench.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -16,35 +17,40 @@ pub enum Tail {
     UpperAbs,
 }
 
-/// The tail that matters for `metric`.
-pub fn tail_of(metric: &str) -> Tail {
-    let lower = [
-        "k_prime",
-        "k_plus",
-        "k_minus",
-        "power_plus_w",
-        "power_minus_w",
-        "x_total_w",
-        "cmrr_db",
-        "cmrr_electronics_db",
-    ];
-    if lower.contains(&metric)
-        || metric.ends_with("_mssim")
-        || metric.ends_with("_psnr_db")
-        || metric.ends_with("_finest_lp_per_mm")
-    {
-        Tail::Lower
-    } else {
-        Tail::UpperAbs
+/// The tail that matters for `q`.
+pub fn tail(q: &Quantity) -> Tail {
+    match q {
+        Quantity::Metric(
+            BenchMetric::KPrime
+            | BenchMetric::KPlus
+            | BenchMetric::KMinus
+            | BenchMetric::PowerPlusW
+            | BenchMetric::PowerMinusW
+            | BenchMetric::XTotalW,
+        )
+        | Quantity::Cmrr
+        | Quantity::CmrrElectronics
+        | Quantity::Score { .. } => Tail::Lower,
+        Quantity::Metric(_) => Tail::UpperAbs,
     }
 }
 
-/// Whether `metric` is an off-arm leak. Recorded as the ratio r = P_wrong/P_own of the two
-/// diodes' powers (crate::transport::metrics), it is unbounded: a part that blinds the own
-/// arm sends r far above 1 (41 in a trial of the paper bench's tolerances). The tails and
-/// figures therefore show the bounded fraction [`leak_fraction`].
+/// The tail that matters for the quantity named `metric` (the upper tail of |value| for a
+/// name that is none).
+pub fn tail_of(metric: &str) -> Tail {
+    metric.parse().map_or(Tail::UpperAbs, |q| tail(&q))
+}
+
+/// Whether the quantity named `metric` is an off-arm leak. Recorded as the ratio
+/// r = P_wrong/P_own of the two diodes' powers (crate::transport::metrics), it is unbounded: a
+/// part that blinds the own arm sends r far above 1 (41 in a trial of the paper bench's
+/// tolerances). The tails and figures therefore show the bounded fraction [`leak_fraction`].
 pub fn is_fraction(metric: &str) -> bool {
-    metric.starts_with("leak_")
+    metric
+        .parse::<Quantity>()
+        .ok()
+        .and_then(|q| q.metric())
+        .is_some_and(BenchMetric::is_leak)
 }
 
 /// A leak ratio r = P_wrong/P_own as the bounded fraction P_wrong/(P_own + P_wrong) = r/(1 + r):
@@ -85,10 +91,11 @@ pub struct TailRow {
 }
 
 /// The tail rows of `metrics` (each metric's finite values over the good trials).
-pub fn tails(metrics: &[String], ok: &[&TrialRecord], limits: &[Limit]) -> Vec<TailRow> {
+pub fn tails(metrics: &[Quantity], ok: &[&TrialRecord], limits: &[ToleranceLimit]) -> Vec<TailRow> {
     let mut rows = Vec::new();
-    for m in metrics {
-        let tail = tail_of(m);
+    for q in metrics {
+        let tail = tail(q);
+        let m = &q.to_string();
         let mut v: Vec<f64> = ok
             .iter()
             .filter_map(|r| r.value(m))
@@ -112,7 +119,7 @@ pub fn tails(metrics: &[String], ok: &[&TrialRecord], limits: &[Limit]) -> Vec<T
                 v[0],
             ),
         };
-        let mine: Vec<&Limit> = limits.iter().filter(|l| &l.metric == m).collect();
+        let mine: Vec<&ToleranceLimit> = limits.iter().filter(|l| &l.metric == q).collect();
         let beyond_limits = (!mine.is_empty()).then(|| {
             let bad = ok
                 .iter()
@@ -221,7 +228,7 @@ pub const RELEVANT_FRACTION: f64 = 0.1;
 /// Why the RSS's linear model may not hold for `metric`: one reason per relevant tolerance
 /// whose response is one-sided (range on one side of nominal, or both ends moving the metric
 /// the same way) or curved beyond [`CURVATURE_LIMIT`].
-pub fn linearity_flags(metric: &str, sens: &[SensitivityRecord]) -> Vec<String> {
+pub fn linearity_flags(metric: &Quantity, sens: &[SensitivityRecord]) -> Vec<String> {
     let d = format!("{metric}_diff");
     let se = format!("{metric}_diff_stderr");
     let largest = sens
@@ -307,7 +314,10 @@ mod tests {
         let curved = sens("c", -1.0, 1.0, -0.002, 0.01);
         let one_sided = sens("d", 0.0, 0.2, 0.0, 0.009);
         let tiny = sens("e", -1.0, 1.0, 1e-4, 1e-4);
-        let flags = linearity_flags("imbalance", &[linear, even, curved, one_sided, tiny]);
+        let flags = linearity_flags(
+            &BenchMetric::Imbalance.into(),
+            &[linear, even, curved, one_sided, tiny],
+        );
         let paths: Vec<&str> = flags.iter().map(|f| &f[..1]).collect();
         assert_eq!(paths, ["b", "c", "d"], "{flags:#?}");
         assert!(flags[0].contains("same way"));
@@ -376,13 +386,17 @@ mod tests {
         };
         let recs: Vec<TrialRecord> = (0..101).map(|i| rec((i as f64 - 50.0) / 1000.0)).collect();
         let ok: Vec<&TrialRecord> = recs.iter().collect();
-        let limit = Limit {
-            metric: "imbalance".into(),
+        let limit = ToleranceLimit {
+            metric: BenchMetric::Imbalance.into(),
             min: None,
             max: None,
             abs_max: Some(0.04),
         };
-        let rows = tails(&["imbalance".into(), "k_prime".into()], &ok, &[limit]);
+        let rows = tails(
+            &[BenchMetric::Imbalance.into(), BenchMetric::KPrime.into()],
+            &ok,
+            &[limit],
+        );
         // |imbalance| runs 0 … 0.05, two values per step: worst 10 % beyond 0.045.
         assert!((rows[0].worst_10_percent - 0.045).abs() < 1e-12);
         assert_eq!(rows[0].worst, 0.05);

@@ -1,6 +1,7 @@
 use std::path::Path;
 
 use super::*;
+use crate::quantities::BenchMetric;
 use crate::scene::tolerance::ToleranceSet;
 
 fn symmetric() -> BenchDoc {
@@ -9,7 +10,7 @@ fn symmetric() -> BenchDoc {
 }
 
 fn set(doc: &BenchDoc, text: &str) -> ToleranceSet {
-    ToleranceSet::parse(text, Path::new("t.ron"), doc, &is_metric).unwrap()
+    ToleranceSet::parse(text, Path::new("t.ron"), doc).unwrap()
 }
 
 /// Tolerances that swap into each other under the symmetry of the bench's arms: each part of
@@ -69,7 +70,7 @@ fn symmetric_tolerances_centre_the_imbalance_on_zero() {
         .iter()
         .find(|p| p.metric == "imbalance")
         .unwrap();
-    let se_nom = nom.metrics.get("imbalance").unwrap().stderr();
+    let se_nom = nom.metrics[BenchMetric::Imbalance].stderr();
     let bound = 3.0 * ((imb.std_dev.powi(2) / n as f64) + se_nom.powi(2)).sqrt();
     eprintln!(
         "mean imbalance {:.3e}, spread {:.3e}, bound {bound:.3e}",

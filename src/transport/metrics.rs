@@ -16,31 +16,34 @@
 //! SE²(M_a − M_b) = n_B/(n_B − 1)·Σ_b (ψ_{a,b} − ψ_{b,b})², far below SE_a² + SE_b² (Glasserman,
 //! *Monte Carlo Methods in Financial Engineering*, 2003, §4.1: common random numbers).
 
+use std::ops::Index;
+
 use serde::Serialize;
 
 use crate::optics::Arm;
 use crate::optics::dmd::{MirrorState, state_index};
+pub use crate::quantities::{BENCH_METRICS, BenchMetric};
 use crate::trace::Tallies;
 use crate::transport::{Estimate, Transport};
 
-/// A metric's value and its per-batch influence (see the module notes).
+/// A traced number (a bench metric, a CMRR) with its per-batch influence (see the module notes).
 #[derive(Debug, Clone, PartialEq)]
-pub struct Metric {
+pub struct TracedValue {
     pub value: f64,
     psi: Vec<f64>,
 }
 
-impl Metric {
+impl TracedValue {
     /// An exact number (no Monte Carlo error), e.g. an electronics setting.
-    pub fn exact(value: f64, batches: usize) -> Metric {
-        Metric {
+    pub fn exact(value: f64, batches: usize) -> TracedValue {
+        TracedValue {
             value,
             psi: vec![0.0; batches],
         }
     }
 
     /// The total Σ_b s_b of per-batch sums `s` over batches of `n` rays.
-    pub fn total(n: &[u64], s: &[f64]) -> Metric {
+    pub fn total(n: &[u64], s: &[f64]) -> TracedValue {
         let big_n: u64 = n.iter().sum();
         let total: f64 = s.iter().sum();
         let psi = n
@@ -48,30 +51,30 @@ impl Metric {
             .zip(s)
             .map(|(&k, &v)| v - (k as f64 / big_n.max(1) as f64) * total)
             .collect();
-        Metric { value: total, psi }
+        TracedValue { value: total, psi }
     }
 
     /// The ratio ΣA_b / ΣD_b.
-    pub fn ratio(a: &[f64], d: &[f64]) -> Metric {
+    pub fn ratio(a: &[f64], d: &[f64]) -> TracedValue {
         let sa: f64 = a.iter().sum();
         let sd: f64 = d.iter().sum();
         let r = sa / sd;
         let psi = a.iter().zip(d).map(|(x, y)| (x - r * y) / sd).collect();
-        Metric { value: r, psi }
+        TracedValue { value: r, psi }
     }
 
     /// f(self) by the delta method: value f(v), influence f'(v)·ψ, so standard errors and
     /// paired differences carry over to any smooth function of a metric.
-    pub fn map(&self, f: impl Fn(f64) -> f64, df: impl Fn(f64) -> f64) -> Metric {
+    pub fn map(&self, f: impl Fn(f64) -> f64, df: impl Fn(f64) -> f64) -> TracedValue {
         let slope = df(self.value);
-        Metric {
+        TracedValue {
             value: f(self.value),
             psi: self.psi.iter().map(|p| slope * p).collect(),
         }
     }
 
     /// This metric plus a constant.
-    pub fn plus(mut self, c: f64) -> Metric {
+    pub fn plus(mut self, c: f64) -> TracedValue {
         self.value += c;
         self
     }
@@ -90,7 +93,7 @@ impl Metric {
 
     /// `self − other` with the paired (common-random-numbers) standard error. NaN when the two
     /// were not traced with the same batches.
-    pub fn diff(&self, other: &Metric) -> Estimate {
+    pub fn diff(&self, other: &TracedValue) -> Estimate {
         let stderr = if self.psi.len() == other.psi.len() {
             se(self.psi.iter().zip(&other.psi).map(|(a, b)| a - b))
         } else {
@@ -112,46 +115,6 @@ fn se(psi: impl ExactSizeIterator<Item = f64>) -> f64 {
     (q * nb as f64 / (nb as f64 - 1.0)).sqrt()
 }
 
-/// The names, units and meanings of the bench metrics, in table order.
-pub const METRICS: [(&str, &str, &str); 12] = [
-    ("k_plus", "A/W", "k₊ = Σ_j g₊_j / Σ_j x_j"),
-    ("k_minus", "A/W", "k₋ = Σ_j g₋_j / Σ_j x_j"),
-    ("k_prime", "A/W", "k' = k₊ + k₋, the SCB image scale"),
-    ("imbalance", "1", "(k₊ − k₋)/(k₊ + k₋)"),
-    (
-        "b_plus",
-        "A",
-        "b₊: pattern-independent current of arm + (traced light, ambient, dark)",
-    ),
-    ("b_minus", "A", "b₋, as b₊ for arm −"),
-    (
-        "b_minus_minus_b_plus",
-        "A",
-        "b₋ − b₊, the offset double-arm detection leaves",
-    ),
-    (
-        "power_plus_w",
-        "W",
-        "power on diode + with every pattern unit in state +",
-    ),
-    (
-        "power_minus_w",
-        "W",
-        "power on diode − with every pattern unit in state −",
-    ),
-    (
-        "leak_plus",
-        "1",
-        "off-arm leak: power on diode − / power on diode + with every unit in state +",
-    ),
-    (
-        "leak_minus",
-        "1",
-        "off-arm leak: power on diode + / power on diode − with every unit in state −",
-    ),
-    ("x_total_w", "W", "Σ_j x_j, power on the pattern area"),
-];
-
 /// The bench's common-mode rejection (dB) from the traced imbalance ι = (k₊ − k₋)/(k₊ + k₋)
 /// and the diodes' responsivity scales s± (the electronics): the RF output's response to light
 /// sent into one arm divided by its response to the same light sent into each arm, the
@@ -164,9 +127,9 @@ pub const METRICS: [(&str, &str, &str); 12] = [
 /// diodes and (s₊ − s₋)/(s₊ + s₋) for matched arms (then this is
 /// [`crate::detector::Bap::cmrr_db`], the electronics alone). With r = s₊/s₋,
 /// ι' = (r(1 + ι) − (1 − ι))/(r(1 + ι) + (1 − ι)) and dι'/dι = 4r/(r(1 + ι) + (1 − ι))², so
-/// the standard errors follow from ι's by the delta method ([`Metric::map`]). +∞ (with a NaN
+/// the standard errors follow from ι's by the delta method ([`TracedValue::map`]). +∞ (with a NaN
 /// standard error) where ι' = 0.
-pub fn cmrr_db(imbalance: &Metric, responsivity_scale: [f64; 2]) -> Metric {
+pub fn cmrr_db(imbalance: &TracedValue, responsivity_scale: [f64; 2]) -> TracedValue {
     let r = responsivity_scale[0] / responsivity_scale[1];
     let effective = move |i: f64| (r * (1.0 + i) - (1.0 - i)) / (r * (1.0 + i) + (1.0 - i));
     let cmrr = move |i: f64| -20.0 * (2.0 * effective(i).abs()).log10();
@@ -177,10 +140,10 @@ pub fn cmrr_db(imbalance: &Metric, responsivity_scale: [f64; 2]) -> Metric {
     imbalance.map(cmrr, slope)
 }
 
-/// The traced metrics of one bench (the order of [`METRICS`]).
+/// The traced metrics of one bench, indexed by [`BenchMetric`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct BenchMetrics {
-    pub values: Vec<Metric>,
+    pub values: [TracedValue; BENCH_METRICS],
 }
 
 impl BenchMetrics {
@@ -197,35 +160,45 @@ impl BenchMetrics {
         let gsum: Vec<f64> = g[plus].iter().zip(&g[minus]).map(|(a, b)| a + b).collect();
         let gdiff: Vec<f64> = g[plus].iter().zip(&g[minus]).map(|(a, b)| a - b).collect();
         let constant = |arm: Arm| transport.ambient_a[arm] + transport.dark_a[arm];
-        let b = Arm::ALL.map(|arm| Metric::total(&n, &col(&|s| s.c[arm])).plus(constant(arm)));
-        let b_diff = Metric::total(&n, &col(&|s| s.c[minus] - s.c[plus]))
-            .plus(constant(minus) - constant(plus));
+        let b = Arm::ALL.map(|arm| TracedValue::total(&n, &col(&|s| s.c[arm])).plus(constant(arm)));
         // detected_w[world][diode]: world 0 = every unit in state +, 1 = every unit in state −.
         let det = |w: MirrorState, d: Arm| col(&|s| s.detected_w[state_index(w)][d]);
         let (all_plus, all_minus) = (MirrorState::Plus, MirrorState::Minus);
-        let values = vec![
-            Metric::ratio(&g[plus], &x),
-            Metric::ratio(&g[minus], &x),
-            Metric::ratio(&gsum, &x),
-            Metric::ratio(&gdiff, &gsum),
-            b[plus].clone(),
-            b[minus].clone(),
-            b_diff,
-            Metric::total(&n, &det(all_plus, plus)),
-            Metric::total(&n, &det(all_minus, minus)),
-            Metric::ratio(&det(all_plus, minus), &det(all_plus, plus)),
-            Metric::ratio(&det(all_minus, plus), &det(all_minus, minus)),
-            Metric::total(&n, &x),
-        ];
+        let values = BenchMetric::ALL.map(|m| match m {
+            BenchMetric::KPlus => TracedValue::ratio(&g[plus], &x),
+            BenchMetric::KMinus => TracedValue::ratio(&g[minus], &x),
+            BenchMetric::KPrime => TracedValue::ratio(&gsum, &x),
+            BenchMetric::Imbalance => TracedValue::ratio(&gdiff, &gsum),
+            BenchMetric::BPlus => b[plus].clone(),
+            BenchMetric::BMinus => b[minus].clone(),
+            BenchMetric::BMinusMinusBPlus => {
+                TracedValue::total(&n, &col(&|s| s.c[minus] - s.c[plus]))
+                    .plus(constant(minus) - constant(plus))
+            }
+            BenchMetric::PowerPlusW => TracedValue::total(&n, &det(all_plus, plus)),
+            BenchMetric::PowerMinusW => TracedValue::total(&n, &det(all_minus, minus)),
+            BenchMetric::LeakPlus => {
+                TracedValue::ratio(&det(all_plus, minus), &det(all_plus, plus))
+            }
+            BenchMetric::LeakMinus => {
+                TracedValue::ratio(&det(all_minus, plus), &det(all_minus, minus))
+            }
+            BenchMetric::XTotalW => TracedValue::total(&n, &x),
+        });
         BenchMetrics { values }
     }
 
-    /// The metric named `name` (one of [`METRICS`]).
-    pub fn get(&self, name: &str) -> Option<&Metric> {
-        METRICS
-            .iter()
-            .position(|m| m.0 == name)
-            .and_then(|i| self.values.get(i))
+    /// Every metric with its value, in table order.
+    pub fn iter(&self) -> impl Iterator<Item = (BenchMetric, &TracedValue)> {
+        BenchMetric::ALL.into_iter().zip(&self.values)
+    }
+}
+
+impl Index<BenchMetric> for BenchMetrics {
+    type Output = TracedValue;
+    #[inline]
+    fn index(&self, m: BenchMetric) -> &TracedValue {
+        &self.values[m]
     }
 }
 
@@ -240,7 +213,7 @@ pub struct MetricRow {
 }
 
 impl MetricRow {
-    pub fn new(m: &Metric, reference: &Metric) -> MetricRow {
+    pub fn new(m: &TracedValue, reference: &TracedValue) -> MetricRow {
         let d = m.diff(reference);
         MetricRow {
             value: m.value,
@@ -260,12 +233,12 @@ mod tests {
     fn influence_errors_equal_the_batch_means_formulas() {
         let n = [10u64, 10, 12, 8];
         let s = [1.0, 2.5, 3.0, 1.5];
-        let t = Metric::total(&n, &s);
+        let t = TracedValue::total(&n, &s);
         let e = total_estimate(&n.iter().copied().zip(s).collect::<Vec<_>>());
         assert_eq!(t.value, e.value);
         assert!((t.stderr() - e.stderr).abs() < 1e-14);
         let a = [2.0, 4.1, 0.9, 3.3];
-        let r = Metric::ratio(&a, &s);
+        let r = TracedValue::ratio(&a, &s);
         let e = ratio_estimate(&a.iter().copied().zip(s).collect::<Vec<_>>());
         assert_eq!(r.value, e.value);
         assert!((r.stderr() - e.stderr).abs() < 1e-14);
@@ -276,17 +249,17 @@ mod tests {
         let n = [10u64; 4];
         let (a, d) = ([1.0, 1.1, 0.9, 1.0], [1.05, 1.0, 1.1, 0.95]);
         // Matched arms: the electronics' CMRR, 20·log₁₀(s̄/|s₊ − s₋|).
-        let zero = Metric::total(&n, &[0.0; 4]);
+        let zero = TracedValue::total(&n, &[0.0; 4]);
         let bap_like = 20.0 * (0.5 * (1.0 + 0.97) / 0.03f64).log10();
         assert!((cmrr_db(&zero, [1.0, 0.97]).value - bap_like).abs() < 1e-9);
         // An arm that is blind (ι → 1) leaves no rejection: about −6 dB, whatever the diodes.
-        let blind = Metric::ratio(&[0.9996; 4], &[1.0; 4]);
+        let blind = TracedValue::ratio(&[0.9996; 4], &[1.0; 4]);
         assert!((cmrr_db(&blind, [1.0, 1.0]).value + 6.02).abs() < 0.01);
         // The delta-method slope matches a finite difference.
-        let i = Metric::ratio(&a, &d);
+        let i = TracedValue::ratio(&a, &d);
         let c = cmrr_db(&i, [1.0, 0.98]);
         let h = 1e-7;
-        let shifted = Metric::exact(i.value + h, 4);
+        let shifted = TracedValue::exact(i.value + h, 4);
         let fd = (cmrr_db(&shifted, [1.0, 0.98]).value - c.value) / h;
         assert!(
             (c.stderr() - fd.abs() * i.stderr()).abs() < 1e-5 * c.stderr(),
@@ -300,8 +273,8 @@ mod tests {
         let n = [10u64; 5];
         let s = [1.0, 1.3, 0.8, 1.1, 0.9];
         let s2: Vec<f64> = s.iter().map(|v| v * 1.01).collect();
-        let a = Metric::total(&n, &s);
-        let b = Metric::total(&n, &s2);
+        let a = TracedValue::total(&n, &s);
+        let b = TracedValue::total(&n, &s2);
         let d = b.diff(&a);
         assert!((d.value - 0.01 * a.value).abs() < 1e-12);
         assert!(
@@ -311,6 +284,11 @@ mod tests {
             a.stderr()
         );
         // Different batch structures cannot be paired.
-        assert!(Metric::total(&n[..4], &s[..4]).diff(&a).stderr.is_nan());
+        assert!(
+            TracedValue::total(&n[..4], &s[..4])
+                .diff(&a)
+                .stderr
+                .is_nan()
+        );
     }
 }

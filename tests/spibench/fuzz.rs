@@ -389,13 +389,10 @@ fn mutants_of_tolerance_files_and_dataset_specs_end_in_input_errors() {
     let mut failures = Vec::new();
     let rel = "scenes/tolerances/paper_bench.ron";
     let (text, path) = (shipped(rel), root.join(rel));
-    let is_metric = spibench::pipeline::evaluate::is_metric;
     let mut accepted = [0usize; 2];
     for i in 0..1000u64 {
         let m = mutant(&text, 200, i);
-        let r = catch_unwind(AssertUnwindSafe(|| {
-            ToleranceSet::parse(&m, &path, &doc, &is_metric)
-        }));
+        let r = catch_unwind(AssertUnwindSafe(|| ToleranceSet::parse(&m, &path, &doc)));
         match r {
             Err(_) => failures.push(format!("{rel} mutant {i}: panicked")),
             Ok(Err(e)) if !e.is_user_error() || !e.to_string().contains(rel) => {

@@ -10,7 +10,15 @@ use std::path::{Path, PathBuf};
 /// modules on one floor stand side by side and never use each other (the jobs in particular
 /// compose `pipeline`, not each other). Every top-level module must be listed.
 const FLOORS: &[&[&str]] = &[
-    &["error", "rng", "npy", "checked", "lib", "main"],
+    &[
+        "error",
+        "rng",
+        "npy",
+        "checked",
+        "quantities",
+        "lib",
+        "main",
+    ],
     &["raster", "detector", "provenance", "memory"],
     &["objects", "reconstruction"],
     &["acquisition", "metrics", "optics"],

@@ -15,8 +15,8 @@ use crate::report::html::{Page, write_page};
 use crate::report::output::OutputDir;
 use crate::scene::doc::BenchDoc;
 use crate::scene::tolerance::{
-    Compensator, Limit, QualityLimit, SensitivityRecord, ShardFile, Tolerance, ToleranceSet,
-    shard_to_ron,
+    Compensator, QualityLimit, SensitivityRecord, ShardFile, Tolerance, ToleranceLimit,
+    ToleranceSet, shard_to_ron,
 };
 use crate::tolerance::{Analysis, SENSITIVITY_METRICS, analyse};
 
@@ -270,7 +270,7 @@ struct ToleranceSummary<'a> {
     quality: bool,
     tolerances: &'a [Tolerance],
     compensators: &'a [Compensator],
-    limits: &'a [Limit],
+    limits: &'a [ToleranceLimit],
     quality_limit: &'a Option<QualityLimit>,
     /// The nominal bench's metric row (differences against itself).
     nominal: Row,

@@ -25,7 +25,7 @@ fn limit_lines(limits: &[(String, f64)], top: f64) -> Vec<Series> {
 /// |value| (`abs`) or of the value.
 fn limits_on(set: &ToleranceSet, metric: &str, abs: bool) -> Vec<(String, f64)> {
     let mut out = Vec::new();
-    for l in set.limits.iter().filter(|l| l.metric == metric) {
+    for l in set.limits.iter().filter(|l| l.metric.to_string() == metric) {
         if let Some(m) = l.abs_max {
             out.push((format!("limit |{metric}| ≤ {m}"), m));
             if !abs {

@@ -224,18 +224,17 @@ fn unit_of(metric: &str) -> String {
     if crate::tolerance::summaries::is_fraction(metric) {
         return "ratio P_wrong/P_own".into();
     }
-    crate::transport::metrics::METRICS
-        .iter()
-        .find(|m| m.0 == metric)
+    metric
+        .parse::<crate::quantities::BenchMetric>()
         .map_or_else(
-            || {
+            |_| {
                 if metric.ends_with("_db") {
                     "dB".into()
                 } else {
                     String::new()
                 }
             },
-            |m| m.1.to_string(),
+            |m| m.unit().to_string(),
         )
 }
 
