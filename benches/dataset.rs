@@ -17,7 +17,9 @@ use std::time::Instant;
 use rayon::prelude::*;
 use spibench::dataset::{Prepared, generate, shard_range};
 use spibench::detector::RecordModel;
-use spibench::scene::bench::{ChartPatternSpec, ElementSpec, Finite, LengthMm, SpectrumSpec};
+use spibench::scene::bench::{
+    ChartPatternSpec, ChartSpec, ElementSpec, Finite, LengthMm, SpectrumSpec,
+};
 use spibench::scene::dataset::parse_dataset;
 use spibench::scene::doc::BenchDoc;
 use spibench::trace::{TraceOptions, trace};
@@ -138,13 +140,13 @@ fn main() {
         spibench::report::png::write_gray16(&png, &object, 0.0, 1.0).unwrap();
         let mut d = doc.clone();
         for el in d.file.elements.iter_mut() {
-            if let ElementSpec::Chart {
+            if let ElementSpec::Chart(ChartSpec {
                 pattern,
                 center_on,
                 chrome_od,
                 chrome_reflectance,
                 ..
-            } = el
+            }) = el
             {
                 *pattern = ChartPatternSpec::Image {
                     path: png.display().to_string(),

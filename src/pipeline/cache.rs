@@ -26,7 +26,7 @@ use sha2::{Digest, Sha256};
 use crate::provenance::hex;
 
 use crate::error::{Error, Result};
-use crate::scene::bench::{ChartPatternSpec, ElementSpec};
+use crate::scene::bench::{ChartPatternSpec, ChartSpec, ElementSpec};
 use crate::scene::doc::BenchDoc;
 use crate::trace::{BatchScalars, Tallies};
 
@@ -56,10 +56,10 @@ impl CacheKey {
         h.update(TRACER_REVISION.to_le_bytes());
         h.update(crate::scene::doc::to_ron(&file)?.as_bytes());
         for el in &file.elements {
-            if let ElementSpec::Chart {
+            if let ElementSpec::Chart(ChartSpec {
                 pattern: ChartPatternSpec::Image { path, .. },
                 ..
-            } = el
+            }) = el
             {
                 let full = doc.path().parent().unwrap_or(Path::new(".")).join(path);
                 let bytes = std::fs::read(&full).map_err(|e| Error::read(&full, e))?;

@@ -463,17 +463,17 @@ impl ClearChart {
     /// traced. Every error names its field of `spec` (`grid_px`, `field_mm`, `rays`, `chart`)
     /// and no file, for the caller to locate (a dataset spec, a Python argument).
     pub fn new(doc: &BenchDoc, spec: &KernelSpec) -> Result<ClearChart> {
-        use crate::scene::bench::{ChartPatternSpec, ElementSpec};
+        use crate::scene::bench::{ChartPatternSpec, ChartSpec, ElementSpec};
         spec.check()?;
         let mut doc = doc.clone();
         let (mut found, mut names) = (None, Vec::new());
         for el in doc.file.elements.iter_mut() {
-            if let ElementSpec::Chart {
+            if let ElementSpec::Chart(ChartSpec {
                 name,
                 pattern,
                 center_on,
                 ..
-            } = el
+            }) = el
             {
                 if found.is_none() && spec.chart.as_ref().is_none_or(|want| want == name) {
                     *pattern = ChartPatternSpec::Clear;

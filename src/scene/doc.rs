@@ -147,16 +147,16 @@ impl BenchDoc {
     /// The files this bench reads besides itself (chart mask images), as paths resolved
     /// against the bench file's folder, in element order.
     pub fn input_files(&self) -> Vec<PathBuf> {
-        use crate::scene::bench::{ChartPatternSpec, ElementSpec};
+        use crate::scene::bench::{ChartPatternSpec, ChartSpec, ElementSpec};
         let base = self.path.parent().unwrap_or(Path::new("."));
         self.file
             .elements
             .iter()
             .filter_map(|el| match el {
-                ElementSpec::Chart {
+                ElementSpec::Chart(ChartSpec {
                     pattern: ChartPatternSpec::Image { path, .. },
                     ..
-                } => Some(base.join(path)),
+                }) => Some(base.join(path)),
                 _ => None,
             })
             .collect()

@@ -34,7 +34,10 @@ use serde_json::Value;
 use crate::checked::shown;
 use crate::error::{Error, Result};
 use crate::optics::geometry::Frame;
-use crate::scene::bench::{BenchFile, Direction, ElementSpec, Mm3};
+use crate::scene::bench::{
+    ApertureSpec, BaffleSpec, BenchFile, ChartSpec, Direction, ElementSpec, FilterSpec, LensSpec,
+    MirrorSpec, Mm3, TubeSpec,
+};
 
 /// The top-level sections that a path may start with (besides element names).
 const SECTIONS: [&str; 5] = ["lamp", "dmd", "detectors", "electronics", "run"];
@@ -527,47 +530,47 @@ fn pose<'a>(file: &'a mut BenchFile, target: &str, path: &str) -> Result<Pose<'a
             };
             let el = &mut file.elements[i];
             match el {
-                ElementSpec::Lens {
+                ElementSpec::Lens(LensSpec {
                     position_mm, axis, ..
-                }
-                | ElementSpec::Aperture {
+                })
+                | ElementSpec::Aperture(ApertureSpec {
                     position_mm, axis, ..
-                }
-                | ElementSpec::Tube {
+                })
+                | ElementSpec::Tube(TubeSpec {
                     position_mm, axis, ..
-                } => Pose {
+                }) => Pose {
                     position: position_mm,
                     axis,
                     x_axis: None,
                 },
-                ElementSpec::Filter {
+                ElementSpec::Filter(FilterSpec {
                     position_mm,
                     axis,
                     x_axis,
                     ..
-                }
-                | ElementSpec::Baffle {
+                })
+                | ElementSpec::Baffle(BaffleSpec {
                     position_mm,
                     axis,
                     x_axis,
                     ..
-                } => Pose {
+                }) => Pose {
                     position: position_mm,
                     axis,
                     x_axis: Some(x_axis),
                 },
-                ElementSpec::Mirror {
+                ElementSpec::Mirror(MirrorSpec {
                     position_mm,
                     normal,
                     x_axis,
                     ..
-                }
-                | ElementSpec::Chart {
+                })
+                | ElementSpec::Chart(ChartSpec {
                     position_mm,
                     normal,
                     x_axis,
                     ..
-                } => Pose {
+                }) => Pose {
                     position: position_mm,
                     axis: normal,
                     x_axis: Some(x_axis),
@@ -698,17 +701,17 @@ fn groups(file: &BenchFile, d: DVec3, normals: [DVec3; 2], path: &str) -> Result
         .iter()
         .map(|el| {
             let (position, mirror) = match el {
-                ElementSpec::Lens { position_mm, .. }
-                | ElementSpec::Filter { position_mm, .. }
-                | ElementSpec::Aperture { position_mm, .. }
-                | ElementSpec::Tube { position_mm, .. }
-                | ElementSpec::Baffle { position_mm, .. }
-                | ElementSpec::Chart { position_mm, .. } => (*position_mm, None),
-                ElementSpec::Mirror {
+                ElementSpec::Lens(LensSpec { position_mm, .. })
+                | ElementSpec::Filter(FilterSpec { position_mm, .. })
+                | ElementSpec::Aperture(ApertureSpec { position_mm, .. })
+                | ElementSpec::Tube(TubeSpec { position_mm, .. })
+                | ElementSpec::Baffle(BaffleSpec { position_mm, .. })
+                | ElementSpec::Chart(ChartSpec { position_mm, .. }) => (*position_mm, None),
+                ElementSpec::Mirror(MirrorSpec {
                     position_mm,
                     normal,
                     ..
-                } => (*position_mm, Some(*normal)),
+                }) => (*position_mm, Some(*normal)),
             };
             (el.name().to_string(), v3(position), mirror)
         })
@@ -1033,9 +1036,9 @@ mod tests {
     fn element_position(f: &BenchFile, name: &str) -> DVec3 {
         let el = f.elements.iter().find(|e| e.name() == name).unwrap();
         match el {
-            ElementSpec::Lens { position_mm, .. }
-            | ElementSpec::Mirror { position_mm, .. }
-            | ElementSpec::Chart { position_mm, .. } => v3(*position_mm),
+            ElementSpec::Lens(LensSpec { position_mm, .. })
+            | ElementSpec::Mirror(MirrorSpec { position_mm, .. })
+            | ElementSpec::Chart(ChartSpec { position_mm, .. }) => v3(*position_mm),
             _ => panic!("{name}"),
         }
     }
@@ -1163,11 +1166,11 @@ mod tests {
         let n = DMat3::from_axis_angle(hinge, s * 12f64.to_radians()) * DVec3::Z;
         let u = reflect(-v3(f.lamp.position_mm).normalize(), n);
         let fold = ["arm_plus_fold", "arm_minus_fold"][k];
-        let Some(ElementSpec::Mirror {
+        let Some(ElementSpec::Mirror(MirrorSpec {
             position_mm,
             normal,
             ..
-        }) = f.elements.iter().find(|e| e.name() == fold)
+        })) = f.elements.iter().find(|e| e.name() == fold)
         else {
             panic!("{fold}")
         };

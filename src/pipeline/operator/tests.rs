@@ -135,7 +135,7 @@ fn bad_sizes_and_values_are_named() {
 /// the bounds of a dataset spec's `kernel:` section, and the chart.
 #[test]
 fn a_kernel_spec_is_checked_before_anything_is_traced() {
-    use crate::scene::bench::ElementSpec;
+    use crate::scene::bench::{ChartSpec, ElementSpec};
     let refused = |doc: &BenchDoc, s: KernelSpec, field: &str, words: &[&str]| {
         let e = ClearChart::new(doc, &s).err().expect("refused");
         let text = e.to_string();
@@ -184,10 +184,10 @@ fn a_kernel_spec_is_checked_before_anything_is_traced() {
         .file
         .elements
         .iter()
-        .find(|e| matches!(e, ElementSpec::Chart { .. }))
+        .find(|e| matches!(e, ElementSpec::Chart(_)))
         .cloned()
         .unwrap();
-    if let ElementSpec::Chart { name, .. } = &mut second {
+    if let ElementSpec::Chart(ChartSpec { name, .. }) = &mut second {
         *name = "second".into();
     }
     two.file.elements.push(second);

@@ -14,7 +14,10 @@ use crate::raster::Raster;
 use crate::scene::numbers::MAX_OD;
 
 use super::build::{Builder, mm, solid_of};
-use super::schema::{CenterOnSpec, ChartPatternSpec, ElementSpec};
+use super::schema::{
+    ApertureSpec, BaffleSpec, CenterOnSpec, ChartPatternSpec, ChartSpec, ElementSpec, FilterSpec,
+    LensSpec, MirrorSpec, TubeSpec,
+};
 
 impl Builder<'_> {
     /// Adds one element, by kind.
@@ -22,19 +25,19 @@ impl Builder<'_> {
         let name = el.name().to_string();
         let id = self.parts.element(&name);
         match el {
-            ElementSpec::Lens { .. } => self.lens(el, id, name),
-            ElementSpec::Filter { .. } => self.filter(el, id, name),
-            ElementSpec::Aperture { .. } => self.aperture(el, id, name),
-            ElementSpec::Tube { .. } => self.tube(el, id, name),
-            ElementSpec::Baffle { .. } => self.baffle(el, id, name),
-            ElementSpec::Mirror { .. } => self.mirror(el, id, name),
-            ElementSpec::Chart { .. } => self.chart(el, id, name),
+            ElementSpec::Lens(l) => self.lens(l, id, name),
+            ElementSpec::Filter(f) => self.filter(f, id, name),
+            ElementSpec::Aperture(a) => self.aperture(a, id, name),
+            ElementSpec::Tube(t) => self.tube(t, id, name),
+            ElementSpec::Baffle(b) => self.baffle(b, id, name),
+            ElementSpec::Mirror(m) => self.mirror(m, id, name),
+            ElementSpec::Chart(c) => self.chart(c, id, name),
         }
     }
 
     /// A `Lens` element.
-    fn lens(&mut self, el: &ElementSpec, id: ElementId, name: String) -> Result<()> {
-        let ElementSpec::Lens {
+    fn lens(&mut self, el: &LensSpec, id: ElementId, name: String) -> Result<()> {
+        let LensSpec {
             position_mm,
             axis,
             front_radius_mm,
@@ -46,10 +49,7 @@ impl Builder<'_> {
             coating,
             tilt_deg,
             ..
-        } = el
-        else {
-            unreachable!("dispatched by kind")
-        };
+        } = el;
         let n = name.as_str();
         let e = |f: &str, m: String| self.ctx.err_el(n, f, m);
         let frame = self
@@ -91,8 +91,8 @@ impl Builder<'_> {
     }
 
     /// A `Filter` element.
-    fn filter(&mut self, el: &ElementSpec, id: ElementId, name: String) -> Result<()> {
-        let ElementSpec::Filter {
+    fn filter(&mut self, el: &FilterSpec, id: ElementId, name: String) -> Result<()> {
+        let FilterSpec {
             position_mm,
             axis,
             x_axis,
@@ -103,10 +103,7 @@ impl Builder<'_> {
             coating,
             tilt_deg,
             ..
-        } = el
-        else {
-            unreachable!("dispatched by kind")
-        };
+        } = el;
         let n = name.as_str();
         let e = |f: &str, m: String| self.ctx.err_el(n, f, m);
         let frame = self
@@ -132,17 +129,14 @@ impl Builder<'_> {
     }
 
     /// A `Aperture` element.
-    fn aperture(&mut self, el: &ElementSpec, id: ElementId, name: String) -> Result<()> {
-        let ElementSpec::Aperture {
+    fn aperture(&mut self, el: &ApertureSpec, id: ElementId, name: String) -> Result<()> {
+        let ApertureSpec {
             position_mm,
             axis,
             inner_diameter_mm,
             outer_diameter_mm,
             ..
-        } = el
-        else {
-            unreachable!("dispatched by kind")
-        };
+        } = el;
         let n = name.as_str();
         let e = |f: &str, m: String| self.ctx.err_el(n, f, m);
         if outer_diameter_mm.0 <= inner_diameter_mm.0 {
@@ -167,17 +161,14 @@ impl Builder<'_> {
     }
 
     /// A `Tube` element.
-    fn tube(&mut self, el: &ElementSpec, id: ElementId, name: String) -> Result<()> {
-        let ElementSpec::Tube {
+    fn tube(&mut self, el: &TubeSpec, id: ElementId, name: String) -> Result<()> {
+        let TubeSpec {
             position_mm,
             axis,
             diameter_mm,
             length_mm,
             ..
-        } = el
-        else {
-            unreachable!("dispatched by kind")
-        };
+        } = el;
         let n = name.as_str();
         let e = |f: &str, m: String| self.ctx.err_el(n, f, m);
         let frame = self.ctx.frame(mm(*position_mm), *axis, None, None, &e)?;
@@ -195,8 +186,8 @@ impl Builder<'_> {
     }
 
     /// A `Baffle` element.
-    fn baffle(&mut self, el: &ElementSpec, id: ElementId, name: String) -> Result<()> {
-        let ElementSpec::Baffle {
+    fn baffle(&mut self, el: &BaffleSpec, id: ElementId, name: String) -> Result<()> {
+        let BaffleSpec {
             position_mm,
             axis,
             x_axis,
@@ -205,10 +196,7 @@ impl Builder<'_> {
             hole_diameter_mm,
             segments,
             ..
-        } = el
-        else {
-            unreachable!("dispatched by kind")
-        };
+        } = el;
         let n = name.as_str();
         let e = |f: &str, m: String| self.ctx.err_el(n, f, m);
         if hole_diameter_mm.0 >= width_mm.0.min(height_mm.0) {
@@ -230,8 +218,8 @@ impl Builder<'_> {
     }
 
     /// A `Mirror` element.
-    fn mirror(&mut self, el: &ElementSpec, id: ElementId, name: String) -> Result<()> {
-        let ElementSpec::Mirror {
+    fn mirror(&mut self, el: &MirrorSpec, id: ElementId, name: String) -> Result<()> {
+        let MirrorSpec {
             position_mm,
             normal,
             x_axis,
@@ -240,10 +228,7 @@ impl Builder<'_> {
             thickness_mm,
             tilt_deg,
             ..
-        } = el
-        else {
-            unreachable!("dispatched by kind")
-        };
+        } = el;
         let n = name.as_str();
         let e = |f: &str, m: String| self.ctx.err_el(n, f, m);
         let frame = self
@@ -270,8 +255,8 @@ impl Builder<'_> {
     }
 
     /// A `Chart` element.
-    fn chart(&mut self, el: &ElementSpec, id: ElementId, name: String) -> Result<()> {
-        let ElementSpec::Chart {
+    fn chart(&mut self, el: &ChartSpec, id: ElementId, name: String) -> Result<()> {
+        let ChartSpec {
             position_mm,
             normal,
             x_axis,
@@ -284,10 +269,7 @@ impl Builder<'_> {
             chrome_reflectance,
             tilt_deg,
             ..
-        } = el
-        else {
-            unreachable!("dispatched by kind")
-        };
+        } = el;
         let n = name.as_str();
         let e = |f: &str, m: String| self.ctx.err_el(n, f, m);
         let at = self

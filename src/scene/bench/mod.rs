@@ -17,13 +17,15 @@
 //! after reading and the error is located by looking the field up in the text. A `Bench` that
 //! exists is valid.
 //!
-//! The module's files: `schema.rs` (the serde types of the file), `build.rs` (the builder and
+//! The module's files: `schema.rs` (the serde types of the file; `element_serde.rs` reads and
+//! writes its elements as the struct variants a file writes), `build.rs` (the builder and
 //! its checks), `elements.rs` (one function per element kind), `devices.rs` (the DMD, the
 //! photodiodes and the lamp). The checked numbers are [`crate::scene::numbers`], the field
 //! locator [`crate::scene::locate`].
 
 mod build;
 mod devices;
+mod element_serde;
 mod elements;
 mod schema;
 #[cfg(test)]
@@ -43,10 +45,11 @@ pub use crate::scene::numbers::{
     RadiusMm, TableNm, Temperature, TiltDeg, UnitFraction, WavelengthNm, Whole,
 };
 pub use schema::{
-    BenchFile, CenterOnSpec, ChartGuidedSpec, ChartPatternSpec, CoatingSpec, DetectorsSpec,
-    Direction, DmdModelSpec, DmdSpec, ElementSpec, EmissionSpec, FieldSamplingSpec, FilamentSpec,
-    GlassSpec, Interactions, LampPowerSpec, LampSpec, LampSpectrumSpec, MirrorCount, MirrorIndex,
-    Outline, PatternSpec, PhotodiodeSpec, Segments, SpectrumSpec, StateSpec, UsafElement,
+    ApertureSpec, BaffleSpec, BenchFile, CenterOnSpec, ChartGuidedSpec, ChartPatternSpec,
+    ChartSpec, CoatingSpec, DetectorsSpec, Direction, DmdModelSpec, DmdSpec, ElementSpec,
+    EmissionSpec, FieldSamplingSpec, FilamentSpec, FilterSpec, GlassSpec, Interactions,
+    LampPowerSpec, LampSpec, LampSpectrumSpec, LensSpec, MirrorCount, MirrorIndex, MirrorSpec,
+    Outline, PatternSpec, PhotodiodeSpec, Segments, SpectrumSpec, StateSpec, TubeSpec, UsafElement,
     UsafGroup, WindowSpec,
 };
 

@@ -333,199 +333,230 @@ pub struct ChartGuidedSpec {
     pub region_mm: (Positive, Positive),
 }
 
-/// One bench element.
-#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
-#[serde(deny_unknown_fields)]
+/// One bench element. A file writes each as a struct variant, `Lens(name: …, …)`
+/// (`element_serde`), and each variant holds the struct of its fields.
+#[derive(Debug, Clone, PartialEq)]
 pub enum ElementSpec {
-    /// A singlet lens of real spherical or flat surfaces.
-    Lens {
-        /// Unique name; the ledger key of the light it absorbs.
-        name: String,
-        /// Catalogue part number (informational).
-        #[serde(default)]
-        part: Option<String>,
-        /// Vertex of the first surface (mm).
-        position_mm: Mm3,
-        /// Direction of light travel; the front surface is met first.
-        axis: Direction,
-        /// Front surface radius (mm): positive when its centre of curvature lies after it along
-        /// `axis`; omitted or None = flat.
-        #[serde(default)]
-        front_radius_mm: Option<RadiusMm>,
-        /// Back surface radius (mm), same sign rule (a plano-convex lens used curved side first
-        /// has front +R and a flat back; used flat side first, a flat front and back −R).
-        #[serde(default)]
-        back_radius_mm: Option<RadiusMm>,
-        /// Centre thickness (mm).
-        thickness_mm: LengthMm,
-        /// Mechanical diameter (mm).
-        diameter_mm: LengthMm,
-        /// Clear aperture (mm); the ring outside it is covered by the mount (black). Default =
-        /// the diameter.
-        #[serde(default)]
-        clear_diameter_mm: Option<LengthMm>,
-        /// Glass: a catalogue name (N-BK7, N-SF11, fused-silica, MgF2) or a constant index such
-        /// as "1.5".
-        glass: String,
-        /// Coating of both surfaces.
-        #[serde(default)]
-        coating: CoatingSpec,
-        /// Alignment error: rotations (degrees) about the lens's local x then y axes, about
-        /// `position_mm`.
-        #[serde(default)]
-        tilt_deg: Option<(TiltDeg, TiltDeg)>,
-    },
-    /// A plane-parallel absorptive filter (ND glass).
-    Filter {
-        /// Unique name.
-        name: String,
-        /// Catalogue part number (informational).
-        #[serde(default)]
-        part: Option<String>,
-        /// Centre of the first face (mm).
-        position_mm: Mm3,
-        /// Face normal, in the direction of light travel (the filter extends along it).
-        axis: Direction,
-        /// Direction of the outline's width for rectangles.
-        #[serde(default)]
-        x_axis: Option<Direction>,
-        /// Outline.
-        outline: Outline,
-        /// Thickness (mm).
-        thickness_mm: LengthMm,
-        /// Substrate glass (name or constant index), for refraction and Fresnel reflection.
-        glass: String,
-        /// Internal optical density through the full thickness at normal incidence (excluding
-        /// surface reflections, which are traced); a ray's bulk transmittance is 10^(−OD·L/t)
-        /// for path length L.
-        od: SpectrumSpec,
-        /// Coating of both faces.
-        #[serde(default)]
-        coating: CoatingSpec,
-        /// Alignment tilt (degrees) about local x then y.
-        #[serde(default)]
-        tilt_deg: Option<(TiltDeg, TiltDeg)>,
-    },
-    /// A black annular aperture (iris) in a plane.
-    Aperture {
-        /// Unique name.
-        name: String,
-        /// Centre (mm).
-        position_mm: Mm3,
-        /// Plane normal.
-        axis: Direction,
-        /// Hole diameter (mm).
-        inner_diameter_mm: LengthMm,
-        /// Outer diameter of the black annulus (mm).
-        outer_diameter_mm: LengthMm,
-    },
-    /// A black tube (lens tube, lamp housing): the side of a cylinder, analytic (every lamp ray
-    /// starts inside the lamp housing, where a faceted mesh is the slowest thing to trace).
-    Tube {
-        /// Unique name.
-        name: String,
-        /// Centre of the tube's start (mm).
-        position_mm: Mm3,
-        /// Tube axis (the tube runs from `position_mm` along it).
-        axis: Direction,
-        /// Inner diameter (mm).
-        diameter_mm: LengthMm,
-        /// Length (mm).
-        length_mm: LengthMm,
-    },
-    /// A black plate with a circular hole (baffle, field stop) as a triangle mesh (obvhs).
-    Baffle {
-        /// Unique name.
-        name: String,
-        /// Centre of the hole (mm).
-        position_mm: Mm3,
-        /// Plate normal.
-        axis: Direction,
-        /// Direction of the plate's width.
-        #[serde(default)]
-        x_axis: Option<Direction>,
-        /// Plate width and height (mm).
-        width_mm: LengthMm,
-        height_mm: LengthMm,
-        /// Hole diameter (mm).
-        hole_diameter_mm: LengthMm,
-        /// Sides of the hole's polygon (default 64).
-        #[serde(default = "default_segments")]
-        segments: Segments,
-    },
-    /// A flat front-surface mirror (black behind).
-    Mirror {
-        /// Unique name.
-        name: String,
-        /// Catalogue part number (informational).
-        #[serde(default)]
-        part: Option<String>,
-        /// Centre of the reflecting face (mm).
-        position_mm: Mm3,
-        /// Normal of the reflecting face (pointing out of the mirror).
-        normal: Direction,
-        /// Direction of the outline's width.
-        #[serde(default)]
-        x_axis: Option<Direction>,
-        /// Outline of the reflecting face.
-        outline: Outline,
-        /// Reflectance R(λ).
-        reflectance: SpectrumSpec,
-        /// Substrate thickness behind the face (mm; only used to detect overlaps). Default 6.
-        #[serde(default = "default_mirror_thickness")]
-        thickness_mm: LengthMm,
-        /// Alignment tilt (degrees) about local x then y.
-        #[serde(default)]
-        tilt_deg: Option<(TiltDeg, TiltDeg)>,
-    },
-    /// A chart plate: chrome pattern on a glass substrate.
-    Chart {
-        /// Unique name.
-        name: String,
-        /// Catalogue part number (informational).
-        #[serde(default)]
-        part: Option<String>,
-        /// Where the chart point `center_on` lies, on the chrome face (mm).
-        position_mm: Mm3,
-        /// Normal of the chrome face pointing into the substrate.
-        normal: Direction,
-        /// Direction of the chart's +x axis (projected onto its plane).
-        #[serde(default)]
-        x_axis: Option<Direction>,
-        /// Plate width and height (mm).
-        plate_mm: (Positive, Positive),
-        /// Substrate thickness (mm).
-        thickness_mm: LengthMm,
-        /// Substrate glass.
-        glass: String,
-        /// What is printed.
-        pattern: ChartPatternSpec,
-        /// Which chart point sits at `position_mm`. Default: the plate centre.
-        #[serde(default)]
-        center_on: Option<CenterOnSpec>,
-        /// Optical density of the chrome (default 3, docs/bench-facts.md §5.3).
-        #[serde(default = "default_chrome_od")]
-        chrome_od: SpectrumSpec,
-        /// Reflectance of the chrome (default 0.1: low-reflectivity chrome, estimate).
-        #[serde(default = "default_chrome_reflectance")]
-        chrome_reflectance: SpectrumSpec,
-        /// Alignment tilt (degrees) about local x then y.
-        #[serde(default)]
-        tilt_deg: Option<(TiltDeg, TiltDeg)>,
-    },
+    Lens(LensSpec),
+    Filter(FilterSpec),
+    Aperture(ApertureSpec),
+    Tube(TubeSpec),
+    Baffle(BaffleSpec),
+    Mirror(MirrorSpec),
+    Chart(ChartSpec),
+}
+
+/// A singlet lens of real spherical or flat surfaces.
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields, expecting = "struct variant ElementSpec::Lens")]
+pub struct LensSpec {
+    /// Unique name; the ledger key of the light it absorbs.
+    pub name: String,
+    /// Catalogue part number (informational).
+    #[serde(default)]
+    pub part: Option<String>,
+    /// Vertex of the first surface (mm).
+    pub position_mm: Mm3,
+    /// Direction of light travel; the front surface is met first.
+    pub axis: Direction,
+    /// Front surface radius (mm): positive when its centre of curvature lies after it along
+    /// `axis`; omitted or None = flat.
+    #[serde(default)]
+    pub front_radius_mm: Option<RadiusMm>,
+    /// Back surface radius (mm), same sign rule (a plano-convex lens used curved side first
+    /// has front +R and a flat back; used flat side first, a flat front and back −R).
+    #[serde(default)]
+    pub back_radius_mm: Option<RadiusMm>,
+    /// Centre thickness (mm).
+    pub thickness_mm: LengthMm,
+    /// Mechanical diameter (mm).
+    pub diameter_mm: LengthMm,
+    /// Clear aperture (mm); the ring outside it is covered by the mount (black). Default =
+    /// the diameter.
+    #[serde(default)]
+    pub clear_diameter_mm: Option<LengthMm>,
+    /// Glass: a catalogue name (N-BK7, N-SF11, fused-silica, MgF2) or a constant index such
+    /// as "1.5".
+    pub glass: String,
+    /// Coating of both surfaces.
+    #[serde(default)]
+    pub coating: CoatingSpec,
+    /// Alignment error: rotations (degrees) about the lens's local x then y axes, about
+    /// `position_mm`.
+    #[serde(default)]
+    pub tilt_deg: Option<(TiltDeg, TiltDeg)>,
+}
+
+/// A plane-parallel absorptive filter (ND glass).
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields, expecting = "struct variant ElementSpec::Filter")]
+pub struct FilterSpec {
+    /// Unique name.
+    pub name: String,
+    /// Catalogue part number (informational).
+    #[serde(default)]
+    pub part: Option<String>,
+    /// Centre of the first face (mm).
+    pub position_mm: Mm3,
+    /// Face normal, in the direction of light travel (the filter extends along it).
+    pub axis: Direction,
+    /// Direction of the outline's width for rectangles.
+    #[serde(default)]
+    pub x_axis: Option<Direction>,
+    /// Outline.
+    pub outline: Outline,
+    /// Thickness (mm).
+    pub thickness_mm: LengthMm,
+    /// Substrate glass (name or constant index), for refraction and Fresnel reflection.
+    pub glass: String,
+    /// Internal optical density through the full thickness at normal incidence (excluding
+    /// surface reflections, which are traced); a ray's bulk transmittance is 10^(−OD·L/t)
+    /// for path length L.
+    pub od: SpectrumSpec,
+    /// Coating of both faces.
+    #[serde(default)]
+    pub coating: CoatingSpec,
+    /// Alignment tilt (degrees) about local x then y.
+    #[serde(default)]
+    pub tilt_deg: Option<(TiltDeg, TiltDeg)>,
+}
+
+/// A black annular aperture (iris) in a plane.
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(
+    deny_unknown_fields,
+    expecting = "struct variant ElementSpec::Aperture"
+)]
+pub struct ApertureSpec {
+    /// Unique name.
+    pub name: String,
+    /// Centre (mm).
+    pub position_mm: Mm3,
+    /// Plane normal.
+    pub axis: Direction,
+    /// Hole diameter (mm).
+    pub inner_diameter_mm: LengthMm,
+    /// Outer diameter of the black annulus (mm).
+    pub outer_diameter_mm: LengthMm,
+}
+
+/// A black tube (lens tube, lamp housing): the side of a cylinder, analytic (every lamp ray
+/// starts inside the lamp housing, where a faceted mesh is the slowest thing to trace).
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields, expecting = "struct variant ElementSpec::Tube")]
+pub struct TubeSpec {
+    /// Unique name.
+    pub name: String,
+    /// Centre of the tube's start (mm).
+    pub position_mm: Mm3,
+    /// Tube axis (the tube runs from `position_mm` along it).
+    pub axis: Direction,
+    /// Inner diameter (mm).
+    pub diameter_mm: LengthMm,
+    /// Length (mm).
+    pub length_mm: LengthMm,
+}
+
+/// A black plate with a circular hole (baffle, field stop) as a triangle mesh (obvhs).
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields, expecting = "struct variant ElementSpec::Baffle")]
+pub struct BaffleSpec {
+    /// Unique name.
+    pub name: String,
+    /// Centre of the hole (mm).
+    pub position_mm: Mm3,
+    /// Plate normal.
+    pub axis: Direction,
+    /// Direction of the plate's width.
+    #[serde(default)]
+    pub x_axis: Option<Direction>,
+    /// Plate width and height (mm).
+    pub width_mm: LengthMm,
+    pub height_mm: LengthMm,
+    /// Hole diameter (mm).
+    pub hole_diameter_mm: LengthMm,
+    /// Sides of the hole's polygon (default 64).
+    #[serde(default = "default_segments")]
+    pub segments: Segments,
+}
+
+/// A flat front-surface mirror (black behind).
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields, expecting = "struct variant ElementSpec::Mirror")]
+pub struct MirrorSpec {
+    /// Unique name.
+    pub name: String,
+    /// Catalogue part number (informational).
+    #[serde(default)]
+    pub part: Option<String>,
+    /// Centre of the reflecting face (mm).
+    pub position_mm: Mm3,
+    /// Normal of the reflecting face (pointing out of the mirror).
+    pub normal: Direction,
+    /// Direction of the outline's width.
+    #[serde(default)]
+    pub x_axis: Option<Direction>,
+    /// Outline of the reflecting face.
+    pub outline: Outline,
+    /// Reflectance R(λ).
+    pub reflectance: SpectrumSpec,
+    /// Substrate thickness behind the face (mm; only used to detect overlaps). Default 6.
+    #[serde(default = "default_mirror_thickness")]
+    pub thickness_mm: LengthMm,
+    /// Alignment tilt (degrees) about local x then y.
+    #[serde(default)]
+    pub tilt_deg: Option<(TiltDeg, TiltDeg)>,
+}
+
+/// A chart plate: chrome pattern on a glass substrate.
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields, expecting = "struct variant ElementSpec::Chart")]
+pub struct ChartSpec {
+    /// Unique name.
+    pub name: String,
+    /// Catalogue part number (informational).
+    #[serde(default)]
+    pub part: Option<String>,
+    /// Where the chart point `center_on` lies, on the chrome face (mm).
+    pub position_mm: Mm3,
+    /// Normal of the chrome face pointing into the substrate.
+    pub normal: Direction,
+    /// Direction of the chart's +x axis (projected onto its plane).
+    #[serde(default)]
+    pub x_axis: Option<Direction>,
+    /// Plate width and height (mm).
+    pub plate_mm: (Positive, Positive),
+    /// Substrate thickness (mm).
+    pub thickness_mm: LengthMm,
+    /// Substrate glass.
+    pub glass: String,
+    /// What is printed.
+    pub pattern: ChartPatternSpec,
+    /// Which chart point sits at `position_mm`. Default: the plate centre.
+    #[serde(default)]
+    pub center_on: Option<CenterOnSpec>,
+    /// Optical density of the chrome (default 3, docs/bench-facts.md §5.3).
+    #[serde(default = "default_chrome_od")]
+    pub chrome_od: SpectrumSpec,
+    /// Reflectance of the chrome (default 0.1: low-reflectivity chrome, estimate).
+    #[serde(default = "default_chrome_reflectance")]
+    pub chrome_reflectance: SpectrumSpec,
+    /// Alignment tilt (degrees) about local x then y.
+    #[serde(default)]
+    pub tilt_deg: Option<(TiltDeg, TiltDeg)>,
 }
 
 impl ElementSpec {
     /// The element's unique `name`.
     pub fn name(&self) -> &str {
         match self {
-            ElementSpec::Lens { name, .. }
-            | ElementSpec::Filter { name, .. }
-            | ElementSpec::Aperture { name, .. }
-            | ElementSpec::Tube { name, .. }
-            | ElementSpec::Baffle { name, .. }
-            | ElementSpec::Mirror { name, .. }
-            | ElementSpec::Chart { name, .. } => name,
+            ElementSpec::Lens(LensSpec { name, .. })
+            | ElementSpec::Filter(FilterSpec { name, .. })
+            | ElementSpec::Aperture(ApertureSpec { name, .. })
+            | ElementSpec::Tube(TubeSpec { name, .. })
+            | ElementSpec::Baffle(BaffleSpec { name, .. })
+            | ElementSpec::Mirror(MirrorSpec { name, .. })
+            | ElementSpec::Chart(ChartSpec { name, .. }) => name,
         }
     }
 }
