@@ -13,7 +13,7 @@
 use std::path::PathBuf;
 
 use crate::error::{Error, Result};
-use crate::export::{ExportOptions, PatternSpec, export_mitsuba};
+use crate::export::{DmdPattern, ExportOptions, export_mitsuba};
 use crate::optics::monochromatic::{MonochromaticOptions, monochromatic};
 use crate::outputs::export::{DIFFRACTION_NOTE, ExportSummary, write};
 use crate::report::output::OutputDir;
@@ -74,7 +74,10 @@ fn export(args: &ExportArgs) -> Result<ExportSummary> {
         )
         .in_file(doc.path()));
     }
-    let spec = PatternSpec::parse(&args.pattern).map_err(|e| e.at_field("--pattern"))?;
+    let spec = args
+        .pattern
+        .parse::<DmdPattern>()
+        .map_err(|e| e.at_field("--pattern"))?;
     let base = std::env::current_dir().unwrap_or_default();
     let bits = spec.bits(bench.units(), &base)?;
     let (bench, notes, wl) = if args.as_is || args.spectral {

@@ -50,7 +50,7 @@ use crate::optics::glass::Glass;
 use crate::optics::lamp::{EmitterShape, LampSpectrum};
 use crate::optics::spectrum::Spectrum;
 
-pub use pattern::PatternSpec;
+pub use pattern::DmdPattern;
 
 /// Sides of every circle polygon and azimuthal segments of every cap.
 pub const SEGMENTS: usize = 256;

@@ -8,7 +8,7 @@ use crate::error::{Error, Result};
 
 /// A DMD pattern over the pattern area's units (true = state +).
 #[derive(Debug, Clone, PartialEq, Eq)]
-pub enum PatternSpec {
+pub enum DmdPattern {
     AllPlus,
     AllMinus,
     /// `crate::acquisition::patterns::random(1, units, seed)`: SplitMix64 bits.
@@ -19,10 +19,12 @@ pub enum PatternSpec {
     Npy(String),
 }
 
-impl PatternSpec {
+impl std::str::FromStr for DmdPattern {
+    type Err = Error;
+
     /// Parses `all-plus`, `all-minus`, `random:SEED`, `complement-random:SEED` or a path ending
     /// in `.npy`.
-    pub fn parse(s: &str) -> Result<PatternSpec> {
+    fn from_str(s: &str) -> Result<DmdPattern> {
         let t = s.trim();
         let seed = |v: &str| {
             v.trim().parse::<u64>().map_err(|_| {
@@ -33,13 +35,13 @@ impl PatternSpec {
             })
         };
         Ok(match t {
-            "all-plus" => PatternSpec::AllPlus,
-            "all-minus" => PatternSpec::AllMinus,
-            _ if t.starts_with("random:") => PatternSpec::Random(seed(&t[7..])?),
+            "all-plus" => DmdPattern::AllPlus,
+            "all-minus" => DmdPattern::AllMinus,
+            _ if t.starts_with("random:") => DmdPattern::Random(seed(&t[7..])?),
             _ if t.starts_with("complement-random:") => {
-                PatternSpec::ComplementRandom(seed(&t[18..])?)
+                DmdPattern::ComplementRandom(seed(&t[18..])?)
             }
-            _ if t.ends_with(".npy") => PatternSpec::Npy(t.to_string()),
+            _ if t.ends_with(".npy") => DmdPattern::Npy(t.to_string()),
             _ => {
                 return Err(Error::field(
                     "pattern",
@@ -51,15 +53,17 @@ impl PatternSpec {
             }
         })
     }
+}
 
+impl DmdPattern {
     /// The label used in manifests and reference files.
     pub fn label(&self) -> String {
         match self {
-            PatternSpec::AllPlus => "all-plus".into(),
-            PatternSpec::AllMinus => "all-minus".into(),
-            PatternSpec::Random(s) => format!("random:{s}"),
-            PatternSpec::ComplementRandom(s) => format!("complement-random:{s}"),
-            PatternSpec::Npy(p) => p.clone(),
+            DmdPattern::AllPlus => "all-plus".into(),
+            DmdPattern::AllMinus => "all-minus".into(),
+            DmdPattern::Random(s) => format!("random:{s}"),
+            DmdPattern::ComplementRandom(s) => format!("complement-random:{s}"),
+            DmdPattern::Npy(p) => p.clone(),
         }
     }
 
@@ -71,11 +75,11 @@ impl PatternSpec {
             (0..units).map(|j| m.get(0, j)).collect::<Vec<bool>>()
         };
         Ok(match self {
-            PatternSpec::AllPlus => vec![true; units],
-            PatternSpec::AllMinus => vec![false; units],
-            PatternSpec::Random(s) => random(*s),
-            PatternSpec::ComplementRandom(s) => random(*s).into_iter().map(|b| !b).collect(),
-            PatternSpec::Npy(p) => {
+            DmdPattern::AllPlus => vec![true; units],
+            DmdPattern::AllMinus => vec![false; units],
+            DmdPattern::Random(s) => random(*s),
+            DmdPattern::ComplementRandom(s) => random(*s).into_iter().map(|b| !b).collect(),
+            DmdPattern::Npy(p) => {
                 let path = base.join(p);
                 let a = crate::report::npy::read(&path)?;
                 let v = a.to_f64();
@@ -112,19 +116,19 @@ mod tests {
     fn specs_parse_and_complements_complement() {
         let base = Path::new(".");
         assert_eq!(
-            PatternSpec::parse("all-plus").unwrap(),
-            PatternSpec::AllPlus
+            "all-plus".parse::<DmdPattern>().unwrap(),
+            DmdPattern::AllPlus
         );
         assert_eq!(
-            PatternSpec::parse("random:7").unwrap(),
-            PatternSpec::Random(7)
+            "random:7".parse::<DmdPattern>().unwrap(),
+            DmdPattern::Random(7)
         );
-        assert!(PatternSpec::parse("random:x").is_err());
-        assert!(PatternSpec::parse("stripes").is_err());
-        let a = PatternSpec::Random(7).bits(16, base).unwrap();
-        let b = PatternSpec::ComplementRandom(7).bits(16, base).unwrap();
+        assert!("random:x".parse::<DmdPattern>().is_err());
+        assert!("stripes".parse::<DmdPattern>().is_err());
+        let a = DmdPattern::Random(7).bits(16, base).unwrap();
+        let b = DmdPattern::ComplementRandom(7).bits(16, base).unwrap();
         assert!(a.iter().zip(&b).all(|(x, y)| x != y));
         assert!(a.iter().any(|&x| x) && a.iter().any(|&x| !x));
-        assert_eq!(PatternSpec::AllMinus.bits(3, base).unwrap(), vec![false; 3]);
+        assert_eq!(DmdPattern::AllMinus.bits(3, base).unwrap(), vec![false; 3]);
     }
 }

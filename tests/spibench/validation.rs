@@ -28,7 +28,7 @@ use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
 use serde_json::Value;
-use spibench::export::PatternSpec;
+use spibench::export::DmdPattern;
 use spibench::optics::monochromatic::{MonochromaticOptions, monochromatic};
 use spibench::trace::{PatternMode, Sampling, TraceOptions, trace};
 use spibench::transport::{Estimate, fixed_pattern_currents};
@@ -116,7 +116,9 @@ fn trace_case(case: &Case, seed: u64) -> [Estimate; 2] {
         }
         None => bench,
     };
-    let bits = PatternSpec::parse(&case.pattern)
+    let bits = case
+        .pattern
+        .parse::<DmdPattern>()
         .unwrap()
         .bits(bench.units(), &root())
         .unwrap();

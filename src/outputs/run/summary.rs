@@ -49,7 +49,7 @@ pub struct RunSummary<'a> {
     /// its `finest_resolved`.
     pub resolution: Option<&'a ResolutionContext>,
     /// Observations computed from the results (never tuned).
-    pub findings: Findings,
+    pub findings: FindingsBlock,
     /// Output files, relative to the output folder.
     pub files: Vec<String>,
     /// Wall-clock timings (s): differ between identical runs, so they are not serialised here
@@ -94,9 +94,9 @@ pub struct NamedOutputs {
     pub monitor_minus: f64,
 }
 
-/// Comparisons the paper draws, computed from this run.
+/// The `findings` block of `summary.json`: comparisons the paper draws, computed from this run.
 #[derive(Serialize)]
-pub struct Findings {
+pub struct FindingsBlock {
     /// Ratios at which secondary complementary balancing has a higher MSSIM than double-arm
     /// dual-pixel, and at which it does not (both schemes run).
     pub scb_beats_double_arm_at: Vec<f64>,
@@ -111,7 +111,7 @@ pub struct Findings {
     pub standings: crate::run::findings::Record,
 }
 
-fn findings(o: &RunOutcome) -> Findings {
+fn findings(o: &RunOutcome) -> FindingsBlock {
     let s = &o.settings;
     let mut beats = Vec::new();
     let mut not = Vec::new();
@@ -139,7 +139,7 @@ fn findings(o: &RunOutcome) -> Findings {
                 - o.result(Scheme::Traditional, r)?.mssim,
         )
     });
-    Findings {
+    FindingsBlock {
         scb_beats_double_arm_at: beats,
         scb_not_above_double_arm_at: not,
         scb_minus_traditional_mssim_at_max_ratio: scb_trad,
