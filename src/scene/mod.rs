@@ -242,7 +242,7 @@ mod tests {
         // The input types below `scene` that the files hold: the TVAL3 options, the additive
         // noise and the objects (with their USAF regions).
         let mut files: Vec<std::path::PathBuf> = [
-            "reconstruction/tval3.rs",
+            "reconstruction/tval3/options.rs",
             "acquisition/noise.rs",
             "objects/mod.rs",
         ]
