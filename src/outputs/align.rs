@@ -179,7 +179,7 @@ struct FreeSummary<'a> {
     at_bound: bool,
 }
 
-/// Whether `path` names a rigid-body move (src/scene/variables.rs: `ELEMENT.decenter_mm.x|y`,
+/// Whether `path` names a rigid-body move (src/scene/variables/moves.rs: `ELEMENT.decenter_mm.x|y`,
 /// `ELEMENT.despace_mm`, `ELEMENT.tilt_deg.x|y`), whose value counts from the starting bench.
 fn is_move(path: &str) -> bool {
     let parts: Vec<&str> = path.split('.').collect();
