@@ -1,0 +1,708 @@
+//! Line plots: series with markers, dashes and error bars, filled areas on a secondary scale, the
+//! legend band, and the SVG, PNG and PDF writers.
+
+use std::ops::Range;
+use std::path::Path;
+
+use plotters::coord::Shift;
+use plotters::coord::ranged1d::Ranged;
+use plotters::coord::types::RangedCoordf64;
+use plotters::element::DashedPathElement;
+use plotters::prelude::*;
+use plotters::style::text_anchor::{HPos, Pos, VPos};
+
+use super::ticks::{Ticked, format_styled, format_tick, linear_ticks, log_ticks, tick_style};
+use crate::error::{Error, Result};
+use crate::report::font::{self, FAMILY};
+
+/// One curve: points `(x[i], y[i])` joined in order, each with an optional ±`y_err[i]` bar.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Series {
+    pub label: String,
+    pub x: Vec<f64>,
+    pub y: Vec<f64>,
+    /// Half-length of each error bar (for example one standard error); NaN or 0 draws none.
+    pub y_err: Option<Vec<f64>>,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct LinePlot {
+    /// The figure's caption: not drawn in the figure (captions go in the page), kept for the
+    /// page that shows it.
+    pub title: String,
+    pub x_label: String,
+    pub y_label: String,
+    pub series: Vec<Series>,
+    /// Logarithmic x axis (points with x ≤ 0 cannot be shown and are skipped).
+    pub log_x: bool,
+}
+
+/// The default figure's size in SVG user units (half points, `report::svg`): a single-column
+/// figure, 3.5 × 2.6 in.
+pub const PLOT_WIDTH_PX: u32 = 504;
+pub const PLOT_HEIGHT_PX: u32 = 374;
+
+/// Text at print size, in plotters' size unit: plotters rounds a size down to whole units and
+/// writes `font-size = size / 1.24`, and one SVG unit is half a point, so 22 gives 8.87 pt
+/// (axis descriptions) and 20 gives 8.06 pt (tick labels and legend).
+pub(super) const AXIS_DESC_SIZE: f64 = 22.0;
+pub(super) const TICK_SIZE: f64 = 20.0;
+pub(super) const LEGEND_SIZE: f64 = 20.0;
+pub(super) const MARGIN_PX: i32 = 14;
+pub(super) const LEGEND_LINE_PX: i32 = 22;
+pub(super) const LEGEND_GAP_PX: i32 = 20;
+pub(super) const LEGEND_SAMPLE_PX: i32 = 40;
+/// At most about this many markers per series: a long series gets a marker on every k-th
+/// point, each series starting at a different point, so that markers of curves that lie on
+/// each other alternate along them instead of hiding each other.
+pub(super) const MARKERS_PER_SERIES: usize = 12;
+
+/// A filled area drawn behind the curves against a secondary scale on the right, from 0 (the
+/// bottom of the axes) to 1: a spectrum or a responsivity normalised to its peak, for example.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Area {
+    pub label: String,
+    pub x: Vec<f64>,
+    /// Values on the secondary scale (0 to 1; others are clipped to it).
+    pub y: Vec<f64>,
+}
+
+/// What a plot may carry besides its curves.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct PlotOptions {
+    /// The printed size; `None` chooses it from the plot ([`default_size`]).
+    pub size: Option<crate::report::svg::FigureSize>,
+    /// Filled areas behind the curves, with their scale on the right.
+    pub areas: Vec<Area>,
+    /// The secondary scale's label (used when there are areas).
+    pub area_label: String,
+}
+
+use crate::report::svg::FigureSize;
+
+/// Dash patterns (dash, gap) in px, cycled with a period (5) coprime to the palette's (7) and
+/// the markers' (6); `None` is a solid line.
+pub(super) const DASHES: [Option<(i32, i32)>; 5] = [
+    None,
+    Some((12, 6)),
+    Some((3, 4)),
+    Some((20, 5)),
+    Some((7, 3)),
+];
+
+/// Okabe–Ito colours, distinguishable with the common colour-vision deficiencies.
+pub(super) const PALETTE: [RGBColor; 7] = [
+    RGBColor(0, 114, 178),
+    RGBColor(213, 94, 0),
+    RGBColor(0, 158, 115),
+    RGBColor(204, 121, 167),
+    RGBColor(230, 159, 0),
+    RGBColor(86, 180, 233),
+    RGBColor(0, 0, 0),
+];
+
+/// Marker shapes, cycled with a period coprime to the palette's so that series stay distinct
+/// in grayscale print too.
+pub(super) const MARKERS: usize = 6;
+
+/// A series reduced to what can be drawn: runs of consecutive plottable points (a missing
+/// point breaks the line) with their error half-lengths (0 = no bar).
+pub(super) struct Prepared {
+    label: String,
+    runs: Vec<Vec<(f64, f64, f64)>>,
+}
+
+/// The drawable series with the x and y ranges to show.
+pub(super) type PreparedPlot = (Vec<Prepared>, Range<f64>, Range<f64>);
+
+pub(super) fn prepare(plot: &LinePlot) -> Result<PreparedPlot> {
+    let mut out = Vec::with_capacity(plot.series.len());
+    let (mut x0, mut x1, mut y0, mut y1) = (
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+    );
+    for (i, s) in plot.series.iter().enumerate() {
+        if s.x.len() != s.y.len() {
+            return Err(Error::field(
+                format!("series[{i}].y"),
+                format!(
+                    "series {:?} has {} x values but {} y values",
+                    s.label,
+                    s.x.len(),
+                    s.y.len()
+                ),
+            ));
+        }
+        if let Some(err) = &s.y_err {
+            if err.len() != s.y.len() {
+                return Err(Error::field(
+                    format!("series[{i}].y_err"),
+                    format!(
+                        "series {:?} has {} error values for {} points",
+                        s.label,
+                        err.len(),
+                        s.y.len()
+                    ),
+                ));
+            }
+            if let Some(bad) = err.iter().find(|e| **e < 0.0) {
+                return Err(Error::field(
+                    format!("series[{i}].y_err"),
+                    format!("error bar half-lengths must not be negative, got {bad}"),
+                ));
+            }
+        }
+        let mut runs = Vec::new();
+        let mut run = Vec::new();
+        for k in 0..s.x.len() {
+            let (x, y) = (s.x[k], s.y[k]);
+            let ok = x.is_finite() && y.is_finite() && (!plot.log_x || x > 0.0);
+            if !ok {
+                if !run.is_empty() {
+                    runs.push(std::mem::take(&mut run));
+                }
+                continue;
+            }
+            let e = s
+                .y_err
+                .as_ref()
+                .map(|v| v[k])
+                .filter(|e| e.is_finite())
+                .unwrap_or(0.0);
+            x0 = x0.min(x);
+            x1 = x1.max(x);
+            y0 = y0.min(y - e);
+            y1 = y1.max(y + e);
+            run.push((x, y, e));
+        }
+        if !run.is_empty() {
+            runs.push(run);
+        }
+        out.push(Prepared {
+            label: s.label.clone(),
+            runs,
+        });
+    }
+    // x0 stays +∞ when no point was plottable.
+    if !x0.is_finite() {
+        return Err(Error::field(
+            "series",
+            "the plot has no point with finite coordinates (and x > 0 on a log axis)",
+        ));
+    }
+    let x = if plot.log_x {
+        // Pad by 4 % of the decades shown, at least a factor 1.25 for a single x value.
+        let pad = ((x1 / x0).ln() * 0.04).max(0.0);
+        let pad = if x1 > x0 { pad } else { 1.25f64.ln() };
+        x0 * (-pad).exp()..x1 * pad.exp()
+    } else {
+        pad_range(x0, x1, 0.04)
+    };
+    Ok((out, x, pad_range(y0, y1, 0.06)))
+}
+
+/// `[lo, hi]` widened by `frac` of its span on each side; a single value gets a span of its
+/// own size (or 1 at zero).
+pub(super) fn pad_range(lo: f64, hi: f64, frac: f64) -> Range<f64> {
+    if hi > lo {
+        let p = (hi - lo) * frac;
+        lo - p..hi + p
+    } else {
+        let p = if lo == 0.0 { 1.0 } else { lo.abs() * 0.5 };
+        lo - p..hi + p
+    }
+}
+
+pub(super) fn draw_marker<DB, CT>(
+    area: &DrawingArea<DB, CT>,
+    at: CT::From,
+    kind: usize,
+    color: RGBColor,
+) -> std::result::Result<(), String>
+where
+    DB: DrawingBackend,
+    CT: plotters::coord::CoordTranslate,
+{
+    let filled = ShapeStyle::from(&color).filled();
+    let outline = ShapeStyle::from(&color).stroke_width(2);
+    let r = match kind % MARKERS {
+        0 => area.draw(&(EmptyElement::at(at) + Circle::new((0, 0), 5, filled))),
+        1 => area.draw(&(EmptyElement::at(at) + TriangleMarker::new((0, 0), 7, filled))),
+        2 => area.draw(&(EmptyElement::at(at) + Rectangle::new([(-5, -5), (5, 5)], filled))),
+        3 => area.draw(
+            &(EmptyElement::at(at) + Polygon::new(vec![(0, -7), (7, 0), (0, 7), (-7, 0)], filled)),
+        ),
+        4 => area.draw(&(EmptyElement::at(at) + Cross::new((0, 0), 5, outline))),
+        _ => area.draw(&(EmptyElement::at(at) + Circle::new((0, 0), 5, outline))),
+    };
+    r.map_err(|e| e.to_string())
+}
+
+/// Draws a polyline in series `i`'s colour and dash pattern.
+pub(super) fn draw_line<DB, CT>(
+    area: &DrawingArea<DB, CT>,
+    points: Vec<CT::From>,
+    i: usize,
+) -> std::result::Result<(), String>
+where
+    DB: DrawingBackend,
+    CT: plotters::coord::CoordTranslate,
+    CT::From: Clone,
+{
+    let style = PALETTE[i % PALETTE.len()].stroke_width(2);
+    match DASHES[i % DASHES.len()] {
+        None => area.draw(&PathElement::new(points, style)),
+        Some((dash, gap)) => area.draw(&DashedPathElement::new(points, dash, gap, style)),
+    }
+    .map_err(|e| e.to_string())
+}
+
+pub(super) fn draw_chart<DB, XR>(
+    area: &DrawingArea<DB, Shift>,
+    plot: &LinePlot,
+    series: &[Prepared],
+    extras: &Extras,
+    x: Ticked<XR>,
+    y: Range<f64>,
+) -> std::result::Result<(), String>
+where
+    DB: DrawingBackend,
+    XR: Ranged<ValueType = f64>,
+{
+    // The y label area holds the widest tick text and the rotated axis description.
+    let y_ticks = linear_ticks(y.start, y.end);
+    let (x_style, y_style) = (tick_style(&x.ticks), tick_style(&y_ticks));
+    let tick_w = y_ticks
+        .iter()
+        .map(|t| font::text_width(&format_styled(*t, y_style).replace('-', "−"), TICK_SIZE))
+        .max()
+        .unwrap_or(0);
+    let right = if extras.areas.is_empty() {
+        0
+    } else {
+        font::text_width("0.75", TICK_SIZE) as i32 + 44
+    };
+    // The secondary scale sits in a right margin, not a label area: plotters would repeat the
+    // primary axis' labels in a right label area.
+    let mut chart = ChartBuilder::on(area)
+        .margin(MARGIN_PX)
+        .margin_right(MARGIN_PX + right)
+        .x_label_area_size(48)
+        .y_label_area_size(tick_w as i32 + 44)
+        .build_cartesian_2d(
+            x,
+            Ticked {
+                inner: RangedCoordf64::from(y.clone()),
+                ticks: y_ticks,
+            },
+        )
+        .map_err(|e| e.to_string())?;
+    // Tick text uses the typographic minus sign (U+2212), as a printed figure would.
+    let x_formatter = |v: &f64| format_styled(*v, x_style).replace('-', "−");
+    let y_formatter = |v: &f64| format_styled(*v, y_style).replace('-', "−");
+    chart
+        .configure_mesh()
+        .x_desc(plot.x_label.as_str())
+        .y_desc(plot.y_label.as_str())
+        .axis_desc_style((FAMILY, AXIS_DESC_SIZE))
+        .label_style((FAMILY, TICK_SIZE))
+        .x_label_formatter(&x_formatter)
+        .y_label_formatter(&y_formatter)
+        .bold_line_style(RGBColor(0, 0, 0).mix(0.12))
+        .draw()
+        .map_err(|e| e.to_string())?;
+    if !extras.areas.is_empty() {
+        draw_areas(area, &chart, extras, &y)?;
+    }
+    let area = chart.plotting_area();
+    for (i, s) in series.iter().enumerate() {
+        let color = PALETTE[i % PALETTE.len()];
+        let points: usize = s.runs.iter().map(Vec::len).sum();
+        let step = points.div_ceil(MARKERS_PER_SERIES).max(1);
+        let mut k = 0usize;
+        for run in &s.runs {
+            if run.len() > 1 {
+                draw_line(area, run.iter().map(|&(x, y, _)| (x, y)).collect(), i)?;
+            }
+            for &(x, y, e) in run {
+                if e > 0.0 {
+                    let style = color.stroke_width(2);
+                    area.draw(&PathElement::new(vec![(x, y - e), (x, y + e)], style))
+                        .map_err(|e| e.to_string())?;
+                    for end in [y - e, y + e] {
+                        area.draw(
+                            &(EmptyElement::at((x, end))
+                                + PathElement::new(vec![(-4, 0), (4, 0)], style)),
+                        )
+                        .map_err(|e| e.to_string())?;
+                    }
+                }
+                if (k + i).is_multiple_of(step) {
+                    draw_marker(area, (x, y), i, color)?;
+                }
+                k += 1;
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The colour of area `i`: light tints, unlike the curves' colours, so that the curves stay in
+/// front.
+pub(super) const AREA_FILL: [RGBColor; 4] = [
+    RGBColor(230, 159, 0),
+    RGBColor(0, 114, 178),
+    RGBColor(0, 158, 115),
+    RGBColor(204, 121, 167),
+];
+pub(super) const AREA_OPACITY: f64 = 0.22;
+
+/// The filled areas behind the curves, on the secondary scale: 0 at the bottom of the axes, 1
+/// at the top of the primary range's data (so the scale's ticks 0 … 1 sit on the right axis).
+pub(super) fn draw_areas<DB, XR>(
+    root: &DrawingArea<DB, Shift>,
+    chart: &ChartContext<DB, Cartesian2d<Ticked<XR>, Ticked<RangedCoordf64>>>,
+    extras: &Extras,
+    y: &Range<f64>,
+) -> std::result::Result<(), String>
+where
+    DB: DrawingBackend,
+    XR: Ranged<ValueType = f64>,
+{
+    let to_y = |r: f64| y.start + r.clamp(0.0, 1.0) * (y.end - y.start) / SECONDARY_TOP;
+    let plotting = chart.plotting_area();
+    for (k, a) in extras.areas.iter().enumerate() {
+        let color = AREA_FILL[k % AREA_FILL.len()];
+        if a.pts.len() < 2 {
+            continue;
+        }
+        let mut poly: Vec<(f64, f64)> = a.pts.iter().map(|&(x, r)| (x, to_y(r))).collect();
+        let (first, last) = (a.pts[0].0, a.pts[a.pts.len() - 1].0);
+        poly.push((last, y.start));
+        poly.push((first, y.start));
+        plotting
+            .draw(&Polygon::new(poly, color.mix(AREA_OPACITY).filled()))
+            .map_err(|e| e.to_string())?;
+        let edge: Vec<(f64, f64)> = a.pts.iter().map(|&(x, r)| (x, to_y(r))).collect();
+        plotting
+            .draw(&PathElement::new(edge, color.mix(0.7).stroke_width(1)))
+            .map_err(|e| e.to_string())?;
+    }
+    // The secondary scale on the right: ticks, labels and its description.
+    let base = root.get_base_pixel();
+    let x_right = plotting.get_x_range().end;
+    let style = TextStyle::from((FAMILY, TICK_SIZE).into_font())
+        .color(&BLACK)
+        .pos(Pos::new(HPos::Left, VPos::Center));
+    for t in [0.0, 0.25, 0.5, 0.75, 1.0] {
+        let (px, py) = chart.backend_coord(&(x_right, to_y(t)));
+        let (px, py) = (px - base.0, py - base.1);
+        root.draw(&PathElement::new(
+            vec![(px, py), (px + 5, py)],
+            BLACK.stroke_width(1),
+        ))
+        .map_err(|e| e.to_string())?;
+        root.draw(&Text::new(format_tick(t), (px + 8, py), style.clone()))
+            .map_err(|e| e.to_string())?;
+    }
+    let (px, top) = chart.backend_coord(&(x_right, y.end));
+    let (_, bottom) = chart.backend_coord(&(x_right, y.start));
+    let (_, h) = root.dim_in_pixel();
+    let label_x = px - base.0 + font::text_width("0.75", TICK_SIZE) as i32 + 22;
+    let label_y = ((top + bottom) / 2 - base.1).clamp(0, h as i32);
+    let rotated = TextStyle::from((FAMILY, AXIS_DESC_SIZE).into_font())
+        .color(&BLACK)
+        .pos(Pos::new(HPos::Center, VPos::Center))
+        .transform(FontTransform::Rotate90);
+    root.draw(&Text::new(
+        extras.area_label.clone(),
+        (label_x, label_y),
+        rotated,
+    ))
+    .map_err(|e| e.to_string())?;
+    Ok(())
+}
+
+/// The secondary scale's 1 sits at this fraction of the primary range's height.
+pub(super) const SECONDARY_TOP: f64 = 1.0;
+
+/// A legend entry: a curve (by series index) or a filled area (by area index).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum Entry {
+    Curve(usize),
+    Area(usize),
+}
+
+/// The legend's entries placed in rows: each row holds as many entries as fit in `width`,
+/// left to right; the curves first, then the areas.
+pub(super) fn legend_rows(
+    series: &[Prepared],
+    extras: &Extras,
+    width: u32,
+) -> Vec<Vec<(Entry, String)>> {
+    let max_text = width.saturating_sub(LEGEND_SAMPLE_PX as u32 + 3 * LEGEND_GAP_PX as u32);
+    let mut rows: Vec<Vec<(Entry, String)>> = Vec::new();
+    let mut used = 0u32;
+    let entries = series
+        .iter()
+        .enumerate()
+        .map(|(i, s)| (Entry::Curve(i), &s.label))
+        .chain(
+            extras
+                .areas
+                .iter()
+                .enumerate()
+                .map(|(k, a)| (Entry::Area(k), &a.label)),
+        );
+    for (entry, label) in entries {
+        if label.trim().is_empty() {
+            continue;
+        }
+        let label = font::fit_text(label, LEGEND_SIZE, max_text);
+        let w = entry_width(&label);
+        if rows.is_empty() || used + w > width.saturating_sub(2 * MARGIN_PX as u32) {
+            rows.push(Vec::new());
+            used = 0;
+        }
+        used += w;
+        rows.last_mut()
+            .expect("a row was pushed")
+            .push((entry, label));
+    }
+    rows
+}
+
+pub(super) fn entry_width(label: &str) -> u32 {
+    LEGEND_SAMPLE_PX as u32 + 6 + font::text_width(label, LEGEND_SIZE) + LEGEND_GAP_PX as u32
+}
+
+pub(super) fn legend_height(rows: usize) -> i32 {
+    if rows == 0 {
+        0
+    } else {
+        rows as i32 * LEGEND_LINE_PX + MARGIN_PX / 2
+    }
+}
+
+/// The filled areas reduced to what can be drawn: finite points in order of x, clipped to
+/// the secondary scale.
+pub(super) struct PreparedArea {
+    label: String,
+    pts: Vec<(f64, f64)>,
+}
+
+pub(super) struct Extras {
+    areas: Vec<PreparedArea>,
+    area_label: String,
+}
+
+pub(super) fn prepare_extras(opts: &PlotOptions, log_x: bool) -> Result<Extras> {
+    let mut areas = Vec::with_capacity(opts.areas.len());
+    for (k, a) in opts.areas.iter().enumerate() {
+        if a.x.len() != a.y.len() {
+            return Err(Error::field(
+                format!("areas[{k}].y"),
+                format!(
+                    "area {:?} has {} x values but {} y values",
+                    a.label,
+                    a.x.len(),
+                    a.y.len()
+                ),
+            ));
+        }
+        let mut pts: Vec<(f64, f64)> =
+            a.x.iter()
+                .zip(&a.y)
+                .filter(|(x, y)| x.is_finite() && y.is_finite() && (!log_x || **x > 0.0))
+                .map(|(&x, &y)| (x, y.clamp(0.0, 1.0)))
+                .collect();
+        pts.sort_by(|p, q| p.0.total_cmp(&q.0));
+        areas.push(PreparedArea {
+            label: a.label.clone(),
+            pts,
+        });
+    }
+    Ok(Extras {
+        areas,
+        area_label: opts.area_label.clone(),
+    })
+}
+
+/// The printed size a plot gets by default: one column, unless its legend needs more than three
+/// rows there, then the page's width; the height grows by the legend's rows beyond the first.
+pub fn default_size(plot: &LinePlot, opts: &PlotOptions) -> FigureSize {
+    let Ok((series, _, _)) = prepare(plot) else {
+        return FigureSize::SINGLE;
+    };
+    let Ok(extras) = prepare_extras(opts, plot.log_x) else {
+        return FigureSize::SINGLE;
+    };
+    let rows_at = |size: FigureSize| legend_rows(&series, &extras, size.units().0).len();
+    let size = if rows_at(FigureSize::SINGLE) > 3 {
+        FigureSize::DOUBLE
+    } else {
+        FigureSize::SINGLE
+    };
+    let extra_rows = rows_at(size).saturating_sub(1);
+    size.taller(extra_rows as f64 * f64::from(LEGEND_LINE_PX) / crate::report::svg::UNITS_PER_IN)
+}
+
+/// Draws the whole figure on `root` (already `width × height`).
+pub(super) fn draw_figure<DB: DrawingBackend>(
+    root: &DrawingArea<DB, Shift>,
+    plot: &LinePlot,
+    series: &[Prepared],
+    extras: &Extras,
+    x: Range<f64>,
+    y: Range<f64>,
+) -> std::result::Result<(), String> {
+    if !font::ensure_registered() {
+        return Err(font::unavailable().to_string());
+    }
+    root.fill(&WHITE).map_err(|e| e.to_string())?;
+    let (w, h) = root.dim_in_pixel();
+    let rows = legend_rows(series, extras, w);
+    let legend_h = legend_height(rows.len());
+    let (chart_area, legend_area) = root.split_vertically(h as i32 - legend_h);
+    if plot.log_x {
+        let ticks = log_ticks(x.start, x.end);
+        let inner: LogCoord<f64> = x.log_scale().into();
+        draw_chart(
+            &chart_area,
+            plot,
+            series,
+            extras,
+            Ticked { inner, ticks },
+            y,
+        )?;
+    } else {
+        let ticks = linear_ticks(x.start, x.end);
+        let inner = RangedCoordf64::from(x);
+        draw_chart(
+            &chart_area,
+            plot,
+            series,
+            extras,
+            Ticked { inner, ticks },
+            y,
+        )?;
+    }
+    let style = TextStyle::from((FAMILY, LEGEND_SIZE).into_font())
+        .color(&BLACK)
+        .pos(Pos::new(HPos::Left, VPos::Center));
+    for (r, row) in rows.iter().enumerate() {
+        // Each row is centred under the figure.
+        let row_w: u32 =
+            row.iter().map(|(_, l)| entry_width(l)).sum::<u32>() - LEGEND_GAP_PX as u32;
+        let mut left = (w.saturating_sub(row_w) / 2) as i32;
+        let yc = r as i32 * LEGEND_LINE_PX + LEGEND_LINE_PX / 2;
+        for (entry, label) in row {
+            match *entry {
+                Entry::Curve(i) => {
+                    let color = PALETTE[i % PALETTE.len()];
+                    draw_line(
+                        &legend_area,
+                        vec![(left, yc), (left + LEGEND_SAMPLE_PX, yc)],
+                        i,
+                    )?;
+                    draw_marker(&legend_area, (left + LEGEND_SAMPLE_PX / 2, yc), i, color)?;
+                }
+                Entry::Area(k) => {
+                    let color = AREA_FILL[k % AREA_FILL.len()];
+                    let r = [(left, yc - 7), (left + LEGEND_SAMPLE_PX, yc + 7)];
+                    legend_area
+                        .draw(&Rectangle::new(r, color.mix(AREA_OPACITY).filled()))
+                        .map_err(|e| e.to_string())?;
+                    legend_area
+                        .draw(&Rectangle::new(r, color.mix(0.7).stroke_width(1)))
+                        .map_err(|e| e.to_string())?;
+                }
+            }
+            legend_area
+                .draw(&Text::new(
+                    label.clone(),
+                    (left + LEGEND_SAMPLE_PX + 6, yc),
+                    style.clone(),
+                ))
+                .map_err(|e| e.to_string())?;
+            left += entry_width(label) as i32;
+        }
+    }
+    root.present().map_err(|e| e.to_string())
+}
+
+/// The SVG text of a plot of `width × height` user units (half points), text as outlines.
+pub fn render_svg(plot: &LinePlot, width: u32, height: u32) -> Result<String> {
+    render_svg_with(plot, &PlotOptions::default(), width, height)
+}
+
+/// [`render_svg`] with filled areas.
+pub fn render_svg_with(
+    plot: &LinePlot,
+    opts: &PlotOptions,
+    width: u32,
+    height: u32,
+) -> Result<String> {
+    let (series, mut x, y) = prepare(plot)?;
+    let extras = prepare_extras(opts, plot.log_x)?;
+    // The x range covers the areas too.
+    for a in &extras.areas {
+        if let (Some(f), Some(l)) = (a.pts.first(), a.pts.last()) {
+            x = x.start.min(f.0)..x.end.max(l.0);
+        }
+    }
+    let mut svg = String::new();
+    {
+        let root = SVGBackend::with_string(&mut svg, (width, height)).into_drawing_area();
+        draw_figure(&root, plot, &series, &extras, x, y).map_err(Error::Numerical)?;
+    }
+    crate::report::svg::at_print_size(&crate::report::outline::outline_text(&svg)?)
+}
+
+/// Writes the plot as SVG, PNG and PDF at its default size ([`default_size`]); the PDF goes
+/// beside the SVG, with the extension `.pdf`.
+pub fn write_plot(plot: &LinePlot, svg_path: &Path, png_path: &Path) -> Result<()> {
+    write_plot_with(plot, &PlotOptions::default(), svg_path, png_path)
+}
+
+/// Writes the plot as SVG, PNG and PDF (beside the SVG) of `width × height` SVG units (half
+/// points; each from 320 to 8000 and 240 to 8000).
+pub fn write_plot_sized(
+    plot: &LinePlot,
+    svg_path: &Path,
+    png_path: &Path,
+    width: u32,
+    height: u32,
+) -> Result<()> {
+    if !(320..=8000).contains(&width) || !(240..=8000).contains(&height) {
+        return Err(Error::input(format!(
+            "a {width}×{height} plot is outside the supported 320–8000 × 240–8000 units"
+        ))
+        .in_file(png_path));
+    }
+    let opts = PlotOptions {
+        size: Some(FigureSize::of_units(width, height)),
+        ..PlotOptions::default()
+    };
+    write_plot_with(plot, &opts, svg_path, png_path)
+}
+
+/// Writes the plot with its options as SVG, PNG and PDF (beside the SVG). All three are
+/// rendered in memory first, so a drawing failure writes none.
+pub fn write_plot_with(
+    plot: &LinePlot,
+    opts: &PlotOptions,
+    svg_path: &Path,
+    png_path: &Path,
+) -> Result<()> {
+    let size = opts.size.unwrap_or_else(|| default_size(plot, opts));
+    let (width, height) = size.units();
+    let fail = |e: Error| match e {
+        Error::Numerical(msg) => Error::write(svg_path, std::io::Error::other(msg)),
+        other => other.in_file(svg_path),
+    };
+    let svg = render_svg_with(plot, opts, width, height).map_err(fail)?;
+    crate::report::svg::write_figure(&svg, svg_path, png_path, true)
+}
