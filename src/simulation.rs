@@ -13,7 +13,7 @@
 use rayon::prelude::*;
 use serde::Serialize;
 
-use crate::acquisition::{self, NoiseDistribution, PatternSet, Scheme};
+use crate::acquisition::{self, NoiseDistribution, PatternSet, Scheme, patterns_for_ratio};
 use crate::error::Result;
 use crate::metrics;
 use crate::objects;
@@ -91,11 +91,6 @@ pub struct SimulationOutput {
     pub cells: Vec<Cell>,
     pub reconstructions: Vec<Raster>,
     pub truths: Vec<Raster>,
-}
-
-/// Number of base patterns for a ratio: the nearest integer to ratio·N, at least 1.
-pub fn patterns_for_ratio(ratio: f64, units: usize) -> usize {
-    ((ratio * units as f64).round() as usize).clamp(1, units)
 }
 
 /// Runs every cell. `progress(done, total)` is called as cells finish (from any thread).

@@ -105,9 +105,6 @@ fn check_grid(width: usize, height: usize) -> Result<usize> {
     }
 }
 
-/// `m` random patterns on a `width` × `height` grid from [`random`] with `seed`.
-///
-/// Valid for 1 ≤ m ≤ 4N and at most [`MAX_RANDOM_BITS`] stored bits.
 /// Number of base patterns for a sampling ratio: the nearest integer to ratio·N, at least 1 and
 /// at most N.
 pub fn patterns_for_ratio(ratio: f64, units: usize) -> usize {
@@ -157,6 +154,9 @@ impl serde::Serialize for PatternFamily {
     }
 }
 
+/// `m` random patterns on a `width` × `height` grid from [`random`] with `seed`.
+///
+/// Valid for 1 ≤ m ≤ 4N and at most [`MAX_RANDOM_BITS`] stored bits.
 pub fn random_set(width: usize, height: usize, m: usize, seed: u64) -> Result<PatternSet> {
     let n = check_grid(width, height)?;
     if m == 0 {
