@@ -28,6 +28,23 @@ pub struct DatasetArgs {
     pub work: crate::cli::args::WorkArgs,
 }
 
+/// A work-limit refusal ([`crate::cli::args::WorkArgs::check`]) located in the spec: at its
+/// `samples` when the samples are over their limit, else at the kernel's `rays` (the traced
+/// rays), with the message (and its `--allow-large`) kept.
+fn work_error(
+    spec: &crate::scene::dataset::DatasetSpec,
+    w: &crate::cli::args::Work,
+    e: Error,
+) -> Error {
+    match e {
+        Error::Input { message, .. } if w.samples >= crate::cli::args::MAX_WORK_SAMPLES => {
+            spec.error("samples", message)
+        }
+        Error::Input { message, .. } => spec.kernel_error(Error::field("rays", message)),
+        e => e,
+    }
+}
+
 /// The work of this job of the dataset: its samples, and the kernels it traces (one for a
 /// nominal dataset; one per drawn bench of its samples, besides their compensators' traces).
 fn work(
@@ -94,7 +111,8 @@ pub fn run(args: &DatasetArgs) -> anyhow::Result<()> {
     let spec = read_dataset(spec_path)?;
     // Above the limits, refused before the kernel is traced (the disk a dataset needs is
     // checked against its spec's `max_disk_gb` when it is prepared).
-    args.work.check(&work(&spec, job))?;
+    let w = work(&spec, job);
+    args.work.check(&w).map_err(|e| work_error(&spec, &w, e))?;
     // The folder is locked before the kernel is traced, so that a second run into it (a
     // `--resume` while the first still writes) stops at once.
     let lock = FolderLock::acquire(&args.out)?;

@@ -540,6 +540,26 @@ fn total_work_above_the_limits_is_refused_with_its_estimate() {
     );
 }
 
+#[test]
+fn a_dataset_over_the_sample_limit_is_refused_at_its_spec_line() {
+    // Located at the spec's `samples` (line 6), not at the flag alone.
+    let dir = TempDir::new("bad-new-work-located");
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    std::fs::copy(root.join(PAPER), dir.join("paper_bench.ron")).unwrap();
+    let spec = small_spec(&dir, "paper_bench.ron", "4096", "1000000000");
+    run_case(
+        &dir,
+        &["dataset", spec.to_str().unwrap()],
+        &[
+            "spec.ron",
+            "line 6,",
+            "samples`",
+            "1.00e9 samples",
+            "--allow-large",
+        ],
+    );
+}
+
 // The rest of the catalogue of the newer commands' classes, and where the other cases live:
 // merges (`untrusted::a_merge_copies_what_it_checked_and_never_its_inputs`,
 // `untrusted::tolerance_shard_records_are_checked`), the dataset lock and `--quiet`
