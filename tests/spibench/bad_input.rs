@@ -541,6 +541,27 @@ fn total_work_above_the_limits_is_refused_with_its_estimate() {
 }
 
 #[test]
+fn a_sweep_set_that_loses_the_dmd_names_the_edit() {
+    let dir = TempDir::new("bad-sweep-set-dmd");
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let bench = root.join(PAPER);
+    run_case(
+        &dir,
+        &[
+            "sweep",
+            bench.to_str().unwrap(),
+            "--set",
+            "illumination.turn_deg.across=180",
+            "--vary",
+            "dmd.tilt_deg=11:13:3",
+            "--rays",
+            "4096",
+        ],
+        &["--set", "illumination.turn_deg.across=180"],
+    );
+}
+
+#[test]
 fn a_dataset_over_the_sample_limit_is_refused_at_its_spec_line() {
     // Located at the spec's `samples` (line 6), not at the flag alone.
     let dir = TempDir::new("bad-new-work-located");
