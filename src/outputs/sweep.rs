@@ -239,6 +239,19 @@ fn line_plots(
     let xs: Vec<f64> = s.points.iter().map(|p| p.settings[0].1).collect();
     for (metric, label) in PLOTTED {
         let ys: Vec<f64> = s.points.iter().map(|p| p.metrics[metric].value).collect();
+        // Said in the sweep's terms here, since the plot's own refusal would name its staging
+        // file.
+        if !ys.iter().any(|y| y.is_finite()) {
+            return Err(crate::Error::field(
+                "--vary",
+                format!(
+                    "{}: none of the {} point(s) has a finite {label} (`{metric}`): no light \
+                     reaches where it is measured (check the bench and any --set edits)",
+                    v.path,
+                    ys.len()
+                ),
+            ));
+        }
         let mut series = vec![Series {
             label: String::new(),
             x: xs.clone(),

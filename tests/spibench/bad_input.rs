@@ -562,6 +562,27 @@ fn a_sweep_set_that_loses_the_dmd_names_the_edit() {
 }
 
 #[test]
+fn a_sweep_with_no_finite_point_names_the_variable() {
+    let dir = TempDir::new("bad-sweep-no-finite");
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let bench = root.join(PAPER);
+    run_case(
+        &dir,
+        &[
+            "sweep",
+            bench.to_str().unwrap(),
+            "--set",
+            "illumination.turn_deg.hinge=10",
+            "--vary",
+            "dmd.tilt_deg=11:13:3",
+            "--rays",
+            "4096",
+        ],
+        &["--vary", "dmd.tilt_deg", "none of the 3 point(s)"],
+    );
+}
+
+#[test]
 fn a_dataset_over_the_sample_limit_is_refused_at_its_spec_line() {
     // Located at the spec's `samples` (line 6), not at the flag alone.
     let dir = TempDir::new("bad-new-work-located");
