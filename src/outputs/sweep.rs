@@ -243,10 +243,10 @@ fn line_plots(
         // file.
         if !ys.iter().any(|y| y.is_finite()) {
             return Err(crate::Error::field(
-                "--vary",
+                "vary",
                 format!(
                     "{}: none of the {} point(s) has a finite {label} (`{metric}`): no light \
-                     reaches where it is measured (check the bench and any --set edits)",
+                     reaches where it is measured (check the bench and the edits made to it)",
                     v.path,
                     ys.len()
                 ),
