@@ -12,6 +12,7 @@ pub mod fresnel;
 pub mod geometry;
 pub mod glass;
 pub mod guide;
+pub mod lens;
 pub mod lamp;
 pub mod mesh;
 pub mod monochromatic;
