@@ -5,6 +5,9 @@
 pub enum Glass {
     /// n²(λ) − 1 = Σᵢ Bᵢ λ² / (λ² − Cᵢ) with λ in µm and Cᵢ in µm².
     Sellmeier { b: [f64; 3], c_um2: [f64; 3] },
+    /// The Schott formula of Zemax glass catalogues (AGF formula 1):
+    /// n² = A₀ + A₁λ² + A₂λ⁻² + A₃λ⁻⁴ + A₄λ⁻⁶ + A₅λ⁻⁸, λ in µm.
+    Schott { a: [f64; 6] },
     /// A wavelength-independent index (air, or dispersion-free validation cases for Mitsuba).
     Constant(f64),
 }
@@ -55,6 +58,18 @@ pub const N_LAK22: Glass = Glass::Sellmeier {
     c_um2: [0.005_857_785_94, 0.019_854_614_7, 100.834_017],
 };
 
+/// Schott N-SF6HT (SCHOTT Zemax catalogue 2017-01-20b; docs/glasses.md).
+pub const N_SF6HT: Glass = Glass::Sellmeier {
+    b: [1.779_317_63, 0.338_149_866, 2.087_344_74],
+    c_um2: [0.013_371_418_2, 0.061_753_362_1, 174.017_59],
+};
+
+/// OHARA S-LAH64 (OHARA Zemax catalogue 2017-11-30 and data sheet; docs/glasses.md).
+pub const S_LAH64: Glass = Glass::Sellmeier {
+    b: [1.830_214_53, 0.291_563_59, 1.285_440_24],
+    c_um2: [0.009_048_232_9, 0.033_075_668_9, 89.367_550_1],
+};
+
 /// Fused silica, I. H. Malitson, JOSA 55:1205 (1965): B = 0.6961663, 0.4079426, 0.8974794 and
 /// resonance wavelengths 0.0684043, 0.1162414, 9.896161 µm (Cᵢ are their squares).
 pub const FUSED_SILICA: Glass = Glass::Sellmeier {
@@ -102,7 +117,7 @@ pub struct CatalogueGlass {
 }
 
 /// The built-in catalogue (docs/glasses.md gives each source and its check values).
-pub static CATALOGUE: [CatalogueGlass; 10] = [
+pub static CATALOGUE: [CatalogueGlass; 12] = [
     CatalogueGlass {
         name: "N-BK7",
         aliases: &["bk7"],
@@ -144,6 +159,18 @@ pub static CATALOGUE: [CatalogueGlass; 10] = [
         aliases: &["lak22"],
         glass: N_LAK22,
         range_nm: (310.0, 2500.0),
+    },
+    CatalogueGlass {
+        name: "N-SF6HT",
+        aliases: &["sf6ht"],
+        glass: N_SF6HT,
+        range_nm: (370.0, 2500.0),
+    },
+    CatalogueGlass {
+        name: "S-LAH64",
+        aliases: &["lah64"],
+        glass: S_LAH64,
+        range_nm: (320.0, 2400.0),
     },
     CatalogueGlass {
         name: "fused-silica",
@@ -197,6 +224,20 @@ impl Glass {
             .find(|g| name_key(g.name) == key || g.aliases.iter().any(|a| name_key(a) == key))
     }
 
+    /// A dispersive model from a catalogue's n_d and Abbe number v_d alone, for a glass that no
+    /// catalogue has: the two-term Schott formula n² = A₀ + A₂λ⁻² through n_d at the d line
+    /// (587.5618 nm) with n_F² − n_C² = 2 n_d (n_d − 1)/v_d (F 486.1327 nm, C 656.2725 nm). It
+    /// reproduces n_d exactly and v_d to about 1e-3 relative; it is a substitute, and every use
+    /// of it is reported.
+    pub fn from_nd_vd(nd: f64, vd: f64) -> Glass {
+        let (d, f, c) = (0.587_561_8_f64, 0.486_132_7_f64, 0.656_272_5_f64);
+        let a2 = 2.0 * nd * (nd - 1.0) / vd / (f.powi(-2) - c.powi(-2));
+        let a0 = nd * nd - a2 / (d * d);
+        Glass::Schott {
+            a: [a0, 0.0, a2, 0.0, 0.0, 0.0],
+        }
+    }
+
     /// Refractive index at a vacuum wavelength in metres.
     #[inline]
     pub fn index(&self, wavelength_m: f64) -> f64 {
@@ -208,6 +249,14 @@ impl Glass {
                 for i in 0..3 {
                     n2 += b[i] * l2 / (l2 - c_um2[i]);
                 }
+                n2.sqrt()
+            }
+            Glass::Schott { a } => {
+                let l2 = (wavelength_m * 1e6).powi(2);
+                let inv = 1.0 / l2;
+                let n2 = a[0]
+                    + a[1] * l2
+                    + inv * (a[2] + inv * (a[3] + inv * (a[4] + inv * a[5])));
                 n2.sqrt()
             }
         }
@@ -241,6 +290,32 @@ mod tests {
         assert_eq!(Glass::by_name("n_bk7"), Some(N_BK7));
         assert_eq!(Glass::by_name("Fused Silica"), Some(FUSED_SILICA));
         assert_eq!(Glass::by_name("unobtainium"), None);
+        // The shipped parts' glasses at 850 nm (docs/glasses.md; validation/lenses/reference.json).
+        assert!((N_SF6HT.index(850e-9) - 1.781_549_740_026_885_8).abs() < 1e-15);
+        assert!((S_LAH64.index(587.5618e-9) - 1.788_000_8).abs() < 1e-7);
+    }
+
+    #[test]
+    fn schott_formula_and_nd_vd_substitute() {
+        // Legacy Schott BK7 (validation/lenses/test_catalogue.agf): n_d 1.516800, n(850 nm)
+        // 1.509845 (validation/lenses/README.md).
+        let bk7 = Glass::Schott {
+            a: [
+                2.271_892_9,
+                -1.010_807_7e-2,
+                1.059_250_9e-2,
+                2.081_696_5e-4,
+                -7.647_253_8e-6,
+                4.924_099_1e-7,
+            ],
+        };
+        assert!((bk7.index(587.5618e-9) - 1.516_800).abs() < 1e-6);
+        assert!((bk7.index(850e-9) - 1.509_845).abs() < 1e-6);
+        let g = Glass::from_nd_vd(1.6, 45.0);
+        let nd = g.index(587.5618e-9);
+        let vd = (nd - 1.0) / (g.index(486.1327e-9) - g.index(656.2725e-9));
+        assert!((nd - 1.6).abs() < 1e-12);
+        assert!((vd - 45.0).abs() < 0.1, "{vd}");
     }
 
     /// Every catalogue glass against its catalogue n_d (587.56 nm) and Abbe number
@@ -259,6 +334,8 @@ mod tests {
             ("N-SF10", 1.72828, 28.53),
             ("N-SF11", 1.78472, 25.68),
             ("N-LAK22", 1.65113, 55.89),
+            ("N-SF6HT", 1.80518, 25.36),
+            ("S-LAH64", 1.78800, 47.37),
             ("fused-silica", 1.45846, 67.82),
             ("CaF2", 1.43385, 94.99),
         ] {

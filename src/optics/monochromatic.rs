@@ -97,7 +97,7 @@ pub fn monochromatic(bench: &Bench, opts: &MonochromaticOptions) -> Result<Monoc
     };
     // Glasses and bulk absorption.
     for (i, m) in b.parts.media.iter_mut().enumerate() {
-        if let Glass::Sellmeier { .. } = m.glass {
+        if let Glass::Sellmeier { .. } | Glass::Schott { .. } = m.glass {
             let n = m.glass.index(wl);
             notes.push(format!(
                 "`{}`: dispersive glass replaced by the constant index n = {n:.6} (its value at \
