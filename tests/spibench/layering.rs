@@ -22,6 +22,8 @@ const FLOORS: &[&[&str]] = &[
     &["raster", "detector", "provenance", "memory"],
     &["objects", "reconstruction"],
     &["acquisition", "metrics", "optics"],
+    // Lens prescriptions from files (.zmx, .agf), which benches and `spibench lens` read.
+    &["lens"],
     &["scene", "trace"],
     &["transport", "report", "simulation"],
     &["pipeline", "export"],
@@ -211,6 +213,21 @@ const FORBIDDEN: &[(&str, &[&str])] = &[
     ("export", &["pipeline", "run", "sweep", "simulation", "cli"]),
     ("report", &["pipeline", "run", "sweep", "simulation", "cli"]),
     ("npy", &["*"]),
+    (
+        "lens",
+        &[
+            "trace",
+            "transport",
+            "detector",
+            "acquisition",
+            "reconstruction",
+            "metrics",
+            "scene",
+            "pipeline",
+            "report",
+            "cli",
+        ],
+    ),
     (
         "objects",
         &[
