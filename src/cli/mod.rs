@@ -11,6 +11,7 @@ mod dataset;
 mod export;
 pub mod flags;
 mod layout;
+mod lens;
 mod patterns;
 pub(crate) mod progress;
 mod reconstruct;
@@ -80,6 +81,9 @@ enum Command {
     Dataset(dataset::DatasetArgs),
     /// Export a pattern set as packed .npy and 1-bit PNG frames at the DMD's mirror resolution.
     Patterns(patterns::PatternsArgs),
+    /// A lens prescription (.zmx): surface table, paraxial EFL, BFL and FFL, and a fan of real
+    /// rays with their intercepts and the RMS spot.
+    Lens(lens::LensArgs),
 }
 
 impl Command {
@@ -97,7 +101,10 @@ impl Command {
             Command::Check(a) => a.work,
             Command::Dataset(a) => a.work,
             Command::Patterns(a) => a.work,
-            Command::Simulate(_) | Command::Completions(_) | Command::Man(_) => return false,
+            Command::Simulate(_)
+            | Command::Completions(_)
+            | Command::Man(_)
+            | Command::Lens(_) => return false,
         };
         work.allow_large
     }
@@ -152,6 +159,7 @@ pub fn main() -> i32 {
         Command::Man(a) => completions::man(a, Cli::command()),
         Command::Dataset(a) => dataset::run(a),
         Command::Patterns(a) => patterns::run(a),
+        Command::Lens(a) => lens::run(a),
     };
     match result {
         Ok(()) => 0,

@@ -13,6 +13,7 @@
 pub mod check;
 pub mod export;
 pub mod layout;
+pub mod lens;
 pub mod reconstruct;
 pub mod rows;
 pub mod run;

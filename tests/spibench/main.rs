@@ -4,6 +4,7 @@
 mod bad_input;
 mod cli_dataset;
 mod cli_layout;
+mod cli_lens;
 mod cli_misc;
 mod cli_reconstruct;
 mod cli_run;
