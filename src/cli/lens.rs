@@ -29,7 +29,7 @@ pub struct LensArgs {
     /// Model a glass that no catalogue has from its GLAS line's nd and Vd (always reported).
     #[arg(long)]
     pub allow_glass_substitution: bool,
-    /// Output directory for summary.json and the drawing (lens.svg, lens.png).
+    /// Output directory for summary.json and the drawing (lens.svg, lens.png, lens.pdf).
     #[arg(long)]
     pub out: Option<PathBuf>,
 }
@@ -41,7 +41,7 @@ pub fn run(args: &LensArgs) -> anyhow::Result<()> {
     }
     println!("{}", printed(&summary));
     if let Some(out) = &args.out {
-        println!("wrote {}/summary.json, lens.svg and lens.png", out.display());
+        println!("wrote {}/summary.json, lens.svg, lens.png and lens.pdf", out.display());
     }
     Ok(())
 }

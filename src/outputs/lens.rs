@@ -1,5 +1,5 @@
 //! The outputs of `spibench lens` (docs/outputs.md, "lens"): `summary.json` ([`LensSummary`]),
-//! the drawing of the lens with its fan (`lens.svg`, `lens.png`, `figures` feature) and the
+//! the drawing of the lens with its fan (`lens.svg`, `lens.png`, `lens.pdf`; `figures` feature) and the
 //! printed surface table.
 
 use std::fmt::Write as _;
@@ -113,10 +113,11 @@ pub fn write(
             &svg,
             &dir.path("lens.svg"),
             &dir.path("lens.png"),
-            false,
+            true,
         )?;
-        files.push("lens.svg".into());
-        files.push("lens.png".into());
+        for f in ["lens.svg", "lens.png", "lens.pdf"] {
+            files.push(f.into());
+        }
     }
     #[cfg(not(feature = "figures"))]
     let _ = prescription;
