@@ -8,6 +8,7 @@ use glam::DVec3;
 
 use super::{CAP_RINGS, MM, SEGMENTS};
 use crate::optics::geometry::{Frame, Geometry, Shape2D, sag};
+use crate::optics::lens::Shape as LensShape;
 
 /// A triangle soup in scene millimetres, optionally with vertex normals.
 #[derive(Debug, Default, Clone)]
@@ -228,19 +229,61 @@ pub(super) fn strip(
 /// A spherical cap between `rho0` and `rho1` from the axis, with exact vertex normals
 /// (p − centre)/R and the winding that agrees with them.
 pub(super) fn cap_soup(vertex: DVec3, axis: DVec3, radius: f64, rho0: f64, rho1: f64) -> Soup {
+    let centre = vertex + radius * axis;
+    let limit = radius.abs() * (1.0 - 1e-12);
+    revolved_soup(
+        vertex,
+        axis,
+        rho0,
+        rho1,
+        limit,
+        |rho| sag(radius, rho),
+        |p| (p - centre) / radius,
+    )
+}
+
+/// A lens surface of any `optics::lens::Shape` (`Geometry::Asphere`) between `rho0` and
+/// `rho1` from its axis, with the analytic normals (−w at the vertex).
+pub(super) fn asphere_soup(frame: &Frame, shape: &LensShape, rho0: f64, rho1: f64) -> Soup {
+    let f = *frame;
+    let limit = shape.s_max().sqrt() * (1.0 - 1e-12);
+    revolved_soup(
+        f.origin,
+        f.w,
+        rho0,
+        rho1,
+        limit,
+        |rho| shape.sag(rho * rho).unwrap_or(0.0),
+        move |p| {
+            let l = f.to_local(p);
+            let n = shape.normal(l).unwrap_or(DVec3::Z);
+            -(n.x * f.u + n.y * f.v + n.z * f.w)
+        },
+    )
+}
+
+/// A surface of revolution z = sag(ρ) about `axis` from `vertex`, rings from `rho0` to `rho1`
+/// (area-preserving radii, at most `rho_max`), with per-vertex normals.
+fn revolved_soup(
+    vertex: DVec3,
+    axis: DVec3,
+    rho0: f64,
+    rho1: f64,
+    rho_max: f64,
+    sag_of: impl Fn(f64) -> f64,
+    normal: impl Fn(DVec3) -> DVec3,
+) -> Soup {
     let mut s = Soup::default();
     // e1 × e2 = −axis: counter-clockwise in (e1, e2) faces −axis, the normal at the vertex.
     let f = Frame::new(vertex, -axis, None);
     let (e1, e2) = (f.u, f.v);
-    let centre = vertex + radius * axis;
     let n = SEGMENTS;
     let scale = area_preserving(1.0, n);
     let point = |rho: f64, k: usize| {
-        let rho = (rho * scale).min(radius.abs() * (1.0 - 1e-12));
+        let rho = (rho * scale).min(rho_max);
         let a = std::f64::consts::TAU * k as f64 / n as f64;
-        vertex + sag(radius, rho) * axis + rho * (a.cos() * e1 + a.sin() * e2)
+        vertex + sag_of(rho) * axis + rho * (a.cos() * e1 + a.sin() * e2)
     };
-    let normal = |p: DVec3| (p - centre) / radius;
     let rings = ((CAP_RINGS as f64 * (rho1 - rho0) / rho1).ceil() as usize).max(2);
     let mut prev: Option<u32> = None;
     let mut start = 0;
@@ -303,6 +346,14 @@ pub(super) fn geometry_soup(g: &Geometry, rho_range: Option<(f64, f64)>) -> Soup
         } => {
             let (a, b) = rho_range.unwrap_or((*inner, *aperture));
             cap_soup(*vertex, *axis, *radius, a, b)
+        }
+        Geometry::Asphere {
+            frame,
+            shape,
+            aperture,
+        } => {
+            let (a, b) = rho_range.unwrap_or((0.0, *aperture));
+            asphere_soup(frame, shape, a, b)
         }
         Geometry::Cylinder {
             base,

@@ -169,6 +169,15 @@ pub enum Geometry {
         aperture: f64,
         inner: f64,
     },
+    /// A rotationally symmetric lens surface of any shape (a conic or an even asphere,
+    /// `optics::lens::Shape`) with its vertex at `frame.origin` and its axis `frame.w`, out to
+    /// `aperture` from the axis. Normal: the analytic gradient, pointing against the axis
+    /// (−w at the vertex), as a `SphereCap`'s.
+    Asphere {
+        frame: Frame,
+        shape: super::lens::Shape,
+        aperture: f64,
+    },
     /// The side of a cylinder of `radius` around `axis` from `base` to `base + length·axis`;
     /// normal points outward.
     Cylinder {
@@ -251,6 +260,18 @@ impl Geometry {
                 }
                 None
             }
+            Geometry::Asphere {
+                frame,
+                shape,
+                aperture,
+            } => {
+                let lo = frame.to_local(o);
+                let ld = DVec3::new(d.dot(frame.u), d.dot(frame.v), d.dot(frame.w));
+                let t = shape.intersect_between(lo, ld, *aperture, t_min, t_max)?;
+                let n = shape.normal(lo + t * ld)?;
+                let normal = -(n.x * frame.u + n.y * frame.v + n.z * frame.w);
+                Some(Hit { t, normal })
+            }
             Geometry::Cylinder {
                 base,
                 axis,
@@ -328,6 +349,27 @@ impl Geometry {
                 // the plane of its rim.
                 let rim = *vertex + sag(*radius, *aperture) * *axis;
                 union(disk(*vertex, *axis, *aperture), disk(rim, *axis, *aperture))
+            }
+            Geometry::Asphere {
+                frame,
+                shape,
+                aperture,
+            } => {
+                // Between the vertex plane and the extremes of the sag over the aperture.
+                let (mut z_lo, mut z_hi) = (0.0_f64, 0.0_f64);
+                for k in 1..=64 {
+                    let r = aperture * k as f64 / 64.0;
+                    if let Some(z) = shape.sag(r * r) {
+                        z_lo = z_lo.min(z);
+                        z_hi = z_hi.max(z);
+                    }
+                }
+                // A margin for the sag between the samples.
+                let m = 0.02 * (z_hi - z_lo) + 1e-9;
+                union(
+                    disk(frame.origin + (z_lo - m) * frame.w, frame.w, *aperture),
+                    disk(frame.origin + (z_hi + m) * frame.w, frame.w, *aperture),
+                )
             }
             Geometry::Cylinder {
                 base,

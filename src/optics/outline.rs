@@ -116,9 +116,9 @@ fn kind_of(bench: &Bench, id: usize) -> Option<ElementKind> {
     }
     match surfaces.first().map(|s| &s.geometry) {
         Some(Geometry::Cylinder { .. }) => Some(ElementKind::Tube),
-        Some(Geometry::Plane { .. }) | Some(Geometry::SphereCap { .. }) => {
-            Some(ElementKind::Aperture)
-        }
+        Some(Geometry::Plane { .. })
+        | Some(Geometry::SphereCap { .. })
+        | Some(Geometry::Asphere { .. }) => Some(ElementKind::Aperture),
         None => None,
     }
 }
@@ -186,6 +186,23 @@ fn geometry_lines(g: &Geometry) -> Vec<Vec<DVec3>> {
                     .map(|k| -aperture + 2.0 * aperture * k as f64 / n as f64)
                     .filter(|r| r.abs() >= *inner)
                     .map(|r| *vertex + sag(*radius, r.abs()) * *axis + r * dir)
+                    .collect();
+                lines.push(profile);
+            }
+            lines
+        }
+        Geometry::Asphere {
+            frame,
+            shape,
+            aperture,
+        } => {
+            let z = |r: f64| shape.sag(r * r).unwrap_or(0.0);
+            let mut lines = vec![circle(frame, *aperture, z(*aperture))];
+            let n = CIRCLE_POINTS / 2;
+            for dir in [frame.u, frame.v] {
+                let profile: Vec<DVec3> = (0..=n)
+                    .map(|k| -aperture + 2.0 * aperture * k as f64 / n as f64)
+                    .map(|r| frame.origin + z(r) * frame.w + r * dir)
                     .collect();
                 lines.push(profile);
             }

@@ -144,20 +144,30 @@ impl BenchDoc {
         Ok(d)
     }
 
-    /// The files this bench reads besides itself (chart mask images), as paths resolved
-    /// against the bench file's folder, in element order.
+    /// The files this bench reads besides itself (chart mask images, lens prescriptions and
+    /// their glass catalogues), as paths resolved against the bench file's folder, in element
+    /// order.
     pub fn input_files(&self) -> Vec<PathBuf> {
-        use crate::scene::bench::{ChartPatternSpec, ChartSpec, ElementSpec};
+        use crate::scene::bench::{ChartPatternSpec, ChartSpec, ElementSpec, LensSystemSpec};
         let base = self.path.parent().unwrap_or(Path::new("."));
         self.file
             .elements
             .iter()
-            .filter_map(|el| match el {
+            .flat_map(|el| match el {
                 ElementSpec::Chart(ChartSpec {
                     pattern: ChartPatternSpec::Image { path, .. },
                     ..
-                }) => Some(base.join(path)),
-                _ => None,
+                }) => vec![base.join(path)],
+                ElementSpec::LensSystem(LensSystemSpec {
+                    zmx,
+                    glass_catalogues,
+                    ..
+                }) => zmx
+                    .iter()
+                    .chain(glass_catalogues)
+                    .map(|p| base.join(p))
+                    .collect(),
+                _ => Vec::new(),
             })
             .collect()
     }

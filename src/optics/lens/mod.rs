@@ -4,6 +4,7 @@
 //! intersection ([`shape`]), the paraxial focal lengths and meridional real rays ([`trace`]).
 //! Lengths in metres, wavelengths in metres; the readers of prescriptions (`crate::lens`) convert.
 
+pub mod parts;
 pub mod shape;
 pub mod trace;
 
@@ -103,6 +104,46 @@ impl Prescription {
                 here
             })
             .collect()
+    }
+
+    /// The same element turned round (light meeting the last surface first): the surfaces in
+    /// reverse order, each shape mirrored (every coefficient negated), the gaps and media
+    /// shifted. The image distance is dropped (the file's image plane belongs to the other way).
+    pub fn reversed(&self) -> Prescription {
+        let n = self.surfaces.len();
+        let surfaces = (0..n)
+            .rev()
+            .map(|k| {
+                let s = &self.surfaces[k];
+                let shape = match s.shape {
+                    Shape::Flat => Shape::Flat,
+                    Shape::Sphere { c } => Shape::Sphere { c: -c },
+                    Shape::Conic { c, k } => Shape::Conic { c: -c, k },
+                    Shape::EvenAsphere { c, k, a } => Shape::EvenAsphere {
+                        c: -c,
+                        k,
+                        a: a.map(|x| -x),
+                    },
+                };
+                let (thickness_m, medium_after) = if k > 0 {
+                    let prev = &self.surfaces[k - 1];
+                    (prev.thickness_m, prev.medium_after.clone())
+                } else {
+                    (0.0, Medium::air())
+                };
+                LensSurface {
+                    shape,
+                    semi_diameter_m: s.semi_diameter_m,
+                    thickness_m,
+                    medium_after,
+                }
+            })
+            .collect();
+        Prescription {
+            name: self.name.clone(),
+            surfaces,
+            image_distance_m: None,
+        }
     }
 
     /// The element's axial length, first vertex to last.

@@ -102,36 +102,63 @@ impl Shape {
         Some(DVec3::new(-2.0 * p.x * d, -2.0 * p.y * d, 1.0).normalize())
     }
 
-    /// The ray parameter t ≥ `t_min` where the ray `o + t·d` (local frame) meets the surface
+    /// The ray parameter t > `t_min` where the ray `o + t·d` (local frame) meets the surface
     /// within the semi-diameter `r_max`, or `None` (a miss: outside the aperture, outside the
-    /// sag's domain, the far branch of a sphere, or no convergence).
+    /// sag's domain, only the far branch of a sphere, or no convergence).
     pub fn intersect(&self, o: DVec3, d: DVec3, r_max: f64, t_min: f64) -> Option<f64> {
-        let plane = || (d.z != 0.0).then(|| -o.z / d.z);
-        let t = match self.poly() {
-            None => self.intersect_conic(o, d)?,
-            // Start on the base conic; where that misses or lies outside the aperture, on the
-            // vertex plane.
-            Some(_) => self
-                .intersect_conic(o, d)
-                .and_then(|t0| self.newton(o, d, t0, r_max))
-                .or_else(|| self.newton(o, d, plane()?, r_max))?,
-        };
-        let p = o + t * d;
-        let s = p.x * p.x + p.y * p.y;
-        if t < t_min || !t.is_finite() || s > r_max * r_max || s > self.s_max() {
-            return None;
-        }
-        // The quadratic also solves the far branch of a closed conic (the other side of a
-        // sphere): keep only points that lie on the sag's own branch.
-        let z = self.sag(s)?;
-        let scale = 1.0 + p.z.abs().max(r_max);
-        ((p.z - z).abs() <= 1e-9 * scale).then_some(t)
+        self.intersect_between(o, d, r_max, t_min, f64::INFINITY)
     }
 
-    /// The exact intersection with the base conic c s − 2z + (1 + k) c z² = 0, on the branch
-    /// through the vertex: the root of the stable form that tends to the plane's −o_z/d_z as
-    /// c → 0 (so flats and weak curves lose no digits).
-    fn intersect_conic(&self, o: DVec3, d: DVec3) -> Option<f64> {
+    /// The nearest t in (`t_min`, `t_max`) on the surface within `r_max`, as [`Shape::intersect`].
+    pub fn intersect_between(
+        &self,
+        o: DVec3,
+        d: DVec3,
+        r_max: f64,
+        t_min: f64,
+        t_max: f64,
+    ) -> Option<f64> {
+        let roots = self.conic_roots(o, d);
+        let valid = |t: f64| {
+            if !(t > t_min && t < t_max && t.is_finite()) {
+                return false;
+            }
+            let p = o + t * d;
+            let s = p.x * p.x + p.y * p.y;
+            if s > r_max * r_max || s > self.s_max() {
+                return false;
+            }
+            // The quadratic also solves the far branch of a closed conic (the other side of a
+            // sphere): keep only points on the sag's own branch.
+            let scale = 1.0 + p.z.abs().max(r_max);
+            self.sag(s).is_some_and(|z| (p.z - z).abs() <= 1e-9 * scale)
+        };
+        let mut best: Option<f64> = None;
+        let mut consider = |t: f64| {
+            if valid(t) && best.is_none_or(|b| t < b) {
+                best = Some(t);
+            }
+        };
+        match self.poly() {
+            None => roots.into_iter().flatten().for_each(&mut consider),
+            // Newton from each root of the base conic, and from the vertex plane (where the
+            // conic misses or its roots lie outside the aperture).
+            Some(_) => {
+                let plane = (d.z != 0.0).then(|| -o.z / d.z);
+                for t0 in roots.into_iter().chain([plane]).flatten() {
+                    if let Some(t) = self.newton(o, d, t0, r_max) {
+                        consider(t);
+                    }
+                }
+            }
+        }
+        best
+    }
+
+    /// Both roots of the base conic c s − 2z + (1 + k) c z² = 0 along the ray, in the stable
+    /// form (one tends to the plane's −o_z/d_z as c → 0, so flats and weak curves lose no
+    /// digits); `None` for a missing root.
+    fn conic_roots(&self, o: DVec3, d: DVec3) -> [Option<f64>; 2] {
         let (c, k) = self.base();
         let e = 1.0 + k;
         let a = c * (d.x * d.x + d.y * d.y + e * d.z * d.z);
@@ -139,14 +166,14 @@ impl Shape {
         let cc = c * (o.x * o.x + o.y * o.y + e * o.z * o.z) - 2.0 * o.z;
         let disc = b * b - 4.0 * a * cc;
         if disc < 0.0 {
-            return None;
+            return [None, None];
         }
-        let q = b + b.signum() * disc.sqrt();
-        if q == 0.0 {
-            return None;
-        }
-        let t = -2.0 * cc / q;
-        t.is_finite().then_some(t)
+        let sign = if b >= 0.0 { 1.0 } else { -1.0 };
+        let q = -0.5 * (b + sign * disc.sqrt());
+        let finite = |t: f64| t.is_finite().then_some(t);
+        let near = if q != 0.0 { finite(cc / q) } else { None };
+        let far = if a != 0.0 { finite(q / a) } else { None };
+        [near, far]
     }
 
     /// Newton's method on g(t) = z(t) − sag(s(t)), from the base conic's intersection `t0`,

@@ -14,12 +14,13 @@ use serde::ser::{
 };
 
 use super::schema::{
-    ApertureSpec, BaffleSpec, ChartSpec, ElementSpec, FilterSpec, LensSpec, MirrorSpec, TubeSpec,
+    ApertureSpec, BaffleSpec, ChartSpec, ElementSpec, FilterSpec, LensSpec, LensSystemSpec,
+    MirrorSpec, TubeSpec,
 };
 
 /// The variant names, in declaration order (their indices).
 const VARIANTS: &[&str] = &[
-    "Lens", "Filter", "Aperture", "Tube", "Baffle", "Mirror", "Chart",
+    "Lens", "Filter", "Aperture", "Tube", "Baffle", "Mirror", "Chart", "LensSystem",
 ];
 
 /// A variant's tag, read from its name (or index) as serde's derive reads it.
@@ -33,6 +34,7 @@ enum Kind {
     Baffle,
     Mirror,
     Chart,
+    LensSystem,
 }
 
 impl<'de> Deserialize<'de> for ElementSpec {
@@ -61,6 +63,7 @@ impl<'de> Visitor<'de> for ElementVisitor {
             Kind::Baffle => ElementSpec::Baffle(BaffleSpec::deserialize(v)?),
             Kind::Mirror => ElementSpec::Mirror(MirrorSpec::deserialize(v)?),
             Kind::Chart => ElementSpec::Chart(ChartSpec::deserialize(v)?),
+            Kind::LensSystem => ElementSpec::LensSystem(LensSystemSpec::deserialize(v)?),
         })
     }
 }
@@ -108,6 +111,7 @@ impl Serialize for ElementSpec {
             ElementSpec::Baffle(x) => x.serialize(variant(4)),
             ElementSpec::Mirror(x) => x.serialize(variant(5)),
             ElementSpec::Chart(x) => x.serialize(variant(6)),
+            ElementSpec::LensSystem(x) => x.serialize(variant(7)),
         }
     }
 }

@@ -26,6 +26,7 @@ impl Builder<'_> {
         let id = self.parts.element(&name);
         match el {
             ElementSpec::Lens(l) => self.lens(l, id, name),
+            ElementSpec::LensSystem(l) => self.lens_system(l, id, name),
             ElementSpec::Filter(f) => self.filter(f, id, name),
             ElementSpec::Aperture(a) => self.aperture(a, id, name),
             ElementSpec::Tube(t) => self.tube(t, id, name),

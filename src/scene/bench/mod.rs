@@ -27,6 +27,7 @@ mod build;
 mod devices;
 mod element_serde;
 mod elements;
+mod lens_system;
 mod schema;
 #[cfg(test)]
 mod tests;
@@ -48,7 +49,7 @@ pub use schema::{
     ApertureSpec, BaffleSpec, BenchFile, CenterOnSpec, ChartGuidedSpec, ChartPatternSpec,
     ChartSpec, CoatingSpec, DetectorsSpec, Direction, DmdModelSpec, DmdSpec, ElementSpec,
     EmissionSpec, FieldSamplingSpec, FilamentSpec, FilterSpec, GlassSpec, Interactions,
-    LampPowerSpec, LampSpec, LampSpectrumSpec, LensSpec, MirrorCount, MirrorIndex, MirrorSpec,
+    LampPowerSpec, LampSpec, LampSpectrumSpec, LensSpec, LensSurfaceSpec, LensSystemSpec, MirrorCount, MirrorIndex, MirrorSpec,
     Outline, PatternSpec, PhotodiodeSpec, Segments, SpectrumSpec, StateSpec, TubeSpec, UsafElement,
     UsafGroup, WindowSpec,
 };

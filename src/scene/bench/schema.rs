@@ -338,6 +338,7 @@ pub struct ChartGuidedSpec {
 #[derive(Debug, Clone, PartialEq)]
 pub enum ElementSpec {
     Lens(LensSpec),
+    LensSystem(LensSystemSpec),
     Filter(FilterSpec),
     Aperture(ApertureSpec),
     Tube(TubeSpec),
@@ -385,6 +386,71 @@ pub struct LensSpec {
     /// `position_mm`.
     #[serde(default)]
     pub tilt_deg: Option<(TiltDeg, TiltDeg)>,
+}
+
+/// A multi-surface lens (a doublet, an asphere, …): the surfaces of a Zemax prescription
+/// (`zmx`, a path relative to the bench file) or written inline (`surfaces`), front to back.
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields, expecting = "struct variant ElementSpec::LensSystem")]
+pub struct LensSystemSpec {
+    /// Unique name; the ledger key of the light it absorbs.
+    pub name: String,
+    /// Catalogue part number (informational).
+    #[serde(default)]
+    pub part: Option<String>,
+    /// A sequential Zemax prescription (.zmx), relative to the bench file.
+    #[serde(default)]
+    pub zmx: Option<String>,
+    /// The surfaces written inline, front to back (instead of `zmx`).
+    #[serde(default)]
+    pub surfaces: Option<Vec<LensSurfaceSpec>>,
+    /// Use the element turned round: light meets its last surface first.
+    #[serde(default)]
+    pub reversed: bool,
+    /// Vertex of the first surface the light meets (mm).
+    pub position_mm: Mm3,
+    /// Direction of light travel.
+    pub axis: Direction,
+    /// Mechanical diameter of the edge (mm); default: the largest surface's diameter.
+    #[serde(default)]
+    pub diameter_mm: Option<LengthMm>,
+    /// Clear aperture of the mount (mm); light beyond it is absorbed. Default: each surface's.
+    #[serde(default)]
+    pub clear_diameter_mm: Option<LengthMm>,
+    /// Zemax glass catalogues (.agf, relative to the bench file) to resolve the prescription's
+    /// glasses through before the built-in catalogue.
+    #[serde(default)]
+    pub glass_catalogues: Vec<String>,
+    /// Coating of every surface.
+    #[serde(default)]
+    pub coating: CoatingSpec,
+    /// Alignment error: rotations (degrees) about the local x then y axes, about
+    /// `position_mm`.
+    #[serde(default)]
+    pub tilt_deg: Option<(TiltDeg, TiltDeg)>,
+}
+
+/// One surface of an inline `LensSystem`, in the sag convention of docs/guide/08-lens-prescriptions.md.
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct LensSurfaceSpec {
+    /// Radius of curvature (mm), positive with its centre after the surface; omitted = flat.
+    #[serde(default)]
+    pub radius_mm: Option<RadiusMm>,
+    /// Conic constant k (0 a sphere, −1 a paraboloid).
+    #[serde(default)]
+    pub conic: Option<Finite>,
+    /// Even-asphere coefficients A4, A6, … A16 (mm^(1−2i)), as many as needed.
+    #[serde(default)]
+    pub asphere: Vec<Finite>,
+    /// Clear semi-diameter (mm).
+    pub semi_diameter_mm: LengthMm,
+    /// Axial distance to the next surface's vertex (mm); omitted on the last surface.
+    #[serde(default)]
+    pub thickness_mm: Option<LengthMm>,
+    /// The glass after the surface (a catalogue name or a constant index); omitted = air.
+    #[serde(default)]
+    pub glass: Option<String>,
 }
 
 /// A plane-parallel absorptive filter (ND glass).
@@ -551,6 +617,7 @@ impl ElementSpec {
     pub fn name(&self) -> &str {
         match self {
             ElementSpec::Lens(LensSpec { name, .. })
+            | ElementSpec::LensSystem(LensSystemSpec { name, .. })
             | ElementSpec::Filter(FilterSpec { name, .. })
             | ElementSpec::Aperture(ApertureSpec { name, .. })
             | ElementSpec::Tube(TubeSpec { name, .. })

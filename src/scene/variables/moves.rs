@@ -7,7 +7,7 @@ use super::paths::{bad_path, split_target};
 use crate::error::{Error, Result};
 use crate::optics::geometry::Frame;
 use crate::scene::bench::{
-    ApertureSpec, BaffleSpec, BenchFile, ChartSpec, Direction, ElementSpec, FilterSpec, LensSpec,
+    ApertureSpec, BaffleSpec, BenchFile, ChartSpec, Direction, ElementSpec, FilterSpec, LensSpec, LensSystemSpec,
     MirrorSpec, Mm3, TubeSpec,
 };
 
@@ -101,6 +101,9 @@ pub(super) fn pose<'a>(file: &'a mut BenchFile, target: &str, path: &str) -> Res
             let el = &mut file.elements[i];
             match el {
                 ElementSpec::Lens(LensSpec {
+                    position_mm, axis, ..
+                })
+                | ElementSpec::LensSystem(LensSystemSpec {
                     position_mm, axis, ..
                 })
                 | ElementSpec::Aperture(ApertureSpec {

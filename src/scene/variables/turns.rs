@@ -6,7 +6,7 @@ use super::moves::{pose, unit};
 use crate::error::{Error, Result};
 use crate::optics::geometry::Frame;
 use crate::scene::bench::{
-    ApertureSpec, BaffleSpec, BenchFile, ChartSpec, Direction, ElementSpec, FilterSpec, LensSpec,
+    ApertureSpec, BaffleSpec, BenchFile, ChartSpec, Direction, ElementSpec, FilterSpec, LensSpec, LensSystemSpec,
     MirrorSpec, Mm3, TubeSpec,
 };
 
@@ -98,6 +98,7 @@ pub(super) fn groups(
         .map(|el| {
             let (position, mirror) = match el {
                 ElementSpec::Lens(LensSpec { position_mm, .. })
+                | ElementSpec::LensSystem(LensSystemSpec { position_mm, .. })
                 | ElementSpec::Filter(FilterSpec { position_mm, .. })
                 | ElementSpec::Aperture(ApertureSpec { position_mm, .. })
                 | ElementSpec::Tube(TubeSpec { position_mm, .. })
