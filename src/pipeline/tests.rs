@@ -225,9 +225,14 @@ fn an_asphere_lens_system_builds_traces_draws_and_exports() {
             .any(|s| matches!(s.geometry, crate::optics::geometry::Geometry::Asphere { .. }))
     );
     let t = trace_stage(&bench, &TraceRequest::new(20_000, 1)).unwrap();
+    // f = 15 mm where the bench's design has 100 mm: the + arm's beam has spread far beyond
+    // its 5 mm diode when it gets there, so k₊ is about 0; the − arm is untouched. (The
+    // asphere itself traces like the sphere it approximates: benches/lens.rs.)
     for m in [BenchMetric::KPlus, BenchMetric::KMinus, BenchMetric::BPlus] {
-        assert!(t.metrics[m].value.is_finite() && t.metrics[m].value > 0.0, "{m:?}");
+        let v = t.metrics[m].value;
+        assert!(v.is_finite() && v >= 0.0, "{m:?}: {v}");
     }
+    assert!(t.metrics[BenchMetric::KMinus].value > 0.0);
     assert!(!crate::optics::outline::element_outlines(&bench).is_empty());
     crate::trace::fan::ray_fan(&bench, 50, 1).unwrap();
     let mono = crate::optics::monochromatic::monochromatic(

@@ -164,3 +164,38 @@ fn defects_are_found_and_ranges_enforced() {
     let e = narrow.index(850e-9).unwrap_err().to_string();
     assert!(e.contains("NARROW") && e.contains("850"), "{e}");
 }
+
+/// In the bench's geometry an asphere surface answers as the shape does, with its normal
+/// against the light (−axis at the vertex, as a spherical cap's).
+#[test]
+fn bench_asphere_geometry_agrees_with_the_shape() {
+    use crate::optics::geometry::{Frame, Geometry};
+    let shape = Shape::EvenAsphere {
+        c: 85.836_909_871_244_64,
+        k: -1.1,
+        a: [0.0, 3.69e4, -12.85, 0.0, 0.0, 0.0, 0.0, 0.0],
+    };
+    let axis = DVec3::new(0.3, -0.2, 1.0).normalize();
+    let frame = Frame::new(DVec3::new(0.01, 0.02, 0.5), axis, None);
+    let g = Geometry::Asphere {
+        frame,
+        shape,
+        aperture: 9e-3,
+    };
+    let (lo, hi) = g.aabb();
+    for h in [0.0, 2e-3, 6e-3, 8.9e-3] {
+        let o = frame.to_world(DVec3::new(0.0, h, -0.02));
+        let hit = g.intersect(o, axis, 0.0, 1.0).unwrap();
+        let t = shape.intersect(DVec3::new(0.0, h, -0.02), DVec3::Z, 9e-3, 0.0).unwrap();
+        assert!((hit.t - t).abs() < 1e-15);
+        let p = o + hit.t * axis;
+        assert!(p.cmpge(lo).all() && p.cmple(hi).all());
+        if h == 0.0 {
+            assert!((hit.normal + axis).length() < 1e-12);
+        }
+        assert!(hit.normal.dot(axis) < 0.0);
+    }
+    // Outside the aperture: a miss.
+    let o = frame.to_world(DVec3::new(0.0, 9.5e-3, -0.02));
+    assert!(g.intersect(o, axis, 0.0, 1.0).is_none());
+}
