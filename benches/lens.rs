@@ -16,12 +16,12 @@ use std::path::Path;
 use std::time::Instant;
 
 use spibench::optics::Bench;
+use spibench::pipeline::{TraceRequest, trace_stage};
 use spibench::quantities::BenchMetric;
 use spibench::scene::bench::{
     ElementSpec, Finite, LengthMm, LensSurfaceSpec, LensSystemSpec, RadiusMm,
 };
 use spibench::scene::doc::BenchDoc;
-use spibench::pipeline::{TraceRequest, trace_stage};
 
 fn variant(doc: &BenchDoc, asphere: bool) -> BenchDoc {
     let mut file = doc.file.clone();
@@ -91,8 +91,14 @@ fn main() {
     let doc = BenchDoc::read(&path).expect("paper bench");
     let benches = [
         ("spheres (Lens)", doc.build().expect("bench")),
-        ("even aspheres (LensSystem)", variant(&doc, true).build().expect("bench")),
-        ("spheres (LensSystem zmx)", variant(&doc, false).build().expect("bench")),
+        (
+            "even aspheres (LensSystem)",
+            variant(&doc, true).build().expect("bench"),
+        ),
+        (
+            "spheres (LensSystem zmx)",
+            variant(&doc, false).build().expect("bench"),
+        ),
     ];
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(1)

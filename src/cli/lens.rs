@@ -41,7 +41,10 @@ pub fn run(args: &LensArgs) -> anyhow::Result<()> {
     }
     println!("{}", printed(&summary));
     if let Some(out) = &args.out {
-        println!("wrote {}/summary.json, lens.svg, lens.png and lens.pdf", out.display());
+        println!(
+            "wrote {}/summary.json, lens.svg, lens.png and lens.pdf",
+            out.display()
+        );
     }
     Ok(())
 }

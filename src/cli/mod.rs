@@ -101,10 +101,9 @@ impl Command {
             Command::Check(a) => a.work,
             Command::Dataset(a) => a.work,
             Command::Patterns(a) => a.work,
-            Command::Simulate(_)
-            | Command::Completions(_)
-            | Command::Man(_)
-            | Command::Lens(_) => return false,
+            Command::Simulate(_) | Command::Completions(_) | Command::Man(_) | Command::Lens(_) => {
+                return false;
+            }
         };
         work.allow_large
     }

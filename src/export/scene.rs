@@ -46,7 +46,9 @@ pub(super) fn constant_index(bench: &Bench, m: usize, el: &str) -> Result<f64> {
     }
     match medium.glass {
         Glass::Constant(n) => Ok(n),
-        Glass::Sellmeier { .. } | Glass::Schott { .. } => Err(unrepresentable(format!("`{el}` has a dispersive glass"))),
+        Glass::Sellmeier { .. } | Glass::Schott { .. } => {
+            Err(unrepresentable(format!("`{el}` has a dispersive glass")))
+        }
     }
 }
 

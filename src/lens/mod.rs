@@ -92,7 +92,12 @@ fn build(raw: &RawFile, path: &Path, glasses: &GlassOptions) -> Result<LoadedLen
         .filter(|&i| is_glass(&raw.surfaces[i]))
         .collect();
     let (Some(&first), Some(&last)) = (glass_idx.first(), glass_idx.last()) else {
-        return Err(located(path, None, "GLAS", "no surface has a glass after it".into()));
+        return Err(located(
+            path,
+            None,
+            "GLAS",
+            "no surface has a glass after it".into(),
+        ));
     };
     if last + 1 >= raw.surfaces.len() {
         return Err(located(

@@ -58,9 +58,16 @@ pub struct LensReport {
 
 /// The report at `wavelength_nm`, with the fan at `heights_mm` (default: [`DEFAULT_FAN`] of the
 /// first semi-diameter).
-pub fn report(lens: &LoadedLens, wavelength_nm: f64, heights_mm: Option<&[f64]>) -> Result<LensReport> {
+pub fn report(
+    lens: &LoadedLens,
+    wavelength_nm: f64,
+    heights_mm: Option<&[f64]>,
+) -> Result<LensReport> {
     if !(wavelength_nm.is_finite() && wavelength_nm > 0.0) {
-        return Err(Error::field("wavelength_nm", "must be a positive wavelength in nm"));
+        return Err(Error::field(
+            "wavelength_nm",
+            "must be a positive wavelength in nm",
+        ));
     }
     let p = &lens.prescription;
     let wl = wavelength_nm * 1e-9;
@@ -87,7 +94,10 @@ pub fn report(lens: &LoadedLens, wavelength_nm: f64, heights_mm: Option<&[f64]>)
             }
         })
         .collect();
-    let rms_spot_mm = par.bfl_m.and_then(|bfl| rms_at(p, &heights, bfl, &n)).map(mm);
+    let rms_spot_mm = par
+        .bfl_m
+        .and_then(|bfl| rms_at(p, &heights, bfl, &n))
+        .map(mm);
     Ok(LensReport {
         name: p.name.clone(),
         wavelength_nm,

@@ -10,7 +10,9 @@ fn root() -> PathBuf {
 }
 
 fn bad(name: &str) -> PathBuf {
-    root().join("validation/lenses/test_prescriptions/bad").join(name)
+    root()
+        .join("validation/lenses/test_prescriptions/bad")
+        .join(name)
 }
 
 fn catalogue() -> agf::Catalogue {
@@ -37,20 +39,32 @@ fn every_prescription_matches_rayoptics_and_optiland() {
             .collect();
         let r = report::report(&lens, wl, Some(&heights)).unwrap();
         let image = e["image_distance_mm"].as_f64().unwrap();
-        assert!((r.image_distance_mm.unwrap() - image).abs() < 1e-9, "{file}");
+        assert!(
+            (r.image_distance_mm.unwrap() - image).abs() < 1e-9,
+            "{file}"
+        );
         // The r² file's library paraxial numbers ignore PARM 1 (README); the hand trace's do not.
         let first_order = if file.contains("r2_term") {
             &e["numpy_paraxial"]
         } else {
             &e["rayoptics"]
         };
-        for (key, ours) in [("efl_mm", r.efl_mm), ("bfl_mm", r.bfl_mm), ("ffl_mm", r.ffl_mm)] {
+        for (key, ours) in [
+            ("efl_mm", r.efl_mm),
+            ("bfl_mm", r.bfl_mm),
+            ("ffl_mm", r.ffl_mm),
+        ] {
             match first_order[key].as_f64() {
                 None => assert_eq!(ours, None, "{file} {wl} {key}"),
                 Some(v) => {
                     let ours = ours.unwrap();
-                    assert!((ours - v).abs() <= 1e-6 * v.abs(), "{file} {wl} {key}: {ours} vs {v}");
-                    assert!((e["numpy_paraxial"][key].as_f64().unwrap() - v).abs() < 1e-6 * v.abs());
+                    assert!(
+                        (ours - v).abs() <= 1e-6 * v.abs(),
+                        "{file} {wl} {key}: {ours} vs {v}"
+                    );
+                    assert!(
+                        (e["numpy_paraxial"][key].as_f64().unwrap() - v).abs() < 1e-6 * v.abs()
+                    );
                 }
             }
         }
@@ -58,7 +72,11 @@ fn every_prescription_matches_rayoptics_and_optiland() {
             for (ours, theirs) in r.rays.iter().zip(e[lib]["rays"].as_array().unwrap()) {
                 let y = theirs["y_mm"].as_f64().unwrap();
                 let got = ours.y_mm.unwrap();
-                assert!((got - y).abs() < 1e-6, "{file} {wl} {lib} h {}: {got} vs {y}", ours.height_mm);
+                assert!(
+                    (got - y).abs() < 1e-6,
+                    "{file} {wl} {lib} h {}: {got} vs {y}",
+                    ours.height_mm
+                );
                 let d = ours.direction.unwrap();
                 for (a, b) in d.iter().zip(theirs["direction"].as_array().unwrap()) {
                     assert!((a - b.as_f64().unwrap()).abs() < 1e-9, "{file} {lib}");
@@ -77,10 +95,25 @@ fn bad_files_are_located_errors() {
         ("curv_nan.zmx", Some(18), "CURV", "not a finite number"),
         ("curv_absurd.zmx", Some(18), "CURV", "below any lens"),
         ("crossing_surfaces.zmx", Some(19), "DISZ", "cross"),
-        ("aperture_beyond_sphere.zmx", Some(21), "DIAM", "larger than the surface allows"),
-        ("aperture_beyond_conic.zmx", Some(22), "DIAM", "larger than the surface allows"),
+        (
+            "aperture_beyond_sphere.zmx",
+            Some(21),
+            "DIAM",
+            "larger than the surface allows",
+        ),
+        (
+            "aperture_beyond_conic.zmx",
+            Some(22),
+            "DIAM",
+            "larger than the surface allows",
+        ),
         ("unknown_glass_no_ndvd.zmx", Some(20), "GLAS", "no nd/Vd"),
-        ("unknown_glass_with_ndvd.zmx", Some(20), "GLAS", "substitution is allowed"),
+        (
+            "unknown_glass_with_ndvd.zmx",
+            Some(20),
+            "GLAS",
+            "substitution is allowed",
+        ),
         ("parm9.zmx", Some(27), "PARM", "beyond 8"),
         ("toroidal.zmx", Some(17), "TYPE", "TOROIDAL"),
         ("coordbrk.zmx", Some(23), "TYPE", "COORDBRK"),
@@ -94,7 +127,11 @@ fn bad_files_are_located_errors() {
         };
         assert_eq!(location.file.as_deref(), Some(path.as_path()), "{file}");
         assert_eq!(location.line, line, "{file}: {err}");
-        assert_eq!(location.field.as_deref().unwrap_or(""), operand, "{file}: {err}");
+        assert_eq!(
+            location.field.as_deref().unwrap_or(""),
+            operand,
+            "{file}: {err}"
+        );
         assert!(message.contains(words), "{file}: {err}");
     }
 }
@@ -108,8 +145,14 @@ fn substitution_only_when_allowed_and_always_reported() {
     let lens = read_zmx(&bad("unknown_glass_with_ndvd.zmx"), &opts).unwrap();
     assert_eq!(lens.substitutions.len(), 1);
     let s = &lens.substitutions[0];
-    assert_eq!((s.glass.as_str(), s.nd, s.vd, s.line), ("NOT-A-GLASS", 1.6, 45.0, 20));
-    let n = lens.prescription.surfaces[0].medium_after.index(587.5618e-9).unwrap();
+    assert_eq!(
+        (s.glass.as_str(), s.nd, s.vd, s.line),
+        ("NOT-A-GLASS", 1.6, 45.0, 20)
+    );
+    let n = lens.prescription.surfaces[0]
+        .medium_after
+        .index(587.5618e-9)
+        .unwrap();
     assert!((n - 1.6).abs() < 1e-12);
     // No nd/Vd: still an error.
     assert!(read_zmx(&bad("unknown_glass_no_ndvd.zmx"), &opts).is_err());
@@ -136,7 +179,10 @@ fn catalogue_files_sellmeier_schott_and_ranges() {
     assert_eq!(sf6.glass, crate::optics::glass::N_SF6HT);
     let narrow = cat.medium("NARROW-BK7").unwrap().unwrap();
     let e = narrow.index(850e-9).unwrap_err().to_string();
-    assert!(e.contains("test_catalogue.agf, line") && e.contains("outside"), "{e}");
+    assert!(
+        e.contains("test_catalogue.agf, line") && e.contains("outside"),
+        "{e}"
+    );
     assert!(cat.medium("N-BK7").is_none());
 }
 
@@ -154,7 +200,12 @@ fn glasses_resolve_through_catalogue_files_first() {
         allow_substitution: false,
     };
     let lens = from_bytes(text.as_bytes(), Path::new("narrow.zmx"), &opts).unwrap();
-    assert!(lens.prescription.surfaces[0].medium_after.source.contains("test_catalogue.agf"));
+    assert!(
+        lens.prescription.surfaces[0]
+            .medium_after
+            .source
+            .contains("test_catalogue.agf")
+    );
     assert!(report::report(&lens, 587.5618, None).is_ok());
     assert!(report::report(&lens, 850.0, None).is_err());
     // Ignored operands are listed.
@@ -169,8 +220,12 @@ fn unknown_surface_operands_are_refused() {
     )
     .unwrap()
     .replacen("  DISZ 6", "  SQAP 5 5\n  DISZ 6", 1);
-    let e = from_bytes(text.as_bytes(), Path::new("sq.zmx"), &GlassOptions::default())
-        .unwrap_err()
-        .to_string();
+    let e = from_bytes(
+        text.as_bytes(),
+        Path::new("sq.zmx"),
+        &GlassOptions::default(),
+    )
+    .unwrap_err()
+    .to_string();
     assert!(e.contains("SQAP") && e.contains("sq.zmx, line"), "{e}");
 }

@@ -10,11 +10,11 @@ use crate::error::{Error, Location, Result};
 /// bench's own coating applies), fields, wavelengths, tolerances, pupil and solve settings.
 /// `SQAP` (a square aperture) is deliberately absent: it clips rays.
 pub const IGNORED: &[&str] = &[
-    "VERS", "NAME", "NOTE", "COAT", "HIDE", "MIRR", "SLAB", "POPS", "FIMP", "COMM", "FLAP",
-    "XDAT", "WAVM", "WAVL", "WAVN", "WWGT", "ENPD", "ENVD", "GFAC", "RAIM", "PUSH", "SDMA", "FTYP",
-    "ROPD", "PICB", "XFLN", "YFLN", "FWGN", "VDXN", "VDYN", "VCXN", "VCYN", "VANN", "PWAV", "POLS",
-    "GLRS", "GSTD", "NSCD", "COFN", "LANG", "PFIL", "BLNK", "TOL", "MNUM", "MOFF", "CONF", "EFFL",
-    "OBSC", "TCMM", "FLOA", "AFOC",
+    "VERS", "NAME", "NOTE", "COAT", "HIDE", "MIRR", "SLAB", "POPS", "FIMP", "COMM", "FLAP", "XDAT",
+    "WAVM", "WAVL", "WAVN", "WWGT", "ENPD", "ENVD", "GFAC", "RAIM", "PUSH", "SDMA", "FTYP", "ROPD",
+    "PICB", "XFLN", "YFLN", "FWGN", "VDXN", "VDYN", "VCXN", "VCYN", "VANN", "PWAV", "POLS", "GLRS",
+    "GSTD", "NSCD", "COFN", "LANG", "PFIL", "BLNK", "TOL", "MNUM", "MOFF", "CONF", "EFFL", "OBSC",
+    "TCMM", "FLOA", "AFOC",
 ];
 
 /// One `SURF` block as written, lengths still in the file's unit.

@@ -254,9 +254,7 @@ impl Glass {
             Glass::Schott { a } => {
                 let l2 = (wavelength_m * 1e6).powi(2);
                 let inv = 1.0 / l2;
-                let n2 = a[0]
-                    + a[1] * l2
-                    + inv * (a[2] + inv * (a[3] + inv * (a[4] + inv * a[5])));
+                let n2 = a[0] + a[1] * l2 + inv * (a[2] + inv * (a[3] + inv * (a[4] + inv * a[5])));
                 n2.sqrt()
             }
         }

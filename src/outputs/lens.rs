@@ -65,11 +65,17 @@ impl LensSummary {
             rays: r
                 .rays
                 .iter()
-                .map(|FanRay { height_mm, y_mm, direction }| RayEntry {
-                    height_mm: *height_mm,
-                    y_mm: *y_mm,
-                    direction: *direction,
-                })
+                .map(
+                    |FanRay {
+                         height_mm,
+                         y_mm,
+                         direction,
+                     }| RayEntry {
+                        height_mm: *height_mm,
+                        y_mm: *y_mm,
+                        direction: *direction,
+                    },
+                )
                 .collect(),
             rms_spot_mm: r.rms_spot_mm,
             surfaces: r
@@ -105,22 +111,21 @@ pub fn write(
     prescription: &Prescription,
     provenance: &Provenance,
 ) -> Result<LensSummary> {
-    let mut files = vec!["summary.json".to_string()];
     #[cfg(feature = "figures")]
-    {
+    let files = {
+        let mut files = vec!["summary.json".to_string()];
         let svg = drawing(prescription, &summary);
-        crate::report::svg::write_figure(
-            &svg,
-            &dir.path("lens.svg"),
-            &dir.path("lens.png"),
-            true,
-        )?;
+        crate::report::svg::write_figure(&svg, &dir.path("lens.svg"), &dir.path("lens.png"), true)?;
         for f in ["lens.svg", "lens.png", "lens.pdf"] {
             files.push(f.into());
         }
-    }
+        files
+    };
     #[cfg(not(feature = "figures"))]
-    let _ = prescription;
+    let files = {
+        let _ = prescription;
+        vec!["summary.json".to_string()]
+    };
     summary.files = files;
     super::summary::write_summary(dir, &summary, provenance)?;
     Ok(summary)

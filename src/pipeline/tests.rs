@@ -201,8 +201,16 @@ fn the_paper_bench_with_its_lenses_as_lens_systems_traces_the_same() {
         );
     }
     // The same surfaces to rounding: the trace agrees far inside its errors.
-    let k = (&a.metrics[BenchMetric::KPlus], &b.metrics[BenchMetric::KPlus]);
-    assert!((k.0.value - k.1.value).abs() <= 1e-6 * k.0.value.abs(), "{} vs {}", k.0.value, k.1.value);
+    let k = (
+        &a.metrics[BenchMetric::KPlus],
+        &b.metrics[BenchMetric::KPlus],
+    );
+    assert!(
+        (k.0.value - k.1.value).abs() <= 1e-6 * k.0.value.abs(),
+        "{} vs {}",
+        k.0.value,
+        k.1.value
+    );
 }
 
 /// An even-asphere `LensSystem` (the shipped AL1815 collector) in an arm of the paper bench:
@@ -212,18 +220,18 @@ fn the_paper_bench_with_its_lenses_as_lens_systems_traces_the_same() {
 fn an_asphere_lens_system_builds_traces_draws_and_exports() {
     let path = scene_path("paper_bench.ron");
     let text = std::fs::read_to_string(&path).unwrap();
-    let start = text.find("        Lens(\n            name: \"arm_plus_lens\"").unwrap();
+    let start = text
+        .find("        Lens(\n            name: \"arm_plus_lens\"")
+        .unwrap();
     let end = start + text[start..].find("        ),\n").unwrap() + "        ),\n".len();
     let system = "        LensSystem(\n            name: \"arm_plus_lens\",\n            zmx: \"parts/thorlabs_al1815.zmx\",\n            position_mm: (28.7606, -28.7606, 91.3545),\n            axis: Polar(theta_deg: 24.0, phi_deg: -45.0),\n            coating: MgF2(design_nm: 550.0),\n        ),\n";
     let edited = format!("{}{system}{}", &text[..start], &text[end..]);
     let doc = BenchDoc::parse(&edited, &path).unwrap();
     let bench = doc.build().unwrap();
-    assert!(
-        bench
-            .surfaces()
-            .iter()
-            .any(|s| matches!(s.geometry, crate::optics::geometry::Geometry::Asphere { .. }))
-    );
+    assert!(bench.surfaces().iter().any(|s| matches!(
+        s.geometry,
+        crate::optics::geometry::Geometry::Asphere { .. }
+    )));
     let t = trace_stage(&bench, &TraceRequest::new(20_000, 1)).unwrap();
     // f = 15 mm where the bench's design has 100 mm: the + arm's beam has spread far beyond
     // its 5 mm diode when it gets there, so k₊ is about 0; the − arm is untouched. (The
@@ -254,10 +262,18 @@ fn an_asphere_lens_system_builds_traces_draws_and_exports() {
     assert!(scene.files.iter().any(|(n, _)| n.contains("arm_plus_lens")));
     // The prescription's own errors keep its file and line; a missing file is named.
     let bad = edited.replace("parts/thorlabs_al1815.zmx", "parts/missing.zmx");
-    let e = BenchDoc::parse(&bad, &path).unwrap().build().unwrap_err().to_string();
+    let e = BenchDoc::parse(&bad, &path)
+        .unwrap()
+        .build()
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("missing.zmx"), "{e}");
     let neither = edited.replace("            zmx: \"parts/thorlabs_al1815.zmx\",\n", "");
-    let e = BenchDoc::parse(&neither, &path).unwrap().build().unwrap_err().to_string();
+    let e = BenchDoc::parse(&neither, &path)
+        .unwrap()
+        .build()
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("arm_plus_lens") && e.contains("either"), "{e}");
 }
 
@@ -267,10 +283,13 @@ fn an_asphere_lens_system_builds_traces_draws_and_exports() {
 fn inline_lens_system_surfaces_match_the_file_and_are_checked() {
     let path = scene_path("paper_bench.ron");
     let text = std::fs::read_to_string(&path).unwrap();
-    let start = text.find("        Lens(\n            name: \"arm_plus_lens\"").unwrap();
+    let start = text
+        .find("        Lens(\n            name: \"arm_plus_lens\"")
+        .unwrap();
     let end = start + text[start..].find("        ),\n").unwrap() + "        ),\n".len();
     let head = "        LensSystem(\n            name: \"arm_plus_lens\",\n            position_mm: (28.7606, -28.7606, 91.3545),\n            axis: Polar(theta_deg: 24.0, phi_deg: -45.0),\n";
-    let from_file = format!("{head}            zmx: \"parts/thorlabs_ac254-100-b.zmx\",\n        ),\n");
+    let from_file =
+        format!("{head}            zmx: \"parts/thorlabs_ac254-100-b.zmx\",\n        ),\n");
     let inline = format!(
         "{head}            surfaces: [\n                (radius_mm: 66.68, semi_diameter_mm: 12.7, thickness_mm: 4.0, glass: \"N-LAK22\"),\n                (radius_mm: -53.7, semi_diameter_mm: 12.7, thickness_mm: 1.5, glass: \"N-SF6HT\"),\n                (radius_mm: -259.41, semi_diameter_mm: 12.7),\n            ],\n        ),\n"
     );
@@ -286,9 +305,20 @@ fn inline_lens_system_surfaces_match_the_file_and_are_checked() {
         trace_stage(&a, &TraceRequest::new(20_000, 2)).unwrap(),
         trace_stage(&b, &TraceRequest::new(20_000, 2)).unwrap(),
     );
-    let (x, y) = (&k.0.metrics[BenchMetric::KPlus], &k.1.metrics[BenchMetric::KPlus]);
-    assert!((x.value - y.value).abs() <= 1e-6 * x.value, "{} vs {}", x.value, y.value);
+    let (x, y) = (
+        &k.0.metrics[BenchMetric::KPlus],
+        &k.1.metrics[BenchMetric::KPlus],
+    );
+    assert!(
+        (x.value - y.value).abs() <= 1e-6 * x.value,
+        "{} vs {}",
+        x.value,
+        y.value
+    );
     let crossing = inline.replace("thickness_mm: 4.0", "thickness_mm: 0.5");
     let e = build(&crossing).unwrap_err().to_string();
-    assert!(e.contains("surfaces[0].thickness_mm") && e.contains("cross"), "{e}");
+    assert!(
+        e.contains("surfaces[0].thickness_mm") && e.contains("cross"),
+        "{e}"
+    );
 }

@@ -53,18 +53,35 @@ fn bad_prescriptions_exit_2_and_write_nothing() {
     let tmp = TempDir::new("cli-lens-bad");
     let bad = root().join("validation/lenses/test_prescriptions/bad");
     for (file, fragments) in [
-        ("missing_disz.zmx", &["missing_disz.zmx, line 15", "DISZ"][..]),
+        (
+            "missing_disz.zmx",
+            &["missing_disz.zmx, line 15", "DISZ"][..],
+        ),
         ("curv_nan.zmx", &["line 18", "CURV"]),
         ("crossing_surfaces.zmx", &["line 19", "cross"]),
         ("aperture_beyond_conic.zmx", &["line 22", "DIAM"]),
-        ("unknown_glass_no_ndvd.zmx", &["line 20", "GLAS", "NOT-A-GLASS"]),
+        (
+            "unknown_glass_no_ndvd.zmx",
+            &["line 20", "GLAS", "NOT-A-GLASS"],
+        ),
         ("parm9.zmx", &["line 27", "PARM"]),
         ("toroidal.zmx", &["line 17", "TOROIDAL"]),
-        ("utf16_odd_length.zmx", &["utf16_odd_length.zmx", "odd length"]),
+        (
+            "utf16_odd_length.zmx",
+            &["utf16_odd_length.zmx", "odd length"],
+        ),
     ] {
         let out = tmp.join(file);
         let path = bad.join(file);
-        let o = spibench(&["lens", path.to_str().unwrap(), "--out", out.to_str().unwrap()], &[]);
+        let o = spibench(
+            &[
+                "lens",
+                path.to_str().unwrap(),
+                "--out",
+                out.to_str().unwrap(),
+            ],
+            &[],
+        );
         assert_input_error(&o, fragments, &out);
     }
     // A glass range the wavelength leaves: located in the catalogue.

@@ -16,11 +16,20 @@ use glam::DVec3;
 pub enum Shape {
     Flat,
     /// A sphere of curvature `c` (1/m, positive when the centre lies at +z).
-    Sphere { c: f64 },
+    Sphere {
+        c: f64,
+    },
     /// A conic of curvature `c` and conic constant `k` (k = 0 a sphere, −1 a paraboloid).
-    Conic { c: f64, k: f64 },
+    Conic {
+        c: f64,
+        k: f64,
+    },
     /// An even asphere: the conic plus the polynomial Σ aᵢ r^(2i).
-    EvenAsphere { c: f64, k: f64, a: [f64; 8] },
+    EvenAsphere {
+        c: f64,
+        k: f64,
+        a: [f64; 8],
+    },
 }
 
 /// Newton iterations allowed on an asphere before the ray counts as a miss. The iteration
@@ -84,7 +93,11 @@ impl Shape {
             return None;
         }
         // d/ds [c s / (1 + √(1 − K s))] = c / (2 √(1 − K s)), K = (1 + k) c².
-        let mut d = if c == 0.0 { 0.0 } else { c / (2.0 * root.sqrt()) };
+        let mut d = if c == 0.0 {
+            0.0
+        } else {
+            c / (2.0 * root.sqrt())
+        };
         if let Some(a) = self.poly() {
             let mut p = 0.0;
             for (i, ai) in a.iter().enumerate().rev() {

@@ -62,7 +62,10 @@ fn thick_and_thin_lens_closed_forms() {
 #[test]
 fn paraboloid_sends_parallel_rays_through_its_focus() {
     let r = 0.04;
-    let shape = Shape::Conic { c: 1.0 / r, k: -1.0 };
+    let shape = Shape::Conic {
+        c: 1.0 / r,
+        k: -1.0,
+    };
     for h in [1e-5, 1e-3, 0.01, 0.03, 0.1] {
         let o = DVec3::new(0.0, h, -0.01);
         let t = shape.intersect(o, DVec3::Z, 0.2, 0.0).unwrap();
@@ -83,7 +86,16 @@ fn asphere_intersections_lie_on_the_sag_and_misses_are_clean() {
     let shape = Shape::EvenAsphere {
         c: 1.0 / 0.02,
         k: -0.8,
-        a: [0.0, 1e-5 * 1e9, -2e-7 * 1e15, 3e-9 * 1e21, 0.0, 0.0, 0.0, 0.0],
+        a: [
+            0.0,
+            1e-5 * 1e9,
+            -2e-7 * 1e15,
+            3e-9 * 1e21,
+            0.0,
+            0.0,
+            0.0,
+            0.0,
+        ],
     };
     let sd = 8e-3;
     let mut hits = 0;
@@ -104,7 +116,10 @@ fn asphere_intersections_lie_on_the_sag_and_misses_are_clean() {
                 None => {
                     // A miss is a ray whose aperture crossing lies outside the semi-diameter.
                     let p = o + (-o.z / d.z) * d;
-                    assert!(p.x * p.x + p.y * p.y > 0.5 * sd * sd, "y {y}, slope {slope}");
+                    assert!(
+                        p.x * p.x + p.y * p.y > 0.5 * sd * sd,
+                        "y {y}, slope {slope}"
+                    );
                 }
             }
         }
@@ -186,7 +201,9 @@ fn bench_asphere_geometry_agrees_with_the_shape() {
     for h in [0.0, 2e-3, 6e-3, 8.9e-3] {
         let o = frame.to_world(DVec3::new(0.0, h, -0.02));
         let hit = g.intersect(o, axis, 0.0, 1.0).unwrap();
-        let t = shape.intersect(DVec3::new(0.0, h, -0.02), DVec3::Z, 9e-3, 0.0).unwrap();
+        let t = shape
+            .intersect(DVec3::new(0.0, h, -0.02), DVec3::Z, 9e-3, 0.0)
+            .unwrap();
         assert!((hit.t - t).abs() < 1e-15);
         let p = o + hit.t * axis;
         assert!(p.cmpge(lo).all() && p.cmple(hi).all());

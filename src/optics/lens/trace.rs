@@ -89,12 +89,7 @@ impl Prescription {
     /// A ray parallel to the axis at height `height_m` in the meridional (y–z) plane, traced
     /// to the plane `plane_m` after the last vertex: (y there, direction after the last
     /// surface), or `None` on a miss or total internal reflection.
-    pub fn parallel_ray(
-        &self,
-        height_m: f64,
-        plane_m: f64,
-        n: &[f64],
-    ) -> Option<(f64, DVec3)> {
+    pub fn parallel_ray(&self, height_m: f64, plane_m: f64, n: &[f64]) -> Option<(f64, DVec3)> {
         // Any start before the first surface's sag will do for a parallel ray.
         let start = -(self.surfaces.first()?.semi_diameter_m + 1e-3);
         let o = DVec3::new(0.0, height_m, start);

@@ -20,7 +20,14 @@ use super::schema::{
 
 /// The variant names, in declaration order (their indices).
 const VARIANTS: &[&str] = &[
-    "Lens", "Filter", "Aperture", "Tube", "Baffle", "Mirror", "Chart", "LensSystem",
+    "Lens",
+    "Filter",
+    "Aperture",
+    "Tube",
+    "Baffle",
+    "Mirror",
+    "Chart",
+    "LensSystem",
 ];
 
 /// A variant's tag, read from its name (or index) as serde's derive reads it.

@@ -97,7 +97,11 @@ impl Builder<'_> {
         for (i, s) in surfaces.iter().enumerate() {
             let last = i + 1 == surfaces.len();
             if s.asphere.len() > 7 {
-                return Err(e(i, "asphere", "at most seven coefficients, A4 … A16".into()));
+                return Err(e(
+                    i,
+                    "asphere",
+                    "at most seven coefficients, A4 … A16".into(),
+                ));
             }
             let c = s.radius_mm.map_or(0.0, |r| 1e3 / r.0);
             let k = s.conic.map_or(0.0, |k| k.0);
@@ -115,8 +119,20 @@ impl Builder<'_> {
             let thickness = match (s.thickness_mm, last) {
                 (Some(t), false) => t.0 * 1e-3,
                 (None, true) => 0.0,
-                (None, false) => return Err(e(i, "thickness_mm", "missing (the gap to the next surface)".into())),
-                (Some(_), true) => return Err(e(i, "thickness_mm", "the last surface has no thickness after it".into())),
+                (None, false) => {
+                    return Err(e(
+                        i,
+                        "thickness_mm",
+                        "missing (the gap to the next surface)".into(),
+                    ));
+                }
+                (Some(_), true) => {
+                    return Err(e(
+                        i,
+                        "thickness_mm",
+                        "the last surface has no thickness after it".into(),
+                    ));
+                }
             };
             let medium = match (&s.glass, last) {
                 (Some(g), false) => Medium {
@@ -161,9 +177,11 @@ impl Builder<'_> {
                     gap_m * 1e3
                 ),
             )),
-            Some(Defect::BadDimension { surface }) => {
-                Err(e(surface, "semi_diameter_mm", "not a positive length".into()))
-            }
+            Some(Defect::BadDimension { surface }) => Err(e(
+                surface,
+                "semi_diameter_mm",
+                "not a positive length".into(),
+            )),
         }
     }
 }

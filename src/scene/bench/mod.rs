@@ -49,9 +49,9 @@ pub use schema::{
     ApertureSpec, BaffleSpec, BenchFile, CenterOnSpec, ChartGuidedSpec, ChartPatternSpec,
     ChartSpec, CoatingSpec, DetectorsSpec, Direction, DmdModelSpec, DmdSpec, ElementSpec,
     EmissionSpec, FieldSamplingSpec, FilamentSpec, FilterSpec, GlassSpec, Interactions,
-    LampPowerSpec, LampSpec, LampSpectrumSpec, LensSpec, LensSurfaceSpec, LensSystemSpec, MirrorCount, MirrorIndex, MirrorSpec,
-    Outline, PatternSpec, PhotodiodeSpec, Segments, SpectrumSpec, StateSpec, TubeSpec, UsafElement,
-    UsafGroup, WindowSpec,
+    LampPowerSpec, LampSpec, LampSpectrumSpec, LensSpec, LensSurfaceSpec, LensSystemSpec,
+    MirrorCount, MirrorIndex, MirrorSpec, Outline, PatternSpec, PhotodiodeSpec, Segments,
+    SpectrumSpec, StateSpec, TubeSpec, UsafElement, UsafGroup, WindowSpec,
 };
 
 // Conversion.

@@ -391,7 +391,10 @@ pub struct LensSpec {
 /// A multi-surface lens (a doublet, an asphere, …): the surfaces of a Zemax prescription
 /// (`zmx`, a path relative to the bench file) or written inline (`surfaces`), front to back.
 #[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
-#[serde(deny_unknown_fields, expecting = "struct variant ElementSpec::LensSystem")]
+#[serde(
+    deny_unknown_fields,
+    expecting = "struct variant ElementSpec::LensSystem"
+)]
 pub struct LensSystemSpec {
     /// Unique name; the ledger key of the light it absorbs.
     pub name: String,

@@ -7,8 +7,8 @@ use super::paths::{bad_path, split_target};
 use crate::error::{Error, Result};
 use crate::optics::geometry::Frame;
 use crate::scene::bench::{
-    ApertureSpec, BaffleSpec, BenchFile, ChartSpec, Direction, ElementSpec, FilterSpec, LensSpec, LensSystemSpec,
-    MirrorSpec, Mm3, TubeSpec,
+    ApertureSpec, BaffleSpec, BenchFile, ChartSpec, Direction, ElementSpec, FilterSpec, LensSpec,
+    LensSystemSpec, MirrorSpec, Mm3, TubeSpec,
 };
 
 /// A rigid-body move of a part, in its own frame.

@@ -6,8 +6,8 @@ use super::moves::{pose, unit};
 use crate::error::{Error, Result};
 use crate::optics::geometry::Frame;
 use crate::scene::bench::{
-    ApertureSpec, BaffleSpec, BenchFile, ChartSpec, Direction, ElementSpec, FilterSpec, LensSpec, LensSystemSpec,
-    MirrorSpec, Mm3, TubeSpec,
+    ApertureSpec, BaffleSpec, BenchFile, ChartSpec, Direction, ElementSpec, FilterSpec, LensSpec,
+    LensSystemSpec, MirrorSpec, Mm3, TubeSpec,
 };
 
 /// How far (mm) a part's position may lie from a chief line and still count as on it.
