@@ -315,6 +315,17 @@ fn inline_lens_system_surfaces_match_the_file_and_are_checked() {
         x.value,
         y.value
     );
+    // Bench variables move and tilt it as they do a Lens.
+    let mut doc = BenchDoc::parse(
+        &format!("{}{inline}{}", &text[..start], &text[end..]),
+        &path,
+    )
+    .unwrap();
+    doc.set("arm_plus_lens.position_mm.x", 29.0).unwrap();
+    assert_eq!(doc.get("arm_plus_lens.position_mm.x").unwrap(), 29.0);
+    doc.set("arm_plus_lens.tilt_deg.x", 0.5).unwrap();
+    doc.set("arm_plus_lens.despace_mm", 0.2).unwrap();
+    doc.build().unwrap();
     let crossing = inline.replace("thickness_mm: 4.0", "thickness_mm: 0.5");
     let e = build(&crossing).unwrap_err().to_string();
     assert!(
