@@ -10,6 +10,7 @@ mod completions;
 mod dataset;
 mod export;
 pub mod flags;
+mod intake;
 mod layout;
 mod lens;
 mod patterns;
@@ -84,6 +85,10 @@ enum Command {
     /// A lens prescription (.zmx): surface table, paraxial EFL, BFL and FFL, and a fan of real
     /// rays with their intercepts and the RMS spot.
     Lens(lens::LensArgs),
+    /// Take in oscilloscope records of a built bench: frames found, arms calibrated, every
+    /// scheme reconstructed with `run`'s solver and scored (the records of `run --scope-record`
+    /// give back the run's own results).
+    Intake(intake::IntakeArgs),
 }
 
 impl Command {
@@ -101,6 +106,7 @@ impl Command {
             Command::Check(a) => a.work,
             Command::Dataset(a) => a.work,
             Command::Patterns(a) => a.work,
+            Command::Intake(a) => a.work,
             Command::Simulate(_) | Command::Completions(_) | Command::Man(_) | Command::Lens(_) => {
                 return false;
             }
@@ -159,6 +165,7 @@ pub fn main() -> i32 {
         Command::Dataset(a) => dataset::run(a),
         Command::Patterns(a) => patterns::run(a),
         Command::Lens(a) => lens::run(a),
+        Command::Intake(a) => intake::run(a),
     };
     match result {
         Ok(()) => 0,

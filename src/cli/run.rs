@@ -45,6 +45,12 @@ pub struct RunArgs {
     /// the plain run.
     #[arg(long, default_value_t = 1, value_name = "N")]
     pub repeats: usize,
+    /// Also write every recorded sequence as an oscilloscope saves it, in `scope/`: the raw
+    /// record of RF, MONITOR+, MONITOR− and the DMD's frame trigger as a Tektronix-layout CSV
+    /// and `.npy` with a JSON sidecar, and the frames shown (`patterns.npy`, `patterns.json`),
+    /// which `spibench intake` reads back (docs/scope-records.md).
+    #[arg(long)]
+    pub scope_record: bool,
     #[command(flatten)]
     pub work: super::args::WorkArgs,
 }
@@ -149,7 +155,16 @@ pub fn run(args: &RunArgs) -> Result<()> {
         findings: &findings,
         repeats: stats,
     };
-    let files = write(&page, outcome, &provenance, &out)?;
+    let mut files = write(&page, outcome, &provenance, &out)?;
+    if args.scope_record {
+        let (written, bytes) = crate::outputs::run::scope::write_scope_records(outcome, &out)?;
+        files += written.len();
+        eprintln!(
+            "scope records: {} sequence(s), {:.1} MB in scope/",
+            written.len() / crate::outputs::run::scope::FILES_PER_SEQUENCE,
+            bytes as f64 / 1e6
+        );
+    }
     let dir = out.commit()?;
     for line in printed(&name, outcome, &findings, stats) {
         println!("{line}");
@@ -183,6 +198,7 @@ mod tests {
             },
             cache: None,
             repeats: 1,
+            scope_record: false,
             work: Default::default(),
         };
         let (doc, scene) = load_scene(&args).unwrap();

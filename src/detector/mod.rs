@@ -9,6 +9,7 @@
 
 pub mod bap;
 pub mod drift;
+pub mod frames;
 pub mod record;
 pub mod scope;
 
@@ -16,6 +17,7 @@ pub use bap::{Bap, Load, MONITOR_MINUS, MONITOR_PLUS, OUTPUT_NAMES, OutputStage,
 pub use drift::{Drift, DriftPath};
 pub use record::{
     FrameTiming, Illumination, Record, RecordModel, SignalTrace, frame_start_sample, ideal_frames,
-    record, record_frames, record_with,
+    record, record_frames, record_observed, record_with,
 };
+pub use frames::{BOUNDARY_EPS, FrameMeans, SettleRule};
 pub use scope::{Channel, ChannelRange, Scope, ScopeNoise, auto_range};

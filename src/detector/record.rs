@@ -27,6 +27,7 @@ use serde::Serialize;
 
 use super::bap::{Bap, MONITOR_PLUS, RF};
 use super::drift::DriftPath;
+use super::frames::{BOUNDARY_EPS, FrameMeans, SettleRule};
 use super::scope::Channel;
 use crate::rng;
 
@@ -139,6 +140,35 @@ pub fn record(
     noisy: bool,
     trace_frames: usize,
 ) -> Record {
+    record_observed(
+        bap,
+        channels,
+        timing,
+        light,
+        drift,
+        seed,
+        noisy,
+        trace_frames,
+        |_, _, _| {},
+    )
+}
+
+/// [`record`], handing every recorded sample to `sink` in time order: its index n (from the
+/// start of the sequence), its frame, and the recorded volts of [RF, MONITOR+, MONITOR−] (what
+/// the oscilloscope stores; a record file holds these, so that the frames cut from it are the
+/// record's own).
+#[allow(clippy::too_many_arguments)]
+pub fn record_observed<F: FnMut(u64, usize, &[f64; 3])>(
+    bap: &Bap,
+    channels: &[Channel; 3],
+    timing: FrameTiming,
+    light: &Illumination,
+    drift: &DriftPath,
+    seed: u64,
+    noisy: bool,
+    trace_frames: usize,
+    mut sink: F,
+) -> Record {
     let n_frames = light.light_a.len();
     let dt = 1.0 / timing.sample_rate_hz;
     let n_samples = frame_start_sample(timing, n_frames, n_frames);
@@ -150,8 +180,7 @@ pub fn record(
     });
     let shot_on = noisy && bap.shot_noise;
 
-    let mut frames = vec![[0.0; 3]; n_frames];
-    let mut counts = vec![0usize; n_frames];
+    let mut means = FrameMeans::<3>::new(n_frames);
     let mut clipped = vec![0u8; n_frames];
     let mut over_range = vec![0u8; n_frames];
     let mut trace = SignalTrace {
@@ -200,13 +229,11 @@ pub fn record(
         (shot, amp)
     };
 
-    // Frame membership in units of samples, with a tolerance of BOUNDARY_EPS.
-    let per_frame = timing.frame_s * timing.sample_rate_hz;
-    let settle_samples = timing.settling_s * timing.sample_rate_hz;
+    // Frame membership and settling: the one settle-window rule (super::frames).
+    let rule = SettleRule::of(timing);
     for n in 0..n_samples {
         let t = n as f64 * dt;
-        let f = (((n as f64 + BOUNDARY_EPS) / per_frame) as usize).min(n_frames - 1);
-        let in_frame = n as f64 - f as f64 * per_frame;
+        let f = rule.frame_of(n, n_frames);
         let i = currents_at(f, t);
         let x = bap.ideal_outputs_v(i);
         let mut noise = [0.0; 3];
@@ -229,11 +256,12 @@ pub fn record(
             // Oscilloscope input noise, added below.
             scope_draws = [s0, s1, s2];
         }
-        let settled = in_frame + BOUNDARY_EPS >= settle_samples;
+        let settled = rule.settled(n, rule.grid_start(f));
         let keep_trace = f < trace.frames;
         if keep_trace {
             trace.t_s.push(t);
         }
+        let mut recorded = [0.0; 3];
         for o in 0..3 {
             v[o] = a[o] * v[o] + (1.0 - a[o]) * x[o] + noise[o];
             let out = stages[o].clip(v[o]);
@@ -245,23 +273,20 @@ pub fn record(
             if keep_trace {
                 trace.v[o].push(rec);
             }
+            recorded[o] = rec;
             if settled {
-                frames[f][o] += rec;
+                means.add(f, o, rec);
                 if over {
                     over_range[f] |= 1 << o;
                 }
             }
         }
         if settled {
-            counts[f] += 1;
+            means.count(f);
         }
+        sink(n, f, &recorded);
     }
-    for (fr, &c) in frames.iter_mut().zip(&counts) {
-        let k = c.max(1) as f64;
-        for v in fr.iter_mut() {
-            *v /= k;
-        }
-    }
+    let (frames, counts) = means.means();
     let settled_samples = (
         counts.iter().copied().min().unwrap_or(0),
         counts.iter().copied().max().unwrap_or(0),
@@ -316,10 +341,6 @@ pub fn record_with(
         trace_frames,
     )
 }
-
-/// Tolerance, in samples, of the frame and settling boundaries: a sample that falls exactly on
-/// a boundary (440 samples per 44 µs frame) is not moved by the rounding of t/T.
-const BOUNDARY_EPS: f64 = 1e-6;
 
 /// The first sample of frame `f` of a sequence of `n_frames` frames (the samples n with
 /// ⌊(n + ε)/P⌋ ≥ f, P samples per frame, as [`record`] assigns them); `f = n_frames` gives the

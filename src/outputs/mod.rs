@@ -12,6 +12,7 @@
 
 pub mod check;
 pub mod export;
+pub mod intake;
 pub mod layout;
 pub mod lens;
 pub mod reconstruct;

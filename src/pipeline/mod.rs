@@ -47,7 +47,9 @@ use crate::trace::{Tallies, TraceOptions, trace};
 use crate::transport::Transport;
 use crate::transport::metrics::BenchMetrics;
 
-pub use record::{Recorded, Saturation, SequenceSummary, record_stage, record_transport};
+pub use record::{
+    Recorded, Saturation, SequenceSummary, ReplaySetup, SampleSink, record_stage, record_transport, replay_sequence,
+};
 pub use solve::{
     MIN_REGISTRATION_CORRELATION, ResolutionContext, Resolved, SchemeResult, resolution_context,
     solve_stage,

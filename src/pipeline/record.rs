@@ -120,29 +120,17 @@ pub fn record_transport(
     progress: Progress,
 ) -> Result<Recorded> {
     let s = settings;
-    let timing = FrameTiming {
-        frame_s: 1.0 / s.dmd_rate_hz,
-        settling_s: s.settling_time_s,
-        sample_rate_hz: scope.sample_rate_hz,
-    };
-    let needed: Vec<Sequence> = Sequence::all()
-        .into_iter()
-        .filter(|q| s.schemes.iter().any(|k| k.sequence() == *q))
-        .collect();
-    let lights = frame_lights(transport, patterns, &needed);
-    let illum: Vec<Illumination> = lights
-        .iter()
-        .map(|l| Illumination {
-            light_a: l,
-            ambient_a: transport.ambient_a,
-            dark_a: transport.dark_a,
-        })
-        .collect();
-    let ideal: Vec<Vec<[f64; 3]>> = illum
-        .iter()
-        .map(|il| detector::ideal_frames(detector, il))
-        .collect();
-    let (channels, seq_channels) = channel_settings(detector, scope, s.noise, &needed, &ideal);
+    let prep = prepare(transport, detector, scope, s, patterns);
+    let Prepared {
+        timing,
+        needed,
+        lights,
+        ideal,
+        channels,
+        seq_channels,
+    } = &prep;
+    let (timing, channels) = (*timing, *channels);
+    let illum = illuminations(transport, lights);
     let total_frames: u64 = lights.iter().map(|l| l.len() as u64).sum();
     progress(Stage::Record, 0, total_frames);
     let records: Vec<Record> = needed
@@ -155,7 +143,7 @@ pub fn record_transport(
 
     let mut sequences = Vec::new();
     let mut saturation = Vec::new();
-    for (((&q, r), id), channels) in needed.iter().zip(&records).zip(&ideal).zip(&seq_channels) {
+    for (((&q, r), id), channels) in needed.iter().zip(&records).zip(ideal).zip(seq_channels) {
         let (summary, found) = summarize_sequence(detector, channels, timing, q, r, id);
         sequences.push(summary);
         saturation.extend(found);
@@ -164,10 +152,156 @@ pub fn record_transport(
         patterns: patterns.shared_set(),
         timing,
         channels,
-        records: needed.into_iter().zip(records).collect(),
+        records: needed.iter().copied().zip(records).collect(),
         sequences,
         saturation,
     })
+}
+
+/// What every record of an acquisition is made from: the timing, the sequences some scheme
+/// reads, the light of each frame, the noise-free outputs and the oscilloscope's channels.
+struct Prepared {
+    timing: FrameTiming,
+    needed: Vec<Sequence>,
+    lights: Vec<Vec<[f64; 2]>>,
+    ideal: Vec<Vec<[f64; 3]>>,
+    channels: [Channel; 3],
+    seq_channels: Vec<[Channel; 3]>,
+}
+
+fn prepare(
+    transport: &crate::transport::Transport,
+    detector: &Bap,
+    scope: &Scope,
+    s: &RunSettings,
+    patterns: &PackedPatterns,
+) -> Prepared {
+    let timing = FrameTiming {
+        frame_s: 1.0 / s.dmd_rate_hz,
+        settling_s: s.settling_time_s,
+        sample_rate_hz: scope.sample_rate_hz,
+    };
+    let needed: Vec<Sequence> = Sequence::all()
+        .into_iter()
+        .filter(|q| s.schemes.iter().any(|k| k.sequence() == *q))
+        .collect();
+    let lights = frame_lights(transport, patterns, &needed);
+    let ideal: Vec<Vec<[f64; 3]>> = illuminations(transport, &lights)
+        .iter()
+        .map(|il| detector::ideal_frames(detector, il))
+        .collect();
+    let (channels, seq_channels) = channel_settings(detector, scope, s.noise, &needed, &ideal);
+    Prepared {
+        timing,
+        needed,
+        lights,
+        ideal,
+        channels,
+        seq_channels,
+    }
+}
+
+fn illuminations<'a>(
+    transport: &crate::transport::Transport,
+    lights: &'a [Vec<[f64; 2]>],
+) -> Vec<Illumination<'a>> {
+    lights
+        .iter()
+        .map(|l| Illumination {
+            light_a: l,
+            ambient_a: transport.ambient_a,
+            dark_a: transport.dark_a,
+        })
+        .collect()
+}
+
+/// Where a replayed record's samples go ([`replay_sequence`]).
+pub trait SampleSink {
+    /// Sample `n` (from the start of the sequence) of frame `frame`: the recorded volts of
+    /// [RF, MONITOR+, MONITOR−].
+    fn sample(&mut self, n: u64, frame: usize, v: &[f64; 3]);
+}
+
+/// What a replayed sequence is recorded with, known before its first sample.
+#[derive(Debug, Clone, Copy)]
+pub struct ReplaySetup {
+    pub timing: FrameTiming,
+    /// The sequence's oscilloscope channels [RF, MONITOR+, MONITOR−].
+    pub channels: [Channel; 3],
+    pub frames: usize,
+    /// Samples per channel.
+    pub samples: u64,
+}
+
+/// One sequence of [`record_transport`] recorded again, sample by sample, every recorded sample
+/// handed in time order (its index, its frame, the volts of [RF, MONITOR+, MONITOR−]) to the
+/// sink that `open` makes from the sequence's setup: the same record, bit for bit, as the record
+/// stage made with the same arguments. Returns the record and the sink; None when no scheme of
+/// `settings` reads `q`. Only the sample-by-sample model has samples to hand over, and the
+/// paper's additive noise is added to frame values, not to samples: both are refused.
+#[allow(clippy::too_many_arguments)]
+pub fn replay_sequence<S, O>(
+    transport: &crate::transport::Transport,
+    detector: &Bap,
+    scope: &Scope,
+    settings: &RunSettings,
+    patterns: &PackedPatterns,
+    seed: u64,
+    q: Sequence,
+    open: O,
+) -> Result<Option<(Record, S)>>
+where
+    S: SampleSink,
+    O: FnOnce(&ReplaySetup) -> Result<S>,
+{
+    if settings.record != detector::RecordModel::Samples {
+        return Err(crate::Error::field(
+            "run.record",
+            "a scope record needs the sample-by-sample record model",
+        ));
+    }
+    if settings.additive_noise.is_some() {
+        return Err(crate::Error::field(
+            "run.additive_noise",
+            "a scope record holds samples, and the paper's additive noise is added to frame \
+             values: leave it out to write one",
+        ));
+    }
+    let prep = prepare(transport, detector, scope, settings, patterns);
+    let Some(i) = prep.needed.iter().position(|&n| n == q) else {
+        return Ok(None);
+    };
+    let il = &illuminations(transport, &prep.lights)[i];
+    let channels = prep.seq_channels[i];
+    let frames = il.light_a.len();
+    let mut sink = open(&ReplaySetup {
+        timing: prep.timing,
+        channels,
+        frames,
+        samples: detector::frame_start_sample(prep.timing, frames, frames),
+    })?;
+    let q_seed = sequence_seed(seed, q);
+    let drift = sequence_drift(settings, il, prep.timing, q_seed);
+    let r = detector::record_observed(
+        detector,
+        &channels,
+        prep.timing,
+        il,
+        &drift,
+        q_seed,
+        settings.noise,
+        settings.signal_trace_frames,
+        |n, f, v: &[f64; 3]| sink.sample(n, f, v),
+    );
+    Ok(Some((r, sink)))
+}
+
+fn sequence_drift(s: &RunSettings, il: &Illumination, timing: FrameTiming, q_seed: u64) -> DriftPath {
+    if s.noise {
+        DriftPath::draw(&s.drift, il.light_a.len(), timing.frame_s, q_seed)
+    } else {
+        DriftPath::flat(il.light_a.len(), timing.frame_s)
+    }
 }
 
 /// The light on each diode, frame by frame, of each sequence in `needed`.
@@ -256,11 +390,7 @@ fn record_sequence(
     q: Sequence,
 ) -> Record {
     let q_seed = sequence_seed(seed, q);
-    let drift = if s.noise {
-        DriftPath::draw(&s.drift, il.light_a.len(), timing.frame_s, q_seed)
-    } else {
-        DriftPath::flat(il.light_a.len(), timing.frame_s)
-    };
+    let drift = sequence_drift(s, il, timing, q_seed);
     let mut r = detector::record_with(
         s.record,
         detector,

@@ -40,6 +40,7 @@ pub mod arrays;
 #[cfg(feature = "figures")]
 mod figures;
 pub mod repeats;
+pub mod scope;
 #[cfg(feature = "figures")]
 pub mod report;
 pub mod summary;
