@@ -330,6 +330,9 @@ pub fn read_csv(path: &Path) -> Result<ScopeRecord> {
         for (o, column) in data.iter_mut().enumerate() {
             let Some(cell) = it.next() else { break };
             let cell = cell.trim();
+            if cell.is_empty() && !ended {
+                return Err(located(path, no, "the last line is cut short"));
+            }
             if cell.is_empty() {
                 return Err(located(
                     path,
