@@ -271,7 +271,7 @@ fn map_channels(rec: &ScopeRecord, names: &ChannelNames) -> Result<(ChannelMap, 
     for i in 0..3 {
         signals[i] = idx[i].ok_or_else(|| {
             Error::input(format!(
-                "no channel for {}: give --channels {}=NAME; the record's channels: {}",
+                "no channel for {}: map one to it ({}=NAME); the record's channels: {}",
                 ROLES[i],
                 ROLES[i],
                 rec.names()

@@ -28,7 +28,7 @@ const FLOORS: &[&[&str]] = &[
     &["transport", "report", "simulation"],
     &["pipeline", "export"],
     // The jobs.
-    &["run", "sweep", "align", "tolerance", "dataset"],
+    &["run", "sweep", "align", "tolerance", "dataset", "intake"],
     // What each command writes, from what its job returned.
     &["outputs"],
     &["cli"],
@@ -295,6 +295,19 @@ const FORBIDDEN: &[(&str, &[&str])] = &[
     (
         "dataset",
         &["run", "sweep", "align", "tolerance", "simulation", "export"],
+    ),
+    // Reads the records and patterns it takes in through `report::npy`, as `dataset` does.
+    (
+        "intake",
+        &[
+            "run",
+            "sweep",
+            "align",
+            "tolerance",
+            "dataset",
+            "simulation",
+            "export",
+        ],
     ),
 ];
 
