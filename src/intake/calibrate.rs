@@ -43,9 +43,15 @@ pub fn mean_stderr(v: &[f64]) -> (f64, f64) {
 /// The calibration of arms [+, −] from the first 2·[`CALIBRATION_PAIRS`] frames of a
 /// calibrated record (frame 2k all on, 2k + 1 all off).
 pub fn calibrate(frames: &[FoundFrame]) -> [ArmCalibration; 2] {
+    let values: Vec<[f64; 3]> = frames.iter().map(|f| f.values).collect();
+    calibrate_values(&values)
+}
+
+/// [`calibrate`] from the frames' values [RF, MONITOR+, MONITOR−].
+pub fn calibrate_values(frames: &[[f64; 3]]) -> [ArmCalibration; 2] {
     let pairs = (frames.len() / 2).min(CALIBRATION_PAIRS);
     let level = |parity: usize, o: usize| -> Vec<f64> {
-        (0..pairs).map(|k| frames[2 * k + parity].values[o]).collect()
+        (0..pairs).map(|k| frames[2 * k + parity][o]).collect()
     };
     // MONITOR+ (output 1) is lit when all on; MONITOR− (output 2) when all off.
     [("plus", 1, 0), ("minus", 2, 1)].map(|(arm, o, lit)| {
