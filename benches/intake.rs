@@ -1,5 +1,5 @@
 //! Intake of a long oscilloscope record: a 10⁷-sample, 4-channel Tektronix-layout CSV (RF,
-//! MONITOR+, MONITOR−, TRIG; 440 samples per frame, 22 727 frames, values to 7 significant
+//! MONITOR+, MONITOR−, TRIG; 440 samples per frame, 22 728 frames, values to 7 significant
 //! digits as a scope writes them) read and cut into frames, against the baseline of reading
 //! the file's lines without parsing them (the I/O floor) in the same run. Prints the time of
 //! each, the file's size and the process's peak resident memory after the read, which should
@@ -24,7 +24,7 @@ fn peak_rss_mb() -> f64 {
                 .find(|l| l.starts_with("VmHWM:"))
                 .and_then(|l| l.split_whitespace().nth(1)?.parse::<f64>().ok())
         })
-        .map_or(f64::NAN, |kb| kb / 1024.0)
+        .map_or(f64::NAN, |kb| kb * 1024.0 / 1e6)
 }
 
 fn main() {
@@ -33,7 +33,9 @@ fn main() {
         .and_then(|v| v.parse().ok())
         .unwrap_or(10_000_000);
     let per_frame = 440;
-    let frames = samples / per_frame;
+    // Whole frames: 22 728 of them for 10⁷ (10 000 320 samples).
+    let frames = samples.div_ceil(per_frame);
+    let samples = frames * per_frame;
     let dir = std::env::temp_dir().join(format!("spibench-bench-intake-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let path = dir.join("record.csv");

@@ -143,6 +143,30 @@ fn intake_of_a_runs_scope_records_gives_the_run_bit_for_bit() {
         c.to_str().unwrap(),
     ]);
     assert_input_error(&o, &["CH7", "CH1 (RF)", "record.csv"], &c);
+    // A clipped channel: MONITOR+'s screen narrowed (its header's Vertical Scale) so that its
+    // samples sit at the screen's edge. Every frame is flagged, and the schemes that read
+    // MONITOR+ are marked saturated with the count; SCB (RF) is not.
+    let clipped = dir.join("clipped");
+    std::fs::create_dir_all(&clipped).unwrap();
+    for f in ["patterns.json", "patterns.npy"] {
+        std::fs::copy(base.join(f), clipped.join(f)).unwrap();
+    }
+    let text = std::fs::read_to_string(base.join("record.csv")).unwrap();
+    let scale = text.lines().find(|l| l.starts_with("Vertical Scale,")).unwrap();
+    let mut cells: Vec<&str> = scale.split(',').collect();
+    cells[2] = "1e-9";
+    let narrowed = cells.join(",");
+    std::fs::write(clipped.join("record.csv"), text.replacen(scale, &narrowed, 1)).unwrap();
+    let e = dir.join("intake-clipped");
+    let o = intake(&[clipped.to_str().unwrap(), "--out", e.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let s = read_json(&e.join("summary.json"));
+    assert_eq!(s["records"][0]["clipped_frames"], 256);
+    for r in s["results"].as_array().unwrap() {
+        assert_eq!(r["saturated"], true, "{r}");
+        assert_eq!(r["flagged_frames"], r["dmd_frames"], "{r}");
+    }
+    assert!(stdout(&o).contains("clipped frames: saturated"), "{}", stdout(&o));
     // A damaged copy of a record: a located error (file, line).
     let damaged = dir.join("damaged");
     std::fs::create_dir_all(&damaged).unwrap();
