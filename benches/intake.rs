@@ -41,7 +41,8 @@ fn main() {
     let path = dir.join("record.csv");
     let t0 = Instant::now();
     {
-        let mut w = std::io::BufWriter::with_capacity(1 << 20, std::fs::File::create(&path).unwrap());
+        let mut w =
+            std::io::BufWriter::with_capacity(1 << 20, std::fs::File::create(&path).unwrap());
         write!(
             w,
             "Model,MSO64\nFirmware Version,2.0\n\nWaveform Type,ANALOG\nPoint Format,Y\n\
@@ -53,10 +54,16 @@ fn main() {
         let mut x: u64 = 1;
         for n in 0..samples {
             let f = n / per_frame;
-            x = x.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            x = x
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
             let noise = ((x >> 40) as f64 / (1u64 << 24) as f64 - 0.5) * 1e-4;
             let level = ((f * 7919) % 97) as f64 / 97.0;
-            let trig = if n % per_frame < per_frame / 4 { 3.3 } else { 0.0 };
+            let trig = if n % per_frame < per_frame / 4 {
+                3.3
+            } else {
+                0.0
+            };
             writeln!(
                 w,
                 "{:.7e},{:.6e},{:.6e},{:.6e},{}",
@@ -78,7 +85,9 @@ fn main() {
 
     let t = Instant::now();
     let file = std::fs::File::open(&path).unwrap();
-    let lines = std::io::BufReader::with_capacity(1 << 20, file).lines().count();
+    let lines = std::io::BufReader::with_capacity(1 << 20, file)
+        .lines()
+        .count();
     let floor_s = t.elapsed().as_secs_f64();
     println!("baseline, the lines read without parsing: {lines} lines in {floor_s:.2} s");
 

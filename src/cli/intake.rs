@@ -50,7 +50,9 @@ pub fn run(args: &IntakeArgs) -> Result<()> {
     let doc = BenchDoc::open(args.bench.as_deref())?;
     let settings = crate::intake::settings_of(&doc)?;
     let channels: ChannelNames = match &args.channels {
-        Some(c) => c.parse().map_err(|e: crate::Error| e.at_field("--channels"))?,
+        Some(c) => c
+            .parse()
+            .map_err(|e: crate::Error| e.at_field("--channels"))?,
         None => ChannelNames::default(),
     };
     let req = IntakeRequest {

@@ -113,7 +113,11 @@ mod tests {
     fn first_sample_agrees_with_the_grid_membership() {
         // The first sample of each grid frame is the first n that frame_of assigns to it, for
         // whole and fractional samples per frame.
-        for (frame_s, fs) in [(44e-6, 10e6), (1.0 / 22_727.0, 10e6), (1.0 / 9_523.0, 2.5e6)] {
+        for (frame_s, fs) in [
+            (44e-6, 10e6),
+            (1.0 / 22_727.0, 10e6),
+            (1.0 / 9_523.0, 2.5e6),
+        ] {
             let rule = SettleRule::of(FrameTiming {
                 frame_s,
                 settling_s: 13e-6,

@@ -15,9 +15,9 @@ pub mod scope;
 
 pub use bap::{Bap, Load, MONITOR_MINUS, MONITOR_PLUS, OUTPUT_NAMES, OutputStage, RF};
 pub use drift::{Drift, DriftPath};
+pub use frames::{BOUNDARY_EPS, FrameMeans, SettleRule};
 pub use record::{
     FrameTiming, Illumination, Record, RecordModel, SignalTrace, frame_start_sample, ideal_frames,
     record, record_frames, record_observed, record_with,
 };
-pub use frames::{BOUNDARY_EPS, FrameMeans, SettleRule};
 pub use scope::{Channel, ChannelRange, Scope, ScopeNoise, auto_range};

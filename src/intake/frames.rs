@@ -83,7 +83,7 @@ pub fn rising_edges(trig: &[f64]) -> Vec<u64> {
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
             (a.min(v), b.max(v))
         });
-    if !(hi > lo) {
+    if hi.partial_cmp(&lo) != Some(std::cmp::Ordering::Greater) {
         return Vec::new();
     }
     let mid = 0.5 * (lo + hi);
@@ -237,12 +237,19 @@ pub fn cut_frames(
 ) -> Result<Vec<FoundFrame>> {
     let samples = rec.samples() as u64;
     let n_frames = starts.len();
-    let firsts: Vec<u64> = starts.iter().map(|&s| SettleRule::first_sample(s)).collect();
+    let firsts: Vec<u64> = starts
+        .iter()
+        .map(|&s| SettleRule::first_sample(s))
+        .collect();
     let mut ends: Vec<u64> = firsts[1..].to_vec();
     if let Some(&last) = starts.last() {
         let end = SettleRule::first_sample(last + rule.per_frame);
         // A record that ends within a sample of the last frame's end ends it.
-        ends.push(if end.abs_diff(samples) <= 1 { samples } else { end });
+        ends.push(if end.abs_diff(samples) <= 1 {
+            samples
+        } else {
+            end
+        });
     }
     if let Some(f) = ends.iter().position(|&e| e > samples) {
         return Err(Error::input(format!(
@@ -292,7 +299,7 @@ pub fn cut_frames(
             settled_samples: counts[f],
             values: values[f],
             clipped: clipped[f],
-            flags: flags.get(f).copied().unwrap_or(0) | u8::from(clipped[f] != 0) * FLAG_CLIPPED,
+            flags: flags.get(f).copied().unwrap_or(0) | (u8::from(clipped[f] != 0) * FLAG_CLIPPED),
         })
         .collect())
 }

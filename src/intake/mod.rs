@@ -323,7 +323,10 @@ fn record_timing(
     }
     let rate = req.frame_rate_hz.unwrap_or(req.settings.dmd_rate_hz);
     if !(rate.is_finite() && rate > 0.0) {
-        return Err(Error::field("frame_rate_hz", format!("must be positive, got {rate}")));
+        return Err(Error::field(
+            "frame_rate_hz",
+            format!("must be positive, got {rate}"),
+        ));
     }
     Ok((
         FrameTiming {
@@ -465,7 +468,11 @@ pub fn intake(req: &IntakeRequest) -> Result<Intake> {
         .iter()
         .find(|r| r.sequence == Sequence::CalibratedBase)
         .map(|r| calibrate::calibrate(&r.found.frames));
-    let truth = req.truth.as_deref().map(|p| read_truth(p, (w, h))).transpose()?;
+    let truth = req
+        .truth
+        .as_deref()
+        .map(|p| read_truth(p, (w, h)))
+        .transpose()?;
     let schemes: Vec<Scheme> = req
         .settings
         .schemes
@@ -522,9 +529,7 @@ pub fn intake(req: &IntakeRequest) -> Result<Intake> {
                 let n = r.dmd_frames.min(rec.clipped.len());
                 rec.clipped[..n]
                     .iter()
-                    .filter(|&&b| {
-                        r.scheme.outputs().iter().any(|o| b & (1 << o.index()) != 0)
-                    })
+                    .filter(|&&b| r.scheme.outputs().iter().any(|o| b & (1 << o.index()) != 0))
                     .count()
             })
         })

@@ -195,22 +195,37 @@ fn read_header<R: BufRead>(lines: &mut Lines<R>) -> Result<(Layout, HeaderInfo, 
             // Keysight: channel names, then units.
             info.columns = c[1..].iter().map(|s| column_name(s)).collect();
             if lines.next()?.is_none() {
-                return Err(located(&path, 2, "a Keysight export ends after its first line"));
+                return Err(located(
+                    &path,
+                    2,
+                    "a Keysight export ends after its first line",
+                ));
             }
             layout = Some(Layout::Keysight);
             break;
         }
         if no == 1 && first == "x" && c.iter().any(|s| s.eq_ignore_ascii_case("increment")) {
             // Rigol: X,CH1,…,Start,Increment, then Sequence,Volt,…,start,increment.
-            let start = c.iter().position(|s| s.eq_ignore_ascii_case("start")).unwrap_or(c.len());
+            let start = c
+                .iter()
+                .position(|s| s.eq_ignore_ascii_case("start"))
+                .unwrap_or(c.len());
             info.columns = c[1..start].iter().map(|s| column_name(s)).collect();
             let Some((units, no2, _)) = lines.next()? else {
-                return Err(located(&path, 2, "a Rigol export ends after its first line"));
+                return Err(located(
+                    &path,
+                    2,
+                    "a Rigol export ends after its first line",
+                ));
             };
             let u = cells(units);
             let (s, i) = (u.get(start), u.get(start + 1));
             let (Some(s), Some(i)) = (s, i) else {
-                return Err(located(&path, no2, "the Rigol start and increment are missing"));
+                return Err(located(
+                    &path,
+                    no2,
+                    "the Rigol start and increment are missing",
+                ));
             };
             info.start_s = Some(number(&path, no2, s, "the start time")?);
             info.sample_interval_s = Some(number(&path, no2, i, "the increment")?);
@@ -231,7 +246,10 @@ fn read_header<R: BufRead>(lines: &mut Lines<R>) -> Result<(Layout, HeaderInfo, 
         if no == 1 && first != "model" && !first.is_empty() && !text.contains(',') {
             break;
         }
-        keys.push((c[0].to_string(), c[1..].iter().map(|s| s.to_string()).collect()));
+        keys.push((
+            c[0].to_string(),
+            c[1..].iter().map(|s| s.to_string()).collect(),
+        ));
         if no > 64 {
             break;
         }
@@ -286,7 +304,11 @@ fn read_header<R: BufRead>(lines: &mut Lines<R>) -> Result<(Layout, HeaderInfo, 
         }
     }
     if n == 0 {
-        return Err(located(&path, lines.number, "the column line names no channel"));
+        return Err(located(
+            &path,
+            lines.number,
+            "the column line names no channel",
+        ));
     }
     let shape = RowShape {
         lead: 1,
@@ -364,7 +386,11 @@ pub fn read_csv(path: &Path) -> Result<ScopeRecord> {
                 c.pop();
             }
             let why = if ended {
-                format!("{} cells where the header names {}", got + 1, n + shape.lead)
+                format!(
+                    "{} cells where the header names {}",
+                    got + 1,
+                    n + shape.lead
+                )
             } else {
                 "the last line is cut short".to_string()
             };
@@ -382,7 +408,11 @@ pub fn read_csv(path: &Path) -> Result<ScopeRecord> {
         if !ended {
             // A complete row without its line end: a record saved whole ends in one, so the
             // file was cut here.
-            return Err(located(path, no, "the last line is cut short (no line end)"));
+            return Err(located(
+                path,
+                no,
+                "the last line is cut short (no line end)",
+            ));
         }
         if layout != Layout::Rigol || info.start_s.is_none() {
             let t = number(path, no, lead, "the time")?;
@@ -409,7 +439,11 @@ pub fn read_csv(path: &Path) -> Result<ScopeRecord> {
         _ => 0.0,
     };
     if !(dt.is_finite() && dt > 0.0) {
-        return Err(located(path, 1, "the record does not say its sample interval"));
+        return Err(located(
+            path,
+            1,
+            "the record does not say its sample interval",
+        ));
     }
     let trigger_index = info.trigger_index.or_else(|| {
         // Time zero from the first time (or Rigol's start), when it lies in the record.

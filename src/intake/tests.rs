@@ -67,7 +67,10 @@ fn calibration_z_scores_over_24_records_follow_their_standard_errors() {
     let inside = z.iter().filter(|v| v.abs() <= t95).count() as f64 / z.len() as f64;
     let mean_sq = z.iter().map(|v| v * v).sum::<f64>() / z.len() as f64;
     let line: Vec<String> = z.iter().map(|v| format!("{v:.2}")).collect();
-    eprintln!("z-scores (gain+, offset+, gain−, offset− per record): {}", line.join(" "));
+    eprintln!(
+        "z-scores (gain+, offset+, gain−, offset− per record): {}",
+        line.join(" ")
+    );
     eprintln!("share within ±{t95}: {inside:.3}; mean z² {mean_sq:.3} (t₇: 1.4)");
     // 96 z-scores, pairs sharing their dark frames: the share's standard deviation is about
     // √(0.95·0.05/48) = 0.031, so 0.85 is three of them below 0.95; mean z² of t₇ is 1.4

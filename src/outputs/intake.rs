@@ -288,7 +288,9 @@ pub fn printed(i: &Intake) -> Vec<String> {
 }
 
 fn esc(s: &str) -> String {
-    s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;")
+    s.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
 }
 
 /// The first frames of a record as one SVG: a panel per channel, the found frame starts as
@@ -314,7 +316,9 @@ fn record_svg(r: &IntakeRecord) -> String {
         }
         let (lo, hi) = vals
             .iter()
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| (a.min(v), b.max(v)));
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
+                (a.min(v), b.max(v))
+            });
         let span = if hi > lo { hi - lo } else { 1.0 };
         for f in &r.found.frames {
             if f.first_sample as usize >= n {
@@ -339,7 +343,12 @@ fn record_svg(r: &IntakeRecord) -> String {
         }
         let mut pts = String::new();
         for (k, v) in vals.iter().enumerate() {
-            let _ = write!(pts, "{:.1},{:.1} ", x_of(k as f64), y0 + ph * (1.0 - (v - lo) / span));
+            let _ = write!(
+                pts,
+                "{:.1},{:.1} ",
+                x_of(k as f64),
+                y0 + ph * (1.0 - (v - lo) / span)
+            );
         }
         let _ = write!(
             s,

@@ -48,7 +48,8 @@ use crate::transport::Transport;
 use crate::transport::metrics::BenchMetrics;
 
 pub use record::{
-    Recorded, Saturation, SequenceSummary, ReplaySetup, SampleSink, record_stage, record_transport, replay_sequence,
+    Recorded, ReplaySetup, SampleSink, Saturation, SequenceSummary, record_stage, record_transport,
+    replay_sequence,
 };
 pub use solve::{
     MIN_REGISTRATION_CORRELATION, ResolutionContext, Resolved, SchemeResult, resolution_context,

@@ -296,7 +296,12 @@ where
     Ok(Some((r, sink)))
 }
 
-fn sequence_drift(s: &RunSettings, il: &Illumination, timing: FrameTiming, q_seed: u64) -> DriftPath {
+fn sequence_drift(
+    s: &RunSettings,
+    il: &Illumination,
+    timing: FrameTiming,
+    q_seed: u64,
+) -> DriftPath {
     if s.noise {
         DriftPath::draw(&s.drift, il.light_a.len(), timing.frame_s, q_seed)
     } else {

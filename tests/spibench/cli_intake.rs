@@ -50,7 +50,13 @@ fn assert_same_as_run(run: &Path, taken: &Path) {
             .iter()
             .find(|y| y["scheme"] == scheme && y["ratio"].as_f64() == Some(ratio))
             .unwrap();
-        for k in ["psnr_db", "mssim", "iterations", "relative_residual", "measurements"] {
+        for k in [
+            "psnr_db",
+            "mssim",
+            "iterations",
+            "relative_residual",
+            "measurements",
+        ] {
             assert_eq!(x[k], y[k], "{scheme} {ratio} {k}");
         }
         let tag = format!("{scheme}_r{ratio:.4}");
@@ -106,7 +112,13 @@ fn intake_of_a_runs_scope_records_gives_the_run_bit_for_bit() {
     // The CSV records, from the scope folder.
     let a = dir.join("intake-csv");
     let scope = run.join("scope");
-    let o = intake(&[&[scope.to_str().unwrap(), "--out", a.to_str().unwrap()], &common[..]].concat());
+    let o = intake(
+        &[
+            &[scope.to_str().unwrap(), "--out", a.to_str().unwrap()],
+            &common[..],
+        ]
+        .concat(),
+    );
     assert!(o.status.success(), "{}", stderr(&o));
     crate::outputs_schema::check_file(&a.join("summary.json"), "IntakeSummary");
     assert_same_as_run(&run, &a);
@@ -125,7 +137,13 @@ fn intake_of_a_runs_scope_records_gives_the_run_bit_for_bit() {
     let b = dir.join("intake-npy");
     let npys: Vec<String> = ["base", "complementary", "calibrated_base"]
         .iter()
-        .map(|q| scope.join(q).join("record.npy").to_string_lossy().into_owned())
+        .map(|q| {
+            scope
+                .join(q)
+                .join("record.npy")
+                .to_string_lossy()
+                .into_owned()
+        })
         .collect();
     let npy_args: Vec<&str> = npys.iter().map(String::as_str).collect();
     let o = intake(&[&npy_args[..], &["--out", b.to_str().unwrap()], &common[..]].concat());
@@ -152,11 +170,18 @@ fn intake_of_a_runs_scope_records_gives_the_run_bit_for_bit() {
         std::fs::copy(base.join(f), clipped.join(f)).unwrap();
     }
     let text = std::fs::read_to_string(base.join("record.csv")).unwrap();
-    let scale = text.lines().find(|l| l.starts_with("Vertical Scale,")).unwrap();
+    let scale = text
+        .lines()
+        .find(|l| l.starts_with("Vertical Scale,"))
+        .unwrap();
     let mut cells: Vec<&str> = scale.split(',').collect();
     cells[2] = "1e-9";
     let narrowed = cells.join(",");
-    std::fs::write(clipped.join("record.csv"), text.replacen(scale, &narrowed, 1)).unwrap();
+    std::fs::write(
+        clipped.join("record.csv"),
+        text.replacen(scale, &narrowed, 1),
+    )
+    .unwrap();
     let e = dir.join("intake-clipped");
     let o = intake(&[clipped.to_str().unwrap(), "--out", e.to_str().unwrap()]);
     assert!(o.status.success(), "{}", stderr(&o));
@@ -166,7 +191,11 @@ fn intake_of_a_runs_scope_records_gives_the_run_bit_for_bit() {
         assert_eq!(r["saturated"], true, "{r}");
         assert_eq!(r["flagged_frames"], r["dmd_frames"], "{r}");
     }
-    assert!(stdout(&o).contains("clipped frames: saturated"), "{}", stdout(&o));
+    assert!(
+        stdout(&o).contains("clipped frames: saturated"),
+        "{}",
+        stdout(&o)
+    );
     // A damaged copy of a record: a located error (file, line).
     let damaged = dir.join("damaged");
     std::fs::create_dir_all(&damaged).unwrap();

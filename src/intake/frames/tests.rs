@@ -2,9 +2,12 @@
 //! pulse, a clipped channel, a short record and too many frames; and without a trigger, the
 //! calibration preamble.
 
+// Samples are built by index, as the record's columns are read.
+#![allow(clippy::needless_range_loop)]
+
 use super::*;
 use crate::detector::FrameTiming;
-use crate::intake::record::{Layout, Screen, ScopeRecord};
+use crate::intake::record::{Layout, ScopeRecord, Screen};
 
 const P: usize = 40;
 
@@ -80,7 +83,11 @@ fn jitter_of_five_percent_still_assigns_every_frame() {
         // Each frame still reads its own value: the settled window (≥ 8 samples in, 2 at most
         // into the next frame's start) holds frame k's samples only, or nearly.
         assert_eq!(fr.first_sample as i64, edges[k] as i64, "{k}");
-        assert!((fr.values[1] - k as f64).abs() < 0.1, "{k}: {:?}", fr.values);
+        assert!(
+            (fr.values[1] - k as f64).abs() < 0.1,
+            "{k}: {:?}",
+            fr.values
+        );
     }
     assert!(f.frames.iter().any(|x| x.flags & FLAG_IRREGULAR != 0));
 }
@@ -92,7 +99,10 @@ fn a_missing_pulse_is_found_by_frame_and_time() {
     let f = find_frames(&rec, &map(), &rule(), 20, 0).unwrap();
     assert_eq!(f.anomalies.len(), 1);
     let a = &f.anomalies[0];
-    assert_eq!((a.kind, a.frame, a.sample), ("missing_pulse", 7, (7 * P) as u64));
+    assert_eq!(
+        (a.kind, a.frame, a.sample),
+        ("missing_pulse", 7, (7 * P) as u64)
+    );
     assert!((a.time_s - 7.0 * 40e-6).abs() < 1e-12);
     // No shift: every frame keeps its value, the pulseless one flagged.
     for (k, fr) in f.frames.iter().enumerate() {
@@ -127,7 +137,9 @@ fn a_clipped_channel_flags_its_frames() {
         offset_v: 2.5,
     });
     let f = find_frames(&rec, &map(), &rule(), 10, 0).unwrap();
-    let clipped: Vec<usize> = (0..10).filter(|&k| f.frames[k].flags & FLAG_CLIPPED != 0).collect();
+    let clipped: Vec<usize> = (0..10)
+        .filter(|&k| f.frames[k].flags & FLAG_CLIPPED != 0)
+        .collect();
     // Frame 0 sits at the screen's bottom (0 V), frames 5 … 9 at or above its top.
     assert_eq!(clipped, vec![0, 5, 6, 7, 8, 9]);
     assert_eq!(f.frames[6].clipped, 0b010);
@@ -139,7 +151,10 @@ fn a_short_record_and_too_many_frames_are_refused_naming_the_frame() {
     let rec = synthetic(10, &edges, 0);
     let e = find_frames(&rec, &map(), &rule(), 12, 0).unwrap_err();
     let m = e.to_string();
-    assert!(e.is_user_error() && m.contains("frame 10") && m.contains("shorter"), "{m}");
+    assert!(
+        e.is_user_error() && m.contains("frame 10") && m.contains("shorter"),
+        "{m}"
+    );
     assert!(m.contains("synthetic.csv"), "{m}");
     let e = find_frames(&rec, &map(), &rule(), 8, 0).unwrap_err();
     let m = e.to_string();
@@ -149,7 +164,9 @@ fn a_short_record_and_too_many_frames_are_refused_naming_the_frame() {
     for c in &mut rec.data {
         c.truncate(9 * P + 20);
     }
-    let m = find_frames(&rec, &map(), &rule(), 10, 0).unwrap_err().to_string();
+    let m = find_frames(&rec, &map(), &rule(), 10, 0)
+        .unwrap_err()
+        .to_string();
     assert!(m.contains("frame 9") && m.contains("shorter"), "{m}");
 }
 
@@ -161,13 +178,23 @@ fn without_a_trigger_the_preamble_places_the_frames() {
     let n_frames = 8 + 6;
     let n = lead + n_frames * P;
     let mut rec = synthetic(n_frames, &[], 0);
-    let value = |k: usize| if k < 8 { [1.0, 0.0][k % 2] } else { 0.3 + 0.05 * k as f64 };
+    let value = |k: usize| {
+        if k < 8 {
+            [1.0, 0.0][k % 2]
+        } else {
+            0.3 + 0.05 * k as f64
+        }
+    };
     for c in &mut rec.data {
         c.resize(n, 0.0);
     }
     for s in 0..n {
         let k = s.saturating_sub(lead) / P;
-        let v = if s < lead { 0.0 } else { value(k.min(n_frames - 1)) };
+        let v = if s < lead {
+            0.0
+        } else {
+            value(k.min(n_frames - 1))
+        };
         rec.data[1][s] = v;
     }
     let m = ChannelMap {

@@ -44,7 +44,10 @@ fn the_three_layouts_read_the_same_samples() {
     assert_eq!(rg.data, tek.data);
     let screen = "Time(s),CH1(V),CH2(V)\n-1e-07,0.25,1\n0,0.5,2\n1e-07,0.75,3\n";
     let sc = read_csv(&write(&d, "sc.csv", screen.as_bytes())).unwrap();
-    assert_eq!((sc.layout, sc.columns.clone()), (Layout::Rigol, vec!["CH1".into(), "CH2".into()]));
+    assert_eq!(
+        (sc.layout, sc.columns.clone()),
+        (Layout::Rigol, vec!["CH1".into(), "CH2".into()])
+    );
     assert_eq!(sc.data, tek.data);
     let _ = std::fs::remove_dir_all(&d);
 }
@@ -67,7 +70,10 @@ fn damaged(name: &str, text: &str, line: usize, says: &str) {
     let e = read_csv(&p).unwrap_err();
     let m = e.to_string();
     assert!(e.is_user_error(), "{m}");
-    assert!(m.contains("bad.csv") && m.contains(&format!("line {line}")), "{name}: {m}");
+    assert!(
+        m.contains("bad.csv") && m.contains(&format!("line {line}")),
+        "{name}: {m}"
+    );
     assert!(m.contains(says), "{name}: {m}");
     let _ = std::fs::remove_dir_all(&d);
 }
@@ -77,10 +83,30 @@ fn damaged_records_are_located_errors() {
     // Lines: 15 is the first sample, 17 the last.
     damaged("truncated", &TEK[..TEK.len() - 3], 17, "cut short");
     damaged("truncated-cell", &TEK[..TEK.len() - 2], 17, "cut short");
-    damaged("nan", &TEK.replace("0,0.5,2", "0,NaN,2"), 16, "not a finite number");
+    damaged(
+        "nan",
+        &TEK.replace("0,0.5,2", "0,NaN,2"),
+        16,
+        "not a finite number",
+    );
     damaged("empty", &TEK.replace("0,0.5,2", "0,,2"), 16, "empty cell");
-    damaged("few", &TEK.replace("0,0.5,2", "0,0.5"), 16, "2 cells where the header names 3");
-    damaged("many", &TEK.replace("0,0.5,2", "0,0.5,2,7"), 16, "more cells");
-    damaged("length", &TEK.replace("Record Length,3", "Record Length,4"), 17, "Record Length");
+    damaged(
+        "few",
+        &TEK.replace("0,0.5,2", "0,0.5"),
+        16,
+        "2 cells where the header names 3",
+    );
+    damaged(
+        "many",
+        &TEK.replace("0,0.5,2", "0,0.5,2,7"),
+        16,
+        "more cells",
+    );
+    damaged(
+        "length",
+        &TEK.replace("Record Length,3", "Record Length,4"),
+        17,
+        "Record Length",
+    );
     damaged("layout", "hello,world\n1,2\n", 1, "unknown CSV layout");
 }

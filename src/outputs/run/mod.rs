@@ -40,9 +40,9 @@ pub mod arrays;
 #[cfg(feature = "figures")]
 mod figures;
 pub mod repeats;
-pub mod scope;
 #[cfg(feature = "figures")]
 pub mod report;
+pub mod scope;
 pub mod summary;
 
 /// The file of a reconstruction.

@@ -19,7 +19,9 @@ use std::io::Write;
 
 use serde::Serialize;
 
-use crate::acquisition::{PackedPatterns, Sequence, patterns_for_ratio, schemes::CALIBRATION_PAIRS};
+use crate::acquisition::{
+    PackedPatterns, Sequence, patterns_for_ratio, schemes::CALIBRATION_PAIRS,
+};
 use crate::detector::{Channel, FrameTiming, SettleRule};
 use crate::error::{Error, Result};
 use crate::pipeline::ReplaySetup;
@@ -151,7 +153,13 @@ pub fn write_scope_records(o: &RunOutcome, out: &OutputDir) -> Result<(Vec<Strin
         let meta = record_meta(q, &setup, csv_bytes, npy_bytes);
         crate::report::json::write_json(&out.try_path(&format!("{dir}/record.json"))?, &meta)?;
         write_patterns(o, &packed, q, out, &dir)?;
-        for f in ["record.csv", "record.npy", "record.json", "patterns.npy", "patterns.json"] {
+        for f in [
+            "record.csv",
+            "record.npy",
+            "record.json",
+            "patterns.npy",
+            "patterns.json",
+        ] {
             files.push(format!("{dir}/{f}"));
         }
     }
@@ -223,7 +231,7 @@ fn write_patterns(
         match q {
             Sequence::Base => bits.get(f, j),
             Sequence::Complementary => bits.get(f / 2, j) != (f % 2 == 1),
-            Sequence::CalibratedBase if f < lead => f % 2 == 0,
+            Sequence::CalibratedBase if f < lead => f.is_multiple_of(2),
             Sequence::CalibratedBase => bits.get(f - lead, j),
         }
     };
@@ -262,9 +270,7 @@ fn write_patterns(
         frame_order: match q {
             Sequence::Base => "base patterns i = 0, 1, …",
             Sequence::Complementary => "base pattern i, then its complement, for i = 0, 1, …",
-            Sequence::CalibratedBase => {
-                "8 × (all on, all off), then base patterns i = 0, 1, …"
-            }
+            Sequence::CalibratedBase => "8 × (all on, all off), then base patterns i = 0, 1, …",
         },
         sequence: q,
         calibration_frames: 2 * CALIBRATION_PAIRS * usize::from(q == Sequence::CalibratedBase),
@@ -354,8 +360,20 @@ fn tektronix_header(s: &ReplaySetup) -> String {
     let ch: Vec<Channel> = s.channels.to_vec();
     let dt = 1.0 / s.timing.sample_rate_hz;
     let join = |f: &dyn Fn(usize) -> String| (0..4).map(f).collect::<Vec<_>>().join(",");
-    let scale = join(&|o| if o < 3 { format!("{}", ch[o].volts_per_div) } else { "1".into() });
-    let offset = join(&|o| if o < 3 { format!("{}", ch[o].offset_v) } else { "0".into() });
+    let scale = join(&|o| {
+        if o < 3 {
+            format!("{}", ch[o].volts_per_div)
+        } else {
+            "1".into()
+        }
+    });
+    let offset = join(&|o| {
+        if o < 3 {
+            format!("{}", ch[o].offset_v)
+        } else {
+            "0".into()
+        }
+    });
     let labels = join(&|o| CHANNELS[o].0.to_string());
     let columns = join(&|o| CHANNELS[o].1.to_string());
     format!(
