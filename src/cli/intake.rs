@@ -47,6 +47,15 @@ pub struct IntakeArgs {
 
 /// Runs `spibench intake`.
 pub fn run(args: &IntakeArgs) -> Result<()> {
+    if let Some(f) = args.frame_rate_hz
+        && !(f.is_finite() && f > 0.0)
+    {
+        return Err(crate::Error::field(
+            "--frame-rate-hz",
+            format!("must be a positive frame rate, got {f}"),
+        )
+        .into());
+    }
     let doc = BenchDoc::open(args.bench.as_deref())?;
     let settings = crate::intake::settings_of(&doc)?;
     let channels: ChannelNames = match &args.channels {
