@@ -5,7 +5,8 @@
 #   docs/check-docs.sh [PAGE.md …]        (default: README.md, then docs/guide/ in name order)
 #
 # A block is a fenced block whose info string is `sh` (or `bash`); `sh no-run: REASON` marks one
-# that is not run (REASON is required). The blocks of one page run in order in one bash session
+# that is not run (REASON is required). Python blocks are never run here and must each be marked
+# `python no-run: REASON` (the package's own tests, python/tests/, run those calls). The blocks of one page run in order in one bash session
 # (`set -euo pipefail`) in a scratch folder of their own, where `scenes/`, `examples/` and
 # `python/` are links to the repository's, so the commands read as if run from the repository
 # root and their outputs go to the scratch folder. After a page has run, every `out/…` path
@@ -108,6 +109,11 @@ for n, line in enumerate(lines, 1):
     elif line.strip().startswith("```"):
         lang, rest = fence
         fence = None
+        # Python blocks are not run here (they need the built package, some torch): each says
+        # why, so that a new one is a decision, not an oversight.
+        if lang == "python" and not re.match(r"no-run:\s*\S", rest):
+            sys.exit(f"{page}:{start}: a python block is not run by this check; mark it "
+                     "```python no-run: REASON")
         if lang not in ("sh", "bash"):
             continue
         if rest.startswith("no-run"):

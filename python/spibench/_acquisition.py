@@ -63,6 +63,7 @@ class Acquisition:
 
     @property
     def scheme(self) -> str:
+        """The scheme's key (``scb``, ``double_arm``, …), as in :data:`spibench.SCHEMES`."""
         return self._a.scheme
 
     @property

@@ -73,6 +73,7 @@ class Bench:
 
     @property
     def path(self) -> str:
+        """The file the bench was read from (or the name it was parsed under)."""
         return str(self._b.path())
 
     def to_ron(self) -> str:

@@ -58,10 +58,12 @@ class OpenDataset:
 
     @property
     def samples(self) -> int:
+        """The number of samples, over all shards."""
         return sum(s["samples"] for s in self.shards)
 
     @property
     def seed(self) -> int:
+        """The spec's seed (see :func:`dataset_noise_seed`)."""
         return int(self.manifest["seed"])
 
     @property
@@ -102,6 +104,7 @@ class OpenDataset:
         return Acquisition._of(self._rust().acquisition(str(scheme), float(ratio)))
 
     def kernel(self) -> Kernel:
+        """The dataset's object kernel, traced again from the spec (bit for bit the same)."""
         return Kernel(self._rust().kernel())
 
     def torch_dataset(self, scheme: str, ratio: float):

@@ -65,10 +65,12 @@ class Kernel:
 
     @property
     def rays(self) -> int:
+        """Lamp rays traced for the kernel."""
         return self._k.rays
 
     @property
     def seed(self) -> int:
+        """Seed of the kernel trace."""
         return self._k.seed
 
     @property

@@ -14,7 +14,8 @@ class InputError(ValueError):
 #: Every scheme's key.
 SCHEMES: Tuple[str, ...]
 
-def version() -> str: ...
+def version() -> str:
+    """The library's version."""
 def dataset_noise_seed(seed: int, s: int) -> int:
     """Record seed of sample s of a dataset of spec seed `seed`."""
 
@@ -25,9 +26,12 @@ def dataset_contract() -> dict:
     """The dataset folder's tables: format, manifest, copies (provenance field → file),
     patterns, sample_arrays, cell_arrays (the kinds' prefixes), sequences, schemes."""
 
-def dataset_array_name(kind: str, scheme: str, ratio: float) -> str: ...
-def dataset_array_names(schemes: Sequence[str], ratios: Sequence[float]) -> List[str]: ...
-def dataset_shard_dir(index: int) -> str: ...
+def dataset_array_name(kind: str, scheme: str, ratio: float) -> str:
+    """The array name of `kind` (`meas`, `recon`, `score`) for a scheme and ratio."""
+def dataset_array_names(schemes: Sequence[str], ratios: Sequence[float]) -> List[str]:
+    """Every per-sample array name of a dataset of these schemes and ratios."""
+def dataset_shard_dir(index: int) -> str:
+    """The folder name of shard `index`."""
 def read_dataset_manifest(path: str) -> str:
     """The folder's manifest as JSON text, read and checked by the library."""
 
@@ -44,21 +48,33 @@ class MirrorState(enum.Enum):
     Minus = 1
 
 class Bench:
+    """A bench file with its origin (the binding of `spibench.Bench`)."""
+
     @staticmethod
-    def load(path: str) -> Bench: ...
+    def load(path: str) -> Bench:
+        """Reads and checks a bench file (RON)."""
     @staticmethod
-    def paper() -> Bench: ...
+    def paper() -> Bench:
+        """The paper's bench, built into the library."""
     @staticmethod
-    def parse(text: str, path: str) -> Bench: ...
-    def set(self, settings: List[Tuple[str, float]]) -> Bench: ...
-    def get(self, path: str) -> float: ...
-    def variables(self) -> List[str]: ...
-    def edits(self) -> List[Tuple[str, float]]: ...
-    def path(self) -> str: ...
-    def to_ron(self) -> str: ...
+    def parse(text: str, path: str) -> Bench:
+        """A bench from RON text; `path` names it in errors and resolves relative files."""
+    def set(self, settings: List[Tuple[str, float]]) -> Bench:
+        """A new bench with the (path, value) variables set, in order."""
+    def get(self, path: str) -> float:
+        """The value of a bench variable."""
+    def variables(self) -> List[str]:
+        """Every variable path of the bench, in file order."""
+    def edits(self) -> List[Tuple[str, float]]:
+        """The variables set since the file was read, in order."""
+    def path(self) -> str:
+        """The file the bench was read from (or the name it was given)."""
+    def to_ron(self) -> str:
+        """The bench as canonical RON text."""
     def check(self) -> Tuple[int, int]:
         """DMD units (down, across)."""
-    def trace(self, rays: int, seed: int, threads: Optional[int] = None) -> Trace: ...
+    def trace(self, rays: int, seed: int, threads: Optional[int] = None) -> Trace:
+        """Traces `rays` lamp rays with `seed`."""
     def kernel(
         self,
         grid: Tuple[int, int],
@@ -71,19 +87,26 @@ class Bench:
         """grid (H, W) pixels, field_mm (height_mm, width_mm)."""
 
 class Trace:
+    """A traced bench: metrics with standard errors, per-unit maps and the ledger."""
+
     rays: int
     seed: int
     units: Tuple[int, int]
     """(down, across)."""
-    def values(self, reference: Optional[Trace] = None) -> List[Tuple[str, float]]: ...
+    def values(self, reference: Optional[Trace] = None) -> List[Tuple[str, float]]:
+        """(name, value) of every metric, differences from `reference` included when given."""
     def x_w(self) -> F64:
         """x_j (W) per unit, units row-major (down, across)."""
-    def g_a(self, arm: Arm) -> F64: ...
-    def k_a_per_w(self, arm: Arm) -> F64: ...
-    def k_stderr_a_per_w(self, arm: Arm) -> F64: ...
+    def g_a(self, arm: Arm) -> F64:
+        """g_j (A) of one arm per unit."""
+    def k_a_per_w(self, arm: Arm) -> F64:
+        """k_j (A/W) of one arm per unit."""
+    def k_stderr_a_per_w(self, arm: Arm) -> F64:
+        """The standard error of k_j (A/W) of one arm per unit."""
     def t_a(self) -> F64:
         """T (A), the four blocks d·2 + s."""
-    def ledger(self) -> dict: ...
+    def ledger(self) -> dict:
+        """The flux ledger: where the lamp's power went (W), with standard errors."""
 
 class Csr:
     """A sparse matrix in compressed rows."""
@@ -94,6 +117,8 @@ class Csr:
     shape: Tuple[int, int]
 
 class Estimate:
+    """A Monte Carlo estimate and its standard error."""
+
     value: float
     stderr: float
 
@@ -106,6 +131,8 @@ class Product:
     """(N, 4·units) (A), the four T blocks d·2 + s."""
 
 class Kernel:
+    """An object kernel: the traced transport from object pixels to DMD units and diodes."""
+
     grid: Tuple[int, int]
     field_mm: Tuple[float, float]
     units: Tuple[int, int]
@@ -116,16 +143,26 @@ class Kernel:
     multi_crossing_current_fraction: float
     chart_current_a: float
     multi_crossing_current_a: float
-    def t(self, arm: Arm, state: MirrorState) -> Csr: ...
-    def t0(self, arm: Arm, state: MirrorState) -> F64: ...
-    def g(self, arm: Arm) -> Csr: ...
-    def g_stderr(self, arm: Arm) -> Csr: ...
-    def g0(self, arm: Arm) -> F64: ...
-    def x(self) -> Csr: ...
-    def x0(self) -> F64: ...
-    def c(self, arm: Arm) -> F64: ...
-    def c0(self, arm: Arm) -> float: ...
-    def transport_metrics(self, object: F64) -> List[Tuple[str, Estimate]]: ...
+    def t(self, arm: Arm, state: MirrorState) -> Csr:
+        """T[arm][state] (units × pixels, A per unit transmittance)."""
+    def t0(self, arm: Arm, state: MirrorState) -> F64:
+        """The object-independent part of T[arm][state] per unit (A)."""
+    def g(self, arm: Arm) -> Csr:
+        """g[arm] (units × pixels, A per unit transmittance)."""
+    def g_stderr(self, arm: Arm) -> Csr:
+        """The standard error of g[arm], same sparsity."""
+    def g0(self, arm: Arm) -> F64:
+        """The object-independent part of g[arm] per unit (A)."""
+    def x(self) -> Csr:
+        """Power on each unit per unit transmittance (W), units × pixels."""
+    def x0(self) -> F64:
+        """The object-independent light per unit (W)."""
+    def c(self, arm: Arm) -> F64:
+        """The traced pattern-independent current of diode `arm` per pixel (A)."""
+    def c0(self, arm: Arm) -> float:
+        """The object-independent part of c[arm] (A)."""
+    def transport_metrics(self, object: F64) -> List[Tuple[str, Estimate]]:
+        """(name, estimate) of the transport metrics of one object."""
     def product(
         self, objects: F64, threads: Optional[int] = None, linear: bool = False
     ) -> Product:
@@ -140,6 +177,8 @@ class Coefficients:
     kc: Tuple[float, float]
 
 class Solution:
+    """A TVAL3 reconstruction and how the solver stopped."""
+
     image: F64
     """(down, across)."""
     iterations: int
@@ -149,6 +188,8 @@ class Solution:
     seconds: float
 
 class Acquisition:
+    """One scheme's traced acquisition: patterns, forward model, linear part and adjoint."""
+
     scheme: str
     measurements: int
     pixels: int
@@ -166,7 +207,8 @@ class Acquisition:
         record: str = "frames",
         recorded: Optional[Sequence[str]] = None,
     ) -> None: ...
-    def patterns(self) -> npt.NDArray[np.uint8]: ...
+    def patterns(self) -> npt.NDArray[np.uint8]:
+        """The M base patterns as 0/1, (M, down, across)."""
     def forward(
         self,
         objects: F64,
@@ -176,14 +218,21 @@ class Acquisition:
         linear: bool = False,
     ) -> F64:
         """Simulated measurements (V) (N, M) (with `linear`, through the kernel's linear part)."""
-    def apply(self, objects: F64, threads: Optional[int] = None) -> F64: ...
-    def adjoint(self, y: F64, threads: Optional[int] = None) -> F64: ...
-    def reconstruct(self, y: F64, threads: Optional[int] = None) -> Solution: ...
+    def apply(self, objects: F64, threads: Optional[int] = None) -> F64:
+        """A x, the linear part, (N, M) for objects (N, pixels)."""
+    def adjoint(self, y: F64, threads: Optional[int] = None) -> F64:
+        """Aᵀ y, (N, pixels) for y (N, M)."""
+    def reconstruct(self, y: F64, threads: Optional[int] = None) -> Solution:
+        """The library's TVAL3 reconstruction of one measurement."""
     def time_rust(self, objects: F64, adjoint: bool, repeats: int, threads: Optional[int] = None) -> float:
         """Seconds of the best of `repeats` library calls on the batch, without Python."""
 
 class Dataset:
+    """A dataset folder's spec with its kernel, for its acquisitions."""
+
     seed: int
     def __init__(self, path: str, threads: Optional[int] = None) -> None: ...
-    def acquisition(self, scheme: str, ratio: float) -> Acquisition: ...
-    def kernel(self) -> Kernel: ...
+    def acquisition(self, scheme: str, ratio: float) -> Acquisition:
+        """The acquisition of `scheme` at `ratio` as the dataset recorded it."""
+    def kernel(self) -> Kernel:
+        """The dataset's object kernel."""

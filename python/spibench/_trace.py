@@ -47,10 +47,12 @@ class Trace:
 
     @property
     def rays(self) -> int:
+        """Lamp rays traced."""
         return self._t.rays
 
     @property
     def seed(self) -> int:
+        """Seed of the trace."""
         return self._t.seed
 
     def values(self, reference: Optional["Trace"] = None) -> Dict[str, float]:

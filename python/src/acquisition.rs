@@ -118,36 +118,44 @@ impl Acquisition {
         make().map_err(to_py)
     }
 
+    /// The scheme's key (`scb`, `double_arm`, …), as the command line names it.
     #[getter]
     fn scheme(&self) -> &'static str {
         self.op.scheme.key()
     }
 
+    /// M, the number of measurements.
     #[getter]
     fn measurements(&self) -> usize {
         self.op.measurements
     }
 
+    /// The number of object pixels (H·W of the kernel's grid).
     #[getter]
     fn pixels(&self) -> usize {
         self.op.pixels
     }
 
+    /// (down, across) DMD units.
     #[getter]
     fn units(&self) -> (usize, usize) {
         (self.kernel.units_down, self.kernel.units_across)
     }
 
+    /// (H, W) of the objects.
     #[getter]
     fn grid(&self) -> (usize, usize) {
         (self.kernel.grid.height_px, self.kernel.grid.width_px)
     }
 
+    /// Whether the bench's run settings switch the noise on.
     #[getter]
     fn noise_default(&self) -> bool {
         self.scene.settings.noise
     }
 
+    /// The schemes recorded together with this one (its own first), whose sequences share the
+    /// record.
     #[getter]
     fn recorded(&self) -> Vec<&'static str> {
         self.scene
@@ -158,6 +166,7 @@ impl Acquisition {
             .collect()
     }
 
+    /// y₀ (M,), the measurement of the black object: the affine part (V).
     #[getter]
     fn offset<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
         vec1(py, self.op.offset.clone())

@@ -43,6 +43,7 @@ pub(crate) struct Bench {
 
 #[pymethods]
 impl Bench {
+    /// Reads and checks a bench file (RON).
     #[staticmethod]
     fn load(path: PathBuf) -> PyResult<Bench> {
         Ok(Bench {
@@ -50,6 +51,7 @@ impl Bench {
         })
     }
 
+    /// The paper's bench, built into the library.
     #[staticmethod]
     fn paper() -> PyResult<Bench> {
         Ok(Bench {
@@ -57,6 +59,7 @@ impl Bench {
         })
     }
 
+    /// A bench from RON text; `path` names it in errors and resolves relative files.
     #[staticmethod]
     fn parse(text: &str, path: PathBuf) -> PyResult<Bench> {
         Ok(Bench {
@@ -64,28 +67,34 @@ impl Bench {
         })
     }
 
+    /// A new bench with the (path, value) variables set, in order.
     fn set(&self, settings: Vec<(String, f64)>) -> PyResult<Bench> {
         Ok(Bench {
             doc: self.doc.with(&settings).map_err(to_py)?,
         })
     }
 
+    /// The value of a bench variable.
     fn get(&self, path: &str) -> PyResult<f64> {
         self.doc.get(path).map_err(to_py)
     }
 
+    /// Every variable path of the bench, in file order.
     fn variables(&self) -> Vec<String> {
         spibench::scene::variables::list(&self.doc.file)
     }
 
+    /// The variables set since the file was read, in order.
     fn edits(&self) -> Vec<(String, f64)> {
         self.doc.edits().to_vec()
     }
 
+    /// The file the bench was read from (or the name it was given).
     fn path(&self) -> PathBuf {
         self.doc.path().to_path_buf()
     }
 
+    /// The bench as canonical RON text, which reads back as the same bench.
     fn to_ron(&self) -> PyResult<String> {
         self.doc.to_ron().map_err(to_py)
     }
@@ -97,6 +106,7 @@ impl Bench {
         Ok((down, across))
     }
 
+    /// Traces `rays` lamp rays with `seed` on `threads` threads (default: all cores).
     #[pyo3(signature = (rays, seed, threads=None))]
     fn trace(
         &self,

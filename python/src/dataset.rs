@@ -65,6 +65,7 @@ impl Dataset {
         })
     }
 
+    /// The spec's seed.
     #[getter]
     fn seed(&self) -> u64 {
         self.prep.spec.file.seed

@@ -57,21 +57,26 @@ impl Kernel {
         (self.kernel.units_down, self.kernel.units_across)
     }
 
+    /// Lamp rays traced for the kernel.
     #[getter]
     fn rays(&self) -> u64 {
         self.kernel.rays
     }
 
+    /// Seed of the kernel trace.
     #[getter]
     fn seed(&self) -> u64 {
         self.kernel.seed
     }
 
+    /// Batches the rays were traced in (the standard errors' samples).
     #[getter]
     fn batches(&self) -> u64 {
         self.kernel.batches
     }
 
+    /// The fraction of the chart's detected current carried by paths that met the chart twice or
+    /// more.
     #[getter]
     fn multi_crossing_current_fraction(&self) -> f64 {
         self.kernel.multi_crossing_current_fraction()
@@ -84,6 +89,7 @@ impl Kernel {
         self.kernel.chart_current_a
     }
 
+    /// The detected current (A) of paths that met the chart twice or more.
     #[getter]
     fn multi_crossing_current_a(&self) -> f64 {
         self.kernel.multi_crossing_current_a

@@ -27,16 +27,19 @@ impl Trace {
         evaluate::values(&self.evaluation, r)
     }
 
+    /// Lamp rays traced.
     #[getter]
     fn rays(&self) -> u64 {
         self.traced.rays
     }
 
+    /// Seed of the trace.
     #[getter]
     fn seed(&self) -> u64 {
         self.traced.seed
     }
 
+    /// (down, across) DMD units.
     #[getter]
     fn units(&self) -> (usize, usize) {
         let t = &self.traced.transport;

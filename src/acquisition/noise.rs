@@ -83,6 +83,7 @@ impl NoiseDistribution {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct AdditiveNoise {
+    /// The distribution of one draw.
     pub distribution: NoiseDistribution,
     /// Standard deviation σ of one draw (σ ≥ 0).
     #[serde(deserialize_with = "via::<NonNegative, _, _>")]

@@ -115,6 +115,12 @@ impl Command {
     }
 }
 
+/// The command line's definition (every command, argument, default and help text), for the
+/// generated reference (docs/reference/commands.md) and tools that describe it.
+pub fn command() -> clap::Command {
+    Cli::command()
+}
+
 /// Runs the command line and returns the process exit status.
 pub fn main() -> i32 {
     let cli = match Cli::try_parse() {

@@ -67,7 +67,9 @@ pub const MAX_SUPPORTED_GROUP: i32 = 9;
 /// Clear bars in chrome (negative, as the paper's Thorlabs R3L3S1N) or chrome bars on glass.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum Polarity {
+    /// Clear bars in chrome.
     Negative,
+    /// Chrome bars on clear glass.
     Positive,
 }
 

@@ -77,13 +77,16 @@ pub struct DatasetFile {
     /// Which benches the samples see.
     #[serde(default)]
     pub benches: BenchesSpec,
+    /// The object-kernel trace: rays, seed, object grid and the chart field it covers.
     pub kernel: KernelSpec,
+    /// Where the objects come from.
     pub objects: ObjectsSpec,
     /// Schemes and sampling ratios (default: the bench's `run:` section).
     #[serde(default)]
     pub acquisition: Option<AcquisitionSpec>,
     /// Seed of the objects and the noise: sample s depends on (seed, s) alone.
     pub seed: u64,
+    /// Samples in the dataset (one object each, measured by every scheme and ratio).
     #[serde(deserialize_with = "via::<SampleCount, _, _>")]
     pub samples: u64,
     /// Samples per shard (a shard's arrays are `.npy` files of this many rows).
@@ -150,8 +153,10 @@ pub enum BenchesSpec {
 #[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct KernelSpec {
+    /// Lamp rays of the kernel trace.
     #[serde(deserialize_with = "via::<KernelRays, _, _>")]
     pub rays: u64,
+    /// Seed of the kernel trace.
     pub seed: u64,
     /// Object grid (pixels across, down): may be finer than the DMD units.
     #[serde(deserialize_with = "via::<(GridSide, GridSide), _, _>")]
@@ -215,10 +220,13 @@ pub enum ObjectsSpec {
     },
 }
 
+/// The acquisitions of every sample.
 #[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct AcquisitionSpec {
+    /// The schemes each sample is measured with.
     pub schemes: Vec<Scheme>,
+    /// The sampling ratios M/N, each in (0, 1].
     #[serde(deserialize_with = "via::<Vec<Ratio>, _, _>")]
     pub ratios: Vec<f64>,
     /// The pattern family and ordering, `Random(seed: S)` or `Hadamard(ordering: O)` (default:
@@ -227,6 +235,7 @@ pub struct AcquisitionSpec {
     pub patterns: Option<crate::scene::experiment::PatternsSpec>,
 }
 
+/// What a dataset writes besides the measurements, objects, k± and b±.
 #[derive(Debug, Clone, Default, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct WriteSpec {

@@ -126,22 +126,31 @@ fn default_dmd_rate() -> f64 {
 /// A sampling ratio in (0, 1], validated while parsing so that errors carry line and column.
 pub use crate::scene::numbers::Ratio;
 
+/// One object of an experiment.
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ObjectEntry {
     /// Short name, used in file names and tables (letters, digits, `-` and `_`).
     pub name: String,
+    /// The object itself (an image file, a test image, a phantom, a USAF chart, …).
     pub object: ObjectSpec,
 }
 
+/// The base patterns of an acquisition.
 #[derive(Debug, Clone, PartialEq, Deserialize, serde::Serialize)]
 #[serde(deny_unknown_fields)]
 pub enum PatternsSpec {
     /// Random 0/1 patterns from a seeded SplitMix64 sequence; the same patterns serve every
     /// case of an object, so cases differ only by scheme, arms and noise.
-    Random { seed: u64 },
+    Random {
+        /// Seed of the pattern sequence (default 1).
+        seed: u64,
+    },
     /// Sylvester Hadamard patterns (2^m × 2^m images only) in the given ordering.
-    Hadamard { ordering: HadamardOrdering },
+    Hadamard {
+        /// The order of the Hadamard rows.
+        ordering: HadamardOrdering,
+    },
 }
 
 impl Default for PatternsSpec {
@@ -168,6 +177,7 @@ impl PatternsSpec {
 pub struct CaseSpec {
     /// Label on montages, curves and in summary.json.
     pub label: String,
+    /// The acquisition scheme (the paper's four and the fairer baselines).
     pub scheme: Scheme,
     /// Arm gains and offsets (Eqs. 6–9); ideal arms by default.
     #[serde(default)]
@@ -187,12 +197,16 @@ pub struct ArmsSpec(pub ScalarArms);
 #[derive(Debug, Clone, Copy, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct ArmsFields {
+    /// Gain k₊ of arm + (dimensionless; 1 for an ideal arm).
     #[serde(deserialize_with = "via::<ArmGain, _, _>")]
     pub k_plus: f64,
+    /// Gain k₋ of arm −.
     #[serde(deserialize_with = "via::<ArmGain, _, _>")]
     pub k_minus: f64,
+    /// Offset b₊ of arm + (grey levels summed over units; 0 for an ideal arm).
     #[serde(deserialize_with = "via::<ArmOffset, _, _>")]
     pub b_plus: f64,
+    /// Offset b₋ of arm −.
     #[serde(deserialize_with = "via::<ArmOffset, _, _>")]
     pub b_minus: f64,
 }
@@ -267,17 +281,25 @@ impl TryFrom<AdditiveNoise> for NoiseSpec {
     }
 }
 
+/// A dimension of the experiment's grid, laid out along a montage's rows or columns.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, serde::Serialize)]
 pub enum Axis {
+    /// One row or column per object.
     Object,
+    /// One per acquisition case.
     Case,
+    /// One per sampling ratio.
     Ratio,
 }
 
+/// The layout of `montage.png`: which dimension runs down and which across (the third is
+/// repeated in blocks).
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct MontageSpec {
+    /// The dimension along the rows.
     pub rows: Axis,
+    /// The dimension along the columns.
     pub columns: Axis,
     /// Side of one tile in screen pixels.
     #[serde(
@@ -291,6 +313,7 @@ fn default_tile_px() -> u32 {
     128
 }
 
+/// The x axis of a curve.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, serde::Serialize)]
 pub enum CurveX {
     /// Sampling ratio M/N.
@@ -299,9 +322,12 @@ pub enum CurveX {
     KPrime,
 }
 
+/// An image-quality score of a reconstruction against its object.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, serde::Serialize)]
 pub enum Metric {
+    /// Peak signal-to-noise ratio (dB).
     Psnr,
+    /// Mean structural similarity (Wang et al. 2004), in [−1, 1].
     Mssim,
 }
 
@@ -312,10 +338,14 @@ pub enum Metric {
 pub struct CurveSpec {
     /// File stem of the plot (`NAME.svg`, `NAME.png`).
     pub name: String,
+    /// What runs along x.
     pub x: CurveX,
+    /// What runs along y.
     pub metric: Metric,
+    /// Only the cells at this sampling ratio (for curves against k').
     #[serde(default, deserialize_with = "via::<Option<Ratio>, _, _>")]
     pub at_ratio: Option<f64>,
+    /// Only the cases with this k' = k₊ + k₋ (for curves against the ratio).
     #[serde(default, deserialize_with = "via::<Option<Positive>, _, _>")]
     pub at_k_prime: Option<f64>,
     /// Plot x on a logarithmic axis.

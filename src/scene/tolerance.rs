@@ -53,11 +53,13 @@ pub enum Distribution {
     Uniform,
     /// Normal, centred on the middle of the range, the range's ends at ±`sigmas`·σ.
     Normal {
+        /// The range's ends in standard deviations.
         #[serde(deserialize_with = "via::<Sigmas, _, _>")]
         sigmas: f64,
     },
     /// The same normal, truncated to the range.
     TruncatedNormal {
+        /// The range's ends in standard deviations.
         #[serde(deserialize_with = "via::<Sigmas, _, _>")]
         sigmas: f64,
     },
@@ -103,20 +105,28 @@ pub enum CompensatorObjective {
     Power,
 }
 
+/// One tolerance as written: a bench variable and the deviations it may take.
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct ToleranceSpec {
+    /// A bench variable: a field path or a rigid-body move (docs/reference/bench.md).
     path: String,
+    /// The deviations from the nominal value (a field) or the move's extent.
     range: RangeSpec,
+    /// How the Monte Carlo draws a deviation over the range.
     #[serde(default)]
     distribution: Distribution,
 }
 
+/// One compensator as written: a bench variable the builder adjusts after assembly.
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct CompensatorSpec {
+    /// A bench variable: a field path or a rigid-body move.
     path: String,
+    /// The adjustment range, as a deviation from the nominal value.
     range: RangeSpec,
+    /// What the adjustment optimises.
     #[serde(default)]
     objective: CompensatorObjective,
 }
@@ -128,8 +138,10 @@ struct LimitSpec {
     /// A metric name of the trial rows (`imbalance`, `k_prime`, `leak_plus`, …, or with
     /// `--quality` `SCHEME_RATIO_mssim` such as `scb_40_mssim`).
     metric: String,
+    /// value ≥ min.
     #[serde(default, deserialize_with = "via::<Option<Finite>, _, _>")]
     min: Option<f64>,
+    /// value ≤ max.
     #[serde(default, deserialize_with = "via::<Option<Finite>, _, _>")]
     max: Option<f64>,
     /// |value| ≤ abs_max.
@@ -179,18 +191,24 @@ pub struct QualityLimit {
     /// The sampling ratio (%) it applies at; one of the bench's `run` ratios.
     #[serde(deserialize_with = "via::<Count<1, 100>, _, _>")]
     pub ratio_percent: u32,
+    /// The least MSSIM a scheme's reconstruction may score at that ratio.
     #[serde(deserialize_with = "via::<Mssim, _, _>")]
     pub min_mssim: f64,
 }
 
+/// A tolerance file as written.
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct ToleranceFileSpec {
+    /// The toleranced variables, each drawn independently in every Monte Carlo trial.
     tolerances: Vec<ToleranceSpec>,
+    /// The variables adjusted after assembly, in every trial, in order.
     #[serde(default)]
     compensators: Vec<CompensatorSpec>,
+    /// The limits a built bench must meet to count in the yield.
     #[serde(default)]
     limits: Vec<LimitSpec>,
+    /// The image-quality limit for every scheme (used with `--quality`).
     #[serde(default)]
     quality: Option<QualityLimit>,
 }

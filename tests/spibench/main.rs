@@ -27,5 +27,6 @@ mod output_dirs;
 mod outputs_schema;
 mod paper;
 mod planted_links;
+mod reference_docs;
 mod untrusted;
 mod validation;

@@ -54,7 +54,9 @@ pub struct Tval3Options {
     /// Maximum number of iterations in total (1025).
     #[serde(deserialize_with = "via::<Count<1, MAX_ITERATIONS>, _, _>")]
     pub maxit: usize,
+    /// The starting image (`AdjointOfData`).
     pub init: Init,
+    /// The norm of the gradient in the TV term (`Isotropic`).
     pub tv_norm: TvNorm,
     /// Project every iterate onto u ≥ 0 (false).
     pub nonneg: bool,

@@ -131,11 +131,16 @@ pub enum CoatingSpec {
 #[derive(Debug, Clone, Copy, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub enum Outline {
+    /// A disk.
     Round {
+        /// Its diameter (mm).
         diameter_mm: LengthMm,
     },
+    /// A rectangle, its width along the part's `x_axis`.
     Rect {
+        /// Width (mm).
         width_mm: LengthMm,
+        /// Height (mm).
         height_mm: LengthMm,
     },
 }
@@ -244,11 +249,16 @@ pub struct LampSpec {
 #[derive(Debug, Clone, Copy, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub enum FilamentSpec {
+    /// A flat rectangle (a coiled filament seen face on), its width along the lamp's `x_axis`.
     Rect {
+        /// Width (mm).
         width_mm: LengthMm,
+        /// Height (mm).
         height_mm: LengthMm,
     },
+    /// A flat disk.
     Disk {
+        /// Diameter (mm).
         diameter_mm: LengthMm,
     },
 }
@@ -539,8 +549,9 @@ pub struct BaffleSpec {
     /// Direction of the plate's width.
     #[serde(default)]
     pub x_axis: Option<Direction>,
-    /// Plate width and height (mm).
+    /// Plate width (mm), along `x_axis`.
     pub width_mm: LengthMm,
+    /// Plate height (mm).
     pub height_mm: LengthMm,
     /// Hole diameter (mm).
     pub hole_diameter_mm: LengthMm,
@@ -674,6 +685,7 @@ pub enum ChartPatternSpec {
 #[derive(Debug, Clone, Copy, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub enum CenterOnSpec {
+    /// A point (x, y) of the chart, in chart millimetres from the plate centre.
     Point((CoordMm, CoordMm)),
     /// The centre of the bounding box of USAF elements `first..=last` of `group`.
     Elements {
@@ -776,8 +788,9 @@ pub struct WindowSpec {
 pub struct PatternSpec {
     /// First mirror (column, row) of the area.
     pub origin: (MirrorIndex, MirrorIndex),
-    /// Units across (columns) and down (rows).
+    /// Units across (columns).
     pub units_across: MirrorCount,
+    /// Units down (rows).
     pub units_down: MirrorCount,
     /// Mirrors per unit side (a unit is n × n mirrors).
     pub mirrors_per_unit: MirrorCount,
