@@ -53,10 +53,13 @@ pub const MAX_POISSON_STD: f64 = (1u64 << 26) as f64;
 // (`cake_cutting`), which is what JSON output and benches written by spibench use.
 #[serde(rename_all(serialize = "snake_case"))]
 pub enum NoiseDistribution {
+    /// Normal with mean 0 and standard deviation σ.
     #[serde(alias = "gaussian")]
     Gaussian,
+    /// Exponential with mean and standard deviation σ (non-negative draws).
     #[serde(alias = "exponential")]
     Exponential,
+    /// Poisson with mean λ = σ² (σ at most 2²⁶, where counts stay exact).
     #[serde(alias = "poisson")]
     Poisson,
 }

@@ -70,8 +70,9 @@ fn index_page() -> String {
          through, with their ranges.\n\
          - [Outputs](../outputs.md): every file each command writes and every key of its JSON \
          (checked against the commands' real outputs by `tests/spibench/outputs_schema.rs`).\n\
-         - [Python API](python/index.html): the `spibench` Python package, rendered by pdoc \
-         from its docstrings (`python/docs.sh`; built by CI's Python stage, not committed).\n"
+         - The Python API: the `spibench` package's docstrings, rendered by pdoc with \
+         `python/docs.sh` to `target/python-docs/` (a build output, which CI's Python stage \
+         builds; CONTRIBUTING.md, \"The reference pages\").\n"
     ));
     out
 }

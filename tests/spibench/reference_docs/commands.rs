@@ -46,8 +46,13 @@ fn spelling(a: &Arg) -> String {
 fn args_table(args: &[&Arg]) -> String {
     let mut out = String::from("| argument | default | help |\n|---|---|---|\n");
     for a in args {
+        // A switch's `false` is no default worth a column.
+        let switch = matches!(a.get_action(), ArgAction::SetTrue | ArgAction::SetFalse);
         let default: Vec<String> = a
             .get_default_values()
+            .iter()
+            .filter(|_| !switch)
+            .collect::<Vec<_>>()
             .iter()
             .map(|v| format!("`{}`", v.to_string_lossy()))
             .collect();
@@ -65,14 +70,23 @@ fn args_table(args: &[&Arg]) -> String {
                 None => format!("`{}`", v.get_name()),
             })
             .collect();
+        let mut extra = Vec::new();
         if !values.is_empty() && matches!(a.get_action(), ArgAction::Set | ArgAction::Append) {
-            help.push_str(&format!(" Values: {}.", values.join(", ")));
+            extra.push(format!("Values: {}.", values.join(", ")));
         }
         if a.is_required_set() {
-            help.push_str(" Required.");
+            extra.push("Required.".to_string());
         }
         if matches!(a.get_action(), ArgAction::Append) {
-            help.push_str(" May be repeated.");
+            extra.push("May be repeated.".to_string());
+        }
+        if !extra.is_empty() {
+            let h = help.trim_end();
+            help = if h.is_empty() || h.ends_with(['.', ')', ':']) {
+                format!("{h} {}", extra.join(" "))
+            } else {
+                format!("{h}. {}", extra.join(" "))
+            };
         }
         out.push_str(&format!(
             "| `{}` | {} | {} |\n",
@@ -104,7 +118,10 @@ pub fn page(cmd: &Command) -> String {
          `spibench COMMAND --help` prints the same text; `spibench man DIR` writes it as man \
          pages.\n\n| command | what it does |\n|---|---|\n",
     );
-    let subs: Vec<&Command> = cmd.get_subcommands().filter(|s| !s.is_hide_set()).collect();
+    let subs: Vec<&Command> = cmd
+        .get_subcommands()
+        .filter(|s| !s.is_hide_set() && s.get_name() != "help")
+        .collect();
     for s in &subs {
         let first = cell(&about(s));
         out.push_str(&format!(

@@ -216,6 +216,11 @@ impl Source {
                 i = next;
                 continue;
             }
+            // A plain comment between an item's attributes keeps them.
+            if line.starts_with("//") && !line.starts_with("//!") {
+                i += 1;
+                continue;
+            }
             let head = strip_visibility(line);
             let take = |doc: &mut Vec<String>, attrs: &mut String| {
                 (std::mem::take(doc).join("\n"), std::mem::take(attrs))

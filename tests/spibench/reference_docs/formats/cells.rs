@@ -130,8 +130,13 @@ impl Index<'_> {
 
     /// A bound or constant as written, a constant replaced by its value.
     pub(super) fn value(&self, v: &str) -> String {
+        if let Some((a, b)) = v.split_once(" << ") {
+            if let (Ok(a), Ok(b)) = (a.trim().parse::<u64>(), b.trim().parse::<u32>()) {
+                return (a << b).to_string();
+            }
+        }
         let v = v.trim().trim_matches(['{', '}']).trim();
-        let v = v.strip_suffix(" as u64").unwrap_or(v).trim();
+        let v = v.split(" as ").next().unwrap_or(v).trim();
         let name = v.rsplit("::").next().unwrap_or(v);
         match self.src.consts.get(name) {
             Some(c) => self.value(c),
@@ -229,7 +234,10 @@ impl Index<'_> {
                 ..
             }) => match vs.iter().find(|v| v.attrs.contains("#[default]")) {
                 Some(v) => format!("`{}`", v.name),
-                None => "its default".into(),
+                None => match self.src.defaults.get(&n).and_then(|b| impl_default_expr(b)) {
+                    Some(e) => self.shown_default(&e),
+                    None => "its default".into(),
+                },
             },
             Some(i) if matches!(i.body, Body::Struct(_)) => "its fields' defaults".into(),
             _ => "its default".into(),
@@ -425,4 +433,17 @@ fn closing(s: &str) -> Option<usize> {
         }
     }
     None
+}
+
+/// The expression of `fn default() -> Self { EXPR }` in an `impl Default` body, a struct
+/// variant written as a file writes it (`Random { seed: 1 }` → `Random(seed: 1)`).
+fn impl_default_expr(body: &str) -> Option<String> {
+    let start = body.find("-> Self {")? + "-> Self {".len();
+    let inner = body[start..].trim().strip_suffix('}')?.trim();
+    Some(match inner.split_once(" { ") {
+        Some((head, rest)) if !head.contains(' ') => {
+            format!("{head}({})", rest.trim_end_matches('}').trim())
+        }
+        _ => inner.to_string(),
+    })
 }
