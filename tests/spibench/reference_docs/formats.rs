@@ -113,13 +113,11 @@ fn named_types(ty: &str) -> Vec<(String, String)> {
 /// The type a field is read as: the checked type of `deserialize_with = "via::<T, _, _>"`, else
 /// its declared type.
 pub fn read_type(f: &Field) -> String {
-    if let Some(v) = serde_value(&f.attrs, "deserialize_with") {
-        if let Some(inner) = v.strip_prefix("via::<") {
-            let parts = split_top(inner.trim_end_matches('>'));
-            if let Some(first) = parts.first() {
-                return first.clone();
-            }
-        }
+    if let Some(v) = serde_value(&f.attrs, "deserialize_with")
+        && let Some(inner) = v.strip_prefix("via::<")
+        && let Some(first) = split_top(inner.trim_end_matches('>')).first()
+    {
+        return first.clone();
     }
     f.ty.clone()
 }
@@ -198,11 +196,11 @@ impl<'s> Index<'s> {
         let mut queue: VecDeque<(&'s Item, String)> = VecDeque::new();
         queue.push_back((root, String::new()));
         while let Some((item, prefix)) = queue.pop_front() {
-            if let Some(w) = self.written(item) {
-                if matches!(w.body, Body::Struct(_) | Body::Enum(_)) {
-                    queue.push_front((w, prefix));
-                    continue;
-                }
+            if let Some(w) = self.written(item)
+                && matches!(w.body, Body::Struct(_) | Body::Enum(_))
+            {
+                queue.push_front((w, prefix));
+                continue;
             }
             if is_value(item) {
                 if !self.values.contains(&item.name) {
@@ -650,13 +648,11 @@ fn children(item: &Item) -> Vec<(String, String)> {
 
 /// The inner type of `Name<inner>`.
 fn generic<'a>(ty: &'a str, name: &str) -> Option<&'a str> {
-    let ty = ty.trim();
-    let last = ty.rsplit("::").next().unwrap_or(ty);
-    let inner = last
-        .strip_prefix(name)?
-        .strip_prefix('<')?
-        .strip_suffix('>')?;
-    Some(inner)
+    let (head, rest) = ty.trim().split_once('<')?;
+    if head.rsplit("::").next() != Some(name) {
+        return None;
+    }
+    rest.strip_suffix('>')
 }
 
 fn first_sentence(doc: &str) -> String {

@@ -177,10 +177,10 @@ impl Source {
             .trim_start_matches("crate::")
             .rsplit_once("::")
             .map(|(m, _)| m.replace("::", "/"));
-        if let Some(m) = module {
-            if let Some(i) = pool.iter().find(|i| i.file.contains(&m)) {
-                return Some(i);
-            }
+        if let Some(m) = module
+            && let Some(i) = pool.iter().find(|i| i.file.contains(&m))
+        {
+            return Some(i);
         }
         if let Some(i) = pool.iter().find(|i| dir(&i.file) == dir(from_file)) {
             return Some(i);

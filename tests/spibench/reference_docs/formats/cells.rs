@@ -130,10 +130,10 @@ impl Index<'_> {
 
     /// A bound or constant as written, a constant replaced by its value.
     pub(super) fn value(&self, v: &str) -> String {
-        if let Some((a, b)) = v.split_once(" << ") {
-            if let (Ok(a), Ok(b)) = (a.trim().parse::<u64>(), b.trim().parse::<u32>()) {
-                return (a << b).to_string();
-            }
+        if let Some((a, b)) = v.split_once(" << ")
+            && let (Ok(a), Ok(b)) = (a.trim().parse::<u64>(), b.trim().parse::<u32>())
+        {
+            return (a << b).to_string();
         }
         let v = v.trim().trim_matches(['{', '}']).trim();
         let v = v.split(" as ").next().unwrap_or(v).trim();
@@ -181,10 +181,9 @@ impl Index<'_> {
             body: Body::Checked(args),
             ..
         }) = self.resolve(&n, from, &q)
+            && let Some(u) = args.iter().find_map(|a| a.strip_prefix("unit "))
         {
-            if let Some(u) = args.iter().find_map(|a| a.strip_prefix("unit ")) {
-                return u.trim_matches('"').to_string();
-            }
+            return u.trim_matches('"').to_string();
         }
         String::new()
     }
@@ -205,12 +204,11 @@ impl Index<'_> {
                 "required".into()
             };
         }
-        if container {
-            if let Some(body) = self.src.defaults.get(&item.name) {
-                if let Some(v) = struct_literal_field(body, &item.name, &f.name) {
-                    return self.shown_default(&v);
-                }
-            }
+        if container
+            && let Some(body) = self.src.defaults.get(&item.name)
+            && let Some(v) = struct_literal_field(body, &item.name, &f.name)
+        {
+            return self.shown_default(&v);
         }
         if generic(ty, "Option").is_some() {
             return "none".into();
