@@ -94,7 +94,8 @@ class Trace:
     units: Tuple[int, int]
     """(down, across)."""
     def values(self, reference: Optional[Trace] = None) -> List[Tuple[str, float]]:
-        """(name, value) of every metric, differences from `reference` included when given."""
+        """(name, value) of what `spibench sweep` records: each metric, its standard error, and its
+        paired difference from `reference` (this trace itself when None) with its standard error."""
     def x_w(self) -> F64:
         """x_j (W) per unit, units row-major (down, across)."""
     def g_a(self, arm: Arm) -> F64:
@@ -106,7 +107,8 @@ class Trace:
     def t_a(self) -> F64:
         """T (A), the four blocks d·2 + s."""
     def ledger(self) -> dict:
-        """The flux ledger: where the lamp's power went (W), with standard errors."""
+        """The flux ledger: per mirror-state world, the power (W) absorbed per element, escaped,
+        stopped at the path cap and detected."""
 
 class Csr:
     """A sparse matrix in compressed rows."""
