@@ -43,6 +43,7 @@ pub struct AlignArgs {
     /// such as `detectors.minus.decenter_mm.x` starts at 0).
     #[arg(long, value_name = "PATH=LO:HI", required = true)]
     pub free: Vec<String>,
+    /// What the free variables optimise.
     #[arg(long, value_enum, default_value = "balance")]
     pub objective: ObjectiveArg,
     /// For `balance`: the fraction of their best that k₊ and k₋ must keep.

@@ -14,7 +14,9 @@ use crate::report::output::OutputDir;
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum FamilyArg {
+    /// Random 0/1 patterns from `--seed`.
     Random,
+    /// Sylvester Hadamard patterns (2^m × 2^m units) in `--ordering`.
     Hadamard,
 }
 
@@ -28,6 +30,7 @@ pub enum OrderingArg {
 
 #[derive(Debug, Clone, clap::Args)]
 pub struct PatternsArgs {
+    /// The pattern family.
     #[arg(long, value_enum)]
     pub family: FamilyArg,
     /// Hadamard ordering.
@@ -55,7 +58,8 @@ pub struct PatternsArgs {
     /// The bench whose DMD sets the default --dmd (default: the built-in paper bench).
     #[arg(long)]
     pub scene: Option<PathBuf>,
-    #[arg(long, default_value = "out/patterns")]
+    /// Output folder (created; files of the same names are replaced).
+    #[arg(long, default_value = "out/patterns", value_name = "DIR")]
     pub out: PathBuf,
     #[command(flatten)]
     pub work: crate::cli::args::WorkArgs,

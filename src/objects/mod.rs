@@ -90,23 +90,31 @@ pub enum UsafRegion {
     /// The square around elements `first..=last` of `group`, with `margin_mm` on every side
     /// (default: one bar width of element `first`).
     Elements {
+        /// The group.
         #[serde(deserialize_with = "via::<Group, _, _>")]
         group: i32,
+        /// Its first element.
         #[serde(deserialize_with = "via::<Element, _, _>")]
         first: u8,
+        /// Its last element.
         #[serde(deserialize_with = "via::<Element, _, _>")]
         last: u8,
+        /// The margin on every side (mm).
         #[serde(default, deserialize_with = "via::<Option<NonNegative>, _, _>")]
         margin_mm: Option<f64>,
     },
     /// An explicit window in chart millimetres (origin at the plate centre, y up).
     Window {
+        /// The window's centre, x (mm).
         #[serde(deserialize_with = "via::<Finite, _, _>")]
         center_x_mm: f64,
+        /// The window's centre, y (mm).
         #[serde(deserialize_with = "via::<Finite, _, _>")]
         center_y_mm: f64,
+        /// Its width (mm).
         #[serde(deserialize_with = "via::<Positive, _, _>")]
         width_mm: f64,
+        /// Its height (mm).
         #[serde(deserialize_with = "via::<Positive, _, _>")]
         height_mm: f64,
     },

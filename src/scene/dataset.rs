@@ -143,7 +143,9 @@ pub enum BenchesSpec {
     /// compensators adjusted as `spibench tolerance` adjusts them), each traced as a kernel of
     /// its own.
     Tolerance {
+        /// The tolerance file, relative to the spec.
         file: String,
+        /// Samples measured through each drawn bench.
         #[serde(deserialize_with = "via::<SampleCount, _, _>")]
         samples_per_bench: u64,
     },
@@ -200,14 +202,26 @@ pub enum FitRule {
 pub enum ObjectsSpec {
     /// Every PNG, JPEG, EXR or 2-D `.npy` image of a folder (relative to the spec), in name order;
     /// sample s uses image s mod count.
-    Folder { path: String, rule: FitRule },
+    Folder {
+        /// The folder, relative to the spec.
+        path: String,
+        /// How an image larger than the grid becomes an object.
+        rule: FitRule,
+    },
     /// Shipped test images by name.
-    TestImages { names: Vec<String>, rule: FitRule },
+    TestImages {
+        /// Their names (`astronaut`, `chelsea`, `coffee`, `rocket`, `hubble_deep_field`).
+        names: Vec<String>,
+        /// How an image larger than the grid becomes an object.
+        rule: FitRule,
+    },
     /// The 1951 USAF chart at a random scale (field widths from `min_field_mm` to
     /// `max_field_mm`) and a random offset (up to half the field).
     Usaf {
+        /// The smallest field width (mm).
         #[serde(deserialize_with = "via::<UsafFieldMm, _, _>")]
         min_field_mm: f64,
+        /// The largest field width (mm).
         #[serde(deserialize_with = "via::<UsafFieldMm, _, _>")]
         max_field_mm: f64,
     },
@@ -215,6 +229,7 @@ pub enum ObjectsSpec {
     Phantom,
     /// 1 to `max_count` random rectangles of random transmittance on black.
     Rectangles {
+        /// The most rectangles an object has.
         #[serde(deserialize_with = "via::<Count<1, 1000>, _, _>")]
         max_count: usize,
     },

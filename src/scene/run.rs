@@ -156,7 +156,10 @@ impl Default for DetectorSpec {
 #[serde(deny_unknown_fields)]
 pub enum BandwidthSpec {
     /// A single real pole at `bandwidth_hz` (−3 dB), the usual transimpedance response.
-    OnePole { bandwidth_hz: Positive },
+    OnePole {
+        /// The −3 dB bandwidth (Hz).
+        bandwidth_hz: Positive,
+    },
 }
 
 /// Amplifier noise referred to the input.
@@ -164,11 +167,16 @@ pub enum BandwidthSpec {
 #[serde(deny_unknown_fields)]
 pub enum AmplifierNoiseSpec {
     /// Input current noise density (A/√Hz).
-    InputCurrent { a_per_rthz: NonNegative },
+    InputCurrent {
+        /// Input current noise density (A/√Hz).
+        a_per_rthz: NonNegative,
+    },
     /// Noise-equivalent power (W/√Hz) at a wavelength where the diode's responsivity is
     /// `responsivity_a_per_w`; the input current noise is their product.
     Nep {
+        /// Noise-equivalent power (W/√Hz).
         w_per_rthz: NonNegative,
+        /// The diode's responsivity at the NEP's wavelength (A/W).
         responsivity_a_per_w: Positive,
     },
 }
@@ -280,7 +288,9 @@ pub enum ChannelSpec {
     Auto,
     /// 10 divisions of `volts_per_div` centred on `offset_v`.
     Fixed {
+        /// Vertical scale (V per division).
         volts_per_div: Positive,
+        /// Vertical offset (V): the voltage at the screen's centre.
         #[serde(deserialize_with = "via::<OffsetV, _, _>")]
         offset_v: f64,
     },

@@ -42,7 +42,9 @@ fn pages() -> (Vec<(String, String)>, Vec<String>) {
         "commands.md".to_string(),
         commands::page(&spibench::cli::command()),
     ));
-    (out, ix.undocumented())
+    let mut undocumented = ix.undocumented();
+    undocumented.extend(commands::undocumented(&spibench::cli::command()));
+    (out, undocumented)
 }
 
 fn index_page() -> String {
@@ -139,8 +141,9 @@ fn reference_input_files_are_documented() {
     let (_, undocumented) = pages();
     assert!(
         undocumented.is_empty(),
-        "every type, field and variant of an input file needs a doc comment (it is the \
-         reference: docs/reference/, {REGENERATE}); missing:\n{}",
+        "every type, field and variant of an input file needs a doc comment, and every command \
+         and argument a help text (they are the reference: docs/reference/, {REGENERATE}); \
+         missing:\n{}",
         undocumented.join("\n")
     );
 }

@@ -40,7 +40,9 @@ pub enum Direction {
     Vector(Mm3),
     /// Polar angle `theta_deg` from +z and azimuth `phi_deg` from +x toward +y (degrees).
     Polar {
+        /// Polar angle from +z (degrees).
         theta_deg: DirectionDeg,
+        /// Azimuth from +x toward +y (degrees).
         phi_deg: DirectionDeg,
     },
 }
@@ -122,7 +124,10 @@ pub enum CoatingSpec {
     Uncoated,
     /// A single quarter-wave MgF2 layer for `design_nm` (thickness λ₀/(4 n_MgF2(λ₀))), its
     /// reflectance computed by the thin-film formula at every wavelength and angle.
-    MgF2 { design_nm: DesignNm },
+    MgF2 {
+        /// The design wavelength λ₀ (nm).
+        design_nm: DesignNm,
+    },
     /// A fixed per-surface reflectance R(λ) at any angle (T = 1 − R), e.g. a vendor AR curve.
     Reflectance(SpectrumSpec),
 }
@@ -268,10 +273,15 @@ pub enum FilamentSpec {
 #[serde(deny_unknown_fields)]
 pub enum LampSpectrumSpec {
     /// Planck's law × the Larrabee tungsten emissivity at `temperature_k`.
-    Tungsten { temperature_k: Temperature },
+    Tungsten {
+        /// Filament temperature (K).
+        temperature_k: Temperature,
+    },
     /// Planck's law × a constant emissivity.
     Graybody {
+        /// Temperature (K).
         temperature_k: Temperature,
+        /// The constant emissivity.
         emissivity: UnitFraction,
     },
     /// A relative spectral power table (any units).
@@ -283,13 +293,18 @@ pub enum LampSpectrumSpec {
 #[serde(deny_unknown_fields)]
 pub enum LampPowerSpec {
     /// Radiant power emitted in the traced band (W).
-    InBand { watts: PowerW },
+    InBand {
+        /// Radiant power in the band (W).
+        watts: PowerW,
+    },
     /// Electrical power (W) times the in-band radiant efficiency (W radiated in the traced band
     /// per W electrical). A QTH lamp radiates ~85–90 % of its input; at 2800 K a blackbody puts
     /// 32 % of its radiation into 350–1150 nm (tungsten somewhat more, its emissivity falling in
     /// the infrared), so ≈ 0.3 for the default band (estimate, confidence L).
     Electrical {
+        /// Electrical power (W).
         watts: PowerW,
+        /// W radiated in the traced band per W electrical.
         in_band_efficiency: UnitFraction,
     },
     /// From the filament's area and temperature: area·∫ε(λ)·π·B_λ(T) dλ over the band (thermal
@@ -304,10 +319,16 @@ pub enum EmissionSpec {
     /// The whole hemisphere.
     Hemisphere,
     /// A cone of the given half-angle (degrees, 0–90) around the filament normal.
-    Cone { half_angle_deg: AngleDeg },
+    Cone {
+        /// Half-angle around the filament normal (degrees, up to 90).
+        half_angle_deg: AngleDeg,
+    },
     /// The smallest cone (plus 0.1°) that contains the named element as seen from every point of
     /// the filament: usually the collimator.
-    Toward { element: String },
+    Toward {
+        /// The element's name.
+        element: String,
+    },
 }
 
 /// Importance sampling toward a target (disk or rectangle) perpendicular to the lamp axis.
@@ -665,16 +686,22 @@ pub enum ChartPatternSpec {
     /// The 1951 USAF chart of groups `min_group..=max_group` (crate::objects::usaf), negative
     /// (clear bars in chrome, as the paper's Thorlabs R3L3S1N) unless `positive` is true.
     Usaf {
+        /// Smallest group printed.
         min_group: UsafGroup,
+        /// Largest group printed.
         max_group: UsafGroup,
+        /// Chrome bars on clear glass instead of clear bars in chrome.
         #[serde(default)]
         positive: bool,
     },
     /// A PNG image as a transmittance mask (grey level / max = clear fraction), of the given
     /// physical size, centred on the plate centre; `path` is relative to the bench file.
     Image {
+        /// The PNG, relative to the bench file.
         path: String,
+        /// Its physical width on the plate (mm).
         width_mm: LengthMm,
+        /// Its physical height on the plate (mm).
         height_mm: LengthMm,
     },
     /// No chrome: a plain glass plate.
@@ -689,8 +716,11 @@ pub enum CenterOnSpec {
     Point((CoordMm, CoordMm)),
     /// The centre of the bounding box of USAF elements `first..=last` of `group`.
     Elements {
+        /// The USAF group.
         group: UsafGroup,
+        /// Its first element.
         first: UsafElement,
+        /// Its last element.
         last: UsafElement,
     },
 }
@@ -742,6 +772,7 @@ pub enum DmdModelSpec {
     /// the tables of the orders far from the blaze peak (default 10 nm); the orders near the
     /// peak are computed exactly for every ray.
     Diffractive {
+        /// Wavelength bin (nm) of the tables of the orders far from the blaze peak.
         #[serde(default = "default_tail_bin")]
         tail_bin_nm: Positive,
     },

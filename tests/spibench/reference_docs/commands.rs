@@ -157,3 +157,44 @@ pub fn page(cmd: &Command) -> String {
     out.push_str("`-h, --help` prints a command's help, `-V, --version` the version.\n");
     out
 }
+
+/// Commands without an about text and arguments without a help text.
+pub fn undocumented(cmd: &Command) -> Vec<String> {
+    let mut cmd = cmd.clone();
+    cmd.build();
+    let mut out = Vec::new();
+    let visible = |a: &&Arg| !a.is_hide_set() && !matches!(a.get_id().as_str(), "help" | "version");
+    for a in cmd.get_arguments().filter(visible) {
+        if a.get_help().is_none() {
+            out.push(format!(
+                "src/cli: `spibench {}` has no help text",
+                spelling(a)
+            ));
+        }
+    }
+    for s in cmd
+        .get_subcommands()
+        .filter(|s| !s.is_hide_set() && s.get_name() != "help")
+    {
+        if s.get_about().is_none() {
+            out.push(format!(
+                "src/cli: `spibench {}` has no about text",
+                s.get_name()
+            ));
+        }
+        for a in s
+            .get_arguments()
+            .filter(visible)
+            .filter(|a| !a.is_global_set())
+        {
+            if a.get_help().is_none() {
+                out.push(format!(
+                    "src/cli: `spibench {} {}` has no help text",
+                    s.get_name(),
+                    spelling(a)
+                ));
+            }
+        }
+    }
+    out
+}

@@ -568,8 +568,7 @@ impl<'s> Index<'s> {
                                 item.file, item.name, var.name
                             ));
                         }
-                        // A documented variant documents its fields when they have none.
-                        if let (Shape::Struct(fs), true) = (&var.shape, var.doc.trim().is_empty()) {
+                        if let Shape::Struct(fs) = &var.shape {
                             v.extend(fs.iter().map(|f| (var.name.as_str(), f)));
                         }
                     }

@@ -147,7 +147,11 @@ impl Index<'_> {
 
     /// A field's unit: from its name's suffix, else from its checked type.
     pub(super) fn unit(&self, field: &str, ty: &str, from: &str) -> String {
-        const SUFFIXES: [(&str, &str); 18] = [
+        const SUFFIXES: [(&str, &str); 22] = [
+            ("a_per_rthz", "A/√Hz"),
+            ("w_per_rthz", "W/√Hz"),
+            ("_a_per_w", "A/W"),
+            ("volts_per_div", "V/div"),
             ("_mm", "mm"),
             ("_um2", "µm²"),
             ("_um", "µm"),
@@ -169,7 +173,8 @@ impl Index<'_> {
         ];
         let mut best: Option<(&str, &str)> = None;
         for (s, u) in SUFFIXES {
-            if field.ends_with(s) && best.is_none_or(|(b, _)| s.len() > b.len()) {
+            let whole = field == s.trim_start_matches('_');
+            if (field.ends_with(s) || whole) && best.is_none_or(|(b, _)| s.len() > b.len()) {
                 best = Some((s, u));
             }
         }
