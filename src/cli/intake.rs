@@ -39,6 +39,7 @@ pub struct IntakeArgs {
     /// the paper's bench built in (a run's `bench.ron` reproduces the run's settings).
     #[arg(long, value_name = "FILE")]
     pub bench: Option<PathBuf>,
+    /// Output folder (created; files of the same names are replaced).
     #[arg(long, default_value = "out/intake", value_name = "DIR")]
     pub out: PathBuf,
     #[command(flatten)]
