@@ -535,7 +535,7 @@ fn draw_legend(s: &mut String, lines: &[Vec<(&'static str, String)>], top: f64) 
 pub fn svg_to_png(svg: &str) -> Result<Vec<u8>> {
     let svg = crate::report::svg::at_print_size(&crate::report::outline::outline_text(svg)?)?;
     let (w, h, rgb) = crate::report::svg::print_to_rgb(&svg)?;
-    crate::report::png::encode_rgb8(w, h, &rgb)
+    crate::report::png::encode_rgb8_at_dpi(w, h, &rgb, crate::report::svg::PNG_DPI)
 }
 
 /// The bench's layout (three views with a ray fan of `trace::fan::DEFAULT_FAN_RAYS` rays, seed 1) as a

@@ -13,6 +13,7 @@
 pub mod check;
 pub mod export;
 pub mod intake;
+pub mod labels;
 pub mod layout;
 pub mod lens;
 pub mod reconstruct;

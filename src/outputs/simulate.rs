@@ -339,8 +339,13 @@ fn montages(
         } else {
             col_labels.insert(0, TRUTH.into());
             for (r, (trow, crow)) in tiles.iter_mut().zip(captions.iter_mut()).enumerate() {
-                let object = if rows == Axis::Object { r } else { t };
-                trow.insert(0, Some(res.truths[object].clone()));
+                // One object for every row: shown once, at the head of the first.
+                let tile = match rows {
+                    Axis::Object => Some(res.truths[r].clone()),
+                    _ if r == 0 => Some(res.truths[t].clone()),
+                    _ => None,
+                };
+                trow.insert(0, tile);
                 crow.insert(0, String::new());
             }
         }
@@ -352,6 +357,7 @@ fn montages(
                 col_labels,
                 tiles,
                 captions,
+                empty: crate::report::montage::EmptyCell::Blank,
             },
         ));
     }

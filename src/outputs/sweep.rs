@@ -12,10 +12,13 @@ use crate::report::csv::write_csv;
 use crate::report::heatmap::{Heatmap, write_heatmap};
 use crate::report::html::{Block, Page, write_page};
 use crate::report::output::OutputDir;
-use crate::report::plot::{LinePlot, Series, write_plot};
+use crate::report::plot::{
+    Band, BandAxis, LinePlot, Mark, PlotOptions, Series, write_plot, write_plot_with,
+};
 use crate::sweep::limits::LimitReport;
 use crate::sweep::{Sweep, Vary};
 
+use super::labels::variable_label;
 use super::rows::Row;
 
 /// The metrics plotted, with their axis labels.
@@ -252,7 +255,7 @@ fn line_plots(
                 ),
             ));
         }
-        let mut series = vec![Series {
+        let series = vec![Series {
             label: String::new(),
             x: xs.clone(),
             y: ys.clone(),
@@ -266,16 +269,16 @@ fn line_plots(
                     .collect(),
             ),
         }];
-        series.extend(limit_lines(crossed, metric.key(), &xs, &ys));
         let plot = LinePlot {
             title: String::new(),
-            x_label: v.path.clone(),
+            x_label: variable_label(&v.path),
             y_label: label.to_string(),
             series,
             log_x: false,
         };
+        let opts = limit_band(crossed, metric.key(), &xs, &ys);
         let (svg, png) = (format!("{metric}.svg"), format!("{metric}.png"));
-        write_plot(&plot, &out.path(&svg), &out.path(&png))?;
+        write_plot_with(&plot, &opts, &out.path(&svg), &out.path(&png))?;
         figures.push((svg.clone(), label.to_string()));
         files.extend([svg, png]);
     }
@@ -305,7 +308,7 @@ fn line_plots(
             .collect();
         let plot = LinePlot {
             title: String::new(),
-            x_label: v.path.clone(),
+            x_label: variable_label(&v.path),
             y_label: format!("MSSIM at {:.0} % sampling", last_ratio * 100.0),
             series,
             log_x: false,
@@ -317,30 +320,43 @@ fn line_plots(
     Ok(figures)
 }
 
-/// The limits on `metric` as horizontal lines across the plot (at ±L where the metric takes
-/// both signs, at the sign it takes otherwise).
-fn limit_lines(crossed: &[LimitReport], metric: &str, xs: &[f64], ys: &[f64]) -> Vec<Series> {
-    let (lo, hi) = xs
-        .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| {
-            (a.min(x), b.max(x))
-        });
+/// The limits on `metric` as one shaded band of the values they allow (|metric| ≤ L: from −L
+/// to L, open towards a sign the metric never takes, so that the axis is not stretched to it)
+/// and their crossings marked at ±L, each with its 95 % interval along the variable.
+fn limit_band(crossed: &[LimitReport], metric: &str, xs: &[f64], ys: &[f64]) -> PlotOptions {
     let negative = ys.iter().any(|&y| y < 0.0);
     let positive = ys.iter().any(|&y| y > 0.0) || !negative;
-    let mut out = Vec::new();
+    let mut opts = PlotOptions::default();
     for c in crossed.iter().filter(|c| c.metric == metric) {
-        for (sign, show) in [(1.0, positive), (-1.0, negative)] {
-            if show && lo.is_finite() {
-                out.push(Series {
-                    label: format!("limit |{metric}| = {}", c.limit),
-                    x: vec![lo, hi],
-                    y: vec![sign * c.limit; 2],
-                    y_err: None,
-                });
-            }
+        opts.bands.push(Band {
+            label: format!("|{metric}| ≤ {}", c.limit),
+            axis: BandAxis::Y,
+            lo: if negative {
+                -c.limit
+            } else {
+                f64::NEG_INFINITY
+            },
+            hi: if positive { c.limit } else { f64::INFINITY },
+        });
+        for k in &c.crossings {
+            // The crossing's side: the sign of the metric at the two grid points around it.
+            let near: f64 = xs
+                .iter()
+                .zip(ys)
+                .filter(|(x, _)| k.between.contains(x))
+                .map(|(_, y)| *y)
+                .sum();
+            opts.marks.push(Mark {
+                x: k.at,
+                y: if near < 0.0 { -c.limit } else { c.limit },
+                x_interval: k.ci95,
+            });
         }
     }
-    out
+    if !opts.marks.is_empty() {
+        opts.mark_label = "crossing (95 % interval)".into();
+    }
+    opts
 }
 
 /// The report's table of limit crossings.
@@ -410,8 +426,8 @@ fn heatmaps(
     let mut figures = Vec::new();
     for &(metric, label) in PLOTTED.iter().take(4) {
         let h = Heatmap {
-            x_label: a.path.clone(),
-            y_label: b.path.clone(),
+            x_label: variable_label(&a.path),
+            y_label: variable_label(&b.path),
             value_label: label.to_string(),
             xs: a.values(),
             ys: b.values(),

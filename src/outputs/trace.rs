@@ -413,6 +413,7 @@ fn collection_plot(
         size: None,
         areas,
         area_label: "relative (peak = 1)".into(),
+        ..PlotOptions::default()
     };
     (plot, opts)
 }

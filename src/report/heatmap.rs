@@ -213,7 +213,7 @@ pub fn heatmap_svg(h: &Heatmap) -> Result<String> {
 pub fn render(h: &Heatmap) -> Result<(String, Vec<u8>)> {
     let svg = heatmap_svg(h)?;
     let (w, hh, rgb) = super::svg::print_to_rgb(&svg)?;
-    let png = super::png::encode_rgb8(w, hh, &rgb)?;
+    let png = super::png::encode_rgb8_at_dpi(w, hh, &rgb, super::svg::PNG_DPI)?;
     Ok((svg, png))
 }
 

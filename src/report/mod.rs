@@ -6,6 +6,8 @@
 
 pub mod csv;
 pub mod exr;
+#[cfg(all(test, feature = "figures"))]
+mod figure_tests;
 #[cfg(feature = "figures")]
 pub(crate) mod font;
 #[cfg(feature = "figures")]

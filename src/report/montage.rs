@@ -40,6 +40,29 @@ pub struct Montage {
     pub tiles: Vec<Vec<Option<Raster>>>,
     /// `captions[row][col]` under each tile; empty (or empty rows/strings) for none.
     pub captions: Vec<Vec<String>>,
+    /// How a cell without a tile is shown.
+    pub empty: EmptyCell,
+}
+
+/// How a montage shows a cell without a tile.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum EmptyCell {
+    /// A gray square: a tile that could have been there (a scheme not run, for example).
+    #[default]
+    Gray,
+    /// Nothing (the background): a cell the layout leaves free, such as the object's column
+    /// below the one tile that shows it.
+    Blank,
+}
+
+impl EmptyCell {
+    /// The gray level of an empty cell.
+    fn gray(self) -> u8 {
+        match self {
+            EmptyCell::Gray => EMPTY_GRAY,
+            EmptyCell::Blank => 255,
+        }
+    }
 }
 
 /// Where everything goes, in pixels from the top-left corner.
@@ -262,7 +285,12 @@ pub fn render_montage(m: &Montage, tile_px: u32) -> Result<(MontageLayout, Vec<u
     for (r, row) in m.tiles.iter().enumerate() {
         for (c, tile) in row.iter().enumerate() {
             let (x0, y0) = lay.cell_origin(r, c);
-            fill(&mut rgb, lay.width, x0, y0, tile_px, tile_px, EMPTY_GRAY);
+            let g = if tile.is_some() {
+                EMPTY_GRAY
+            } else {
+                m.empty.gray()
+            };
+            fill(&mut rgb, lay.width, x0, y0, tile_px, tile_px, g);
             if let Some(t) = tile {
                 blit(&mut rgb, lay.width, x0, y0, tile_px, t);
             }
@@ -313,9 +341,14 @@ pub fn montage_svg(m: &Montage, tile_px: u32) -> Result<String> {
     for (r, row) in m.tiles.iter().enumerate() {
         for (c, tile) in row.iter().enumerate() {
             let (x0, y0) = lay.cell_origin(r, c);
+            let g = if tile.is_some() {
+                EMPTY_GRAY
+            } else {
+                m.empty.gray()
+            };
             svg.push_str(&format!(
                 "<rect x=\"{x0}\" y=\"{y0}\" width=\"{tile_px}\" height=\"{tile_px}\" \
-                 fill=\"#{EMPTY_GRAY:02X}{EMPTY_GRAY:02X}{EMPTY_GRAY:02X}\"/>\n"
+                 fill=\"#{g:02X}{g:02X}{g:02X}\"/>\n"
             ));
             if let Some(t) = tile {
                 let png = encode_tile(t)?;
@@ -444,7 +477,17 @@ pub fn write_montage(m: &Montage, tile_px: u32, path: &Path) -> Result<()> {
         Error::Numerical(msg) => Error::write(path, std::io::Error::other(msg)),
         other => other.in_file(path),
     })?;
-    super::png::write_rgb8(path, lay.width, lay.height, &rgb)
+    let png = super::png::encode_rgb8_at_dpi(lay.width, lay.height, &rgb, montage_dpi(&lay))
+        .map_err(|e| e.in_file(path))?;
+    super::npy::write_atomic(path, &png)
+}
+
+/// The resolution a montage's PNG states (`pHYs`): the montage is drawn in pixels of its tiles,
+/// not at a print size, so it states the resolution at which it fills the width of a
+/// two-column page (`FigureSize::DOUBLE_COLUMN_IN`), never below 96 dpi (a small montage is
+/// then narrower than the page).
+pub fn montage_dpi(lay: &MontageLayout) -> f64 {
+    (f64::from(lay.width) / super::svg::FigureSize::DOUBLE_COLUMN_IN).max(96.0)
 }
 
 /// Writes the montage as SVG ([`montage_svg`]) and as an RGB PNG of the same size. Both are
@@ -461,8 +504,8 @@ pub fn write_montage_figure(
     };
     let svg = montage_svg(m, tile_px).map_err(|e| fail(svg_path, e))?;
     let (lay, rgb) = render_montage(m, tile_px).map_err(|e| fail(png_path, e))?;
-    let png =
-        super::png::encode_rgb8(lay.width, lay.height, &rgb).map_err(|e| fail(png_path, e))?;
+    let png = super::png::encode_rgb8_at_dpi(lay.width, lay.height, &rgb, montage_dpi(&lay))
+        .map_err(|e| fail(png_path, e))?;
     super::npy::write_atomic(svg_path, svg.as_bytes())?;
     super::npy::write_atomic(png_path, &png)
 }
@@ -504,6 +547,7 @@ mod tests {
                 ],
                 vec![],
             ],
+            empty: EmptyCell::Gray,
         }
     }
 
@@ -535,6 +579,7 @@ mod tests {
             col_labels: vec![],
             tiles: vec![vec![None, None]],
             captions: vec![],
+            empty: EmptyCell::Gray,
         };
         let lay = montage_layout(&bare, 200).unwrap();
         assert_eq!(

@@ -100,6 +100,77 @@ pub fn encode_rgb8(width: u32, height: u32, rgb: &[u8]) -> Result<Vec<u8>> {
     encode(|out| buf.write_to(out, ImageFormat::Png))
 }
 
+/// [`encode_rgb8`] with the resolution the image is drawn at stated in a `pHYs` chunk (pixels
+/// per metre, PNG 1.2 §11.3.5.3), so that word processors and LaTeX place a figure at its
+/// print size instead of at 72 or 96 dpi.
+pub fn encode_rgb8_at_dpi(width: u32, height: u32, rgb: &[u8], dpi: f64) -> Result<Vec<u8>> {
+    Ok(with_phys(encode_rgb8(width, height, rgb)?, dpi))
+}
+
+/// Metres per inch (exact, by definition of the inch).
+const M_PER_IN: f64 = 0.0254;
+
+/// `png` with a `pHYs` chunk of `dpi` (the same on both axes, unit: the metre) right after its
+/// `IHDR` chunk, where the specification requires it (before `IDAT`); an existing `pHYs` is
+/// kept as it is. Bytes that are not a PNG are returned unchanged.
+pub fn with_phys(png: Vec<u8>, dpi: f64) -> Vec<u8> {
+    // Signature (8 bytes), then IHDR: length (4), type (4), 13 data bytes, CRC (4).
+    const IHDR_END: usize = 8 + 4 + 4 + 13 + 4;
+    if png.len() < IHDR_END || &png[12..16] != b"IHDR" || phys_dpi(&png).is_some() {
+        return png;
+    }
+    let ppm = (dpi / M_PER_IN).round() as u32;
+    let mut chunk = Vec::with_capacity(21);
+    chunk.extend(9u32.to_be_bytes());
+    chunk.extend(b"pHYs");
+    chunk.extend(ppm.to_be_bytes());
+    chunk.extend(ppm.to_be_bytes());
+    chunk.push(1);
+    let crc = crc32(&chunk[4..]);
+    chunk.extend(crc.to_be_bytes());
+    let mut out = Vec::with_capacity(png.len() + chunk.len());
+    out.extend_from_slice(&png[..IHDR_END]);
+    out.extend(chunk);
+    out.extend_from_slice(&png[IHDR_END..]);
+    out
+}
+
+/// The resolution a PNG's `pHYs` chunk states, in dots per inch (x axis), when it states one
+/// in metres.
+pub fn phys_dpi(png: &[u8]) -> Option<f64> {
+    let mut at = 8;
+    while at + 12 <= png.len() {
+        let len = u32::from_be_bytes(png[at..at + 4].try_into().ok()?) as usize;
+        let kind = &png[at + 4..at + 8];
+        if kind == b"pHYs" && len == 9 && at + 8 + 9 <= png.len() {
+            let d = &png[at + 8..at + 17];
+            let x = u32::from_be_bytes(d[..4].try_into().ok()?);
+            return (d[8] == 1).then(|| f64::from(x) * M_PER_IN);
+        }
+        if kind == b"IDAT" {
+            return None;
+        }
+        at += 12 + len;
+    }
+    None
+}
+
+/// CRC-32 (ISO 3309, the polynomial PNG uses), bit by bit: a chunk of 13 bytes needs no table.
+fn crc32(bytes: &[u8]) -> u32 {
+    let mut c = 0xFFFF_FFFFu32;
+    for &b in bytes {
+        c ^= u32::from(b);
+        for _ in 0..8 {
+            c = if c & 1 != 0 {
+                0xEDB8_8320 ^ (c >> 1)
+            } else {
+                c >> 1
+            };
+        }
+    }
+    !c
+}
+
 /// Writes an 8-bit gray PNG: linear map of `[lo, hi]` to `[0, 255]`, clipped, rounded; NaN is 0.
 pub fn write_gray8(path: &Path, image: &Raster, lo: f64, hi: f64) -> Result<()> {
     let bytes = encode_gray8(image, lo, hi).map_err(|e| at_path(e, path))?;
@@ -189,6 +260,27 @@ mod tests {
             &vec![0, 65535, 32768, 49151, 24576, 65535, 0, 65535]
         );
         let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    /// The pHYs chunk states 288 dpi (11 339 pixels per metre), sits before the image data,
+    /// carries a valid CRC (the decoder checks it) and leaves the pixels as they were.
+    #[test]
+    fn phys_states_the_drawing_resolution() {
+        assert_eq!(crc32(b"IEND"), 0xAE42_6082);
+        let rgb: Vec<u8> = (0..4 * 3 * 3).map(|i| (i * 7) as u8).collect();
+        let plain = encode_rgb8(4, 3, &rgb).unwrap();
+        assert_eq!(phys_dpi(&plain), None);
+        let bytes = encode_rgb8_at_dpi(4, 3, &rgb, 288.0).unwrap();
+        let dpi = phys_dpi(&bytes).unwrap();
+        assert!((dpi - 288.0).abs() < 0.05, "{dpi}");
+        assert_eq!(
+            u32::from_be_bytes(bytes[41..45].try_into().unwrap()),
+            11_339
+        );
+        assert_eq!(with_phys(bytes.clone(), 96.0), bytes);
+        let back = image::load_from_memory(&bytes).unwrap();
+        assert_eq!(back.as_rgb8().unwrap().as_raw(), &rgb);
+        assert_eq!(with_phys(b"not a png".to_vec(), 288.0), b"not a png");
     }
 
     #[test]

@@ -163,7 +163,7 @@ pub fn write_figure(svg: &str, svg_path: &Path, png_path: &Path, pdf: bool) -> R
     let (png, pdf) = rayon::join(
         || {
             let (w, h, rgb) = print_to_rgb(&svg)?;
-            super::png::encode_rgb8(w, h, &rgb)
+            super::png::encode_rgb8_at_dpi(w, h, &rgb, PNG_DPI)
         },
         || pdf.then(|| svg_to_pdf(&svg)).transpose(),
     );

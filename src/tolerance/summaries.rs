@@ -199,21 +199,24 @@ pub fn compensators(set: &[Compensator], ok: &[&TrialRecord]) -> Vec<Compensator
 }
 
 /// Histogram bins for `n` sorted values: the Freedman–Diaconis width 2·IQR·n^(−1/3) (Freedman
-/// and Diaconis 1981), but never fewer than max(10, ⌈√n⌉) bins nor more than 200.
+/// and Diaconis 1981), but never more bins than the square-root rule's ⌈√n⌉, which a long tail
+/// (one far trial stretches the range, not the IQR) would otherwise exceed, leaving most bins
+/// empty; ⌈√n⌉ when the IQR is 0; at least 3 bins (fewer values: one bin each).
 pub fn histogram_bins(sorted: &[f64]) -> usize {
     let n = sorted.len();
-    let floor = ((n as f64).sqrt().ceil() as usize).max(10);
+    let root = ((n as f64).sqrt().ceil() as usize).max(1);
+    let floor = 3.min(n.max(1));
     if n < 2 {
-        return floor;
+        return 1;
     }
     let range = sorted[n - 1] - sorted[0];
     let iqr = super::percentile(sorted, 75.0) - super::percentile(sorted, 25.0);
     let fd = if iqr > 0.0 && range > 0.0 {
-        (range / (2.0 * iqr * (n as f64).powf(-1.0 / 3.0))).ceil()
+        (range / (2.0 * iqr * (n as f64).powf(-1.0 / 3.0))).ceil() as usize
     } else {
-        0.0
+        root
     };
-    (fd as usize).clamp(floor, 200)
+    fd.min(root).max(floor)
 }
 
 /// A tolerance's response is called curved when, fitted as m = s·t + c·t² through the nominal
@@ -326,17 +329,21 @@ mod tests {
     }
 
     #[test]
-    fn bins_follow_freedman_diaconis_with_a_floor() {
-        // 10 000 uniform values: IQR = 0.5, width 2·0.5·10000^(−1/3) = 0.0464: 22 bins, but the
-        // floor √n = 100 wins.
+    fn bins_follow_freedman_diaconis_up_to_the_square_root_rule() {
+        // 10 000 uniform values: IQR = 0.5, width 2·0.5·10000^(−1/3) = 0.0464: 22 bins.
         let v: Vec<f64> = (0..10_000).map(|i| i as f64 / 9_999.0).collect();
-        assert_eq!(histogram_bins(&v), 100);
-        // 100 values with one far outlier: Freedman–Diaconis asks for many narrow bins.
+        assert_eq!(histogram_bins(&v), 22);
+        // 100 values with one far outlier: Freedman–Diaconis asks for hundreds of narrow bins;
+        // the square-root rule's 10 win.
         let mut v: Vec<f64> = (0..99).map(|i| i as f64 / 98.0).collect();
         v.push(50.0);
-        let b = histogram_bins(&v);
-        assert!((41..=200).contains(&b), "{b}");
-        assert_eq!(histogram_bins(&[1.0; 30]), 10);
+        assert_eq!(histogram_bins(&v), 10);
+        // 20 trials with a tail: never more than ⌈√20⌉ = 5 bins (not 200).
+        let mut v: Vec<f64> = (0..19).map(|i| f64::from(i) * 1e-4).collect();
+        v.push(1.0);
+        assert_eq!(histogram_bins(&v), 5);
+        assert_eq!(histogram_bins(&[1.0; 30]), 6);
+        assert_eq!(histogram_bins(&[1.0, 2.0]), 2);
     }
 
     #[test]

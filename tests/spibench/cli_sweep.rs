@@ -88,7 +88,8 @@ fn two_dimensional_sweeps_and_bad_paths() {
     );
     assert!(o.status.success(), "{}", stderr(&o));
     let svg = std::fs::read_to_string(out.join("imbalance.svg")).unwrap();
-    assert!(svg.starts_with("<svg") && svg.contains("arm_minus_lens.despace_mm"));
+    // The axis says the variable in words with the unit of its suffix.
+    assert!(svg.starts_with("<svg") && svg.contains("arm_minus_lens despace (mm)"));
     crate::outputs_schema::check_file(&out.join("summary.json"), "SweepSummary");
     let s: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();

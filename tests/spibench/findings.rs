@@ -402,7 +402,7 @@ fn tolerance_reads_tails_compensators_and_the_rss_model() {
         "the CDF of |imbalance| is not on a log axis"
     );
     assert!(
-        cdf.contains("limit |imbalance| ≤ 0.01"),
+        cdf.contains("|imbalance| ≤ 0.01"),
         "the limit is not drawn"
     );
     crate::outputs_schema::check_file(&out.join("summary.json"), "ToleranceSummary");

@@ -623,8 +623,16 @@ fn curves_section(blocks: &mut Vec<Block>, r: &ReportInput<'_>) -> Result<()> {
     });
     let mut figs = Vec::new();
     for (file, cap) in [
-        ("mssim_vs_ratio.svg", "MSSIM against sampling ratio"),
-        ("psnr_vs_ratio.svg", "PSNR against sampling ratio"),
+        (
+            "mssim_vs_ratio.svg",
+            "MSSIM against sampling ratio; lower panel: each scheme's difference to the best \
+             scheme at that ratio, so that curves that coincide above can be told apart",
+        ),
+        (
+            "psnr_vs_ratio.svg",
+            "PSNR against sampling ratio; lower panel: each scheme's difference to the best \
+             scheme at that ratio (dB)",
+        ),
     ] {
         if let Some(b) = staged_svg(out, file, cap)? {
             figs.push(b);

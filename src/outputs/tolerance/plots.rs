@@ -3,47 +3,52 @@
 
 use crate::report::html::Block;
 use crate::report::output::OutputDir;
-use crate::report::plot::{LinePlot, Series, write_plot};
+use crate::report::plot::{
+    Band, BandAxis, LinePlot, Markers, PlotOptions, Series, write_plot_with,
+};
 use crate::scene::tolerance::{ShardFile, ToleranceSet};
 use crate::tolerance::Analysis;
 
-/// The file's limits on `metric` as vertical lines from 0 to `top`: on a plot of |value|
-/// (`abs`) the `abs_max` limits, on a plot of the value the `min` and `max` ones and ±`abs_max`.
-fn limit_lines(limits: &[(String, f64)], top: f64) -> Vec<Series> {
-    limits
-        .iter()
-        .map(|(label, x)| Series {
-            label: label.clone(),
-            x: vec![*x, *x],
-            y: vec![0.0, top],
-            y_err: None,
-        })
-        .collect()
-}
-
-/// The limits of the file (and the quality limit) on `metric`, as (label, x) on a plot of
-/// |value| (`abs`) or of the value.
-fn limits_on(set: &ToleranceSet, metric: &str, abs: bool) -> Vec<(String, f64)> {
+/// The limits of the file (and the quality limit) on `metric` as shaded bands of the values
+/// they allow, on a plot of |value| (`abs`) or of the value, each end mapped by `shown` (the
+/// leaks' bounded fractions).
+fn limit_bands(
+    set: &ToleranceSet,
+    metric: &str,
+    abs: bool,
+    shown: impl Fn(f64) -> f64,
+) -> Vec<Band> {
+    let band = |label: String, lo: f64, hi: f64| Band {
+        label,
+        axis: BandAxis::X,
+        lo: if lo.is_finite() { shown(lo) } else { lo },
+        hi: if hi.is_finite() { shown(hi) } else { hi },
+    };
     let mut out = Vec::new();
     for l in set.limits.iter().filter(|l| l.metric.to_string() == metric) {
         if let Some(m) = l.abs_max {
-            out.push((format!("limit |{metric}| ≤ {m}"), m));
-            if !abs {
-                out.push((format!("limit |{metric}| ≥ −{m}"), -m));
-            }
+            let lo = if abs { f64::NEG_INFINITY } else { -m };
+            out.push(band(format!("|{metric}| ≤ {m}"), lo, m));
         }
-        for (v, op) in [(l.min, "≥"), (l.max, "≤")] {
-            if let Some(v) = v
-                && (!abs || v > 0.0)
-            {
-                out.push((format!("limit {metric} {op} {v}"), v));
-            }
+        if let Some(v) = l.min
+            && (!abs || v > 0.0)
+        {
+            out.push(band(format!("{metric} ≥ {v}"), v, f64::INFINITY));
+        }
+        if let Some(v) = l.max
+            && (!abs || v > 0.0)
+        {
+            out.push(band(format!("{metric} ≤ {v}"), f64::NEG_INFINITY, v));
         }
     }
     if let Some(q) = set.quality
         && metric.ends_with(&format!("_{}_mssim", q.ratio_percent))
     {
-        out.push((format!("limit MSSIM ≥ {}", q.min_mssim), q.min_mssim));
+        out.push(band(
+            format!("MSSIM ≥ {}", q.min_mssim),
+            q.min_mssim,
+            f64::INFINITY,
+        ));
     }
     out
 }
@@ -109,7 +114,7 @@ fn histogram_series(v: &[f64], bins: usize) -> (Series, f64) {
     )
 }
 
-/// Histograms (as steps, Freedman–Diaconis bins with a floor) and empirical CDFs of the main
+/// Histograms (outlines, Freedman–Diaconis bins up to ⌈√n⌉) and empirical CDFs (steps) of the main
 /// metrics over the trials, with the file's limits drawn, written as figures and returned as
 /// report blocks. The CDF is of |value| on a log axis for the metrics whose upper |·| tail
 /// matters (imbalance, offsets, leaks), of the value for those whose lower tail matters (k',
@@ -148,7 +153,9 @@ pub(super) fn distribution_plots(
         let zeros = n - cx.len();
         // Large magnitudes on a log axis; the lower tail of a value on a linear one.
         let log_x = upper;
-        let mut cdf_series = vec![Series {
+        // The empirical CDF as steps: each trial raises it by 1/n at its value, where its
+        // marker sits.
+        let cdf_series = vec![Series {
             label: String::new(),
             y: (0..cx.len())
                 .map(|i| (zeros + i + 1) as f64 / n as f64)
@@ -156,13 +163,12 @@ pub(super) fn distribution_plots(
             x: cx,
             y_err: None,
         }];
-        let limit_at = |abs: bool| -> Vec<(String, f64)> {
-            limits_on(set, &metric, abs)
-                .into_iter()
-                .map(|(l, x)| (l, shown(&metric, x)))
-                .collect()
+        let bands = |abs: bool| limit_bands(set, &metric, abs, |x| shown(&metric, x));
+        let cdf_opts = PlotOptions {
+            bands: bands(upper),
+            steps: true,
+            ..PlotOptions::default()
         };
-        cdf_series.extend(limit_lines(&limit_at(upper), 1.0));
         let cdf = LinePlot {
             title: String::new(),
             x_label: if upper {
@@ -175,9 +181,13 @@ pub(super) fn distribution_plots(
             log_x,
         };
         let bins = histogram_bins(&v);
-        let (steps, top) = histogram_series(&v, bins);
-        let mut hist_series = vec![steps];
-        hist_series.extend(limit_lines(&limit_at(false), top));
+        let (steps, _) = histogram_series(&v, bins);
+        let hist_series = vec![steps];
+        let hist_opts = PlotOptions {
+            bands: bands(false),
+            markers: Markers::None,
+            ..PlotOptions::default()
+        };
         let hist = LinePlot {
             title: String::new(),
             x_label: label.clone(),
@@ -192,28 +202,28 @@ pub(super) fn distribution_plots(
         };
         // Every trial at exactly 0 (a metric a symmetric bench holds at 0): no CDF on a log axis.
         let plots = if cdf.series[0].x.is_empty() {
-            vec![("hist", hist)]
+            vec![("hist", hist, hist_opts)]
         } else {
-            vec![("hist", hist), ("cdf", cdf)]
+            vec![("hist", hist, hist_opts), ("cdf", cdf, cdf_opts)]
         };
-        for (kind, plot) in plots {
+        for (kind, plot, opts) in plots {
             let (svg, png) = (
                 format!("{kind}_{metric}.svg"),
                 format!("{kind}_{metric}.png"),
             );
-            write_plot(&plot, &out.path(&svg), &out.path(&png))?;
+            write_plot_with(&plot, &opts, &out.path(&svg), &out.path(&png))?;
             let text = std::fs::read_to_string(out.path(&svg))
                 .map_err(|e| crate::Error::read(&out.path(&svg), e))?;
             figs.push(Block::Svg {
                 caption: if kind == "hist" {
                     format!(
                         "Histogram of {label} over {n} trials ({bins} bins: Freedman–Diaconis, \
-                         at least max(10, √n)); vertical lines: the file's limits"
+                         at most ⌈√n⌉); shaded: the values the file's limits allow"
                     )
                 } else {
                     format!(
-                        "Empirical CDF of {}{label} over {n} trials ({tail}){}; vertical lines: \
-                         the file's limits",
+                        "Empirical CDF of {}{label} over {n} trials, as steps, a marker at each \
+                         trial ({tail}){}; shaded: the values the file's limits allow",
                         if upper { "|·| of " } else { "" },
                         if zeros > 0 {
                             format!("; {zeros} trial(s) at exactly 0 are counted but not drawn")

@@ -52,10 +52,52 @@ pub(super) const MARGIN_PX: i32 = 14;
 pub(super) const LEGEND_LINE_PX: i32 = 22;
 pub(super) const LEGEND_GAP_PX: i32 = 20;
 pub(super) const LEGEND_SAMPLE_PX: i32 = 40;
-/// At most about this many markers per series: a long series gets a marker on every k-th
-/// point, each series starting at a different point, so that markers of curves that lie on
-/// each other alternate along them instead of hiding each other.
+/// A series of up to this many points has a marker on every point (measured points: a sweep's
+/// grid, a scheme's sampling ratios, trials); a longer one is a sampled curve (a spectrum), which
+/// gets about [`MARKERS_PER_SERIES`] markers, each series starting at a different point, so that
+/// markers of curves that lie on each other alternate along them instead of hiding each other.
+pub const MARK_EVERY_POINT_UP_TO: usize = 64;
 pub(super) const MARKERS_PER_SERIES: usize = 12;
+
+/// Where a plot's series carry markers.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Markers {
+    /// On every point of a series of up to [`MARK_EVERY_POINT_UP_TO`] points, spread along a
+    /// longer one.
+    #[default]
+    Auto,
+    /// None: outlines, such as a histogram's, whose corners are not measured points.
+    None,
+}
+
+/// Which axis a [`Band`] spans.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum BandAxis {
+    /// A horizontal band between two y values.
+    Y,
+    /// A vertical band between two x values.
+    X,
+}
+
+/// A shaded band behind the curves: the region a limit allows (for |m| ≤ L, from −L to L).
+/// An infinite end reaches the edge of the axes; a finite one is drawn as a thin line and kept
+/// in view.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Band {
+    pub label: String,
+    pub axis: BandAxis,
+    pub lo: f64,
+    pub hi: f64,
+}
+
+/// A point marked on top of the curves (a limit crossing), with an optional interval along x
+/// (its 95 % interval).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Mark {
+    pub x: f64,
+    pub y: f64,
+    pub x_interval: Option<[f64; 2]>,
+}
 
 /// A filled area drawn behind the curves against a secondary scale on the right, from 0 (the
 /// bottom of the axes) to 1: a spectrum or a responsivity normalised to its peak, for example.
@@ -76,6 +118,20 @@ pub struct PlotOptions {
     pub areas: Vec<Area>,
     /// The secondary scale's label (used when there are areas).
     pub area_label: String,
+    /// Shaded bands behind the curves (limits), one legend entry each.
+    pub bands: Vec<Band>,
+    /// Points marked on top of the curves (limit crossings), one legend entry for all.
+    pub marks: Vec<Mark>,
+    /// The legend entry of the marks.
+    pub mark_label: String,
+    /// Where the series carry markers.
+    pub markers: Markers,
+    /// Each series drawn as steps (a value held until the next point, as an empirical CDF).
+    pub steps: bool,
+    /// A second panel below the first, on the same x axis, its series drawn in the same styles
+    /// as the first panel's of the same index (a difference to the best curve, for example);
+    /// its x label is the figure's, and the legend is the first panel's.
+    pub lower: Option<Box<LinePlot>>,
 }
 
 use crate::report::svg::FigureSize;
@@ -259,38 +315,87 @@ where
     .map_err(|e| e.to_string())
 }
 
-pub(super) fn draw_chart<DB, XR>(
-    area: &DrawingArea<DB, Shift>,
-    plot: &LinePlot,
-    series: &[Prepared],
-    extras: &Extras,
-    x: Ticked<XR>,
-    y: Range<f64>,
-) -> std::result::Result<(), String>
-where
-    DB: DrawingBackend,
-    XR: Ranged<ValueType = f64>,
-{
-    // The y label area holds the widest tick text and the rotated axis description.
+/// The width of the y label area for a y range: the widest tick text and the rotated axis
+/// description.
+pub(super) fn y_label_width(y: &Range<f64>) -> i32 {
     let y_ticks = linear_ticks(y.start, y.end);
-    let (x_style, y_style) = (tick_style(&x.ticks), tick_style(&y_ticks));
+    let y_style = tick_style(&y_ticks);
     let tick_w = y_ticks
         .iter()
         .map(|t| font::text_width(&format_styled(*t, y_style).replace('-', "−"), TICK_SIZE))
         .max()
         .unwrap_or(0);
+    tick_w as i32 + 44
+}
+
+/// An axis description that fits in `avail` units: at its size if it fits, else at a smaller
+/// size down to the tick labels' (8 pt), else shortened with an ellipsis at that size.
+pub(super) fn fitted_desc(text: &str, avail: i32) -> (String, f64) {
+    let avail = avail.max(0) as u32;
+    if font::text_width(text, AXIS_DESC_SIZE) <= avail {
+        return (text.to_string(), AXIS_DESC_SIZE);
+    }
+    if font::text_width(text, TICK_SIZE) <= avail {
+        return (text.to_string(), TICK_SIZE);
+    }
+    (font::fit_text(text, TICK_SIZE, avail), TICK_SIZE)
+}
+
+/// One panel of a figure: its series, the axes' ranges and descriptions.
+pub(super) struct Panel<'a> {
+    pub x_label: &'a str,
+    pub y_label: &'a str,
+    pub series: &'a [Prepared],
+    pub extras: &'a Extras,
+    pub y: Range<f64>,
+    /// The y label area's width, shared by the panels so that their axes line up.
+    pub label_w: i32,
+}
+
+/// The band's ends clipped to the axis range.
+fn clip(lo: f64, hi: f64, r: &Range<f64>) -> Option<(f64, f64)> {
+    let (a, b) = (lo.max(r.start), hi.min(r.end));
+    (a < b).then_some((a, b))
+}
+
+/// The shade of a limit band and the colour of its finite edges.
+pub(super) const BAND_FILL: RGBColor = RGBColor(0, 158, 115);
+pub(super) const BAND_OPACITY: f64 = 0.14;
+/// The colour of limit crossings.
+pub(super) const MARK_COLOR: RGBColor = RGBColor(0, 0, 0);
+
+pub(super) fn draw_chart<DB, XR>(
+    area: &DrawingArea<DB, Shift>,
+    panel: &Panel,
+    x: Ticked<XR>,
+    x_range: Range<f64>,
+) -> std::result::Result<(), String>
+where
+    DB: DrawingBackend,
+    XR: Ranged<ValueType = f64>,
+{
+    let (series, extras, y) = (panel.series, panel.extras, panel.y.clone());
+    let y_ticks = linear_ticks(y.start, y.end);
+    let (x_style, y_style) = (tick_style(&x.ticks), tick_style(&y_ticks));
     let right = if extras.areas.is_empty() {
         0
     } else {
         font::text_width("0.75", TICK_SIZE) as i32 + 44
     };
+    let (w, h) = area.dim_in_pixel();
+    let x_label_h = if panel.x_label.is_empty() { 28 } else { 48 };
+    let (x_desc, x_size) = fitted_desc(
+        panel.x_label,
+        w as i32 - panel.label_w - 2 * MARGIN_PX - right,
+    );
+    let (y_desc, y_size) = fitted_desc(panel.y_label, h as i32 - x_label_h - 2 * MARGIN_PX);
     // The secondary scale sits in a right margin, not a label area: plotters would repeat the
     // primary axis' labels in a right label area.
     let mut chart = ChartBuilder::on(area)
         .margin(MARGIN_PX)
         .margin_right(MARGIN_PX + right)
-        .x_label_area_size(48)
-        .y_label_area_size(tick_w as i32 + 44)
+        .x_label_area_size(x_label_h)
+        .y_label_area_size(panel.label_w)
         .build_cartesian_2d(
             x,
             Ticked {
@@ -302,11 +407,13 @@ where
     // Tick text uses the typographic minus sign (U+2212), as a printed figure would.
     let x_formatter = |v: &f64| format_styled(*v, x_style).replace('-', "−");
     let y_formatter = |v: &f64| format_styled(*v, y_style).replace('-', "−");
+    // One size for both descriptions: the smaller of the two fits.
+    let desc_size = x_size.min(y_size);
     chart
         .configure_mesh()
-        .x_desc(plot.x_label.as_str())
-        .y_desc(plot.y_label.as_str())
-        .axis_desc_style((FAMILY, AXIS_DESC_SIZE))
+        .x_desc(x_desc.as_str())
+        .y_desc(y_desc.as_str())
+        .axis_desc_style((FAMILY, desc_size))
         .label_style((FAMILY, TICK_SIZE))
         .x_label_formatter(&x_formatter)
         .y_label_formatter(&y_formatter)
@@ -316,37 +423,131 @@ where
     if !extras.areas.is_empty() {
         draw_areas(area, &chart, extras, &y)?;
     }
-    let area = chart.plotting_area();
+    let plot_area = chart.plotting_area();
+    for b in &extras.bands {
+        let (range, other) = match b.axis {
+            BandAxis::Y => (&y, &x_range),
+            BandAxis::X => (&x_range, &y),
+        };
+        let Some((lo, hi)) = clip(b.lo, b.hi, range) else {
+            continue;
+        };
+        let corner = |v: f64, o: f64| match b.axis {
+            BandAxis::Y => (o, v),
+            BandAxis::X => (v, o),
+        };
+        plot_area
+            .draw(&Rectangle::new(
+                [corner(lo, other.start), corner(hi, other.end)],
+                BAND_FILL.mix(BAND_OPACITY).filled(),
+            ))
+            .map_err(|e| e.to_string())?;
+        for edge in [b.lo, b.hi] {
+            if edge.is_finite() && range.contains(&edge) {
+                plot_area
+                    .draw(&PathElement::new(
+                        vec![corner(edge, other.start), corner(edge, other.end)],
+                        BAND_FILL.mix(0.8).stroke_width(1),
+                    ))
+                    .map_err(|e| e.to_string())?;
+            }
+        }
+    }
     for (i, s) in series.iter().enumerate() {
         let color = PALETTE[i % PALETTE.len()];
         let points: usize = s.runs.iter().map(Vec::len).sum();
-        let step = points.div_ceil(MARKERS_PER_SERIES).max(1);
+        let step = if points <= MARK_EVERY_POINT_UP_TO {
+            1
+        } else {
+            points.div_ceil(MARKERS_PER_SERIES).max(1)
+        };
         let mut k = 0usize;
         for run in &s.runs {
             if run.len() > 1 {
-                draw_line(area, run.iter().map(|&(x, y, _)| (x, y)).collect(), i)?;
+                let mut line: Vec<(f64, f64)> = Vec::with_capacity(2 * run.len());
+                for (j, &(x, y, _)) in run.iter().enumerate() {
+                    if extras.steps && j > 0 {
+                        line.push((x, run[j - 1].1));
+                    }
+                    line.push((x, y));
+                }
+                draw_line(plot_area, line, i)?;
             }
             for &(x, y, e) in run {
                 if e > 0.0 {
                     let style = color.stroke_width(2);
-                    area.draw(&PathElement::new(vec![(x, y - e), (x, y + e)], style))
+                    plot_area
+                        .draw(&PathElement::new(vec![(x, y - e), (x, y + e)], style))
                         .map_err(|e| e.to_string())?;
                     for end in [y - e, y + e] {
-                        area.draw(
-                            &(EmptyElement::at((x, end))
-                                + PathElement::new(vec![(-4, 0), (4, 0)], style)),
-                        )
-                        .map_err(|e| e.to_string())?;
+                        plot_area
+                            .draw(
+                                &(EmptyElement::at((x, end))
+                                    + PathElement::new(vec![(-4, 0), (4, 0)], style)),
+                            )
+                            .map_err(|e| e.to_string())?;
                     }
                 }
-                if (k + i).is_multiple_of(step) {
-                    draw_marker(area, (x, y), i, color)?;
+                if extras.markers == Markers::Auto && (k + i).is_multiple_of(step) {
+                    draw_marker(plot_area, (x, y), i, color)?;
                 }
                 k += 1;
             }
         }
     }
+    for m in &extras.marks {
+        draw_mark(plot_area, m, &x_range, &y)?;
+    }
     Ok(())
+}
+
+/// A limit crossing: a thin dotted line across the axes at its x, its interval as a bar, and
+/// a ring at the crossing.
+pub(super) fn draw_mark<DB, CT>(
+    area: &DrawingArea<DB, CT>,
+    m: &Mark,
+    x_range: &Range<f64>,
+    y: &Range<f64>,
+) -> std::result::Result<(), String>
+where
+    DB: DrawingBackend,
+    CT: plotters::coord::CoordTranslate<From = (f64, f64)>,
+{
+    let style = MARK_COLOR.stroke_width(1);
+    area.draw(&DashedPathElement::new(
+        vec![(m.x, y.start), (m.x, y.end)],
+        2,
+        4,
+        style,
+    ))
+    .map_err(|e| e.to_string())?;
+    if let Some([a, b]) = m.x_interval
+        && let Some((a, b)) = clip(a, b, x_range)
+    {
+        let bar = MARK_COLOR.stroke_width(2);
+        area.draw(&PathElement::new(vec![(a, m.y), (b, m.y)], bar))
+            .map_err(|e| e.to_string())?;
+        for end in [a, b] {
+            area.draw(
+                &(EmptyElement::at((end, m.y)) + PathElement::new(vec![(0, -5), (0, 5)], bar)),
+            )
+            .map_err(|e| e.to_string())?;
+        }
+    }
+    draw_mark_symbol(area, (m.x, m.y))
+}
+
+/// The ring that marks a crossing (also its legend sample).
+pub(super) fn draw_mark_symbol<DB, CT>(
+    area: &DrawingArea<DB, CT>,
+    at: CT::From,
+) -> std::result::Result<(), String>
+where
+    DB: DrawingBackend,
+    CT: plotters::coord::CoordTranslate,
+{
+    area.draw(&(EmptyElement::at(at) + Circle::new((0, 0), 8, MARK_COLOR.stroke_width(2))))
+        .map_err(|e| e.to_string())
 }
 
 /// The colour of area `i`: light tints, unlike the curves' colours, so that the curves stay in
@@ -433,6 +634,8 @@ pub(super) const SECONDARY_TOP: f64 = 1.0;
 pub(super) enum Entry {
     Curve(usize),
     Area(usize),
+    Band(usize),
+    Mark,
 }
 
 /// The legend's entries placed in rows: each row holds as many entries as fit in `width`,
@@ -455,6 +658,18 @@ pub(super) fn legend_rows(
                 .iter()
                 .enumerate()
                 .map(|(k, a)| (Entry::Area(k), &a.label)),
+        )
+        .chain(
+            extras
+                .bands
+                .iter()
+                .enumerate()
+                .map(|(k, b)| (Entry::Band(k), &b.label)),
+        )
+        .chain(
+            (!extras.marks.is_empty())
+                .then_some((Entry::Mark, &extras.mark_label))
+                .into_iter(),
         );
     for (entry, label) in entries {
         if label.trim().is_empty() {
@@ -496,6 +711,26 @@ pub(super) struct PreparedArea {
 pub(super) struct Extras {
     areas: Vec<PreparedArea>,
     area_label: String,
+    bands: Vec<Band>,
+    marks: Vec<Mark>,
+    mark_label: String,
+    markers: Markers,
+    steps: bool,
+}
+
+impl Extras {
+    /// The drawing options of a lower panel: the same markers and steps, nothing else.
+    fn for_lower(&self) -> Extras {
+        Extras {
+            areas: Vec::new(),
+            area_label: String::new(),
+            bands: Vec::new(),
+            marks: Vec::new(),
+            mark_label: String::new(),
+            markers: self.markers,
+            steps: self.steps,
+        }
+    }
 }
 
 pub(super) fn prepare_extras(opts: &PlotOptions, log_x: bool) -> Result<Extras> {
@@ -524,9 +759,30 @@ pub(super) fn prepare_extras(opts: &PlotOptions, log_x: bool) -> Result<Extras> 
             pts,
         });
     }
+    for (k, b) in opts.bands.iter().enumerate() {
+        if b.lo.is_nan() || b.hi.is_nan() || b.hi < b.lo {
+            return Err(Error::field(
+                format!("bands[{k}]"),
+                format!(
+                    "band {:?} needs lo ≤ hi, got {} and {}",
+                    b.label, b.lo, b.hi
+                ),
+            ));
+        }
+    }
     Ok(Extras {
         areas,
         area_label: opts.area_label.clone(),
+        bands: opts.bands.clone(),
+        marks: opts
+            .marks
+            .iter()
+            .filter(|m| m.x.is_finite() && m.y.is_finite() && (!log_x || m.x > 0.0))
+            .cloned()
+            .collect(),
+        mark_label: opts.mark_label.clone(),
+        markers: opts.markers,
+        steps: opts.steps,
     })
 }
 
@@ -546,7 +802,40 @@ pub fn default_size(plot: &LinePlot, opts: &PlotOptions) -> FigureSize {
         FigureSize::SINGLE
     };
     let extra_rows = rows_at(size).saturating_sub(1);
-    size.taller(extra_rows as f64 * f64::from(LEGEND_LINE_PX) / crate::report::svg::UNITS_PER_IN)
+    let size = size
+        .taller(extra_rows as f64 * f64::from(LEGEND_LINE_PX) / crate::report::svg::UNITS_PER_IN);
+    // A lower panel adds its share of the axes' height.
+    if opts.lower.is_some() {
+        size.taller(LOWER_EXTRA_IN)
+    } else {
+        size
+    }
+}
+
+/// The lower panel's share of the axes' height.
+const LOWER_SHARE: f64 = 0.4;
+/// The height a lower panel adds to a figure's default size.
+const LOWER_EXTRA_IN: f64 = 1.4;
+
+/// A prepared lower panel: its plot, series and y range.
+pub(super) type Lower<'a> = (&'a LinePlot, Vec<Prepared>, Range<f64>);
+
+/// Draws one panel on its area, on a linear or logarithmic x axis.
+fn draw_panel<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    panel: &Panel,
+    log_x: bool,
+    x: Range<f64>,
+) -> std::result::Result<(), String> {
+    if log_x {
+        let ticks = log_ticks(x.start, x.end);
+        let inner: LogCoord<f64> = x.clone().log_scale().into();
+        draw_chart(area, panel, Ticked { inner, ticks }, x)
+    } else {
+        let ticks = linear_ticks(x.start, x.end);
+        let inner = RangedCoordf64::from(x.clone());
+        draw_chart(area, panel, Ticked { inner, ticks }, x)
+    }
 }
 
 /// Draws the whole figure on `root` (already `width × height`).
@@ -555,6 +844,7 @@ pub(super) fn draw_figure<DB: DrawingBackend>(
     plot: &LinePlot,
     series: &[Prepared],
     extras: &Extras,
+    lower: Option<Lower>,
     x: Range<f64>,
     y: Range<f64>,
 ) -> std::result::Result<(), String> {
@@ -566,28 +856,35 @@ pub(super) fn draw_figure<DB: DrawingBackend>(
     let rows = legend_rows(series, extras, w);
     let legend_h = legend_height(rows.len());
     let (chart_area, legend_area) = root.split_vertically(h as i32 - legend_h);
-    if plot.log_x {
-        let ticks = log_ticks(x.start, x.end);
-        let inner: LogCoord<f64> = x.log_scale().into();
-        draw_chart(
-            &chart_area,
-            plot,
-            series,
-            extras,
-            Ticked { inner, ticks },
-            y,
-        )?;
-    } else {
-        let ticks = linear_ticks(x.start, x.end);
-        let inner = RangedCoordf64::from(x);
-        draw_chart(
-            &chart_area,
-            plot,
-            series,
-            extras,
-            Ticked { inner, ticks },
-            y,
-        )?;
+    let label_w = lower
+        .as_ref()
+        .map_or(0, |(_, _, ly)| y_label_width(ly))
+        .max(y_label_width(&y));
+    let upper = Panel {
+        x_label: if lower.is_some() { "" } else { &plot.x_label },
+        y_label: &plot.y_label,
+        series,
+        extras,
+        y,
+        label_w,
+    };
+    match &lower {
+        None => draw_panel(&chart_area, &upper, plot.log_x, x)?,
+        Some((lp, lseries, ly)) => {
+            let ch = f64::from(chart_area.dim_in_pixel().1);
+            let (top, bottom) = chart_area.split_vertically((ch * (1.0 - LOWER_SHARE)) as i32);
+            draw_panel(&top, &upper, plot.log_x, x.clone())?;
+            let lextras = extras.for_lower();
+            let panel = Panel {
+                x_label: &plot.x_label,
+                y_label: &lp.y_label,
+                series: lseries,
+                extras: &lextras,
+                y: ly.clone(),
+                label_w,
+            };
+            draw_panel(&bottom, &panel, plot.log_x, x)?;
+        }
     }
     let style = TextStyle::from((FAMILY, LEGEND_SIZE).into_font())
         .color(&BLACK)
@@ -599,6 +896,15 @@ pub(super) fn draw_figure<DB: DrawingBackend>(
         let mut left = (w.saturating_sub(row_w) / 2) as i32;
         let yc = r as i32 * LEGEND_LINE_PX + LEGEND_LINE_PX / 2;
         for (entry, label) in row {
+            let sample = [(left, yc - 7), (left + LEGEND_SAMPLE_PX, yc + 7)];
+            let shade = |color: RGBColor, opacity: f64| {
+                legend_area
+                    .draw(&Rectangle::new(sample, color.mix(opacity).filled()))
+                    .and_then(|_| {
+                        legend_area.draw(&Rectangle::new(sample, color.mix(0.7).stroke_width(1)))
+                    })
+                    .map_err(|e| e.to_string())
+            };
             match *entry {
                 Entry::Curve(i) => {
                     let color = PALETTE[i % PALETTE.len()];
@@ -607,18 +913,13 @@ pub(super) fn draw_figure<DB: DrawingBackend>(
                         vec![(left, yc), (left + LEGEND_SAMPLE_PX, yc)],
                         i,
                     )?;
-                    draw_marker(&legend_area, (left + LEGEND_SAMPLE_PX / 2, yc), i, color)?;
+                    if extras.markers == Markers::Auto {
+                        draw_marker(&legend_area, (left + LEGEND_SAMPLE_PX / 2, yc), i, color)?;
+                    }
                 }
-                Entry::Area(k) => {
-                    let color = AREA_FILL[k % AREA_FILL.len()];
-                    let r = [(left, yc - 7), (left + LEGEND_SAMPLE_PX, yc + 7)];
-                    legend_area
-                        .draw(&Rectangle::new(r, color.mix(AREA_OPACITY).filled()))
-                        .map_err(|e| e.to_string())?;
-                    legend_area
-                        .draw(&Rectangle::new(r, color.mix(0.7).stroke_width(1)))
-                        .map_err(|e| e.to_string())?;
-                }
+                Entry::Area(k) => shade(AREA_FILL[k % AREA_FILL.len()], AREA_OPACITY)?,
+                Entry::Band(_) => shade(BAND_FILL, BAND_OPACITY)?,
+                Entry::Mark => draw_mark_symbol(&legend_area, (left + LEGEND_SAMPLE_PX / 2, yc))?,
             }
             legend_area
                 .draw(&Text::new(
@@ -633,6 +934,28 @@ pub(super) fn draw_figure<DB: DrawingBackend>(
     root.present().map_err(|e| e.to_string())
 }
 
+/// `r` widened, if needed, to hold `v` (kept in view with a small pad beyond it).
+fn include(r: Range<f64>, v: f64, log: bool) -> Range<f64> {
+    if !v.is_finite() || r.contains(&v) || (log && v <= 0.0) {
+        return r;
+    }
+    if log {
+        let (lo, hi) = (r.start.min(v), r.end.max(v));
+        let pad = (hi / lo).ln() * 0.03;
+        return if v < r.start {
+            lo * (-pad).exp()..r.end
+        } else {
+            r.start..hi * pad.exp()
+        };
+    }
+    let pad = (r.end.max(v) - r.start.min(v)) * 0.04;
+    if v < r.start {
+        v - pad..r.end
+    } else {
+        r.start..v + pad
+    }
+}
+
 /// The SVG text of a plot of `width × height` user units (half points), text as outlines.
 pub fn render_svg(plot: &LinePlot, width: u32, height: u32) -> Result<String> {
     render_svg_with(plot, &PlotOptions::default(), width, height)
@@ -645,7 +968,7 @@ pub fn render_svg_with(
     width: u32,
     height: u32,
 ) -> Result<String> {
-    let (series, mut x, y) = prepare(plot)?;
+    let (series, mut x, mut y) = prepare(plot)?;
     let extras = prepare_extras(opts, plot.log_x)?;
     // The x range covers the areas too.
     for a in &extras.areas {
@@ -653,10 +976,31 @@ pub fn render_svg_with(
             x = x.start.min(f.0)..x.end.max(l.0);
         }
     }
+    // Limits and their crossings stay in view.
+    for b in &extras.bands {
+        for v in [b.lo, b.hi] {
+            match b.axis {
+                BandAxis::Y => y = include(y, v, false),
+                BandAxis::X => x = include(x, v, plot.log_x),
+            }
+        }
+    }
+    for m in &extras.marks {
+        x = include(x, m.x, plot.log_x);
+        y = include(y, m.y, false);
+    }
+    let lower = match &opts.lower {
+        None => None,
+        Some(lp) => {
+            let (ls, lx, ly) = prepare(lp)?;
+            x = x.start.min(lx.start)..x.end.max(lx.end);
+            Some((lp.as_ref(), ls, ly))
+        }
+    };
     let mut svg = String::new();
     {
         let root = SVGBackend::with_string(&mut svg, (width, height)).into_drawing_area();
-        draw_figure(&root, plot, &series, &extras, x, y).map_err(Error::Numerical)?;
+        draw_figure(&root, plot, &series, &extras, lower, x, y).map_err(Error::Numerical)?;
     }
     crate::report::svg::at_print_size(&crate::report::outline::outline_text(&svg)?)
 }

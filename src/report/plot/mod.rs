@@ -22,8 +22,9 @@ mod ticks;
 
 pub use super::svg::FigureSize;
 pub use lines::{
-    Area, LinePlot, PLOT_HEIGHT_PX, PLOT_WIDTH_PX, PlotOptions, Series, default_size, render_svg,
-    render_svg_with, write_plot, write_plot_sized, write_plot_with,
+    Area, Band, BandAxis, LinePlot, MARK_EVERY_POINT_UP_TO, Mark, Markers, PLOT_HEIGHT_PX,
+    PLOT_WIDTH_PX, PlotOptions, Series, default_size, render_svg, render_svg_with, write_plot,
+    write_plot_sized, write_plot_with,
 };
 pub use scope::{SCOPE_PANEL_PX, SCOPE_WIDTH_PX, ScopePlot, scope_svg, write_scope};
 pub use ticks::format_tick;

@@ -287,6 +287,7 @@ fn areas_are_shaded_behind_the_curves() {
                 .collect(),
         }],
         area_label: "relative spectrum".into(),
+        ..PlotOptions::default()
     };
     let mut plot = example();
     plot.log_x = false;
