@@ -155,7 +155,7 @@ pub fn run(args: &RunArgs) -> Result<()> {
         findings: &findings,
         repeats: stats,
     };
-    let mut files = write(&page, outcome, &provenance, &out)?;
+    let (mut files, card) = write(&page, outcome, &provenance, &out)?;
     if args.scope_record {
         let (written, bytes) = crate::outputs::run::scope::write_scope_records(outcome, &out)?;
         files += written.len();
@@ -166,6 +166,9 @@ pub fn run(args: &RunArgs) -> Result<()> {
         );
     }
     let dir = out.commit()?;
+    for line in card.printed() {
+        println!("{line}");
+    }
     for line in printed(&name, outcome, &findings, stats) {
         println!("{line}");
     }

@@ -10,6 +10,7 @@
 //! drawing of `layout` and of the reports). The figure writers need the `figures` feature, as
 //! the `report` modules they call.
 
+pub mod card;
 pub mod check;
 pub mod export;
 pub mod intake;

@@ -94,6 +94,42 @@ pub enum Block {
     Preformatted(String),
     /// A two-column list of names and values.
     KeyValues(Vec<(String, String)>),
+    /// The summary card a page opens with: a framed two-column list of the few numbers a reader
+    /// looks for first, under its title.
+    Card {
+        title: String,
+        rows: Vec<(String, String)>,
+    },
+    /// A collapsible section (`<details>`), closed until opened: long explanations, kept out of
+    /// the reader's way.
+    Details {
+        summary: String,
+        blocks: Vec<Block>,
+    },
+}
+
+/// `blocks` with every paragraph longer than `max_chars` characters folded into a collapsible
+/// section whose summary is the paragraph's first sentence (up to its first ". ", at most
+/// about 160 characters) and whose body is the whole paragraph.
+pub fn fold_long_paragraphs(blocks: Vec<Block>, max_chars: usize) -> Vec<Block> {
+    blocks
+        .into_iter()
+        .map(|b| match b {
+            Block::Paragraph(text) if text.chars().count() > max_chars => {
+                let first = text.split(". ").next().unwrap_or(&text);
+                let mut summary: String = first.chars().take(160).collect();
+                if summary.chars().count() < text.chars().count() {
+                    summary.push_str(" …");
+                }
+                Block::Details {
+                    summary,
+                    blocks: vec![Block::Paragraph(text)],
+                }
+            }
+            Block::Figures(inner) => Block::Figures(fold_long_paragraphs(inner, max_chars)),
+            other => other,
+        })
+        .collect()
 }
 
 impl Block {
@@ -319,6 +355,13 @@ figcaption { font-size: 0.9em; color: #333; margin-top: 0.3em; max-width: 100%; 
 .figures { display: flex; flex-wrap: wrap; gap: 1rem 1.4rem; align-items: flex-start; margin: 0.6em 0 1.2em; }
 .figures > figure { margin: 0; }
 .missing { border: 1px dashed #b00; color: #b00; padding: 0.6em; font-size: 0.9em; }
+section.card { border: 2px solid #1a4f8a; border-radius: 6px; padding: 0.4em 1em 0.2em;
+  margin: 0.6em 0 1.4em; background: #f7f9fc; }
+h2.card { border: none; margin: 0.3em 0 0.2em; font-size: 1.15em; }
+section.card table.kv { margin: 0.3em 0 0.6em; }
+section.card table.kv th, section.card table.kv td { white-space: normal; }
+details { margin: 0.3em 0 0.8em; }
+details > summary { cursor: pointer; color: #1a4f8a; }
 footer { margin-top: 2.5em; font-size: 0.8em; color: #666; border-top: 1px solid #ddd; padding-top: 0.4em; }
 @page { margin: 15mm; }
 @media print {
@@ -578,6 +621,22 @@ fn render_block(out: &mut String, block: &Block, next_heading: &mut usize) {
             // The HTML parser drops one newline right after <pre>, so one is added to keep a
             // leading newline of the text.
             let _ = writeln!(out, "<pre>\n{}</pre>", escape(text));
+        }
+        Block::Card { title, rows } => {
+            let _ = writeln!(
+                out,
+                "<section class=\"card\">\n<h2 class=\"card\">{}</h2>",
+                escape(title)
+            );
+            render_block(out, &Block::KeyValues(rows.clone()), next_heading);
+            out.push_str("</section>\n");
+        }
+        Block::Details { summary, blocks } => {
+            let _ = writeln!(out, "<details>\n<summary>{}</summary>", escape(summary));
+            for b in blocks {
+                render_block(out, b, next_heading);
+            }
+            out.push_str("</details>\n");
         }
         Block::KeyValues(pairs) => {
             out.push_str("<table class=\"kv\">\n<tbody>\n");

@@ -130,14 +130,28 @@ fn se(psi: impl ExactSizeIterator<Item = f64>) -> f64 {
 /// the standard errors follow from ι's by the delta method ([`TracedValue::map`]). +∞ (with a NaN
 /// standard error) where ι' = 0.
 pub fn cmrr_db(imbalance: &TracedValue, responsivity_scale: [f64; 2]) -> TracedValue {
+    electrical_imbalance(imbalance, responsivity_scale).map(
+        |e| -20.0 * (2.0 * e.abs()).log10(),
+        |e| -20.0 / std::f64::consts::LN_10 / e,
+    )
+}
+
+/// The electrical imbalance ι' = (s₊k₊ − s₋k₋)/(s₊k₊ + s₋k₋): the optical imbalance ι =
+/// (k₊ − k₋)/(k₊ + k₋) as the balanced detector's difference output sees it, through the
+/// diodes' responsivity factors s± (their mismatch). With r = s₊/s₋,
+/// ι' = (r(1 + ι) − (1 − ι))/(r(1 + ι) + (1 − ι)), which is ι for matched diodes (r = 1) and
+/// (s₊ − s₋)/(s₊ + s₋) for matched arms (ι = 0); dι'/dι = 4r/(r(1 + ι) + (1 − ι))², so the
+/// standard error follows from ι's by the delta method. (The RF output's gain multiplies
+/// both arms' currents alike and leaves ι' as it is.)
+pub fn electrical_imbalance(imbalance: &TracedValue, responsivity_scale: [f64; 2]) -> TracedValue {
     let r = responsivity_scale[0] / responsivity_scale[1];
-    let effective = move |i: f64| (r * (1.0 + i) - (1.0 - i)) / (r * (1.0 + i) + (1.0 - i));
-    let cmrr = move |i: f64| -20.0 * (2.0 * effective(i).abs()).log10();
-    let slope = move |i: f64| {
-        let denom = r * (1.0 + i) + (1.0 - i);
-        -20.0 / std::f64::consts::LN_10 * (4.0 * r / (denom * denom)) / effective(i)
-    };
-    imbalance.map(cmrr, slope)
+    imbalance.map(
+        move |i| (r * (1.0 + i) - (1.0 - i)) / (r * (1.0 + i) + (1.0 - i)),
+        move |i| {
+            let denom = r * (1.0 + i) + (1.0 - i);
+            4.0 * r / (denom * denom)
+        },
+    )
 }
 
 /// The traced metrics of one bench, indexed by [`BenchMetric`].
@@ -265,6 +279,30 @@ mod tests {
             (c.stderr() - fd.abs() * i.stderr()).abs() < 1e-5 * c.stderr(),
             "{fd}"
         );
+    }
+
+    /// The electrical imbalance is the optical one with matched diodes and moves by the
+    /// responsivity mismatch otherwise, in closed form: with ι = 0.01 and s = (1.02, 0.98),
+    /// r = 1.02/0.98 and ι' = (r·1.01 − 0.99)/(r·1.01 + 0.99) = 0.029988…; with matched arms,
+    /// ι' = (s₊ − s₋)/(s₊ + s₋) = 0.02.
+    #[test]
+    fn electrical_imbalance_moves_by_the_responsivity_mismatch() {
+        let i = TracedValue::ratio(&[1.01, 1.02, 1.0, 1.01], &[101.0, 101.0, 101.0, 101.0]);
+        let matched = electrical_imbalance(&i, [1.0, 1.0]);
+        assert!((matched.value - i.value).abs() < 1e-15);
+        assert!((matched.stderr() - i.stderr()).abs() < 1e-15);
+        let optical = TracedValue::exact(0.01, 4);
+        let e = electrical_imbalance(&optical, [1.02, 0.98]).value;
+        let r = 1.02 / 0.98;
+        let closed = (r * 1.01 - 0.99) / (r * 1.01 + 0.99);
+        assert!((e - closed).abs() < 1e-15, "{e} vs {closed}");
+        // To first order ι' ≈ ι + (s₊ − s₋)/(s₊ + s₋) = 0.03.
+        assert!((e - 0.03).abs() < 1e-3, "{e}");
+        let zero = TracedValue::exact(0.0, 4);
+        assert!((electrical_imbalance(&zero, [1.02, 0.98]).value - 0.02).abs() < 1e-15);
+        // A mismatch can cancel the arms' imbalance: s₊/s₋ = (1 − ι)/(1 + ι) gives ι' = 0.
+        let cancel = electrical_imbalance(&optical, [0.99, 1.01]).value;
+        assert!(cancel.abs() < 1e-15, "{cancel}");
     }
 
     #[test]

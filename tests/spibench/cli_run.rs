@@ -107,6 +107,26 @@ fn run_writes_every_output_identically_on_one_and_two_threads() {
     }
     assert_documented_keys(&sa);
     let out = stdout(&oa);
+    // The summary card opens the terminal output and the report, and its numbers are
+    // summary.json's.
+    let card = spibench::outputs::run::card::card(&sa);
+    card.check_against(&sa).unwrap();
+    let printed = card.printed();
+    assert!(out.starts_with(&printed.join("\n")), "{out}");
+    assert!(printed.iter().any(|l| l.contains("imbalance, electrical")));
+    assert!(printed.iter().any(|l| l.contains("best MSSIM at 25 %")));
+    let html = std::fs::read_to_string(a.join("report.html")).unwrap();
+    let first_card = html
+        .find("<section class=\"card\">")
+        .expect("a card in the report");
+    assert!(first_card < html.find("<h2 id=").unwrap_or(usize::MAX));
+    for line in &card.lines {
+        let v = line.sources[0].1.as_f64();
+        if let Some(v) = v.filter(|v| v.is_finite()) {
+            assert!(v == sa.pointer(&line.sources[0].0).unwrap().as_f64().unwrap());
+        }
+    }
+    assert!(html.contains("<details>"), "long explanations are folded");
     assert!(out.contains("Secondary complementary balancing"), "{out}");
     // The report's table and notes fit a terminal of 100 columns (paths aside).
     for l in out.lines().filter(|l| l.starts_with("  ")) {

@@ -401,9 +401,6 @@ fn tolerance_reads_tails_compensators_and_the_rss_model() {
         cdf.contains("log scale"),
         "the CDF of |imbalance| is not on a log axis"
     );
-    assert!(
-        cdf.contains("|imbalance| ≤ 0.01"),
-        "the limit is not drawn"
-    );
+    assert!(cdf.contains("|imbalance| ≤ 0.01"), "the limit is not drawn");
     crate::outputs_schema::check_file(&out.join("summary.json"), "ToleranceSummary");
 }

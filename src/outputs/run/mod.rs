@@ -37,6 +37,7 @@ use crate::run::findings::{self, pct};
 use crate::run::{RunOutcome, SchemeResult};
 
 pub mod arrays;
+pub mod card;
 #[cfg(feature = "figures")]
 mod figures;
 pub mod repeats;
@@ -72,14 +73,16 @@ pub fn effective_ron(doc: &crate::scene::doc::BenchDoc, rays: u64) -> crate::Res
 /// Writes every output of a run into `out` (a staging folder): the repeat files first (with
 /// N ≥ 2 repeats), so that the report embeds their error-bar figures, then the summary, the
 /// images, `results.csv`, the figures, `report.html` and the arrays. Returns the count of
-/// files the run reports (the arrays and `timings.json` are written beside them, not counted).
+/// files the run reports (the arrays and `timings.json` are written beside them, not counted)
+/// and the summary card (from summary.json's values) that the report and the terminal open
+/// with.
 #[cfg(feature = "figures")]
 pub fn write(
     page: &RunPage<'_>,
     o: &RunOutcome,
     provenance: &crate::provenance::Provenance,
     out: &crate::report::output::OutputDir,
-) -> crate::Result<usize> {
+) -> crate::Result<(usize, crate::outputs::card::Card)> {
     let repeat_files = match page.repeats {
         Some(r) => repeats::write(r, &o.settings, out)?.len(),
         None => 0,
@@ -114,9 +117,12 @@ pub fn write(
     // The standings over every repeat (summarize_run sees repeat 0 only).
     summary.findings.standings = page.findings.record();
     super::summary::write_summary_and_timings(out, &summary, provenance, Some(&run_timings(o)))?;
-    report::write_report(page, o, &summary, out)?;
+    let json = serde_json::to_value(&summary)
+        .map_err(|e| crate::Error::Numerical(format!("the run summary as JSON: {e}")))?;
+    let card = card::card(&json);
+    report::write_report(page, o, &summary, &card, out)?;
     arrays::write_arrays(o, out)?;
-    Ok(count + repeat_files)
+    Ok((count + repeat_files, card))
 }
 
 /// The rows of `results.csv`, one per scheme × ratio.

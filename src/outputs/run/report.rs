@@ -204,6 +204,7 @@ pub fn write_report(
     page: &RunPage<'_>,
     o: &RunOutcome,
     summary: &RunSummary<'_>,
+    card: &crate::outputs::card::Card,
     out: &OutputDir,
 ) -> Result<()> {
     let r = ReportInput {
@@ -217,7 +218,8 @@ pub fn write_report(
         out,
     };
     let name = r.name;
-    let mut blocks = intro_blocks(&r);
+    let mut blocks = vec![card.block()];
+    blocks.extend(intro_blocks(&r));
     findings_section(&mut blocks, &r);
     bench_section(&mut blocks, &r)?;
     ledger_section(&mut blocks, &r);
@@ -234,10 +236,15 @@ pub fn write_report(
     } else {
         format!("spibench run: {}", s.title)
     };
+    // The card says what matters; long explanations wait, folded, for the reader who wants them.
+    let blocks = crate::report::html::fold_long_paragraphs(blocks, LONG_PARAGRAPH_CHARS);
     let page = Page { title, blocks };
     let path = out.path("report.html");
     std::fs::write(&path, render(&page)).map_err(|e| Error::write(&path, e))
 }
+
+/// Paragraphs longer than this (characters) are folded into collapsible sections.
+pub const LONG_PARAGRAPH_CHARS: usize = 320;
 
 /// The opening paragraph and any saturation warnings.
 fn intro_blocks(r: &ReportInput<'_>) -> Vec<Block> {

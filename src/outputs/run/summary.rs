@@ -70,6 +70,12 @@ pub struct ElectronicsSummary<'a> {
     /// The detector's CMRR from the diodes' flat responsivity mismatch alone (dB; null when
     /// infinite): what the bench would reject with perfectly matched arms.
     pub cmrr_electronics_db: Option<f64>,
+    /// The electrical imbalance (s₊k₊ − s₋k₋)/(s₊k₊ + s₋k₋): the traced (optical) imbalance as
+    /// the difference output sees it through the diodes' responsivity factors
+    /// (crate::transport::metrics::electrical_imbalance).
+    pub imbalance_electrical: f64,
+    /// Its Monte Carlo standard error.
+    pub imbalance_electrical_stderr: f64,
     /// Optical power difference that drives the RF output to its swing at 0.65 A/W (W).
     pub rf_saturation_power_w_at_0_65_a_per_w: f64,
     pub oscilloscope: &'a Scope,
@@ -104,6 +110,10 @@ pub struct FindingsBlock {
     /// MSSIM of secondary complementary balancing minus that of traditional CS at the highest
     /// ratio (both schemes run).
     pub scb_minus_traditional_mssim_at_max_ratio: Option<f64>,
+    /// Solves (scheme × ratio) of the plain run that TVAL3 ended on a cap (`maxcnt` outer loops
+    /// or `maxit` iterations) rather than on its tolerance, and all the solves.
+    pub solves_at_cap: usize,
+    pub solves: usize,
     /// The standings the report and the printed summary open with (crate::run::findings):
     /// `repeats`, `basis`, `mssim` and `psnr_db`, each at every ratio and at equal frames.
     /// summarize_run fills them from its one outcome; `spibench run --repeats N` from all N.
@@ -143,6 +153,12 @@ fn findings(o: &RunOutcome) -> FindingsBlock {
         scb_beats_double_arm_at: beats,
         scb_not_above_double_arm_at: not,
         scb_minus_traditional_mssim_at_max_ratio: scb_trad,
+        solves_at_cap: o
+            .results
+            .iter()
+            .filter(|r| r.stop != crate::reconstruction::tval3::StopReason::Tolerance)
+            .count(),
+        solves: o.results.len(),
         standings: crate::run::findings::Findings::of(std::slice::from_ref(o)).record(),
     }
 }
@@ -160,6 +176,10 @@ pub fn summarize_run<'a>(
     let noise = o.detector.output_noise_v_rms(mean_i);
     let cmrr = o.cmrr();
     let electronics_only = o.detector.cmrr_db();
+    let electrical = crate::transport::metrics::electrical_imbalance(
+        &o.metrics[crate::quantities::BenchMetric::Imbalance],
+        o.detector.responsivity_scale,
+    );
     RunSummary {
         command: "run",
         spibench_version: env!("CARGO_PKG_VERSION"),
@@ -174,6 +194,8 @@ pub fn summarize_run<'a>(
             cmrr_db: cmrr.value.is_finite().then_some(cmrr.value),
             cmrr_db_stderr: cmrr.stderr().is_finite().then_some(cmrr.stderr()),
             cmrr_electronics_db: electronics_only.is_finite().then_some(electronics_only),
+            imbalance_electrical: electrical.value,
+            imbalance_electrical_stderr: electrical.stderr(),
             rf_saturation_power_w_at_0_65_a_per_w: o.detector.rf_saturation_power_w(0.65),
             oscilloscope: &o.scope,
             channels: ChannelsSummary {
