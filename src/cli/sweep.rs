@@ -138,7 +138,7 @@ pub fn run(args: &SweepArgs) -> Result<()> {
         .iter()
         .map(|l| report(l, &s))
         .collect::<crate::Result<Vec<_>>>()?;
-    let files = write(
+    let (files, card) = write(
         &name,
         &bench,
         &s,
@@ -148,6 +148,9 @@ pub fn run(args: &SweepArgs) -> Result<()> {
         &out,
     )?;
     let dir = out.commit()?;
+    for line in card.printed() {
+        println!("{line}");
+    }
     for line in printed(&s, &crossed) {
         println!("{line}");
     }

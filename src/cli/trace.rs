@@ -74,6 +74,10 @@ pub fn run(args: &TraceArgs) -> anyhow::Result<()> {
         &bench,
     )?;
     dir.commit()?;
+    let json = serde_json::to_value(&summary)?;
+    for line in crate::outputs::trace::card(&json).printed() {
+        println!("{line}");
+    }
     for line in printed(&summary, seconds) {
         println!("{line}");
     }

@@ -143,7 +143,12 @@ pub fn sig(v: f64, digits: i32) -> String {
         return "0".into();
     }
     let d = (digits - 1 - v.abs().log10().floor() as i32).clamp(0, 12) as usize;
-    format!("{v:.d$}")
+    let s = format!("{v:.d$}");
+    if s.contains('.') {
+        s.trim_end_matches('0').trim_end_matches('.').to_string()
+    } else {
+        s
+    }
 }
 
 #[cfg(test)]

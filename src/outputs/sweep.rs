@@ -140,7 +140,7 @@ fn short(path: &str) -> String {
 }
 
 /// Writes every output of a sweep of the bench `name` into `out` (a staging folder); returns
-/// the count of files. `nominal_values` are the swept variables' values in the nominal bench.
+/// the count of files and the summary card. `nominal_values` are the swept variables' values in the nominal bench.
 pub fn write(
     name: &str,
     bench: &crate::optics::Bench,
@@ -149,7 +149,7 @@ pub fn write(
     crossed: &[LimitReport],
     provenance: &crate::provenance::Provenance,
     out: &OutputDir,
-) -> crate::Result<usize> {
+) -> crate::Result<(usize, crate::outputs::card::Card)> {
     let mut files = vec![
         "summary.json".to_string(),
         "sweep.csv".to_string(),
@@ -185,13 +185,6 @@ pub fn write(
         blocks.push(Block::Svg { caption, svg: text });
     }
     blocks.push(points_table(s));
-    write_page(
-        &out.path("report.html"),
-        &Page {
-            title: format!("spibench sweep of {name}"),
-            blocks,
-        },
-    )?;
     let nominal = row(&s.nominal, &s.nominal);
     let summary = SweepSummary {
         command: "sweep",
@@ -225,8 +218,118 @@ pub fn write(
         rows,
         files: files.clone(),
     };
+    let json = serde_json::to_value(&summary)
+        .map_err(|e| crate::Error::Numerical(format!("the sweep summary as JSON: {e}")))?;
+    let card = card(&json);
+    blocks.insert(0, card.block());
+    let blocks = crate::report::html::fold_long_paragraphs(blocks, 320);
+    write_page(
+        &out.path("report.html"),
+        &Page {
+            title: format!("spibench sweep of {name}"),
+            blocks,
+        },
+    )?;
     super::summary::write_summary(out, &summary, provenance)?;
-    Ok(files.len())
+    Ok((files.len(), card))
+}
+
+/// The summary card of a sweep (from its summary.json as a value): what was swept, the nominal
+/// bench's imbalance and k′, the range of the imbalance over the grid, and each limit's
+/// crossings.
+pub fn card(summary: &serde_json::Value) -> crate::outputs::card::Card {
+    use crate::outputs::card::{Card, num, pm, sig};
+    let mut c = Card::new("summary");
+    let len = |p: &str| {
+        summary
+            .pointer(p)
+            .and_then(serde_json::Value::as_array)
+            .map_or(0, Vec::len)
+    };
+    for i in 0..len("/vary") {
+        let v = format!("/vary/{i}");
+        let keys = ["path", "start", "stop", "n", "nominal"].map(|k| format!("{v}/{k}"));
+        let refs: Vec<&str> = keys.iter().map(String::as_str).collect();
+        c.line(summary, "swept", &refs, |v| {
+            format!(
+                "{} from {} to {} ({} points; nominal {})",
+                v[0].as_str().unwrap_or(""),
+                sig(num(&v[1]), 4),
+                sig(num(&v[2]), 4),
+                v[3],
+                sig(num(&v[4]), 4)
+            )
+        });
+    }
+    c.line(
+        summary,
+        "nominal imbalance, k′",
+        &[
+            "/nominal/imbalance",
+            "/nominal/imbalance_stderr",
+            "/nominal/k_prime",
+            "/nominal/k_prime_stderr",
+        ],
+        |v| {
+            format!(
+                "{}, {}",
+                pm(num(&v[0]), num(&v[1]), ""),
+                pm(num(&v[2]), num(&v[3]), "A/W")
+            )
+        },
+    );
+    // The grid points with the lowest and the highest imbalance.
+    let rows = len("/rows");
+    let at = |i: usize| {
+        summary
+            .pointer(&format!("/rows/{i}/imbalance"))
+            .and_then(serde_json::Value::as_f64)
+            .unwrap_or(f64::NAN)
+    };
+    let finite: Vec<usize> = (0..rows).filter(|&i| at(i).is_finite()).collect();
+    if let (Some(&lo), Some(&hi)) = (
+        finite.iter().min_by(|&&a, &&b| at(a).total_cmp(&at(b))),
+        finite.iter().max_by(|&&a, &&b| at(a).total_cmp(&at(b))),
+    ) {
+        c.line(
+            summary,
+            "imbalance over the grid",
+            &[
+                &format!("/rows/{lo}/imbalance"),
+                &format!("/rows/{hi}/imbalance"),
+            ],
+            |v| format!("{:.3e} to {:.3e}", num(&v[0]), num(&v[1])),
+        );
+    }
+    for j in 0..len("/limits") {
+        let l = format!("/limits/{j}");
+        let mut keys: Vec<String> = ["metric", "limit", "points_within", "points"]
+            .map(|k| format!("{l}/{k}"))
+            .to_vec();
+        for k in 0..len(&format!("{l}/crossings")) {
+            keys.push(format!("{l}/crossings/{k}/at"));
+            keys.push(format!("{l}/crossings/{k}/stderr"));
+        }
+        let refs: Vec<&str> = keys.iter().map(String::as_str).collect();
+        c.line(summary, "limit", &refs, |v| {
+            let mut text = format!(
+                "|{}| ≤ {}: met at {} of {} points",
+                v[0].as_str().unwrap_or(""),
+                v[1],
+                v[2],
+                v[3]
+            );
+            let crossings: Vec<String> = v[4..]
+                .chunks(2)
+                .map(|x| pm(num(&x[0]), num(&x[1]), ""))
+                .collect();
+            if !crossings.is_empty() {
+                text += &format!("; crossed at {}", crossings.join(", "));
+            }
+            text
+        });
+    }
+    c
 }
 
 /// 1-D: each plotted metric against the variable with ±1 standard-error bars, and with the

@@ -418,6 +418,47 @@ fn collection_plot(
     (plot, opts)
 }
 
+/// The summary card of `spibench trace` (from its summary.json as a value): k±, k′, the
+/// imbalance, b±, the off-arm leaks and the light on the pattern, with their standard errors.
+pub fn card(summary: &serde_json::Value) -> crate::outputs::card::Card {
+    use crate::outputs::card::{Card, num, pm};
+    let mut c = Card::new("summary");
+    let pmv = |v: &[serde_json::Value], unit: &str| pm(num(&v[0]), num(&v[1]), unit);
+    for (label, keys, unit) in [
+        ("k₊, k₋", ["k_plus", "k_minus"], "A/W"),
+        ("b₊, b₋", ["b_plus", "b_minus"], "A"),
+        ("off-arm leak +, −", ["leak_plus", "leak_minus"], ""),
+    ] {
+        let p: Vec<String> = keys
+            .iter()
+            .flat_map(|k| [format!("/{k}"), format!("/{k}_stderr")])
+            .collect();
+        let refs: Vec<&str> = p.iter().map(String::as_str).collect();
+        c.line(summary, label, &refs, |v| {
+            format!("{}, {}", pmv(&v[..2], unit), pmv(&v[2..], unit))
+        });
+    }
+    c.line(
+        summary,
+        "k′ = k₊ + k₋",
+        &["/k_prime", "/k_prime_stderr"],
+        |v| pmv(v, "A/W"),
+    );
+    c.line(
+        summary,
+        "imbalance, optical",
+        &["/imbalance", "/imbalance_stderr"],
+        |v| format!("{} ((k₊ − k₋)/(k₊ + k₋))", pmv(v, "")),
+    );
+    c.line(
+        summary,
+        "light on the pattern",
+        &["/x_total_w", "/x_total_w_stderr"],
+        |v| pmv(v, "W"),
+    );
+    c
+}
+
 /// What `spibench trace` prints: the gains and offsets of each arm, k', the imbalance, the
 /// light on the pattern and the ledger's residual, and with the diffractive model each diode's
 /// share of the pattern mirrors' reflected power under both models.

@@ -64,6 +64,17 @@ fn sweep_rows_are_identical_on_one_and_two_threads() {
     }
     let csv = std::fs::read_to_string(dir.join("one/sweep.csv")).unwrap();
     assert_eq!(csv.lines().count(), 4, "{csv}");
+    // The summary card opens the terminal output and the report, its numbers summary.json's.
+    let card = spibench::outputs::sweep::card(&sa);
+    card.check_against(&sa).unwrap();
+    assert!(
+        stdout(&a).starts_with(&card.printed().join("\n")),
+        "{}",
+        stdout(&a)
+    );
+    assert!(card.printed()[1].contains("detectors.minus.decenter_mm.x from -1.5 to 0 (3 points"));
+    let html = std::fs::read_to_string(dir.join("one/report.html")).unwrap();
+    assert!(html.contains("<section class=\"card\">"));
 }
 
 /// A 2-D sweep writes heatmaps; a bad path is an input error that names it and leaves nothing.

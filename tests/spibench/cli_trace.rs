@@ -30,6 +30,14 @@ fn trace_writes_summary_maps_and_images() {
     let o = spibench(&args, &[]);
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
     let v = read_json(&out.join("summary.json"));
+    // The summary card opens the terminal output, its numbers summary.json's.
+    let card = spibench::outputs::trace::card(&v);
+    card.check_against(&v).unwrap();
+    assert!(
+        stdout(&o).starts_with(&card.printed().join("\n")),
+        "{}",
+        stdout(&o)
+    );
     for key in [
         "k_plus",
         "k_minus",
