@@ -10,6 +10,7 @@ mod completions;
 mod dataset;
 mod export;
 pub mod flags;
+mod help;
 mod intake;
 mod layout;
 mod lens;
@@ -47,8 +48,8 @@ struct Cli {
 
 #[derive(Debug, Subcommand)]
 enum Command {
-    /// The whole traced experiment: trace, detector electronics in time, the four schemes,
-    /// reconstruction and scores (default: the paper's bench, built in).
+    // The whole traced experiment; its description counts the schemes from their table.
+    #[command(about = help::run_about(), long_about = None)]
     Run(run::RunArgs),
     /// Trace one bench over a 1-D or 2-D grid of bench variables with common random numbers:
     /// k±, b±, imbalance, leak and power at every point, with standard errors of each point and

@@ -31,9 +31,8 @@ pub struct SweepArgs {
     /// `detectors.minus.position_mm.x`, `arm_minus_lens.despace_mm` or `dmd.tilt_deg`.
     #[arg(long, value_name = "PATH=START:STOP:N", required = true)]
     pub vary: Vec<String>,
-    /// Run the whole pipeline (detector, the four schemes, reconstruction, scores) on every
-    /// point, with the bench's `run` settings.
-    #[arg(long)]
+    // The whole pipeline on every point; the help counts the schemes from their table.
+    #[arg(long, help = super::help::sweep_quality_help())]
     pub quality: bool,
     /// A limit on |METRIC| (e.g. `imbalance=0.01`; repeatable, 1-D sweeps): where along the
     /// variable the metric crosses it, with a 95 % interval from the points' standard errors
