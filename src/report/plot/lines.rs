@@ -666,11 +666,7 @@ pub(super) fn legend_rows(
                 .enumerate()
                 .map(|(k, b)| (Entry::Band(k), &b.label)),
         )
-        .chain(
-            (!extras.marks.is_empty())
-                .then_some((Entry::Mark, &extras.mark_label))
-                .into_iter(),
-        );
+        .chain((!extras.marks.is_empty()).then_some((Entry::Mark, &extras.mark_label)));
     for (entry, label) in entries {
         if label.trim().is_empty() {
             continue;
