@@ -178,10 +178,13 @@ pub fn run(args: &AlignArgs) -> Result<()> {
         seconds: t0.elapsed().as_secs_f64(),
     };
     let provenance = crate::provenance::Provenance::of_bench(&doc, &[o.seed])?;
-    write(&r, &provenance, &out)?;
+    let (_, card) = write(&r, &provenance, &out)?;
     let dir = out.commit()?;
     for w in &a.warnings {
         eprintln!("warning: {w}");
+    }
+    for line in card.printed() {
+        println!("{line}");
     }
     for line in printed(&r, &dir) {
         println!("{line}");

@@ -57,14 +57,13 @@ pub fn write(
     r: &AlignRun<'_>,
     provenance: &crate::provenance::Provenance,
     out: &OutputDir,
-) -> crate::Result<Vec<String>> {
+) -> crate::Result<(Vec<String>, crate::outputs::card::Card)> {
     let (a, o) = (r.alignment, r.options);
     let aligned = r.doc.with(&a.settings())?;
     let mut files: Vec<String> = FILES.map(String::from).to_vec();
     let path = out.path("aligned.ron");
     std::fs::write(&path, aligned.to_ron()?).map_err(|e| crate::Error::write(&path, e))?;
     write_history(a, r.free, out)?;
-    report_page(out, r, &aligned)?;
     let summary = AlignSummary {
         command: "align",
         spibench_version: env!("CARGO_PKG_VERSION"),
@@ -86,9 +85,69 @@ pub fn write(
         aligned: Row::metrics(&a.best, &a.start),
         files: &files,
     };
+    let json = serde_json::to_value(&summary)
+        .map_err(|e| crate::Error::Numerical(format!("the align summary as JSON: {e}")))?;
+    let card = card(&json);
+    report_page(out, r, &aligned, &card)?;
     super::summary::write_summary(out, &summary, provenance)?;
     files.sort();
-    Ok(files)
+    Ok((files, card))
+}
+
+/// The summary card of `align` (from its summary.json as a value): why the search stopped,
+/// each free variable as the bench file counts it with the move made, and the imbalance and
+/// k′ at the start and after.
+pub fn card(summary: &serde_json::Value) -> crate::outputs::card::Card {
+    use crate::outputs::card::{Card, num, pm};
+    let mut c = Card::new("summary");
+    c.line(summary, "stopped", &["/stop_reason", "/evaluations"], |v| {
+        format!("{} ({} evaluations)", v[0].as_str().unwrap_or(""), v[1])
+    });
+    let n = summary
+        .pointer("/free")
+        .and_then(serde_json::Value::as_array)
+        .map_or(0, Vec::len);
+    for i in 0..n {
+        let f = format!("/free/{i}");
+        let keys = [
+            "path",
+            "aligned_from_file",
+            "half_width",
+            "moved",
+            "start_from_file",
+        ]
+        .map(|k| format!("{f}/{k}"));
+        let refs: Vec<&str> = keys.iter().map(String::as_str).collect();
+        c.line(summary, format!("free {}", i + 1), &refs, |v| {
+            format!(
+                "{} = {}, moved {:+.5} from {:.5}",
+                v[0].as_str().unwrap_or(""),
+                pm(num(&v[1]), num(&v[2]), ""),
+                num(&v[3]),
+                num(&v[4])
+            )
+        });
+    }
+    for (label, key, unit) in [("imbalance", "imbalance", ""), ("k′", "k_prime", "A/W")] {
+        let keys = [
+            format!("/start/{key}"),
+            format!("/start/{key}_stderr"),
+            format!("/aligned/{key}"),
+            format!("/aligned/{key}_stderr"),
+            format!("/aligned/{key}_diff"),
+            format!("/aligned/{key}_diff_stderr"),
+        ];
+        let refs: Vec<&str> = keys.iter().map(String::as_str).collect();
+        c.line(summary, label, &refs, |v| {
+            format!(
+                "{} → {} (change {})",
+                pm(num(&v[0]), num(&v[1]), unit),
+                pm(num(&v[2]), num(&v[3]), unit),
+                pm(num(&v[4]), num(&v[5]), unit)
+            )
+        });
+    }
+    c
 }
 
 /// What `spibench align` prints: why the search stopped, each free variable (counted from the
@@ -102,16 +161,14 @@ pub fn printed(r: &AlignRun<'_>, dir: &std::path::Path) -> Vec<String> {
         "aligned; the search stopped because {}",
         a.stop.describe()
     )];
+    out.push("  (each variable as the bench file counts it, and the move from the start)".into());
     for f in free_summaries(r.free, a, r.doc.edits()) {
         out.push(format!(
-            "  {} = {:.5}{} (start {:.5}; counted from the bench file)",
+            "  {} = {:.5}{}, moved {:+.5} from {:.5}",
             f.path,
             f.aligned_from_file,
-            match (f.half_width, f.flat_toward) {
-                (Some(h), _) => format!(" ± {h:.2e}"),
-                (None, Some(side)) => format!(" (plateau edge, flat toward {side})"),
-                (None, None) => " (flat)".to_string(),
-            },
+            uncertainty_text(&f),
+            f.moved,
             f.start_from_file
         ));
     }
@@ -122,6 +179,15 @@ pub fn printed(r: &AlignRun<'_>, dir: &std::path::Path) -> Vec<String> {
         dir.display()
     ));
     out
+}
+
+/// A free variable's ± or why it has none, as the terminal and the report say it.
+fn uncertainty_text(f: &FreeSummary<'_>) -> String {
+    match (f.half_width, f.flat_toward) {
+        (Some(h), _) => format!(" ± {h:.2e}"),
+        (None, Some(side)) => format!(" (plateau edge, flat toward {side})"),
+        (None, None) => " (flat within the noise)".to_string(),
+    }
 }
 
 /// `summary.json` of `align`.
@@ -168,6 +234,8 @@ struct FreeSummary<'a> {
     /// moves of the same path set before the search (for a field, the same as `start`, `aligned`).
     start_from_file: f64,
     aligned_from_file: f64,
+    /// The move the alignment made, aligned − start (the same in either frame).
+    moved: f64,
     /// ± this much raises the objective by its paired standard error (null: flat).
     half_width: Option<f64>,
     /// The objective's rises at the probes − and + (null where not probed).
@@ -208,31 +276,39 @@ fn from_file(path: &str, start: f64, edits: &[(String, f64)]) -> f64 {
 /// report.html: what was searched and why it stopped, the warnings, the tables, the
 /// convergence plot and the layouts before and after (`layout_before.svg`, `layout_after.svg`
 /// written beside it).
-fn report_page(out: &OutputDir, r: &AlignRun<'_>, aligned: &BenchDoc) -> crate::Result<()> {
+fn report_page(
+    out: &OutputDir,
+    r: &AlignRun<'_>,
+    aligned: &BenchDoc,
+    card: &crate::outputs::card::Card,
+) -> crate::Result<()> {
     let (name, free, o, a, doc) = (r.name, r.free, r.options, r.alignment, r.doc);
-    let mut blocks = vec![Block::Paragraph(format!(
-        "{name}: {} free variable(s), objective {:?}; {} evaluations in {:.1} s (Nelder–Mead on \
+    let mut blocks = vec![
+        card.block(),
+        Block::Paragraph(format!(
+            "{name}: {} free variable(s), objective {:?}; {} evaluations in {:.1} s (Nelder–Mead on \
          common-random-number traces, {} → {} rays), stopped because {}. The returned point is \
          the best of {} candidates traced again with {} rays on a fresh seed ({}). The start \
          and the aligned bench are traced with {} rays and seed {}; their difference carries a \
          paired standard error.",
-        free.len(),
-        kind(r.objective),
-        a.history.len(),
-        r.seconds,
-        o.start_rays,
-        o.max_rays,
-        a.stop.describe(),
-        a.candidates.len(),
-        a.compare_rays,
-        a.compare_seed,
-        o.max_rays,
-        o.seed
-    ))];
+            free.len(),
+            kind(r.objective),
+            a.history.len(),
+            r.seconds,
+            o.start_rays,
+            o.max_rays,
+            a.stop.describe(),
+            a.candidates.len(),
+            a.compare_rays,
+            a.compare_seed,
+            o.max_rays,
+            o.seed
+        )),
+    ];
     for w in &a.warnings {
         blocks.push(Block::Paragraph(format!("Warning: {w}.")));
     }
-    blocks.extend(tables(free, a));
+    blocks.extend(tables(&free_summaries(free, a, doc.edits()), a));
     let svg = std::fs::read_to_string(out.path("history.svg"))
         .map_err(|e| crate::Error::read(&out.path("history.svg"), e))?;
     blocks.push(Block::Svg {
@@ -253,6 +329,7 @@ fn report_page(out: &OutputDir, r: &AlignRun<'_>, aligned: &BenchDoc) -> crate::
         });
         blocks.push(block);
     }
+    let blocks = crate::report::html::fold_long_paragraphs(blocks, 320);
     write_page(
         &out.path("report.html"),
         &Page {
@@ -285,6 +362,7 @@ fn free_summaries<'a>(
                 aligned,
                 start_from_file,
                 aligned_from_file: start_from_file + (aligned - start),
+                moved: aligned - start,
                 half_width: finite(u.half_width),
                 rise_minus: finite(u.rise_minus),
                 rise_plus: finite(u.rise_plus),
@@ -379,36 +457,34 @@ fn write_history(a: &Alignment, free: &[Free], out: &OutputDir) -> crate::Result
 
 /// The report's tables: the free variables (bounds, start, aligned) and every metric of the
 /// start and the aligned bench with the change and its paired standard error.
-fn tables(free: &[Free], a: &Alignment) -> Vec<Block> {
+fn tables(free: &[FreeSummary<'_>], a: &Alignment) -> Vec<Block> {
     let mut blocks = Vec::new();
     let var_rows: Vec<Vec<String>> = free
         .iter()
-        .zip(a.start_values.iter().zip(&a.best_values))
-        .zip(&a.uncertainty)
-        .map(|((f, (s, b)), u)| {
+        .map(|f| {
+            // The bounds in the bench file's frame too (a move's bounds count from the start).
+            let off = f.start_from_file - f.start;
             vec![
-                f.path.clone(),
-                format!("{} … {}", f.lo, f.hi),
-                format!("{s:.6}"),
-                format!("{b:.6}"),
-                match (u.half_width.is_finite(), u.flat_toward) {
-                    (true, _) => format!("{:.2e}", u.half_width),
-                    (false, Some(k)) => format!(
-                        "edge of a plateau: flat toward {}",
-                        if k < 0 { "−" } else { "+" }
-                    ),
-                    (false, None) => "flat within the noise".into(),
-                },
+                f.path.to_string(),
+                format!("{} … {}", f.lo + off, f.hi + off),
+                format!("{:.6}", f.start_from_file),
+                format!("{:.6}", f.aligned_from_file),
+                format!("{:+.6}", f.moved),
+                uncertainty_text(f)
+                    .trim_start_matches(" ± ")
+                    .trim()
+                    .to_string(),
             ]
         })
         .collect();
     blocks.push(Block::Table {
         caption: Some(
-            "Free variables (values on the starting bench; ± where the objective rises by its \
-             paired standard error, from its curvature)"
+            "Free variables as the bench file counts them (bounds, start and aligned, as the \
+             terminal and summary.json's `*_from_file` give them), the move the alignment made, \
+             and ± where the objective rises by its paired standard error, from its curvature"
                 .into(),
         ),
-        header: ["variable", "bounds", "start", "aligned", "±"]
+        header: ["variable", "bounds", "start", "aligned", "move", "±"]
             .map(String::from)
             .to_vec(),
         rows: var_rows,

@@ -61,12 +61,18 @@ impl Card {
             .map(|l| l.label.chars().count())
             .max()
             .unwrap_or(0);
-        std::iter::once(format!("{}:", self.title))
-            .chain(self.lines.iter().map(|l| {
-                let pad = w - l.label.chars().count();
-                format!("  {}{} {}", l.label, " ".repeat(pad), l.text)
-            }))
-            .collect()
+        let mut out = vec![format!("{}:", self.title)];
+        for l in &self.lines {
+            let pad = w - l.label.chars().count();
+            let head = format!("  {}{} ", l.label, " ".repeat(pad));
+            let indent = " ".repeat(head.chars().count());
+            let mut first = true;
+            for part in wrap(&l.text, PRINTED_WIDTH.saturating_sub(w + 3).max(40)) {
+                out.push(format!("{}{part}", if first { &head } else { &indent }));
+                first = false;
+            }
+        }
+        out
     }
 
     /// The card as the report's first block.
@@ -97,6 +103,28 @@ impl Card {
         }
         Ok(())
     }
+}
+
+/// The widest printed line of a card (terminals of 100 columns).
+pub const PRINTED_WIDTH: usize = 100;
+
+/// `text` in lines of at most `width` characters, broken at spaces (a word longer than the
+/// width stands alone on its line).
+fn wrap(text: &str, width: usize) -> Vec<String> {
+    let mut lines = Vec::new();
+    let mut line = String::new();
+    for word in text.split(' ') {
+        let len = line.chars().count();
+        if len > 0 && len + 1 + word.chars().count() > width {
+            lines.push(std::mem::take(&mut line));
+        }
+        if !line.is_empty() {
+            line.push(' ');
+        }
+        line.push_str(word);
+    }
+    lines.push(line);
+    lines
 }
 
 /// A number of a card from a JSON value (NaN for null or a non-number).
@@ -177,6 +205,14 @@ mod tests {
             vec!["summary:", "  k     0.500 ± 0.010 A/W", "  count 3"]
         );
         assert!(c.check_against(&summary).is_ok());
+        // A long text wraps under itself within 100 columns.
+        let mut long = Card::new("summary");
+        long.line(&summary, "k", &[], |_| {
+            "word ".repeat(40).trim().to_string()
+        });
+        let lines = long.printed();
+        assert!(lines.len() > 2 && lines.iter().all(|l| l.chars().count() <= PRINTED_WIDTH));
+        assert!(lines[2].starts_with("    word"), "{lines:?}");
         let other = serde_json::json!({"a": {"k": 0.6, "k_stderr": 0.01}, "n": 3});
         assert!(c.check_against(&other).unwrap_err().contains("/a/k"));
     }

@@ -150,5 +150,17 @@ fn printed_tables_fit_100_columns() {
             };
             assert!(n <= allowed, "{} ({n} columns): {l}", args[0]);
         }
+        // Align's summary card opens its output, its numbers summary.json's, each variable
+        // as the bench file counts it with the move made.
+        if args[0] == "align" {
+            let s: serde_json::Value = serde_json::from_str(
+                &std::fs::read_to_string(std::path::Path::new(&o4).join("summary.json")).unwrap(),
+            )
+            .unwrap();
+            let card = spibench::outputs::align::card(&s);
+            card.check_against(&s).unwrap();
+            assert!(text.starts_with(&card.printed().join("\n")), "{text}");
+            assert!(text.contains(", moved "), "{text}");
+        }
     }
 }

@@ -85,7 +85,7 @@ pub fn card(summary: &Value) -> Card {
             .unwrap_or(&Value::Null));
         c.line(
             summary,
-            format!("best MSSIM at {}", crate::run::findings::pct(ratio)),
+            format!("MSSIM at {}", crate::run::findings::pct(ratio)),
             &[
                 &format!("{at}/best"),
                 &format!("{at}/best_mean"),
