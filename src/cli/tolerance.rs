@@ -164,8 +164,11 @@ pub fn run(args: &ToleranceArgs) -> Result<()> {
         records,
     };
     let provenance = crate::provenance::Provenance::of_bench(&doc, &[seed])?.file(tol_path)?;
-    let files = write(&shard_file, &set, &provenance, &out)?;
+    let (files, card) = write(&shard_file, &set, &provenance, &out)?;
     let dir = out.commit()?;
+    for line in card.printed() {
+        println!("{line}");
+    }
     println!(
         "wrote {} ({files} files, {:.1} s: {})",
         dir.display(),
@@ -346,8 +349,11 @@ fn run_merge(args: &ToleranceArgs) -> Result<()> {
     for (p, text) in &read {
         provenance = provenance.text(&p.display().to_string(), text);
     }
-    let files = write(&merged, &set, &provenance, &out)?;
+    let (files, card) = write(&merged, &set, &provenance, &out)?;
     let dir = out.commit()?;
+    for line in card.printed() {
+        println!("{line}");
+    }
     println!(
         "merged {} shard(s), {} trials: wrote {} ({files} files)",
         shards.len(),

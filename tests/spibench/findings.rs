@@ -348,6 +348,21 @@ fn tolerance_reads_tails_compensators_and_the_rss_model() {
     );
     assert!(o.status.success(), "{}", stderr(&o));
     let s = read_json(&out.join("summary.json"));
+    // The summary card opens the terminal output and the report, its numbers summary.json's:
+    // each yield, the tolerances that move the imbalance most, the compensators' travel.
+    let card = spibench::outputs::tolerance::card(&s);
+    card.check_against(&s).unwrap();
+    assert!(
+        stdout(&o).starts_with(&card.printed().join("\n")),
+        "{}",
+        stdout(&o)
+    );
+    assert!(card.printed().iter().any(|l| l.contains("yield")));
+    assert!(
+        card.printed()
+            .iter()
+            .any(|l| l.contains("at its travel limit"))
+    );
     let a = &s["analysis"];
     let tail = |m: &str| {
         a["tails"]

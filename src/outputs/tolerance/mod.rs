@@ -77,7 +77,7 @@ pub fn write(
     set: &ToleranceSet,
     provenance: &crate::provenance::Provenance,
     out: &OutputDir,
-) -> crate::Result<usize> {
+) -> crate::Result<(usize, crate::outputs::card::Card)> {
     let analysis = analyse(set, &s.records, s.sensitivity.as_deref());
     let mut files: Vec<String> = [
         "summary.json",
@@ -112,13 +112,6 @@ pub fn write(
             s, set, &analysis, out, &mut files,
         )?);
     }
-    write_page(
-        &out.path("report.html"),
-        &Page {
-            title: format!("spibench tolerance of {}", s.scene),
-            blocks,
-        },
-    )?;
     let summary = ToleranceSummary {
         command: "tolerance",
         spibench_version: env!("CARGO_PKG_VERSION"),
@@ -162,8 +155,86 @@ pub fn write(
             .collect(),
         files: &files,
     };
+    let json = serde_json::to_value(&summary)
+        .map_err(|e| crate::Error::Numerical(format!("the tolerance summary as JSON: {e}")))?;
+    let card = card(&json);
+    blocks.insert(0, card.block());
+    let blocks = crate::report::html::fold_long_paragraphs(blocks, 320);
+    write_page(
+        &out.path("report.html"),
+        &Page {
+            title: format!("spibench tolerance of {}", s.scene),
+            blocks,
+        },
+    )?;
     super::summary::write_summary(out, &summary, provenance)?;
-    Ok(files.len())
+    Ok((files.len(), card))
+}
+
+/// The summary card of `tolerance` (from its summary.json as a value): each yield with its
+/// 95 % interval, the five tolerances that move the imbalance most (the sensitivity table's
+/// order), and how often each compensator ran out of travel.
+pub fn card(summary: &serde_json::Value) -> crate::outputs::card::Card {
+    use crate::outputs::card::{Card, num};
+    let mut c = Card::new("summary");
+    let len = |p: &str| {
+        summary
+            .pointer(p)
+            .and_then(serde_json::Value::as_array)
+            .map_or(0, Vec::len)
+    };
+    for i in 0..len("/analysis/yields") {
+        let y = format!("/analysis/yields/{i}");
+        let keys = ["limit", "passed", "trials", "fraction", "stderr"].map(|k| format!("{y}/{k}"));
+        let refs: Vec<&str> = keys.iter().map(String::as_str).collect();
+        c.line(summary, "yield", &refs, |v| {
+            let (f, se) = (num(&v[3]), num(&v[4]));
+            let ci = if f.is_finite() && se.is_finite() {
+                format!(
+                    ", 95 % interval [{:.2}, {:.2}]",
+                    (f - 1.96 * se).max(0.0),
+                    (f + 1.96 * se).min(1.0)
+                )
+            } else {
+                String::new()
+            };
+            format!(
+                "{}: {} of {} trials ({:.2}{ci})",
+                v[0].as_str().unwrap_or(""),
+                v[1],
+                v[2],
+                f
+            )
+        });
+    }
+    let top = len("/sensitivity").min(5);
+    if top > 0 {
+        let keys: Vec<String> = (0..top).map(|i| format!("/sensitivity/{i}/path")).collect();
+        let refs: Vec<&str> = keys.iter().map(String::as_str).collect();
+        c.line(summary, "most imbalance from", &refs, |v| {
+            v.iter()
+                .filter_map(|p| p.as_str())
+                .collect::<Vec<_>>()
+                .join(", ")
+        });
+    }
+    for i in 0..len("/analysis/compensators") {
+        let m = format!("/analysis/compensators/{i}");
+        let keys = ["path", "at_min", "at_max", "trials", "min", "max"].map(|k| format!("{m}/{k}"));
+        let refs: Vec<&str> = keys.iter().map(String::as_str).collect();
+        c.line(summary, "compensator", &refs, |v| {
+            let at = v[1].as_u64().unwrap_or(0) + v[2].as_u64().unwrap_or(0);
+            format!(
+                "{}: at its travel limit ({} … {}) in {at} of {} trials{}",
+                v[0].as_str().unwrap_or(""),
+                v[4],
+                v[5],
+                v[3],
+                if at > 0 { " ⚠" } else { "" }
+            )
+        });
+    }
+    c
 }
 
 /// `trials.csv`: index, deviations, compensators, each trial's metric row, error.
