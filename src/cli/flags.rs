@@ -10,6 +10,7 @@
 /// a bench, experiment, tolerance or dataset file names its field by its full path.
 pub const FLAGS: &[(&str, &str)] = &[
     ("vary", "--vary"),
+    ("set", "--set"),
     ("limit", "--limit"),
     ("free", "--free"),
     ("weight", "--weight"),

@@ -47,35 +47,9 @@ pub struct SweepArgs {
 /// one.
 pub const DEFAULT_RAYS: u64 = 500_000;
 
-/// Refuses `--set` edits that leave the nominal bench without its arm plane (the chief ray
-/// from the lamp misses the DMD), naming the edits: the report's layout drawing of the nominal
-/// bench needs that plane, and would otherwise blame the bench's `dmd`.
-fn check_edits(doc: &crate::scene::doc::BenchDoc) -> crate::Result<()> {
-    if doc.edits().is_empty() {
-        return Ok(());
-    }
-    let bench = doc.build()?;
-    crate::trace::fan::dmd_axes(&bench, crate::trace::fan::DESIGN_WAVELENGTH_M).map_err(|m| {
-        let edits: Vec<String> = doc
-            .edits()
-            .iter()
-            .map(|(p, v)| format!("{p}={v}"))
-            .collect();
-        crate::Error::field(
-            "--set",
-            format!(
-                "{}: the edited bench has no arm plane to sweep ({m}); undo or change the edit",
-                edits.join(", ")
-            ),
-        )
-    })?;
-    Ok(())
-}
-
 /// Runs `spibench sweep`.
 pub fn run(args: &SweepArgs) -> Result<()> {
     let doc = args.bench.load()?;
-    check_edits(&doc)?;
     let name = doc.name();
     let vary: Vec<Vary> = args
         .vary

@@ -345,19 +345,7 @@ fn line_plots(
     let xs: Vec<f64> = s.points.iter().map(|p| p.settings[0].1).collect();
     for (metric, label) in PLOTTED {
         let ys: Vec<f64> = s.points.iter().map(|p| p.metrics[metric].value).collect();
-        // Said in the sweep's terms here, since the plot's own refusal would name its staging
-        // file.
-        if !ys.iter().any(|y| y.is_finite()) {
-            return Err(crate::Error::field(
-                "vary",
-                format!(
-                    "{}: none of the {} point(s) has a finite {label} (`{metric}`): no light \
-                     reaches where it is measured (check the bench and the edits made to it)",
-                    v.path,
-                    ys.len()
-                ),
-            ));
-        }
+        crate::sweep::require_finite(&s.vary, &format!("{label} (`{metric}`)"), ys.len(), &ys)?;
         let series = vec![Series {
             label: String::new(),
             x: xs.clone(),
@@ -385,34 +373,11 @@ fn line_plots(
         figures.push((svg.clone(), label.to_string()));
         files.extend([svg, png]);
     }
-    if let Some(q) = s.points.first().and_then(|p| p.quality.as_ref()) {
-        let last_ratio = q.iter().map(|r| r.ratio).fold(0.0, f64::max);
-        let schemes: Vec<_> = q
-            .iter()
-            .filter(|r| r.ratio == last_ratio)
-            .map(|r| r.scheme)
-            .collect();
-        let series = schemes
-            .iter()
-            .map(|&k| Series {
-                label: k.label().to_string(),
-                x: xs.clone(),
-                y: s.points
-                    .iter()
-                    .map(|p| {
-                        p.quality
-                            .as_ref()
-                            .and_then(|q| q.iter().find(|r| r.scheme == k && r.ratio == last_ratio))
-                            .map_or(f64::NAN, |r| r.mssim)
-                    })
-                    .collect(),
-                y_err: None,
-            })
-            .collect();
+    if let Some((y_label, series)) = mssim_series(s, &xs)? {
         let plot = LinePlot {
             title: String::new(),
             x_label: variable_label(&v.path),
-            y_label: format!("MSSIM at {:.0} % sampling", last_ratio * 100.0),
+            y_label,
             series,
             log_x: false,
         };
@@ -421,6 +386,47 @@ fn line_plots(
         files.extend(["mssim.svg".to_string(), "mssim.png".to_string()]);
     }
     Ok(figures)
+}
+
+/// With the whole pipeline, the MSSIM of each scheme at the largest sampling ratio against the
+/// variable at `xs` (the axis label and one series per scheme); refused when no point of any
+/// scheme has a finite MSSIM ([`crate::sweep::require_finite`]). None without `quality`.
+fn mssim_series(s: &Sweep, xs: &[f64]) -> crate::Result<Option<(String, Vec<Series>)>> {
+    let Some(q) = s.points.first().and_then(|p| p.quality.as_ref()) else {
+        return Ok(None);
+    };
+    let last_ratio = q.iter().map(|r| r.ratio).fold(0.0, f64::max);
+    let schemes: Vec<_> = q
+        .iter()
+        .filter(|r| r.ratio == last_ratio)
+        .map(|r| r.scheme)
+        .collect();
+    let series: Vec<Series> = schemes
+        .iter()
+        .map(|&k| Series {
+            label: k.label().to_string(),
+            x: xs.to_vec(),
+            y: s.points
+                .iter()
+                .map(|p| {
+                    p.quality
+                        .as_ref()
+                        .and_then(|q| q.iter().find(|r| r.scheme == k && r.ratio == last_ratio))
+                        .map_or(f64::NAN, |r| r.mssim)
+                })
+                .collect(),
+            y_err: None,
+        })
+        .collect();
+    let y_label = format!("MSSIM at {:.0} % sampling", last_ratio * 100.0);
+    let all: Vec<f64> = series.iter().flat_map(|k| k.y.iter().copied()).collect();
+    crate::sweep::require_finite(
+        &s.vary,
+        &format!("{y_label} (`mssim`) for any scheme"),
+        s.points.len(),
+        &all,
+    )?;
+    Ok(Some((y_label, series)))
 }
 
 /// The limits on `metric` as one shaded band of the values they allow (|metric| ≤ L: from −L
@@ -528,13 +534,20 @@ fn heatmaps(
 ) -> crate::Result<Vec<(String, String)>> {
     let mut figures = Vec::new();
     for &(metric, label) in PLOTTED.iter().take(4) {
+        let values: Vec<f64> = s.points.iter().map(|p| p.metrics[metric].value).collect();
+        crate::sweep::require_finite(
+            &s.vary,
+            &format!("{label} (`{metric}`)"),
+            values.len(),
+            &values,
+        )?;
         let h = Heatmap {
             x_label: variable_label(&a.path),
             y_label: variable_label(&b.path),
             value_label: label.to_string(),
             xs: a.values(),
             ys: b.values(),
-            values: s.points.iter().map(|p| p.metrics[metric].value).collect(),
+            values,
             mark: Some((nominal_values[0], nominal_values[1])),
         };
         let (svg, png) = (format!("{metric}.svg"), format!("{metric}.png"));
@@ -583,5 +596,74 @@ fn points_table(s: &Sweep) -> Block {
         caption: Some("Grid points (value ± standard error; Δ against the nominal bench ± its paired standard error)".into()),
         header: header_html,
         rows: table_rows,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::acquisition::Scheme;
+    use crate::pipeline::SchemeResult;
+    use crate::raster::Raster;
+
+    fn scored(scheme: Scheme, mssim: f64) -> SchemeResult {
+        SchemeResult {
+            scheme,
+            ratio: 0.4,
+            measurements: 1,
+            dmd_frames: 1,
+            detector_samples: 1,
+            acquisition_time_s: 1e-3,
+            psnr_db: 20.0,
+            mssim,
+            normalization_gain: 1.0,
+            normalization_offset: 0.0,
+            iterations: 1,
+            converged: true,
+            stop: crate::reconstruction::StopReason::Tolerance,
+            relative_residual: 0.0,
+            saturated: false,
+            solver_time_s: 0.0,
+            finest_resolved: None,
+            reconstruction: Raster::zeros(1, 1),
+            y: Vec::new(),
+            solution: Raster::zeros(1, 1),
+        }
+    }
+
+    /// The MSSIM plot of a sweep with the whole pipeline is refused, naming the variable, when
+    /// no scheme has a finite MSSIM at any point, and drawn when one point of one scheme has.
+    #[test]
+    fn an_mssim_plot_with_no_finite_point_is_refused_naming_the_variable() {
+        let doc = crate::scene::doc::BenchDoc::read(
+            &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/paper_bench.ron"),
+        )
+        .unwrap();
+        let o = crate::sweep::SweepOptions {
+            rays: 4096,
+            seed: 1,
+            quality: false,
+        };
+        let v = Vary::parse("dmd.tilt_deg=11:13:2").unwrap();
+        let mut s = crate::sweep::sweep(&doc, &[v], &o, &|_, _| {}).unwrap();
+        let xs: Vec<f64> = s.points.iter().map(|p| p.settings[0].1).collect();
+        assert!(mssim_series(&s, &xs).unwrap().is_none());
+        let schemes = [Scheme::DoubleArm, Scheme::Traditional];
+        for p in &mut s.points {
+            p.quality = Some(schemes.iter().map(|&k| scored(k, f64::NAN)).collect());
+        }
+        let e = mssim_series(&s, &xs).unwrap_err();
+        let text = e.to_string();
+        for part in [
+            "field `vary`",
+            "dmd.tilt_deg",
+            "none of the 2 point(s)",
+            "MSSIM",
+        ] {
+            assert!(e.is_user_error() && text.contains(part), "{part}: {text}");
+        }
+        s.points[1].quality.as_mut().unwrap()[1].mssim = 0.5;
+        let (_, series) = mssim_series(&s, &xs).unwrap().unwrap();
+        assert_eq!(series.len(), 2);
     }
 }

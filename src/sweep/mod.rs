@@ -9,7 +9,8 @@
 //! whole pipeline (record, solve, score) runs on every point. [`limits`] finds where a metric
 //! crosses a limit along a 1-D sweep, with an interval from the points' standard errors.
 //!
-//! Errors about the swept variables name the field `vary`.
+//! Errors about the swept variables name the field `vary`; about the edits made to the nominal
+//! bench before the sweep, the field `set`.
 
 use crate::error::{Error, Result};
 use crate::pipeline::evaluate::{EvaluateOptions, Evaluation, evaluate};
@@ -138,13 +139,61 @@ pub fn grid(vary: &[Vary]) -> Result<Vec<Vec<(String, f64)>>> {
     }
 }
 
+/// Refuses edits that leave the nominal bench without its arm plane (the chief ray from the
+/// lamp misses the DMD), naming the edits (field `set`): a sweep's report draws the nominal
+/// bench in that plane, and the drawing's own refusal would blame the bench's `dmd`, which the
+/// file has right. A bench without edits is the file's, whose errors are its own.
+pub fn check_edits(doc: &BenchDoc) -> Result<()> {
+    if doc.edits().is_empty() {
+        return Ok(());
+    }
+    let bench = doc.build()?;
+    crate::trace::fan::dmd_axes(&bench, crate::trace::fan::DESIGN_WAVELENGTH_M).map_err(|m| {
+        let edits: Vec<String> = doc
+            .edits()
+            .iter()
+            .map(|(p, v)| format!("{p}={v}"))
+            .collect();
+        Error::field(
+            "set",
+            format!(
+                "{}: the edited bench has no arm plane to sweep ({m}); undo or change the edit",
+                edits.join(", ")
+            ),
+        )
+    })?;
+    Ok(())
+}
+
+/// Refuses a quantity (`what`, as a figure labels it) of which no grid point has a finite
+/// value, naming the swept variables and the count (field `vary`): no light reaches where it
+/// is measured, a line plot or heatmap of it would show nothing, and the figure's own refusal
+/// would name its staging file. `values` are the quantity at every point (and series) drawn.
+pub fn require_finite(vary: &[Vary], what: &str, points: usize, values: &[f64]) -> Result<()> {
+    if values.iter().any(|v| v.is_finite()) {
+        return Ok(());
+    }
+    let paths: Vec<&str> = vary.iter().map(|v| v.path.as_str()).collect();
+    Err(Error::field(
+        "vary",
+        format!(
+            "{}: none of the {points} point(s) has a finite {what}: no light reaches where it is \
+             measured (check the bench and the edits made to it)",
+            paths.join(" × ")
+        ),
+    ))
+}
+
 /// Runs a sweep. `progress(done, total)` counts traced points (the nominal bench included).
+/// Edits that leave the nominal bench without its arm plane are refused first
+/// ([`check_edits`]).
 pub fn sweep(
     doc: &BenchDoc,
     vary: &[Vary],
     options: &SweepOptions,
     progress: &(dyn Fn(usize, usize) + Sync),
 ) -> Result<Sweep> {
+    check_edits(doc)?;
     let settings = grid(vary)?;
     // Every point must be a valid bench before the first (long) trace.
     for s in &settings {
@@ -298,6 +347,51 @@ mod tests {
                 "{bad}: {e}"
             );
         }
+    }
+
+    #[test]
+    fn a_quantity_with_no_finite_point_is_refused_naming_the_variables() {
+        let v = [
+            Vary::parse("p=0:1:2").unwrap(),
+            Vary::parse("q=5:7:3").unwrap(),
+        ];
+        assert!(require_finite(&v, "k₊ (`k_plus`)", 6, &[f64::NAN, 1.0]).is_ok());
+        let e = require_finite(&v, "k₊ (`k_plus`)", 6, &[f64::NAN, f64::INFINITY]).unwrap_err();
+        let text = e.to_string();
+        assert!(e.is_user_error(), "{text}");
+        for part in [
+            "field `vary`",
+            "p × q",
+            "none of the 6 point(s)",
+            "k₊ (`k_plus`)",
+        ] {
+            assert!(text.contains(part), "{part}: {text}");
+        }
+    }
+
+    /// An edit that turns the lamp away from the DMD is refused before anything is traced,
+    /// naming the edit; the bench without edits passes.
+    #[test]
+    fn an_edit_that_loses_the_arm_plane_is_refused_naming_it() {
+        let mut doc = paper();
+        check_edits(&doc).unwrap();
+        doc.set("illumination.turn_deg.across", 180.0).unwrap();
+        let o = SweepOptions {
+            rays: 4096,
+            seed: 1,
+            quality: false,
+        };
+        let e = sweep(&doc, &[at("dmd.tilt_deg", 12.0, 12.0, 1)], &o, &|_, _| {
+            panic!("traced before the edits were checked")
+        })
+        .unwrap_err();
+        let text = e.to_string();
+        assert!(
+            e.is_user_error()
+                && text.contains("field `set`")
+                && text.contains("illumination.turn_deg.across=180"),
+            "{text}"
+        );
     }
 
     #[test]
