@@ -260,11 +260,9 @@ fn check_quality_names(doc: &BenchDoc, set: &ToleranceSet, tol_text: &str) -> cr
     set.check_quality(tol_text, &percents, &is_score)
 }
 
-/// The rays a tolerance run may trace at most: the nominal bench; on shard 0 the sensitivity
-/// table (each tolerance at both ends, and with `--resolve` each end and the nominal bench again
-/// at up to `--max-rays`); and each trial of this shard, once and through its compensators
-/// (each objective's group adjusted by at most 60 evaluations at up to a quarter of the rays:
-/// `pipeline::perturb`).
+/// The run's work for the limits of `--allow-large`: the tolerance job's estimate
+/// ([`crate::tolerance::work::estimate`]: each traced bench's rays and fixed cost), for the
+/// trials i ≡ I (mod N) below `trials` this shard holds, with the sensitivity table on shard 0.
 fn work(
     set: &ToleranceSet,
     trials: u64,
@@ -272,34 +270,11 @@ fn work(
     rays: u64,
     resolve: Option<&crate::tolerance::Resolve>,
 ) -> super::args::Work {
-    let r = rays as f64;
-    let ends = 2.0 * set.tolerances.len() as f64;
-    let sensitivity = if shard.index == 0 {
-        ends * r + resolve.map_or(0.0, |v| 2.0 * ends * v.max_rays as f64)
-    } else {
-        0.0
-    };
-    let groups = [
-        crate::scene::tolerance::CompensatorObjective::Balance,
-        crate::scene::tolerance::CompensatorObjective::Power,
-    ]
-    .iter()
-    .filter(|o| set.compensators.iter().any(|c| c.objective == **o))
-    .count() as f64;
-    let per_trial = 1.0 + 15.0 * groups;
-    // The trials i ≡ I (mod N) below `trials`.
-    let mine = trials.saturating_sub(shard.index).div_ceil(shard.count) as f64;
+    let mine = trials.saturating_sub(shard.index).div_ceil(shard.count);
+    let e = crate::tolerance::work::estimate(set, mine, shard.index == 0, rays, resolve);
     super::args::Work {
-        rays: r + sensitivity + mine * per_trial * r,
-        what: format!(
-            "{mine} trials × up to {per_trial} traces × {rays} rays, and {ends} sensitivity \
-             traces{}",
-            if resolve.is_some() {
-                " with --resolve"
-            } else {
-                ""
-            }
-        ),
+        rays: e.equivalent_rays,
+        what: e.what,
         ..Default::default()
     }
 }

@@ -32,6 +32,7 @@ use crate::scene::tolerance::{SensitivityRecord, ToleranceSet, TrialRecord, valu
 pub use crate::pipeline::evaluate::{quality_key, values};
 
 pub mod summaries;
+pub mod work;
 pub use crate::pipeline::perturb::{TrialBench, draw, trial_doc};
 
 /// The metrics of the sensitivity table, in its column order.

@@ -517,6 +517,27 @@ fn total_work_above_the_limits_is_refused_with_its_estimate() {
         ],
         &["1000000 trials", "traced rays", "--allow-large"],
     );
+    // Few rays per trace: 4·10⁹ rays, but a million benches to build (about 15 h).
+    run_case(
+        &dir,
+        &[
+            "tolerance",
+            bench.to_str().unwrap(),
+            "--tolerances",
+            tol.to_str().unwrap(),
+            "--trials",
+            "1000000",
+            "--rays",
+            "4096",
+        ],
+        &[
+            "1000000 trials",
+            "1000055 benches built",
+            "or their equivalent",
+            " h on two cores",
+            "--allow-large",
+        ],
+    );
     run_case(
         &dir,
         &[
@@ -579,6 +600,35 @@ fn a_sweep_with_no_finite_point_names_the_variable() {
             "4096",
         ],
         &["--vary", "dmd.tilt_deg", "none of the 3 point(s)"],
+    );
+}
+
+/// A 2-D sweep is refused the same way before its heatmaps, which would otherwise be drawn
+/// empty.
+#[test]
+fn a_2d_sweep_with_no_finite_point_names_the_variables() {
+    let dir = TempDir::new("bad-sweep-no-finite-2d");
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let bench = root.join(PAPER);
+    run_case(
+        &dir,
+        &[
+            "sweep",
+            bench.to_str().unwrap(),
+            "--set",
+            "illumination.turn_deg.hinge=10",
+            "--vary",
+            "dmd.tilt_deg=11:13:2",
+            "--vary",
+            "arm_minus_lens.despace_mm=0:1:2",
+            "--rays",
+            "4096",
+        ],
+        &[
+            "--vary",
+            "dmd.tilt_deg × arm_minus_lens.despace_mm",
+            "none of the 4 point(s)",
+        ],
     );
 }
 
