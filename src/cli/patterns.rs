@@ -1,7 +1,9 @@
 //! `spibench patterns`: pattern sets for a DMD controller, as packed `.npy` and as 1-bit PNG
 //! frames at the DMD's native mirror resolution (each unit expanded to its mirrors; by default
 //! the DMD of the bench, 1024 × 768 for the built-in one), and `patterns.json`, which says
-//! what they are (family, ordering, units, ratio, mirrors per unit, frame order).
+//! what they are (family, ordering, units, ratio, mirrors per unit, frame order). The bench
+//! comes in as every command's does (SCENE, else the built-in bench; `--set`), through
+//! `BenchArgs::load`.
 
 use std::io::{BufWriter, Write};
 use std::path::PathBuf;
@@ -29,7 +31,11 @@ pub enum OrderingArg {
 }
 
 #[derive(Debug, Clone, clap::Args)]
+#[command(mut_arg("set", |a| a.help("Set a bench variable first (repeatable)")))]
 pub struct PatternsArgs {
+    /// The bench whose DMD sets the default --dmd (default: the built-in paper bench).
+    #[command(flatten)]
+    pub bench: crate::cli::args::BenchArgs,
     /// The pattern family.
     #[arg(long, value_enum)]
     pub family: FamilyArg,
@@ -52,12 +58,18 @@ pub struct PatternsArgs {
     #[arg(long, default_value_t = 12)]
     pub mirrors_per_unit: usize,
     /// The DMD's mirror array, e.g. 1920x1080 (the pattern is centred; other mirrors off).
-    /// Default: the DMD of --scene (1024x768 for the built-in bench's DLP7000 class).
-    #[arg(long)]
+    /// Default: the DMD of SCENE (1024x768 for the built-in bench's DLP7000 class).
+    #[arg(long, conflicts_with_all = ["scene", "set", "scene_flag"])]
     pub dmd: Option<String>,
-    /// The bench whose DMD sets the default --dmd (default: the built-in paper bench).
-    #[arg(long)]
-    pub scene: Option<PathBuf>,
+    /// SCENE given as a flag, as earlier versions took it.
+    #[arg(
+        long = "scene",
+        id = "scene_flag",
+        value_name = "SCENE",
+        hide = true,
+        conflicts_with = "scene"
+    )]
+    pub scene_flag: Option<PathBuf>,
     /// Output folder (created; files of the same names are replaced).
     #[arg(long, default_value = "out/patterns", value_name = "DIR")]
     pub out: PathBuf,
@@ -148,7 +160,11 @@ fn dmd_size(args: &PatternsArgs) -> crate::Result<((usize, usize), String)> {
     if let Some(d) = &args.dmd {
         return Ok((size(d, "--dmd")?, "--dmd".into()));
     }
-    let doc = crate::scene::doc::BenchDoc::open(args.scene.as_deref())?;
+    let mut bench = args.bench.clone();
+    if let Some(scene) = &args.scene_flag {
+        bench.scene = Some(scene.clone());
+    }
+    let doc = bench.load()?;
     let name = doc.name();
     let Some(d) = &doc.file.dmd else {
         return Err(Error::field(

@@ -511,6 +511,50 @@ fn patterns_default_to_the_benchs_dmd() {
     assert_eq!(meta["seed"], 1);
 }
 
+/// The bench comes in as every bench command takes it: a positional SCENE (here a copy of the
+/// paper bench with a 1280-column DMD), with `--set` edits, or through the older `--scene`,
+/// which gives the same frames.
+#[test]
+fn patterns_take_the_bench_as_the_other_commands_do() {
+    let t = TempDir::new("patterns-scene");
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let text = std::fs::read_to_string(root.join("scenes/paper_bench.ron")).unwrap();
+    assert!(text.contains("columns: 1024,"));
+    let bench = t.join("wide.ron");
+    std::fs::write(&bench, text.replace("columns: 1024,", "columns: 1280,")).unwrap();
+    let b = bench.to_str().unwrap();
+    let base = [
+        "patterns", "--family", "random", "--units", "4x4", "--ratio", "0.25",
+    ];
+    for (tag, how) in [
+        ("positional", vec![b, "--set", "dmd.tilt_deg=12"]),
+        ("flag", vec!["--scene", b]),
+    ] {
+        let out = t.join(tag);
+        let mut args: Vec<&str> = base.to_vec();
+        args.extend(how);
+        args.extend(["--out", out.to_str().unwrap()]);
+        ok(&spibench(&args, &[]));
+        let f = image::open(out.join("frame_00000.png")).unwrap().to_luma8();
+        assert_eq!(f.dimensions(), (1280, 768), "{tag}");
+        let meta = read_json(&out.join("patterns.json"));
+        assert!(
+            meta["dmd_from"].as_str().unwrap().contains("wide"),
+            "{tag}: {meta}"
+        );
+    }
+    // An edit the bench cannot take is refused naming it.
+    let out = t.join("bad");
+    let mut args: Vec<&str> = base.to_vec();
+    args.extend([
+        "--set",
+        "no_such_element.despace_mm=1",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_input_error(&spibench(&args, &[]), &["no_such_element"], &out);
+}
+
 /// One array of a dataset folder, every shard's rows in sample order.
 fn dataset_array(dir: &Path, name: &str) -> (Vec<usize>, Vec<f64>) {
     let m = read_json(&dir.join(MANIFEST));
