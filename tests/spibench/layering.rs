@@ -613,3 +613,261 @@ fn the_flag_scanner_finds_messages_in_error_calls() {
         .collect();
     assert_eq!(flagged, ["--vary", "give it with --resume", "--note"]);
 }
+
+/// The API boundary: the library paths the two edges, the command line (`src/cli/`) and the
+/// Python binding crate (`python/src/`), may name. ARCHITECTURE.md ("The API boundary") lists
+/// the same paths. An entry admits itself and everything below it (`scene::doc` admits
+/// `scene::doc::BenchDoc`); a path the edges name that no entry admits fails
+/// [`the_edges_use_only_the_api`]. What is not here (the tracer's walk and tallies, the optics'
+/// parts, the random streams, the figure writers, the object models) the edges reach only
+/// through a job, the evaluate step or an output module.
+const API: &[&str] = &[
+    // Errors, notes and the checked numbers the edges read from flags.
+    "Error",
+    "Result",
+    "note",
+    "error",
+    "checked",
+    "memory",
+    // The input files: the one bench entrance, the other files, bench variables.
+    "scene::doc",
+    "scene::experiment",
+    "scene::dataset",
+    "scene::tolerance",
+    "scene::run",
+    "scene::variables",
+    "scene::parse_ron",
+    "scene::read_text",
+    // The jobs and what each command writes.
+    "run",
+    "sweep",
+    "align",
+    "tolerance",
+    "dataset",
+    "simulation",
+    "export",
+    "outputs",
+    // The stages every job composes, and the evaluate step.
+    "pipeline",
+    // The engine's entry points that `trace`, `layout`, `check` and the binding's kernels use.
+    "trace::RAYS_PER_BATCH",
+    "trace::BatchTally",
+    "trace::kernel",
+    "trace::collection",
+    "trace::fan",
+    "trace::paraxial",
+    "transport::Transport",
+    "transport::Estimate",
+    "optics::Arm",
+    "optics::dmd::MirrorState",
+    "optics::monochromatic",
+    "acquisition",
+    "detector::RecordModel",
+    // `reconstruct`: a measured set solved and scored without the optics.
+    "reconstruction",
+    "metrics",
+    "raster",
+    "quantities",
+    "provenance",
+    // Output folders and arrays.
+    "report::output",
+    "report::npy",
+];
+
+/// Every path named from `root` (`crate` or `spibench`) in the non-test code of `text`:
+/// `use crate::scene::{doc::BenchDoc, tolerance::{self, ToleranceSet}};` gives
+/// `scene::doc::BenchDoc`, `scene::tolerance` and `scene::tolerance::ToleranceSet`; a path in
+/// an expression (`crate::trace::fan::dmd_axes(…)`) is read the same way.
+fn named_paths(text: &str, root: &str) -> Vec<String> {
+    let code = text.split("#[cfg(test)]").next().unwrap_or("");
+    let code: String = code
+        .lines()
+        .map(|l| l.split("//").next().unwrap_or(""))
+        .collect::<Vec<_>>()
+        .join("\n");
+    let head = format!("{root}::");
+    let b = code.as_bytes();
+    let mut out = Vec::new();
+    let mut at = 0;
+    while let Some(k) = code[at..].find(&head) {
+        let start = at + k;
+        at = start + head.len();
+        let before = start.checked_sub(1).map(|i| b[i]);
+        if before.is_some_and(|c| c.is_ascii_alphanumeric() || c == b'_' || c == b':') {
+            continue;
+        }
+        use_tree(&code[at..], "", &mut out);
+    }
+    out
+}
+
+/// Reads one use tree at the start of `s` below `prefix` into `out`; returns the bytes read.
+fn use_tree(s: &str, prefix: &str, out: &mut Vec<String>) -> usize {
+    let skip_ws = |i: usize| i + s[i..].len() - s[i..].trim_start().len();
+    let mut i = skip_ws(0);
+    if s[i..].starts_with('{') {
+        i += 1;
+        loop {
+            i = skip_ws(i);
+            if i >= s.len() || s[i..].starts_with('}') {
+                return i + 1;
+            }
+            i += use_tree(&s[i..], prefix, out);
+            i = skip_ws(i);
+            if s[i..].starts_with(',') {
+                i += 1;
+            }
+        }
+    }
+    let name: String = s[i..]
+        .chars()
+        .take_while(|c| c.is_alphanumeric() || *c == '_' || *c == '*')
+        .collect();
+    i += name.len();
+    if name.is_empty() {
+        if !prefix.is_empty() {
+            out.push(prefix.to_string());
+        }
+        return i;
+    }
+    let path = match (prefix.is_empty(), name.as_str()) {
+        (_, "self") | (false, "*") => prefix.to_string(),
+        (true, _) => name.clone(),
+        (false, _) => format!("{prefix}::{name}"),
+    };
+    if s[i..].starts_with("::") {
+        return i + 2 + use_tree(&s[i + 2..], &path, out);
+    }
+    // `Name as Alias`: the alias is the edge's own name.
+    let rest = s[i..].trim_start();
+    if let Some(alias) = rest.strip_prefix("as ") {
+        i = s.len() - alias.trim_start().len();
+        i += alias
+            .trim_start()
+            .chars()
+            .take_while(|c| c.is_alphanumeric() || *c == '_')
+            .map(char::len_utf8)
+            .sum::<usize>();
+    }
+    out.push(path);
+    i
+}
+
+/// Whether an entry of [`API`] admits `path`.
+fn in_api(path: &str) -> bool {
+    API.iter().any(|e| {
+        path == *e
+            || path
+                .strip_prefix(e)
+                .is_some_and(|rest| rest.starts_with("::"))
+    })
+}
+
+/// The paths outside [`API`] that the edge files under `dir` name from `root`, as
+/// "file: path" (the command line's own modules, `crate::cli::…`, aside).
+fn outside_api(dir: &Path, root: &str) -> Vec<String> {
+    let mut files = Vec::new();
+    rust_files(dir, &mut files);
+    files.sort();
+    let mut found = Vec::new();
+    for f in &files {
+        if f.file_name().is_some_and(|n| n == "tests.rs") {
+            continue;
+        }
+        let text = std::fs::read_to_string(f).unwrap();
+        for p in named_paths(&text, root) {
+            if !(root == "crate" && (p == "cli" || p.starts_with("cli::"))) && !in_api(&p) {
+                found.push(format!("{}: {root}::{p}", f.display()));
+            }
+        }
+    }
+    found
+}
+
+/// The command line and the Python binding name only the library paths of [`API`], and
+/// ARCHITECTURE.md lists the same paths.
+#[test]
+fn the_edges_use_only_the_api() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let mut found = outside_api(&root.join("src/cli"), "crate");
+    found.extend(outside_api(&root.join("python/src"), "spibench"));
+    assert!(
+        found.is_empty(),
+        "the command line or the Python binding names a library path outside the API boundary \
+         (reach it through a job, the evaluate step or an output module, or widen API here and \
+         in ARCHITECTURE.md):\n{}",
+        found.join("\n")
+    );
+    let doc = std::fs::read_to_string(root.join("ARCHITECTURE.md")).unwrap();
+    let section = doc
+        .split("## The API boundary")
+        .nth(1)
+        .expect("ARCHITECTURE.md has a section \"## The API boundary\"");
+    let section = section.split("\n## ").next().unwrap();
+    // The list: its items and their continuation lines, after the prose.
+    let listed: BTreeSet<&str> = section
+        .lines()
+        .skip_while(|l| !l.starts_with("- "))
+        .flat_map(|l| l.split('`').skip(1).step_by(2))
+        .collect();
+    let api: BTreeSet<&str> = API.iter().copied().collect();
+    assert_eq!(
+        listed, api,
+        "ARCHITECTURE.md's API boundary (backquoted paths in its list) and API differ"
+    );
+}
+
+#[test]
+fn the_path_reader_sees_nested_groups_aliases_and_expressions() {
+    let code = "use crate::scene::{doc::BenchDoc, tolerance::{self, ToleranceSet}};\n\
+                use spibench::trace::kernel::Kernel as LibKernel;\n\
+                fn f() { crate::trace::fan::dmd_axes(&b); let x = crate::Error::input(\"x\"); }\n\
+                // crate::rng::stream\n\
+                use my_crate::x;\n\
+                #[cfg(test)]\nuse crate::objects;";
+    assert_eq!(
+        named_paths(code, "crate"),
+        [
+            "scene::doc::BenchDoc",
+            "scene::tolerance",
+            "scene::tolerance::ToleranceSet",
+            "trace::fan::dmd_axes",
+            "Error::input"
+        ]
+    );
+    assert_eq!(named_paths(code, "spibench"), ["trace::kernel::Kernel"]);
+    assert!(in_api("scene::doc::BenchDoc") && in_api("Error::input"));
+    assert!(!in_api("scene::docs") && !in_api("trace::path") && !in_api("rng::stream"));
+}
+
+/// ARCHITECTURE.md's floor table ("## Module graph": `| N | `a`, `b` |`) is [`FLOORS`]
+/// (`lib` and `main`, the crate's roots, aside).
+#[test]
+fn floors_match_architecture() {
+    let doc =
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("ARCHITECTURE.md"))
+            .unwrap();
+    let mut table: Vec<(usize, BTreeSet<String>)> = Vec::new();
+    for line in doc.lines() {
+        let cells: Vec<&str> = line.split('|').map(str::trim).collect();
+        if let [_, n, modules, _] = cells[..]
+            && let Ok(n) = n.parse::<usize>()
+        {
+            let names = modules.split('`').skip(1).step_by(2).map(String::from);
+            table.push((n, names.collect()));
+        }
+    }
+    table.sort();
+    let expected: Vec<(usize, BTreeSet<String>)> = FLOORS
+        .iter()
+        .enumerate()
+        .map(|(n, f)| {
+            let names = f.iter().filter(|m| !["lib", "main"].contains(m));
+            (n, names.map(|m| m.to_string()).collect())
+        })
+        .collect();
+    assert_eq!(
+        table, expected,
+        "ARCHITECTURE.md's floor table and FLOORS in tests/spibench/layering.rs differ"
+    );
+}
