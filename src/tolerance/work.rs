@@ -78,9 +78,8 @@ pub fn estimate(
     let seconds = equivalent_rays / RAYS_PER_SECOND_TWO_CORES;
     let what = format!(
         "{trials} trials × up to {per_trial} traces × {rays} rays and {sens_traces} sensitivity \
-         traces{}, with {benches:.0} benches built at about {BENCH_OVERHEAD_RAYS:.0} rays' time \
-         each (the build and the chart-guide fit): {equivalent_rays:.2e} traced rays or their \
-         equivalent, {}",
+         traces{}, and {benches:.0} benches built at {BENCH_OVERHEAD_RAYS:.0} rays' time each \
+         for the build and chart-guide fit: {}",
         if resolve.is_some() && sensitivity {
             " (resolved)"
         } else {

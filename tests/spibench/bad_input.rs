@@ -532,9 +532,8 @@ fn total_work_above_the_limits_is_refused_with_its_estimate() {
         ],
         &[
             "1000000 trials",
-            "1000055 benches built",
-            "or their equivalent",
-            " h on two cores",
+            "1000055 benches built at 12000 rays' time each",
+            "about 12 h on two cores",
             "--allow-large",
         ],
     );
