@@ -646,6 +646,7 @@ const API: &[&str] = &[
     "dataset",
     "simulation",
     "export",
+    "lens",
     "outputs",
     // The stages every job composes, and the evaluate step.
     "pipeline",
