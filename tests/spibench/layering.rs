@@ -647,6 +647,7 @@ const API: &[&str] = &[
     "simulation",
     "export",
     "lens",
+    "intake",
     "outputs",
     // The stages every job composes, and the evaluate step.
     "pipeline",
