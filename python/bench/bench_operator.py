@@ -6,6 +6,9 @@
 2. The simulated measurement (`forward`, noise on) of the same batch.
 3. deepinv's SinglePixelCamera at the same size on CPU (when torch and deepinv import), fast
    (Hadamard) and dense random, float32 and float64.
+4. The torch operator ``spibench.nn.TracedLinear`` (kernel as CSR and as a dense matrix,
+   float32 and float64) and the deepinv physics ``TracedSinglePixel`` around it: forward +
+   adjoint of the same batch, with torch on ``--threads`` threads, in the same run as 1 and 3.
 
 Usage: python bench_operator.py [--out results.json] [--rays N] [--repeats R] [--threads T]
 """
@@ -71,6 +74,8 @@ def main():
         from deepinv.physics import SinglePixelCamera
 
         res["torch"] = torch.__version__
+        if a.threads:
+            torch.set_num_threads(a.threads)
         res["torch_threads"] = torch.get_num_threads()
         for fast in (True, False):
             for dtype in (torch.float32, torch.float64):
@@ -88,15 +93,44 @@ def main():
                     res[name + "_A_s"] = best_of(lambda: spc.A(xt), r)
                     res[name + "_At_s"] = best_of(lambda: spc.A_adjoint(yt), r)
         from spibench.deepinv import TracedSinglePixel
+        from spibench.nn import TracedLinear
 
-        phys = TracedSinglePixel(acq, noise=None, threads=a.threads)
-        xt = torch.from_numpy(x[:, None])
-        yt = torch.from_numpy(y)
+        both = lambda f, g: best_of(lambda: (f(), g()), r)  # noqa: E731
+        res["numpy_A_At_s"] = both(lambda: acq.apply(x, threads=a.threads),
+                                   lambda: acq.adjoint(y, threads=a.threads))
+        for fmt in ("csr", "dense"):
+            for dtype in (torch.float32, torch.float64):
+                t0 = time.perf_counter()
+                op = TracedLinear(acq, kernel, dtype=dtype, kernel_format=fmt)
+                name = f"torch_{fmt}_{str(dtype)[6:]}"
+                res[name + "_build_s"] = time.perf_counter() - t0
+                xt = torch.from_numpy(x).to(dtype)
+                yt = torch.from_numpy(y).to(dtype)
+                with torch.no_grad():
+                    res[name + "_A_s"] = best_of(lambda: op(xt), r)
+                    res[name + "_At_s"] = best_of(lambda: op.adjoint(yt), r)
+                    res[name + "_A_At_s"] = both(lambda: op(xt), lambda: op.adjoint(yt))
+                    ref = acq.apply(x, threads=a.threads)
+                    res[name + "_rel_err_vs_rust"] = float(
+                        np.linalg.norm(op(xt).double().numpy() - ref) / np.linalg.norm(ref))
+        phys = TracedSinglePixel(acq, noise=None, kernel=kernel)
+        xt = torch.from_numpy(x[:, None]).float()
+        yt = torch.from_numpy(y).float()
         with torch.no_grad():
             res["traced_deepinv_A_s"] = best_of(lambda: phys.A(xt), r)
             res["traced_deepinv_At_s"] = best_of(lambda: phys.A_adjoint(yt), r)
-            res["traced_deepinv_adjointness"] = float(phys.adjointness_test(
-                img_size=(1,) + grid, dtype=torch.float64))
+            res["traced_deepinv_A_At_s"] = both(lambda: phys.A(xt), lambda: phys.A_adjoint(yt))
+        spc = SinglePixelCamera(m=acq.measurements, img_size=(1,) + grid, fast=False,
+                                dtype=torch.float32)
+        ys = spc.A(xt)
+        with torch.no_grad():
+            res["deepinv_spc_dense_float32_A_At_s"] = both(lambda: spc.A(xt),
+                                                           lambda: spc.A_adjoint(ys))
+        phys64 = TracedSinglePixel(acq, noise=None, kernel=kernel, dtype=torch.float64)
+        res["traced_deepinv_adjointness_float64"] = float(phys64.adjointness_test(
+            img_size=(1,) + grid, dtype=torch.float64))
+        res["traced_deepinv_adjointness_float32"] = float(phys.adjointness_test(
+            img_size=(1,) + grid, dtype=torch.float32))
     except ImportError as e:
         res["deepinv"] = f"not run: {e}"
     text = json.dumps(res, indent=2)

@@ -14,14 +14,42 @@ from spibench.deepinv import TracedSinglePixel  # noqa: E402
 
 @pytest.fixture(scope="module")
 def physics(kernel):
+    """SCB at 25 % with the bench's noise, in float64 through the kernel's sparse matrices."""
     acq = spibench.Acquisition(kernel, "secondary_complementary_balancing", 0.25)
-    return TracedSinglePixel(acq, noise="bench", seed=3, max_iter=200, tol=1e-8)
+    return TracedSinglePixel(acq, noise="bench", seed=3, max_iter=200, tol=1e-8, kernel=kernel,
+                             dtype=torch.float64)
 
 
 def test_deepinv_adjointness(physics):
     err = physics.adjointness_test(img_size=(1,) + physics.acquisition.grid, dtype=torch.float64,
                                    num_samples=4)
     assert float(err) < 1e-10, float(err)
+
+
+@pytest.mark.parametrize("with_kernel", [True, False], ids=["csr", "matrix"])
+def test_float32_by_default_and_equal_to_the_library(kernel, with_kernel):
+    acq = spibench.Acquisition(kernel, "double_arm", 0.25)
+    phys = TracedSinglePixel(acq, noise=None, kernel=kernel if with_kernel else None)
+    assert phys.offset.dtype == torch.float32
+    x = np.random.default_rng(4).random((3, 1) + acq.grid)
+    y = phys.A(torch.from_numpy(x).float())
+    assert y.dtype == torch.float32 and y.shape == (3, acq.measurements)
+    want = acq.apply(x[:, 0])
+    # Within float32 rounding of the terms before they cancel (test_torch_operator.py).
+    assert np.linalg.norm(y.double().numpy() - want) / np.linalg.norm(want) < 1e-3
+    err = phys.adjointness_test(img_size=(1,) + acq.grid, dtype=torch.float32, num_samples=4)
+    assert float(err) < 1e-5, float(err)
+    noisy = TracedSinglePixel(acq, kernel=kernel)
+    assert noisy(torch.from_numpy(x).float()).dtype == torch.float32
+
+
+def test_to_moves_the_operator(physics):
+    phys = TracedSinglePixel(physics.acquisition, noise=None, kernel=None, dtype=torch.float64)
+    phys.to("meta")
+    assert phys.offset.device.type == "meta"
+    assert all(b.device.type == "meta" for b in phys.buffers())
+    names = set(phys.state_dict())
+    assert "operator.offset" in names and "operator.matrix" in names
 
 
 def test_gradients_go_through_the_adjoint(physics):
