@@ -10,20 +10,23 @@
 set -euo pipefail
 py=${1:-python3}
 out=${2:-target/python-docs}
-# The deepinv adapter needs torch and deepinv; without them it is left out (and said so).
+# The torch operator and the deepinv adapter need torch and deepinv; without them they are left
+# out (and said so).
 modules=(spibench)
 if "$py" -c "import torch, deepinv" >/dev/null 2>&1; then
-    modules+=(spibench.deepinv)
+    modules+=(spibench.nn spibench.deepinv)
 else
-    modules+=('!spibench.deepinv')
-    echo "python/docs.sh: torch or deepinv is not installed: spibench.deepinv is left out" >&2
+    modules+=('!spibench.nn' '!spibench.deepinv')
+    echo "python/docs.sh: torch or deepinv is not installed: spibench.nn and spibench.deepinv" \
+        "are left out" >&2
 fi
 rm -rf "$out"
 log=$(mktemp)
 trap 'rm -f "$log"' EXIT
 # pdoc reports problems (an unresolvable annotation, a broken link target, a module that fails
 # to import) as Python warnings on stderr; any of them fails the build.
-if ! "$py" -W always -m pdoc --docformat restructuredtext --no-show-source -o "$out" \
+# torch's import runs `uname -p` (platform.processor), which pdoc would refuse with a warning.
+if ! PDOC_ALLOW_EXEC=1 "$py" -W always -m pdoc --docformat restructuredtext --no-show-source -o "$out" \
     "${modules[@]}" 2> "$log"; then
     cat "$log" >&2
     echo "python/docs.sh: pdoc failed" >&2

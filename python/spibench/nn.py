@@ -232,5 +232,6 @@ class TracedLinear(torch.nn.Module):
         return x.reshape(lead + self.grid)
 
     def extra_repr(self) -> str:
+        """The grid, M, the kernel's form and the dtype, for ``repr``."""
         return (f"grid={self.grid}, measurements={self.measurements}, form={self.form}, "
                 f"dtype={self.offset.dtype}")
