@@ -41,7 +41,10 @@ if [ -z "$py" ]; then
     if [ -x "$repo/target/ci-python/venv/bin/python" ]; then
         py=$repo/target/ci-python/venv/bin/python
     else
-        py=python3
+        # An absolute path: the blocks' `python3` is a function that calls "$__py", so a bare
+        # name would call the function itself.
+        py=$(command -v python3 || true)
+        [ -n "$py" ] || { echo "check-docs: no python3 (set SPIBENCH_DOCS_PYTHON)" >&2; exit 1; }
     fi
 fi
 if [ "$#" -gt 0 ]; then
