@@ -14,6 +14,7 @@ pub mod dataset;
 pub mod detector;
 pub mod error;
 pub mod export;
+pub mod fit;
 pub mod intake;
 pub mod lens;
 pub mod memory;

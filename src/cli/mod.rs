@@ -10,6 +10,7 @@ mod completions;
 mod dataset;
 mod export;
 pub mod flags;
+mod fit;
 mod help;
 mod intake;
 mod layout;
@@ -90,6 +91,10 @@ enum Command {
     /// scheme reconstructed with `run`'s solver and scored (the records of `run --scope-record`
     /// give back the run's own results).
     Intake(intake::IntakeArgs),
+    /// Fit the bench as built: free misalignments fitted to an intake folder's frames, with
+    /// standard errors, the directions the data do not fix, and the compensators that
+    /// rebalance it.
+    Fit(fit::FitArgs),
 }
 
 impl Command {
@@ -108,6 +113,7 @@ impl Command {
             Command::Dataset(a) => a.work,
             Command::Patterns(a) => a.work,
             Command::Intake(a) => a.work,
+            Command::Fit(a) => a.work,
             Command::Simulate(_) | Command::Completions(_) | Command::Man(_) | Command::Lens(_) => {
                 return false;
             }
@@ -173,6 +179,7 @@ pub fn main() -> i32 {
         Command::Patterns(a) => patterns::run(a),
         Command::Lens(a) => lens::run(a),
         Command::Intake(a) => intake::run(a),
+        Command::Fit(a) => fit::run(a),
     };
     match result {
         Ok(()) => 0,

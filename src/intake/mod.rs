@@ -93,6 +93,9 @@ pub struct IntakeRecord {
     /// The record's first samples of RF, MONITOR+, MONITOR− and TRIG, for the report.
     pub head: Vec<[f64; 4]>,
     pub sample_interval_s: f64,
+    /// SHA-256 of the frames the DMD showed: the packed rows of `patterns.npy` (frames ×
+    /// ⌈units/8⌉ bytes, most significant bit first), which `fit` compares with its bench's.
+    pub patterns_sha256: String,
 }
 
 /// Everything intake found.
@@ -127,8 +130,9 @@ struct PatternsFile {
     sequence: Option<String>,
 }
 
-/// The base patterns and the sequence of a patterns folder.
-fn read_patterns(dir: &Path) -> Result<(PatternSet, Sequence)> {
+/// The base patterns and the sequence of a patterns folder, and the SHA-256 of its frames'
+/// packed rows ([`IntakeRecord::patterns_sha256`]).
+fn read_patterns(dir: &Path) -> Result<(PatternSet, Sequence, String)> {
     let json = dir.join("patterns.json");
     let text = std::fs::read_to_string(&json).map_err(|e| Error::read(&json, e))?;
     let meta: PatternsFile = serde_json::from_str(&text).map_err(|e| {
@@ -173,6 +177,7 @@ fn read_patterns(dir: &Path) -> Result<(PatternSet, Sequence)> {
             .in_file(&npy));
         }
     };
+    let sha = crate::provenance::sha256_hex(bytes);
     // The base patterns' rows in the sequence's frames.
     let row_of = |i: usize| match sequence {
         Sequence::Base => i,
@@ -196,7 +201,7 @@ fn read_patterns(dir: &Path) -> Result<(PatternSet, Sequence)> {
         && let Ok(set) = f.build(w, h, m)
         && *set.base_patterns() == bits
     {
-        return Ok((set, sequence));
+        return Ok((set, sequence, sha));
     }
     Ok((
         PatternSet::Random {
@@ -206,6 +211,7 @@ fn read_patterns(dir: &Path) -> Result<(PatternSet, Sequence)> {
             patterns: bits,
         },
         sequence,
+        sha,
     ))
 }
 
@@ -400,6 +406,7 @@ fn take_record(
         found,
         head,
         sample_interval_s: rec.sample_interval_s,
+        patterns_sha256: String::new(),
     })
 }
 
@@ -435,7 +442,7 @@ pub fn intake(req: &IntakeRequest) -> Result<Intake> {
             .patterns
             .clone()
             .unwrap_or_else(|| path.parent().unwrap_or(Path::new(".")).to_path_buf());
-        let (s, sequence) = read_patterns(&dir)?;
+        let (s, sequence, sha) = read_patterns(&dir)?;
         if records.iter().any(|r| r.sequence == sequence) {
             return Err(Error::input(format!(
                 "a second record of the {} sequence",
@@ -459,7 +466,9 @@ pub fn intake(req: &IntakeRequest) -> Result<Intake> {
         } else {
             0
         };
-        records.push(take_record(path, req, sequence.frames(m), pairs, sequence)?);
+        let mut taken = take_record(path, req, sequence.frames(m), pairs, sequence)?;
+        taken.patterns_sha256 = sha;
+        records.push(taken);
     }
     let set = set.ok_or_else(|| Error::input("no record to take in"))?;
     let (w, h) = (set.width(), set.height());

@@ -45,6 +45,8 @@ pub struct RecordSummary {
     pub clipped_frames: usize,
     pub irregular_frames: usize,
     pub anomalies: Vec<TriggerAnomaly>,
+    /// SHA-256 of the frames' packed rows (crate::intake::IntakeRecord::patterns_sha256).
+    pub patterns_sha256: String,
 }
 
 /// One scheme × ratio in `summary.json`.
@@ -142,6 +144,7 @@ fn record_summary(r: &IntakeRecord) -> RecordSummary {
         clipped_frames: count(FLAG_CLIPPED),
         irregular_frames: count(FLAG_IRREGULAR),
         anomalies: r.found.anomalies.clone(),
+        patterns_sha256: r.patterns_sha256.clone(),
     }
 }
 

@@ -13,6 +13,7 @@
 pub mod card;
 pub mod check;
 pub mod export;
+pub mod fit;
 pub mod intake;
 pub mod labels;
 pub mod layout;

@@ -1,0 +1,429 @@
+//! The `fit` job: the bench as built. The free bench variables (misalignments) whose traced
+//! model reproduces what a built bench recorded, every frame value of every channel of an
+//! `intake` folder ([`measured`]), with the nuisances a lab does not know profiled out
+//! ([`model`]); then each variable's standard error, the correlations and the singular values
+//! of the Jacobian, the directions the data do not constrain with the range of equally good
+//! values along each ([`identify`]), and optionally the compensator moves that rebalance the
+//! fitted bench.
+//!
+//! # Method
+//!
+//! Levenberg–Marquardt (K. Levenberg, *Q. Appl. Math.* 2, 164–168, 1944; D. W. Marquardt,
+//! *J. SIAM* 11, 431–441, 1963) on the whitened residuals, in the free variables scaled to the
+//! unit box (a step is projected onto it, so the bounds hold). Every evaluation of one stage
+//! traces with the same rays and seed (common random numbers): the misfit is one fixed sample
+//! path, and the forward differences of the Jacobian (step 1 % of each range, toward the
+//! interior at a bound) are paired, their trace noise cancelling ray by ray. The first stage
+//! traces a quarter of the rays; the second, from the first's optimum, all of them.
+
+pub mod identify;
+pub mod linalg;
+pub mod measured;
+pub mod model;
+
+use crate::acquisition::{Sequence, patterns_for_ratio};
+use crate::error::{Error, Result};
+use crate::pipeline::evaluate::{EvaluateOptions, evaluate};
+use crate::pipeline::optimise::{AlignOptions, Free, Objective, check_start, search, settings};
+use crate::pipeline::{TraceRequest, trace_stage};
+use crate::quantities::BenchMetric;
+use crate::reconstruction::BitMatrix;
+use crate::scene::doc::BenchDoc;
+
+pub use identify::{Identification, Unidentified};
+pub use measured::{Measured, read_measured};
+pub use model::{NUISANCES, Profiled};
+
+/// The relative forward-difference step in the unit box.
+pub const STEP: f64 = 0.01;
+/// The most Levenberg–Marquardt iterations per stage.
+pub const MAX_ITERATIONS: usize = 12;
+
+/// What to fit.
+#[derive(Debug, Clone)]
+pub struct FitRequest {
+    pub free: Vec<Free>,
+    /// Compensators for the adjustment (empty: none).
+    pub adjust: Vec<Free>,
+    /// The imbalance the adjustment must bring |imbalance| under.
+    pub imbalance_limit: f64,
+    pub rays: u64,
+    pub seed: u64,
+}
+
+/// One evaluated point.
+#[derive(Debug, Clone)]
+pub struct Point {
+    pub values: Vec<f64>,
+    pub profiled: Profiled,
+}
+
+/// One accepted Levenberg–Marquardt step.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct FitStep {
+    pub stage: usize,
+    pub rays: u64,
+    pub values: Vec<f64>,
+    pub chi2: f64,
+    pub lambda: f64,
+}
+
+/// The adjustment of the fitted bench.
+#[derive(Debug, Clone)]
+pub struct Adjustment {
+    pub adjust: Vec<Free>,
+    pub values: Vec<f64>,
+    /// [before, after]: k₊, k₋ (A/W), imbalance, each with its standard error.
+    pub k_plus: [(f64, f64); 2],
+    pub k_minus: [(f64, f64); 2],
+    pub imbalance: [(f64, f64); 2],
+    pub limit: f64,
+    pub under_limit: bool,
+}
+
+/// A finished fit.
+#[derive(Debug, Clone)]
+pub struct Fit {
+    pub free: Vec<Free>,
+    pub rays: u64,
+    pub seed: u64,
+    pub best: Point,
+    pub nominal_chi2: f64,
+    /// Used frame values minus free variables minus nuisances.
+    pub dof: usize,
+    pub values_used: usize,
+    pub history: Vec<FitStep>,
+    pub identification: Identification,
+    /// The nominal scales (V/A) the nuisance scales are relative to.
+    pub nominal_scales: [f64; 4],
+    pub adjustment: Option<Adjustment>,
+    pub evaluations: usize,
+}
+
+impl Fit {
+    pub fn chi2_per_dof(&self) -> f64 {
+        self.best.profiled.chi2 / self.dof.max(1) as f64
+    }
+
+    /// The nuisances as reported: scales relative to the nominal electronics, offsets in V.
+    pub fn nuisances(&self) -> Vec<(&'static str, f64)> {
+        let n = &self.best.profiled.nuisances;
+        let s = &self.nominal_scales;
+        let rel = [n[0] / s[0], n[1] / s[1], n[2], n[3] / s[2], n[4], n[5] / s[3], n[6]];
+        NUISANCES.iter().copied().zip(rel).collect()
+    }
+
+    pub fn settings(&self) -> Vec<(String, f64)> {
+        settings(&self.free, &self.best.values)
+    }
+}
+
+/// What every evaluation shares: the bench, the measured frames and their patterns.
+pub struct Problem<'a> {
+    pub doc: &'a BenchDoc,
+    pub free: &'a [Free],
+    pub measured: &'a Measured,
+    pub bits: BitMatrix,
+}
+
+impl Problem<'_> {
+    /// The misfit at `x` (the variables' values) traced with (rays, seed); None when the bench
+    /// at `x` does not build.
+    pub fn at(&self, x: &[f64], rays: u64, seed: u64) -> Result<Option<Profiled>> {
+        let Ok(d) = self.doc.with(&settings(self.free, x)) else {
+            return Ok(None);
+        };
+        let Ok(bench) = d.build() else {
+            return Ok(None);
+        };
+        let traced = trace_stage(&bench, &TraceRequest::new(rays, seed))?;
+        let frames = model::model_frames(&traced.transport, &self.bits, self.measured);
+        model::profile(&frames, self.measured).map(Some)
+    }
+
+    pub fn to_values(&self, u: &[f64]) -> Vec<f64> {
+        self.free
+            .iter()
+            .zip(u)
+            .map(|(f, t)| f.lo + t.clamp(0.0, 1.0) * (f.hi - f.lo))
+            .collect()
+    }
+
+    pub fn to_unit(&self, x: &[f64]) -> Vec<f64> {
+        self.free
+            .iter()
+            .zip(x)
+            .map(|(f, v)| (v - f.lo) / (f.hi - f.lo))
+            .collect()
+    }
+
+    /// The Jacobian of the whitened residuals in the unit box at `u` (rows: residuals), by
+    /// paired forward differences.
+    pub fn jacobian(
+        &self,
+        u: &[f64],
+        r0: &[f64],
+        rays: u64,
+        seed: u64,
+    ) -> Result<Vec<Vec<f64>>> {
+        let mut cols = Vec::with_capacity(u.len());
+        for i in 0..u.len() {
+            let mut v = u.to_vec();
+            let h = if u[i] + STEP <= 1.0 { STEP } else { -STEP };
+            v[i] += h;
+            let p = self.at(&self.to_values(&v), rays, seed)?.ok_or_else(|| {
+                Error::input(format!(
+                    "the bench does not build at {} = {} (a difference step of the fit): \
+                     narrow its bounds",
+                    self.free[i].path,
+                    self.to_values(&v)[i]
+                ))
+            })?;
+            cols.push(
+                p.residuals
+                    .iter()
+                    .zip(r0)
+                    .map(|(a, b)| (a - b) / h)
+                    .collect::<Vec<f64>>(),
+            );
+        }
+        Ok(cols)
+    }
+}
+
+/// The measured folder against the bench: units, base patterns and each sequence's frames
+/// (their SHA-256); the base patterns the bench shows.
+pub fn check_measured(doc: &BenchDoc, measured: &Measured) -> Result<BitMatrix> {
+    let scene = doc.run_scene()?;
+    let (w, h) = scene.bench.units_shape();
+    let m_max = scene
+        .settings
+        .sampling_ratios
+        .iter()
+        .map(|&r| patterns_for_ratio(r, w * h))
+        .max()
+        .unwrap_or(1);
+    let sp = measured.dir.join("summary.json");
+    if (w, h) != measured.units || m_max != measured.base_patterns {
+        return Err(Error::input(format!(
+            "measured with {} × {} units and {} base patterns, the bench shows {w} × {h} and \
+             {m_max}: a measured folder from another bench or sequence",
+            measured.units.0, measured.units.1, measured.base_patterns
+        ))
+        .in_file(&sp));
+    }
+    let set = scene.settings.patterns.build(w, h, m_max)?;
+    let bits = set.base_patterns().into_owned();
+    for q in &measured.sequences {
+        let sha = crate::provenance::sha256_hex(&model::packed_rows(&bits, q.sequence));
+        if sha != q.patterns_sha256 {
+            return Err(Error::input(format!(
+                "the {} record's patterns (SHA-256 {}…) are not the frames this bench shows \
+                 ({}…): a measured folder from another sequence or bench",
+                q.sequence.key(),
+                &q.patterns_sha256[..q.patterns_sha256.len().min(12)],
+                &sha[..12]
+            ))
+            .in_file(&sp));
+        }
+    }
+    if !measured
+        .sequences
+        .iter()
+        .any(|q| q.sequence == Sequence::CalibratedBase)
+    {
+        return Err(Error::input("no calibrated_base record").in_file(&sp));
+    }
+    Ok(bits)
+}
+
+/// Fits the free variables to the measured frames (module notes), identifies them, and with
+/// compensators adjusts the fitted bench. `progress(evaluations)` after each trace.
+pub fn fit(
+    doc: &BenchDoc,
+    measured: &Measured,
+    req: &FitRequest,
+    progress: &(dyn Fn(usize) + Sync),
+) -> Result<Fit> {
+    if req.free.is_empty() {
+        return Err(Error::field("free", "give at least one free variable"));
+    }
+    let start = check_start(doc, &req.free, true)?;
+    if !req.adjust.is_empty() {
+        check_start(doc, &req.adjust, true)
+            .map_err(|e| e.with_note("the adjustment's compensators"))?;
+    }
+    let bits = check_measured(doc, measured)?;
+    let scene = doc.run_scene()?;
+    let p = Problem {
+        doc,
+        free: &req.free,
+        measured,
+        bits,
+    };
+    let rays = req.rays.max(2 * crate::trace::RAYS_PER_BATCH);
+    let stages = [(rays / 4).max(2 * crate::trace::RAYS_PER_BATCH), rays];
+    let evals = std::sync::atomic::AtomicUsize::new(0);
+    let count = || {
+        let n = evals.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+        progress(n);
+    };
+    let nominal = p
+        .at(&start, rays, req.seed)?
+        .ok_or_else(|| Error::input("the nominal bench does not build"))?;
+    count();
+    let mut u = p.to_unit(&start);
+    let mut history = Vec::new();
+    for (stage, &r) in stages.iter().enumerate() {
+        u = levenberg_marquardt(&p, u, r, req.seed, stage, &mut history, &count)?;
+    }
+    let x = p.to_values(&u);
+    let best_prof = p
+        .at(&x, rays, req.seed)?
+        .ok_or_else(|| Error::input("the fitted bench does not build"))?;
+    count();
+    let n_used = best_prof.residuals.len();
+    let dof = n_used.saturating_sub(req.free.len() + NUISANCES.len());
+    let jac = p.jacobian(&u, &best_prof.residuals, rays, req.seed)?;
+    for _ in 0..req.free.len() {
+        count();
+    }
+    let chi2_dof = best_prof.chi2 / dof.max(1) as f64;
+    let identification = identify::identify(&p, &u, &jac, best_prof.chi2, chi2_dof, rays, req.seed, &count)?;
+    let best = Point {
+        values: x,
+        profiled: best_prof,
+    };
+    let fitted_doc = doc.with(&settings(&req.free, &best.values))?;
+    let adjustment = if req.adjust.is_empty() {
+        None
+    } else {
+        Some(adjust(&fitted_doc, req, &count)?)
+    };
+    Ok(Fit {
+        free: req.free.clone(),
+        rays,
+        seed: req.seed,
+        nominal_chi2: nominal.chi2,
+        dof,
+        values_used: n_used,
+        history,
+        identification,
+        nominal_scales: model::nominal_scales(&scene.detector),
+        adjustment,
+        best,
+        evaluations: evals.load(std::sync::atomic::Ordering::Relaxed),
+    })
+}
+
+/// One stage of Levenberg–Marquardt from `u` (module notes); returns the stage's optimum.
+fn levenberg_marquardt(
+    p: &Problem,
+    mut u: Vec<f64>,
+    rays: u64,
+    seed: u64,
+    stage: usize,
+    history: &mut Vec<FitStep>,
+    count: &(dyn Fn() + Sync),
+) -> Result<Vec<f64>> {
+    let n = u.len();
+    let mut cur = p
+        .at(&p.to_values(&u), rays, seed)?
+        .ok_or_else(|| Error::input("the fit's starting bench does not build"))?;
+    count();
+    let mut lambda = 1e-3;
+    for _ in 0..MAX_ITERATIONS {
+        let jac = p.jacobian(&u, &cur.residuals, rays, seed)?;
+        for _ in 0..n {
+            count();
+        }
+        let a: Vec<Vec<f64>> = (0..n)
+            .map(|i| (0..n).map(|j| dot(&jac[i], &jac[j])).collect())
+            .collect();
+        let g: Vec<f64> = (0..n).map(|i| -dot(&jac[i], &cur.residuals)).collect();
+        let mut improved = false;
+        for _try in 0..6 {
+            let mut m = a.clone();
+            for (i, row) in m.iter_mut().enumerate() {
+                row[i] += lambda * a[i][i].max(1e-12) + 1e-12;
+            }
+            let Some(delta) = linalg::solve(m, g.clone()) else {
+                lambda *= 10.0;
+                continue;
+            };
+            let trial: Vec<f64> = u
+                .iter()
+                .zip(&delta)
+                .map(|(a, d)| (a + d).clamp(0.0, 1.0))
+                .collect();
+            let step: f64 = trial.iter().zip(&u).map(|(a, b)| (a - b).abs()).sum();
+            if step < 1e-6 {
+                break;
+            }
+            let next = p.at(&p.to_values(&trial), rays, seed)?;
+            count();
+            match next {
+                Some(q) if q.chi2 < cur.chi2 => {
+                    let gain = (cur.chi2 - q.chi2) / cur.chi2.max(f64::MIN_POSITIVE);
+                    u = trial;
+                    cur = q;
+                    lambda = (lambda / 3.0).max(1e-7);
+                    history.push(FitStep {
+                        stage,
+                        rays,
+                        values: p.to_values(&u),
+                        chi2: cur.chi2,
+                        lambda,
+                    });
+                    improved = gain > 1e-4 && step > 1e-4;
+                    break;
+                }
+                _ => lambda *= 4.0,
+            }
+        }
+        if !improved {
+            break;
+        }
+    }
+    Ok(u)
+}
+
+pub fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
+}
+
+/// The compensators that rebalance the fitted bench (the optimiser's balance objective), and
+/// its k±, imbalance before and after on one seed.
+fn adjust(fitted: &BenchDoc, req: &FitRequest, count: &(dyn Fn() + Sync)) -> Result<Adjustment> {
+    let o = AlignOptions {
+        start_rays: (req.rays / 4).max(2 * crate::trace::RAYS_PER_BATCH),
+        max_rays: req.rays,
+        seed: req.seed,
+        max_evaluations: 40 * req.adjust.len().max(1),
+    };
+    let s = search(fitted, &req.adjust, &Objective::BALANCE, &o, &|_| count())?;
+    let eo = EvaluateOptions {
+        rays: req.rays,
+        seed: req.seed,
+        quality: false,
+    };
+    let before = evaluate(fitted, Vec::new(), &eo)?;
+    let set = settings(&req.adjust, &s.best_values);
+    let after = evaluate(&fitted.with(&set)?, set, &eo)?;
+    let pick = |m: BenchMetric| {
+        [&before, &after].map(|e| (e.metrics[m].value, e.metrics[m].stderr()))
+    };
+    let imbalance = pick(BenchMetric::Imbalance);
+    Ok(Adjustment {
+        adjust: req.adjust.clone(),
+        values: s.best_values,
+        k_plus: pick(BenchMetric::KPlus),
+        k_minus: pick(BenchMetric::KMinus),
+        imbalance,
+        limit: req.imbalance_limit,
+        under_limit: imbalance[1].0.abs() < req.imbalance_limit,
+    })
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,288 @@
+//! The model's frame values and the misfit to the measured ones.
+//!
+//! A bench traced with (rays, seed) gives every frame's light on each diode, u±(f) = Σ_j P_fj·g±_j
+//! + c± (crate::transport::Transport::frame_currents, the calibration frames as all-on/all-off
+//! pairs), and its Monte Carlo variance Σ_j P_fj·se(g±_j)² + se(c±)² (the units' batch sums taken
+//! as independent). What a lab does not know enters linearly and is profiled out by weighted
+//! least squares at every evaluation (variable projection: G. H. Golub and V. Pereyra, "The
+//! differentiation of pseudo-inverses and nonlinear least squares problems whose variables
+//! separate", *SIAM J. Numer. Anal.* 10, 413–432, 1973):
+//!
+//! - MONITOR+ = a₊·u₊ + b₊ and MONITOR− = a₋·u₋ + b₋: a± the lamp's absolute power times the
+//!   monitor's transimpedance and the diode's responsivity, b± the offsets, ambient and dark;
+//! - RF = r₊·u₊ − r₋·u₋ + b_RF: the RF transimpedance times each diode's responsivity.
+//!
+//! Seven nuisances in all, reported as scales relative to the bench's nominal electronics and
+//! offsets in volts. A change that only scales one arm's light (a uniform loss of collection)
+//! is therefore indistinguishable from that arm's gain: what the frames constrain is the shape
+//! of each arm's per-unit collection map over the chart, and the fit reports directions the
+//! shapes do not fix as unidentified.
+//!
+//! Each frame value is weighted by 1 / (σ_c² + Σ_k a_k²·var u_k(f)): the measured noise of its
+//! channel plus the model's Monte Carlo variance carried through the fitted scales, so that
+//! χ²/dof ≈ 1 means "explained within the noise".
+
+use crate::acquisition::Sequence;
+use crate::acquisition::schemes::CALIBRATION_PAIRS;
+use crate::detector::Bap;
+use crate::error::{Error, Result};
+use crate::reconstruction::{BitMatrix, LinearOperator, PackedOperator, PatternForm};
+use crate::transport::Transport;
+
+use super::measured::Measured;
+
+/// The nuisance names, in the order of [`Profiled::nuisances`].
+pub const NUISANCES: [&str; 7] = [
+    "rf_scale_plus",
+    "rf_scale_minus",
+    "rf_offset_v",
+    "monitor_plus_scale",
+    "monitor_plus_offset_v",
+    "monitor_minus_scale",
+    "monitor_minus_offset_v",
+];
+
+/// The model's light on the diodes for every measured frame, sequence by sequence.
+#[derive(Debug, Clone)]
+pub struct ModelFrames {
+    /// [u₊, u₋] per frame (A), in the measured sequences' order.
+    pub light_a: Vec<Vec<[f64; 2]>>,
+    /// Their Monte Carlo variances (A²).
+    pub var_a2: Vec<Vec<[f64; 2]>>,
+}
+
+/// The frames of sequence `q` as packed rows (frames × ⌈units/8⌉, most significant bit first),
+/// as `run --scope-record` writes `patterns.npy`: what intake's `patterns_sha256` hashes.
+pub fn packed_rows(bits: &BitMatrix, q: Sequence) -> Vec<u8> {
+    let (m, units) = (bits.rows(), bits.cols());
+    let lead = q.lead_frames();
+    let frames = q.frames(m);
+    let row_bytes = units.div_ceil(8);
+    let mut data = vec![0u8; frames * row_bytes];
+    for f in 0..frames {
+        for j in 0..units {
+            let on = match q {
+                Sequence::Base => bits.get(f, j),
+                Sequence::Complementary => bits.get(f / 2, j) != (f % 2 == 1),
+                Sequence::CalibratedBase if f < lead => f.is_multiple_of(2),
+                Sequence::CalibratedBase => bits.get(f - lead, j),
+            };
+            if on {
+                data[f * row_bytes + j / 8] |= 0x80 >> (j % 8);
+            }
+        }
+    }
+    data
+}
+
+/// Σ_j P_ij·v_j for every row.
+fn products(op: &PackedOperator, v: &[f64]) -> Vec<f64> {
+    let mut out = vec![0.0; op.rows()];
+    op.apply(v, &mut out);
+    out
+}
+
+/// The model's frames of every measured sequence for a traced transport.
+pub fn model_frames(t: &Transport, bits: &BitMatrix, measured: &Measured) -> ModelFrames {
+    let op = PackedOperator::new(bits.clone(), PatternForm::ZeroOne);
+    let finite2 = |v: &[f64]| -> Vec<f64> {
+        v.iter()
+            .map(|s| if s.is_finite() { s * s } else { 0.0 })
+            .collect()
+    };
+    let se2 = [finite2(&t.g_map_stderr[0]), finite2(&t.g_map_stderr[1])];
+    let pv = [products(&op, &se2[0]), products(&op, &se2[1])];
+    let tot_v = [se2[0].iter().sum::<f64>(), se2[1].iter().sum::<f64>()];
+    let c_v = [0, 1].map(|a| {
+        let s = t.c_traced[a].stderr;
+        if s.is_finite() { s * s } else { 0.0 }
+    });
+    let products_g = t.pattern_products_of(&op);
+    let units = bits.cols();
+    let (mut light_a, mut var_a2) = (Vec::new(), Vec::new());
+    for q in &measured.sequences {
+        // Variance of frame with pattern P: arm + sees the units on, arm − those off.
+        let base_var = |i: usize, inverted: bool| -> [f64; 2] {
+            let (on_p, on_m) = (pv[0][i], pv[1][i]);
+            if inverted {
+                [tot_v[0] - on_p + c_v[0], on_m + c_v[1]]
+            } else {
+                [on_p + c_v[0], tot_v[1] - on_m + c_v[1]]
+            }
+        };
+        let m = bits.rows();
+        let (l, v) = match q.sequence {
+            Sequence::Base => (
+                t.frame_currents_of(&products_g, false),
+                (0..m).map(|i| base_var(i, false)).collect(),
+            ),
+            Sequence::Complementary => (
+                t.frame_currents_of(&products_g, true),
+                (0..m)
+                    .flat_map(|i| [base_var(i, false), base_var(i, true)])
+                    .collect(),
+            ),
+            Sequence::CalibratedBase => {
+                let on = BitMatrix::from_fn(CALIBRATION_PAIRS, units, |_, _| true);
+                let mut l = t.frame_currents(&on, CALIBRATION_PAIRS, true);
+                l.extend(t.frame_currents_of(&products_g, false));
+                let all = [tot_v[0] + c_v[0], c_v[1]];
+                let none = [c_v[0], tot_v[1] + c_v[1]];
+                let mut v: Vec<[f64; 2]> = (0..CALIBRATION_PAIRS).flat_map(|_| [all, none]).collect();
+                v.extend((0..m).map(|i| base_var(i, false)));
+                (l, v)
+            }
+        };
+        light_a.push(l);
+        var_a2.push(v);
+    }
+    ModelFrames { light_a, var_a2 }
+}
+
+/// The misfit at one point, its nuisances profiled out.
+#[derive(Debug, Clone)]
+pub struct Profiled {
+    /// Whitened residuals (measured − model) / σ of every used frame value, channel-major within
+    /// each frame, sequences in order.
+    pub residuals: Vec<f64>,
+    pub chi2: f64,
+    /// The linear nuisances in their fitted units (A → V scales, V offsets), [`NUISANCES`] order
+    /// before the scales are made relative.
+    pub nuisances: [f64; 7],
+    /// Residuals (V) and their σ (V) per sequence, frame and channel (NaN where flagged).
+    pub residual_v: Vec<Vec<[f64; 3]>>,
+    pub sigma_v: Vec<Vec<[f64; 3]>>,
+}
+
+/// Weighted least squares of y on the columns `x` (each a basis vector) with weights `w`:
+/// the coefficients, through the normal equations (at most three columns).
+fn wls(cols: &[Vec<f64>], y: &[f64], w: &[f64]) -> Result<Vec<f64>> {
+    let k = cols.len();
+    let mut a = vec![vec![0.0; k]; k];
+    let mut b = vec![0.0; k];
+    for n in 0..y.len() {
+        for i in 0..k {
+            b[i] += w[n] * cols[i][n] * y[n];
+            for j in 0..k {
+                a[i][j] += w[n] * cols[i][n] * cols[j][n];
+            }
+        }
+    }
+    super::linalg::solve(a, b).ok_or_else(|| {
+        Error::input(
+            "the measured frames do not separate the model's light from the offsets (too few \
+             distinct frames)",
+        )
+    })
+}
+
+/// The misfit of the model's frames to the measured ones, the nuisances profiled out (module
+/// notes), in two passes: the weights of the second carry the first's fitted scales.
+pub fn profile(model: &ModelFrames, measured: &Measured) -> Result<Profiled> {
+    // Flatten the used frames.
+    let mut u = [Vec::new(), Vec::new()];
+    let mut var = [Vec::new(), Vec::new()];
+    let mut y = [Vec::new(), Vec::new(), Vec::new()];
+    for (s, q) in measured.sequences.iter().enumerate() {
+        for (f, v) in q.values.iter().enumerate() {
+            if q.flagged[f] {
+                continue;
+            }
+            for a in 0..2 {
+                u[a].push(model.light_a[s][f][a]);
+                var[a].push(model.var_a2[s][f][a]);
+            }
+            for o in 0..3 {
+                y[o].push(v[o]);
+            }
+        }
+    }
+    let n = y[0].len();
+    let ones = vec![1.0; n];
+    let neg_minus: Vec<f64> = u[1].iter().map(|v| -v).collect();
+    let sigma2 = measured.noise_v.map(|s| s * s);
+    // Channel o's basis (columns), and which model variance each scale carries.
+    let basis: [(Vec<Vec<f64>>, Vec<usize>); 3] = [
+        (vec![u[0].clone(), neg_minus, ones.clone()], vec![0, 1]),
+        (vec![u[0].clone(), ones.clone()], vec![0]),
+        (vec![u[1].clone(), ones], vec![1]),
+    ];
+    let mut coef: [Vec<f64>; 3] = Default::default();
+    let mut weights: [Vec<f64>; 3] = Default::default();
+    for (o, (cols, arms)) in basis.iter().enumerate() {
+        let floor = sigma2[o].max(1e-30);
+        let mut w = vec![1.0 / floor; n];
+        let mut c = wls(cols, &y[o], &w)?;
+        for (i, wi) in w.iter_mut().enumerate() {
+            let mc: f64 = arms
+                .iter()
+                .enumerate()
+                .map(|(k, &a)| c[k] * c[k] * var[a][i])
+                .sum();
+            *wi = 1.0 / (floor + mc);
+        }
+        c = wls(cols, &y[o], &w)?;
+        coef[o] = c;
+        weights[o] = w;
+    }
+    let mut residuals = Vec::with_capacity(3 * n);
+    let mut chi2 = 0.0;
+    let pred = |o: usize, i: usize| -> f64 {
+        basis[o]
+            .0
+            .iter()
+            .zip(&coef[o])
+            .map(|(col, c)| c * col[i])
+            .sum()
+    };
+    let mut residual_v = Vec::new();
+    let mut sigma_v = Vec::new();
+    let mut i = 0;
+    for q in &measured.sequences {
+        let (mut rv, mut sv) = (Vec::new(), Vec::new());
+        for f in 0..q.values.len() {
+            if q.flagged[f] {
+                rv.push([f64::NAN; 3]);
+                sv.push([f64::NAN; 3]);
+                continue;
+            }
+            let mut r3 = [0.0; 3];
+            let mut s3 = [0.0; 3];
+            for o in 0..3 {
+                let r = y[o][i] - pred(o, i);
+                let z = r * weights[o][i].sqrt();
+                residuals.push(z);
+                chi2 += z * z;
+                r3[o] = r;
+                s3[o] = 1.0 / weights[o][i].sqrt();
+            }
+            rv.push(r3);
+            sv.push(s3);
+            i += 1;
+        }
+        residual_v.push(rv);
+        sigma_v.push(sv);
+    }
+    let nuisances = [
+        coef[0][0], coef[0][1], coef[0][2], coef[1][0], coef[1][1], coef[2][0], coef[2][1],
+    ];
+    Ok(Profiled {
+        residuals,
+        chi2,
+        nuisances,
+        residual_v,
+        sigma_v,
+    })
+}
+
+/// The nominal scales (V/A) of [`NUISANCES`]' scale entries from the bench's electronics: the
+/// RF and monitor transimpedances times each diode's responsivity scale.
+pub fn nominal_scales(bap: &Bap) -> [f64; 4] {
+    let s = bap.responsivity_scale;
+    let (g_rf, g_p, g_m) = (
+        bap.stage(0).gain_v_per_a,
+        bap.stage(1).gain_v_per_a,
+        bap.stage(2).gain_v_per_a,
+    );
+    [g_rf * s[0], g_rf * s[1], g_p * s[0], g_m * s[1]]
+}
