@@ -11,7 +11,8 @@
 //! parameter), extended to the first point beyond it on each side (or the bound).
 //!
 //! The covariance of the variables is the pseudo-inverse over the identified directions,
-//! C = Σ_k v_k v_kᵀ σ_k², in the variables' units; a variable with a share above
+//! C = Σ_k v_k v_kᵀ σ_k², plus the covariance the model's own trace noise gives them
+//! ([`trace_covariance`]: its errors are shared by every frame), in the variables' units; a variable with a share above
 //! [`LOADING`] in an unidentified direction is reported unidentified (no standard error) with
 //! its range from the scan.
 
@@ -55,12 +56,31 @@ pub struct Identification {
     pub unidentified: Vec<Unidentified>,
 }
 
+impl Identification {
+    /// A scanned point clearly better than the optimum (by more than a scan's Δχ² limit): the
+    /// optimum was a local one.
+    pub fn better_point(&self) -> Option<Vec<f64>> {
+        self.unidentified
+            .iter()
+            .flat_map(|u| {
+                u.scan_values
+                    .iter()
+                    .zip(&u.scan_delta_chi2)
+                    .filter(|(_, d)| **d < -u.delta_chi2_limit)
+            })
+            .min_by(|a, b| a.1.total_cmp(b.1))
+            .map(|(x, _)| x.clone())
+    }
+}
+
 /// Identifies the fit at `u` (unit box) from its Jacobian's columns (module notes).
 #[allow(clippy::too_many_arguments)]
 pub fn identify(
     p: &Problem,
     u: &[f64],
     jac: &[Vec<f64>],
+    prof: &super::Profiled,
+    g_stderr: &[Vec<f64>; 2],
     chi2: f64,
     chi2_dof: f64,
     rays: u64,
@@ -76,6 +96,7 @@ pub fn identify(
     let inflate = chi2_dof.max(1.0).sqrt();
     let range: Vec<f64> = p.free.iter().map(|f| f.hi - f.lo).collect();
     let mut cov = vec![vec![0.0; n]; n];
+    let mut pinv = vec![vec![0.0; n]; n];
     let mut identified = vec![true; n];
     let mut unidentified = Vec::new();
     for k in 0..n {
@@ -85,6 +106,7 @@ pub fn identify(
             for i in 0..n {
                 for j in 0..n {
                     cov[i][j] += v[i] * v[j] * sigma * sigma * range[i] * range[j];
+                    pinv[i][j] += v[i] * v[j] / (s[k] * s[k]);
                 }
             }
             continue;
@@ -95,6 +117,12 @@ pub fn identify(
             }
         }
         unidentified.push(scan(p, u, &v, s[k], chi2, chi2_dof, rays, seed, count)?);
+    }
+    let trace = trace_covariance(p, jac, &pinv, prof, g_stderr);
+    for i in 0..n {
+        for j in 0..n {
+            cov[i][j] += trace[i][j] * range[i] * range[j];
+        }
     }
     let stderr: Vec<f64> = (0..n)
         .map(|i| {
@@ -193,4 +221,82 @@ fn scan(
         scan_delta_chi2: d,
         delta_chi2_limit: limit,
     })
+}
+
+/// The covariance (unit box) that the model's own trace noise gives the fitted variables.
+///
+/// The per-frame weights count each frame's Monte Carlo variance, but a trace's errors are
+/// shared by the frames: every frame sums the same per-unit gains g±_j, so their errors move
+/// the optimum together. To first order the optimum moves by δθ = A⁺·Jᵀ·(δmodel/σ), with
+/// δmodel(f, o) = Σ_arms c_o,arm·Σ_j P^arm_fj·δg^arm_j (c the fitted scales, P^+ the frame's
+/// pattern and P^− its complement); so cov = Σ_arms Σ_j h_i,j·h_k,j·se(g_j)² with
+/// h_i = (P^arm)ᵀ·(c·z_i/σ) and z_i = J·A⁺·e_i.
+pub fn trace_covariance(
+    p: &Problem,
+    jac: &[Vec<f64>],
+    pinv: &[Vec<f64>],
+    prof: &super::Profiled,
+    g_stderr: &[Vec<f64>; 2],
+) -> Vec<Vec<f64>> {
+    use crate::acquisition::Sequence;
+    use crate::acquisition::schemes::CALIBRATION_PAIRS;
+    let n = jac.len();
+    let units = p.bits.cols();
+    let nu = &prof.nuisances;
+    // Scales per channel [RF, MON+, MON−] on [u₊, u₋].
+    let scale = [[nu[0], -nu[1]], [nu[3], 0.0], [0.0, nu[5]]];
+    let mut h = vec![[vec![0.0; units], vec![0.0; units]]; n];
+    let mut idx = 0;
+    for (s, q) in p.measured.sequences.iter().enumerate() {
+        for f in 0..q.values.len() {
+            if q.flagged[f] {
+                continue;
+            }
+            // The frame's pattern as (row of the base patterns, inverted), or all on / all off.
+            let pattern: (Option<usize>, bool) = match q.sequence {
+                Sequence::Base => (Some(f), false),
+                Sequence::Complementary => (Some(f / 2), f % 2 == 1),
+                Sequence::CalibratedBase if f < 2 * CALIBRATION_PAIRS => (None, f % 2 == 1),
+                Sequence::CalibratedBase => (Some(f - 2 * CALIBRATION_PAIRS), false),
+            };
+            let mut w = vec![[0.0; 2]; n];
+            for o in 0..3 {
+                let sg = prof.sigma_v[s][f][o];
+                for (i, wi) in w.iter_mut().enumerate() {
+                    let z: f64 = (0..n).map(|m| jac[m][idx] * pinv[m][i]).sum();
+                    wi[0] += z / sg * scale[o][0];
+                    wi[1] += z / sg * scale[o][1];
+                }
+                idx += 1;
+            }
+            for j in 0..units {
+                let on = match pattern {
+                    (Some(r), inv) => p.bits.get(r, j) != inv,
+                    (None, inv) => !inv,
+                };
+                for (i, wi) in w.iter().enumerate() {
+                    if on {
+                        h[i][0][j] += wi[0];
+                    } else {
+                        h[i][1][j] += wi[1];
+                    }
+                }
+            }
+        }
+    }
+    let se2 = |a: usize, j: usize| {
+        let s = g_stderr[a][j];
+        if s.is_finite() { s * s } else { 0.0 }
+    };
+    (0..n)
+        .map(|i| {
+            (0..n)
+                .map(|k| {
+                    (0..2)
+                        .map(|a| (0..units).map(|j| h[i][a][j] * h[k][a][j] * se2(a, j)).sum::<f64>())
+                        .sum()
+                })
+                .collect()
+        })
+        .collect()
 }

@@ -130,6 +130,16 @@ impl Problem<'_> {
     /// The misfit at `x` (the variables' values) traced with (rays, seed); None when the bench
     /// at `x` does not build.
     pub fn at(&self, x: &[f64], rays: u64, seed: u64) -> Result<Option<Profiled>> {
+        Ok(self.at_with_stderr(x, rays, seed)?.map(|(p, _)| p))
+    }
+
+    /// [`Problem::at`] with the traced per-unit gains' standard errors g±_j (A).
+    pub fn at_with_stderr(
+        &self,
+        x: &[f64],
+        rays: u64,
+        seed: u64,
+    ) -> Result<Option<(Profiled, [Vec<f64>; 2])>> {
         let Ok(d) = self.doc.with(&settings(self.free, x)) else {
             return Ok(None);
         };
@@ -138,7 +148,8 @@ impl Problem<'_> {
         };
         let traced = trace_stage(&bench, &TraceRequest::new(rays, seed))?;
         let frames = model::model_frames(&traced.transport, &self.bits, self.measured);
-        model::profile(&frames, self.measured).map(Some)
+        let prof = model::profile(&frames, self.measured)?;
+        Ok(Some((prof, traced.transport.g_map_stderr.clone())))
     }
 
     pub fn to_values(&self, u: &[f64]) -> Vec<f64> {
@@ -272,24 +283,38 @@ pub fn fit(
         .at(&start, rays, req.seed)?
         .ok_or_else(|| Error::input("the nominal bench does not build"))?;
     count();
-    let mut u = p.to_unit(&start);
     let mut history = Vec::new();
+    let mut u = coarse_start(&p, p.to_unit(&start), stages[0], req.seed, &count)?;
     for (stage, &r) in stages.iter().enumerate() {
         u = levenberg_marquardt(&p, u, r, req.seed, stage, &mut history, &count)?;
     }
+    let mut restarts = 0;
+    let (u, best_prof, identification) = loop {
+        let x = p.to_values(&u);
+        let (prof, g_stderr) = p
+            .at_with_stderr(&x, rays, req.seed)?
+            .ok_or_else(|| Error::input("the fitted bench does not build"))?;
+        count();
+        let dof = prof.residuals.len().saturating_sub(req.free.len() + NUISANCES.len());
+        let jac = p.jacobian(&u, &prof.residuals, rays, req.seed)?;
+        for _ in 0..req.free.len() {
+            count();
+        }
+        let chi2_dof = prof.chi2 / dof.max(1) as f64;
+        let id = identify::identify(&p, &u, &jac, &prof, &g_stderr, prof.chi2, chi2_dof, rays, req.seed, &count)?;
+        // A scan that found a clearly better point: the optimum was local; go on from there.
+        match id.better_point() {
+            Some(x) if restarts < 2 => {
+                restarts += 1;
+                let stage = stages.len();
+                u = levenberg_marquardt(&p, p.to_unit(&x), rays, req.seed, stage, &mut history, &count)?;
+            }
+            _ => break (u, prof, id),
+        }
+    };
     let x = p.to_values(&u);
-    let best_prof = p
-        .at(&x, rays, req.seed)?
-        .ok_or_else(|| Error::input("the fitted bench does not build"))?;
-    count();
     let n_used = best_prof.residuals.len();
     let dof = n_used.saturating_sub(req.free.len() + NUISANCES.len());
-    let jac = p.jacobian(&u, &best_prof.residuals, rays, req.seed)?;
-    for _ in 0..req.free.len() {
-        count();
-    }
-    let chi2_dof = best_prof.chi2 / dof.max(1) as f64;
-    let identification = identify::identify(&p, &u, &jac, best_prof.chi2, chi2_dof, rays, req.seed, &count)?;
     let best = Point {
         values: x,
         profiled: best_prof,
@@ -314,6 +339,43 @@ pub fn fit(
         best,
         evaluations: evals.load(std::sync::atomic::Ordering::Relaxed),
     })
+}
+
+/// Points per variable of the coarse start.
+pub const COARSE_POINTS: usize = 9;
+
+/// The coarse start: each variable in turn set to the best of [`COARSE_POINTS`] evenly spaced
+/// values across its bounds, the others held, twice over. A misalignment often leaves the light
+/// unchanged near the nominal bench (a spot inside its diode, a lens whose pupil is not yet
+/// clipped), where the gradient is zero and Levenberg–Marquardt would not move.
+fn coarse_start(
+    p: &Problem,
+    mut u: Vec<f64>,
+    rays: u64,
+    seed: u64,
+    count: &(dyn Fn() + Sync),
+) -> Result<Vec<f64>> {
+    let mut best = p
+        .at(&p.to_values(&u), rays, seed)?
+        .map_or(f64::INFINITY, |q| q.chi2);
+    count();
+    for _sweep in 0..2 {
+        for i in 0..u.len() {
+            for k in 0..COARSE_POINTS {
+                let mut v = u.clone();
+                v[i] = k as f64 / (COARSE_POINTS - 1) as f64;
+                if v == u {
+                    continue;
+                }
+                let c = p.at(&p.to_values(&v), rays, seed)?.map_or(f64::INFINITY, |q| q.chi2);
+                count();
+                if c < best {
+                    (best, u) = (c, v);
+                }
+            }
+        }
+    }
+    Ok(u)
 }
 
 /// One stage of Levenberg–Marquardt from `u` (module notes); returns the stage's optimum.

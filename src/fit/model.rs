@@ -158,17 +158,26 @@ pub struct Profiled {
 /// the coefficients, through the normal equations (at most three columns).
 fn wls(cols: &[Vec<f64>], y: &[f64], w: &[f64]) -> Result<Vec<f64>> {
     let k = cols.len();
+    // Columns scaled to unit weighted norm: the light (A) and the offsets' ones differ by 10¹².
+    let norm: Vec<f64> = cols
+        .iter()
+        .map(|c| {
+            let s: f64 = c.iter().zip(w).map(|(v, wi)| wi * v * v).sum();
+            if s > 0.0 { s.sqrt() } else { 1.0 }
+        })
+        .collect();
     let mut a = vec![vec![0.0; k]; k];
     let mut b = vec![0.0; k];
     for n in 0..y.len() {
         for i in 0..k {
-            b[i] += w[n] * cols[i][n] * y[n];
+            b[i] += w[n] * cols[i][n] / norm[i] * y[n];
             for j in 0..k {
-                a[i][j] += w[n] * cols[i][n] * cols[j][n];
+                a[i][j] += w[n] * cols[i][n] / norm[i] * cols[j][n] / norm[j];
             }
         }
     }
-    super::linalg::solve(a, b).ok_or_else(|| {
+    let scaled = super::linalg::solve(a, b);
+    scaled.map(|c| c.iter().zip(&norm).map(|(c, s)| c / s).collect()).ok_or_else(|| {
         Error::input(
             "the measured frames do not separate the model's light from the offsets (too few \
              distinct frames)",
