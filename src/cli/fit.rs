@@ -53,7 +53,10 @@ pub const DEFAULT_RAYS: u64 = 200_000;
 /// Jacobian (one trace per variable) and up to six trial steps, the final Jacobian, a scan of
 /// every direction, and the adjustment's search (40 per compensator) with two evaluations.
 fn work(free: usize, adjust: usize, rays: u64) -> super::args::Work {
-    let traces = 3 + 2 * (1 + MAX_ITERATIONS * (free + 6)) + free + SCAN_POINTS * free
+    let traces = 3
+        + 2 * (1 + MAX_ITERATIONS * (free + 6))
+        + free
+        + SCAN_POINTS * free
         + if adjust > 0 { 40 * adjust + 2 } else { 0 };
     super::args::Work {
         rays: traces as f64 * rays as f64,

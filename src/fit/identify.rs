@@ -100,7 +100,11 @@ pub fn identify(
     let mut identified = vec![true; n];
     let mut unidentified = Vec::new();
     for k in 0..n {
-        let sigma = if s[k] > 0.0 { inflate / s[k] } else { f64::INFINITY };
+        let sigma = if s[k] > 0.0 {
+            inflate / s[k]
+        } else {
+            f64::INFINITY
+        };
         let v: Vec<f64> = (0..n).map(|i| vecs[i][k]).collect();
         if sigma <= UNIDENTIFIED_SIGMA {
             for i in 0..n {
@@ -293,7 +297,11 @@ pub fn trace_covariance(
             (0..n)
                 .map(|k| {
                     (0..2)
-                        .map(|a| (0..units).map(|j| h[i][a][j] * h[k][a][j] * se2(a, j)).sum::<f64>())
+                        .map(|a| {
+                            (0..units)
+                                .map(|j| h[i][a][j] * h[k][a][j] * se2(a, j))
+                                .sum::<f64>()
+                        })
                         .sum()
                 })
                 .collect()

@@ -113,6 +113,12 @@ pub fn read_measured(dir: &Path) -> Result<Measured> {
             .in_file(&dir.join("frames.csv")));
         }
     }
+    if sequences.iter().all(|q| q.flagged.iter().all(|f| *f)) {
+        return Err(Error::input(
+            "every frame is flagged (clipped, irregular or without its pulse): nothing to fit",
+        )
+        .in_file(&dir.join("frames.csv")));
+    }
     let (noise_v, noise_dof) = noise_of(&sequences).ok_or_else(|| {
         Error::input(
             "no calibrated_base record: its all-on/all-off frames give the frame-to-frame \
@@ -120,28 +126,20 @@ pub fn read_measured(dir: &Path) -> Result<Measured> {
         )
         .in_file(&sp)
     })?;
-    let m = Measured {
+    Ok(Measured {
         dir: dir.to_path_buf(),
         units: (s.units_across, s.units_down),
         base_patterns: s.base_patterns,
         sequences,
         noise_v,
         noise_dof,
-    };
-    if m.used_frames() == 0 {
-        return Err(Error::input(
-            "every frame is flagged (clipped, irregular or without its pulse): nothing to fit",
-        )
-        .in_file(&dir.join("frames.csv")));
-    }
-    Ok(m)
+    })
 }
 
 /// Fills each sequence's values and flags from `frames.csv`.
 fn read_frames(path: &Path, sequences: &mut [MeasuredSequence]) -> Result<()> {
-    let mut rd = csv::Reader::from_path(path).map_err(|e| {
-        Error::input(format!("cannot read: {e}")).in_file(path)
-    })?;
+    let mut rd = csv::Reader::from_path(path)
+        .map_err(|e| Error::input(format!("cannot read: {e}")).in_file(path))?;
     for (n, row) in rd.records().enumerate() {
         let line = n + 2;
         let row = row.map_err(|e| Error::input(format!("{e}")).in_file(path).at_line(line, 1))?;
@@ -150,7 +148,10 @@ fn read_frames(path: &Path, sequences: &mut [MeasuredSequence]) -> Result<()> {
             return Err(bad(format!("{} cells, expected 8", row.len())));
         }
         let Some(q) = sequences.iter_mut().find(|q| q.sequence.key() == &row[0]) else {
-            return Err(bad(format!("sequence {:?} is not in summary.json", &row[0])));
+            return Err(bad(format!(
+                "sequence {:?} is not in summary.json",
+                &row[0]
+            )));
         };
         let frame: usize = row[1]
             .parse()

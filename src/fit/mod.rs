@@ -109,7 +109,15 @@ impl Fit {
     pub fn nuisances(&self) -> Vec<(&'static str, f64)> {
         let n = &self.best.profiled.nuisances;
         let s = &self.nominal_scales;
-        let rel = [n[0] / s[0], n[1] / s[1], n[2], n[3] / s[2], n[4], n[5] / s[3], n[6]];
+        let rel = [
+            n[0] / s[0],
+            n[1] / s[1],
+            n[2],
+            n[3] / s[2],
+            n[4],
+            n[5] / s[3],
+            n[6],
+        ];
         NUISANCES.iter().copied().zip(rel).collect()
     }
 
@@ -170,13 +178,7 @@ impl Problem<'_> {
 
     /// The Jacobian of the whitened residuals in the unit box at `u` (rows: residuals), by
     /// paired forward differences.
-    pub fn jacobian(
-        &self,
-        u: &[f64],
-        r0: &[f64],
-        rays: u64,
-        seed: u64,
-    ) -> Result<Vec<Vec<f64>>> {
+    pub fn jacobian(&self, u: &[f64], r0: &[f64], rays: u64, seed: u64) -> Result<Vec<Vec<f64>>> {
         let mut cols = Vec::with_capacity(u.len());
         for i in 0..u.len() {
             let mut v = u.to_vec();
@@ -295,19 +297,32 @@ pub fn fit(
             .at_with_stderr(&x, rays, req.seed)?
             .ok_or_else(|| Error::input("the fitted bench does not build"))?;
         count();
-        let dof = prof.residuals.len().saturating_sub(req.free.len() + NUISANCES.len());
+        let dof = prof
+            .residuals
+            .len()
+            .saturating_sub(req.free.len() + NUISANCES.len());
         let jac = p.jacobian(&u, &prof.residuals, rays, req.seed)?;
         for _ in 0..req.free.len() {
             count();
         }
         let chi2_dof = prof.chi2 / dof.max(1) as f64;
-        let id = identify::identify(&p, &u, &jac, &prof, &g_stderr, prof.chi2, chi2_dof, rays, req.seed, &count)?;
+        let id = identify::identify(
+            &p, &u, &jac, &prof, &g_stderr, prof.chi2, chi2_dof, rays, req.seed, &count,
+        )?;
         // A scan that found a clearly better point: the optimum was local; go on from there.
         match id.better_point() {
             Some(x) if restarts < 2 => {
                 restarts += 1;
                 let stage = stages.len();
-                u = levenberg_marquardt(&p, p.to_unit(&x), rays, req.seed, stage, &mut history, &count)?;
+                u = levenberg_marquardt(
+                    &p,
+                    p.to_unit(&x),
+                    rays,
+                    req.seed,
+                    stage,
+                    &mut history,
+                    &count,
+                )?;
             }
             _ => break (u, prof, id),
         }
@@ -367,7 +382,9 @@ fn coarse_start(
                 if v == u {
                     continue;
                 }
-                let c = p.at(&p.to_values(&v), rays, seed)?.map_or(f64::INFINITY, |q| q.chi2);
+                let c = p
+                    .at(&p.to_values(&v), rays, seed)?
+                    .map_or(f64::INFINITY, |q| q.chi2);
                 count();
                 if c < best {
                     (best, u) = (c, v);
@@ -472,9 +489,8 @@ fn adjust(fitted: &BenchDoc, req: &FitRequest, count: &(dyn Fn() + Sync)) -> Res
     let before = evaluate(fitted, Vec::new(), &eo)?;
     let set = settings(&req.adjust, &s.best_values);
     let after = evaluate(&fitted.with(&set)?, set, &eo)?;
-    let pick = |m: BenchMetric| {
-        [&before, &after].map(|e| (e.metrics[m].value, e.metrics[m].stderr()))
-    };
+    let pick =
+        |m: BenchMetric| [&before, &after].map(|e| (e.metrics[m].value, e.metrics[m].stderr()));
     let imbalance = pick(BenchMetric::Imbalance);
     Ok(Adjustment {
         adjust: req.adjust.clone(),

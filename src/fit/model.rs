@@ -128,7 +128,8 @@ pub fn model_frames(t: &Transport, bits: &BitMatrix, measured: &Measured) -> Mod
                 l.extend(t.frame_currents_of(&products_g, false));
                 let all = [tot_v[0] + c_v[0], c_v[1]];
                 let none = [c_v[0], tot_v[1] + c_v[1]];
-                let mut v: Vec<[f64; 2]> = (0..CALIBRATION_PAIRS).flat_map(|_| [all, none]).collect();
+                let mut v: Vec<[f64; 2]> =
+                    (0..CALIBRATION_PAIRS).flat_map(|_| [all, none]).collect();
                 v.extend((0..m).map(|i| base_var(i, false)));
                 (l, v)
             }
@@ -177,12 +178,14 @@ fn wls(cols: &[Vec<f64>], y: &[f64], w: &[f64]) -> Result<Vec<f64>> {
         }
     }
     let scaled = super::linalg::solve(a, b);
-    scaled.map(|c| c.iter().zip(&norm).map(|(c, s)| c / s).collect()).ok_or_else(|| {
-        Error::input(
-            "the measured frames do not separate the model's light from the offsets (too few \
+    scaled
+        .map(|c| c.iter().zip(&norm).map(|(c, s)| c / s).collect())
+        .ok_or_else(|| {
+            Error::input(
+                "the measured frames do not separate the model's light from the offsets (too few \
              distinct frames)",
-        )
-    })
+            )
+        })
 }
 
 /// The misfit of the model's frames to the measured ones, the nuisances profiled out (module

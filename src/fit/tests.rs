@@ -19,7 +19,9 @@ fn synthetic(noise: f64) -> (ModelFrames, Measured) {
     let mut gauss = || {
         let mut s = 0.0;
         for _ in 0..12 {
-            state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
             s += (state >> 11) as f64 / (1u64 << 53) as f64;
         }
         s - 6.0

@@ -180,7 +180,13 @@ fn residuals_csv(f: &Fit, m: &Measured) -> String {
         for (i, (r, sg)) in p.residual_v[k].iter().zip(&p.sigma_v[k]).enumerate() {
             let _ = write!(s, "{},{i}", q.sequence.key());
             for o in 0..3 {
-                let cell = |v: f64| if v.is_finite() { format!("{v:e}") } else { String::new() };
+                let cell = |v: f64| {
+                    if v.is_finite() {
+                        format!("{v:e}")
+                    } else {
+                        String::new()
+                    }
+                };
                 let _ = write!(s, ",{},{}", cell(r[o]), cell(sg[o]));
             }
             s.push('\n');
@@ -332,11 +338,15 @@ pub fn write(
     }
     let p = out.path("report.html");
     std::fs::write(&p, report_html(&summary, &svg)).map_err(|e| crate::Error::write(&p, e))?;
-    Ok(
-        ["summary.json", "fitted.ron", "residuals.csv", "residuals.svg", "report.html"]
-            .map(String::from)
-            .to_vec(),
-    )
+    Ok([
+        "summary.json",
+        "fitted.ron",
+        "residuals.csv",
+        "residuals.svg",
+        "report.html",
+    ]
+    .map(String::from)
+    .to_vec())
 }
 
 /// The lines `fit` prints.

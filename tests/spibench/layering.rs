@@ -28,7 +28,15 @@ const FLOORS: &[&[&str]] = &[
     &["transport", "report", "simulation"],
     &["pipeline", "export"],
     // The jobs.
-    &["run", "sweep", "align", "tolerance", "dataset", "intake"],
+    &[
+        "run",
+        "sweep",
+        "align",
+        "tolerance",
+        "dataset",
+        "intake",
+        "fit",
+    ],
     // What each command writes, from what its job returned.
     &["outputs"],
     &["cli"],
@@ -307,6 +315,21 @@ const FORBIDDEN: &[(&str, &[&str])] = &[
             "dataset",
             "simulation",
             "export",
+        ],
+    ),
+    // Reads an intake folder as files (its summary and frames), not through the intake job.
+    (
+        "fit",
+        &[
+            "run",
+            "sweep",
+            "align",
+            "tolerance",
+            "dataset",
+            "intake",
+            "simulation",
+            "export",
+            "report",
         ],
     ),
 ];
@@ -648,6 +671,7 @@ const API: &[&str] = &[
     "export",
     "lens",
     "intake",
+    "fit",
     "outputs",
     // The stages every job composes, and the evaluate step.
     "pipeline",

@@ -3,6 +3,7 @@
 
 mod bad_input;
 mod cli_dataset;
+mod cli_fit;
 mod cli_intake;
 mod cli_layout;
 mod cli_lens;

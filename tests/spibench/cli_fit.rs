@@ -1,0 +1,181 @@
+//! `spibench fit` end to end: a bench with a known misalignment measured through
+//! `run --scope-record` (noise on) and `intake`, fitted from the nominal bench; and the bad
+//! inputs (an unknown free variable, bounds that exclude the nominal bench, a measured folder
+//! whose patterns are not the bench's, one whose frames are all flagged), each exit 2 with
+//! nothing written.
+
+use std::path::{Path, PathBuf};
+
+use crate::common::*;
+
+/// The paper bench at 16 × 16 units with few rays.
+fn small_scene(dir: &TempDir) -> PathBuf {
+    let t = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/scenes/paper_bench.ron"
+    ))
+    .unwrap();
+    let t = t.replace(
+        "units_across: 48, units_down: 48, mirrors_per_unit: 12",
+        "units_across: 16, units_down: 16, mirrors_per_unit: 36",
+    );
+    let end = t.rfind(')').unwrap();
+    let t = format!(
+        "{}    run: (rays: 30000, sampling_ratios: [0.25, 1.0], signal_trace_frames: 3),\n)\n",
+        &t[..end]
+    );
+    let p = dir.join("small.ron");
+    std::fs::write(&p, t).unwrap();
+    p
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+/// The measured folder of the small bench with `sets` applied, traced at 10× the fit's rays
+/// (the measured bench's own trace noise then adds a tenth to the fit's variance).
+fn measure(dir: &TempDir, scene: &Path, sets: &[&str], name: &str) -> PathBuf {
+    let run = dir.join(&format!("run-{name}"));
+    let mut args = vec![
+        "run",
+        s(scene),
+        "--rays",
+        "300000",
+        "--seed",
+        "4",
+        "--scope-record",
+        "--out",
+        s(&run),
+    ];
+    for x in sets {
+        args.extend(["--set", x]);
+    }
+    let o = spibench(&args, &[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let taken = dir.join(&format!("intake-{name}"));
+    let scope = run.join("scope");
+    let bench = run.join("bench.ron");
+    let o = spibench(
+        &[
+            "intake",
+            s(&scope),
+            "--bench",
+            s(&bench),
+            "--out",
+            s(&taken),
+        ],
+        &[],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    taken
+}
+
+fn fit(scene: &Path, measured: &Path, extra: &[&str], out: &Path) -> std::process::Output {
+    let args = [
+        &["fit", s(scene), "--measured", s(measured), "--out", s(out)],
+        extra,
+    ]
+    .concat();
+    spibench(&args, &[])
+}
+
+#[test]
+fn fit_recovers_an_arm_lens_decentre_and_refuses_bad_input() {
+    let dir = TempDir::new("fit");
+    let scene = small_scene(&dir);
+    let truth = 1.5;
+    let measured = measure(&dir, &scene, &["arm_plus_lens.decenter_mm.x=1.5"], "lens");
+    let out = dir.join("fit");
+    let o = fit(
+        &scene,
+        &measured,
+        &[
+            "--free",
+            "arm_plus_lens.decenter_mm.x=-3:3",
+            "--rays",
+            "30000",
+            "-q",
+        ],
+        &out,
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    crate::outputs_schema::check_file(&out.join("summary.json"), "FitSummary");
+    let sm = read_json(&out.join("summary.json"));
+    let v = &sm["variables"][0];
+    assert_eq!(v["identified"], true, "{sm}");
+    let (x, se) = (v["value"].as_f64().unwrap(), v["stderr"].as_f64().unwrap());
+    assert!(
+        (x - truth).abs() <= 1.96 * se,
+        "fitted {x} ± {se}, true {truth}"
+    );
+    let chi2 = sm["chi2_per_dof"].as_f64().unwrap();
+    assert!(chi2 < 2.0, "χ²/dof {chi2}");
+    assert!(sm["chi2_nominal"].as_f64().unwrap() > 5.0 * sm["chi2"].as_f64().unwrap());
+    for f in [
+        "fitted.ron",
+        "residuals.csv",
+        "residuals.svg",
+        "report.html",
+    ] {
+        assert!(out.join(f).is_file(), "{f}");
+    }
+    // The fitted bench is one `check` reads.
+    let o = spibench(&["check", s(&out.join("fitted.ron"))], &[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+
+    // Bad input: exit 2, nothing written.
+    let refused = |extra: &[&str], measured: &Path, says: &str| {
+        let bad = dir.join("bad");
+        let o = fit(&scene, measured, extra, &bad);
+        assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+        assert!(stderr(&o).contains(says), "{says}: {}", stderr(&o));
+        assert!(!bad.exists());
+    };
+    let free = [
+        "--free",
+        "arm_plus_lens.decenter_mm.x=-3:3",
+        "--rays",
+        "4096",
+    ];
+    refused(
+        &["--free", "arm_plus_lens.no_such=-1:1"],
+        &measured,
+        "no_such",
+    );
+    refused(
+        &["--free", "arm_plus_lens.decenter_mm.x=0.5:3"],
+        &measured,
+        "outside the bounds",
+    );
+    // Another sequence's patterns: the recorded hash differs from the bench's frames.
+    let other = dir.join("other");
+    copy_dir(&measured, &other);
+    let summary = std::fs::read_to_string(other.join("summary.json")).unwrap();
+    let sha = read_json(&other.join("summary.json"))["records"][0]["patterns_sha256"]
+        .as_str()
+        .unwrap()
+        .to_string();
+    let swapped = summary.replacen(&sha, &"0".repeat(64), 1);
+    std::fs::write(other.join("summary.json"), swapped).unwrap();
+    refused(&free, &other, "not the frames this bench shows");
+    // Every frame flagged.
+    let flagged = dir.join("flagged");
+    copy_dir(&measured, &flagged);
+    let frames = std::fs::read_to_string(flagged.join("frames.csv")).unwrap();
+    let mut lines = frames.lines();
+    let mut text = format!("{}\n", lines.next().unwrap());
+    for l in lines {
+        text.push_str(l);
+        text.push_str("clipped\n");
+    }
+    std::fs::write(flagged.join("frames.csv"), text).unwrap();
+    refused(&free, &flagged, "every frame is flagged");
+}
+
+fn copy_dir(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).unwrap();
+    for name in ["summary.json", "frames.csv"] {
+        std::fs::copy(from.join(name), to.join(name)).unwrap();
+    }
+}
