@@ -16,6 +16,9 @@
 //! [`LOADING`] in an unidentified direction is reported unidentified (no standard error) with
 //! its range from the scan.
 
+// Dense matrices indexed both ways: index loops read as the formulas do.
+#![allow(clippy::needless_range_loop)]
+
 use crate::error::Result;
 
 use super::{Problem, dot, linalg};

@@ -2,6 +2,9 @@
 //! with partial pivoting and the cyclic Jacobi eigenvalue method for symmetric matrices
 //! (G. H. Golub and C. F. Van Loan, *Matrix Computations*, 4th ed., §8.5, 2013).
 
+// Dense matrices indexed both ways: index loops read as the formulas do.
+#![allow(clippy::needless_range_loop)]
+
 /// Solves a·x = b; None when a is singular to working precision.
 pub fn solve(mut a: Vec<Vec<f64>>, mut b: Vec<f64>) -> Option<Vec<f64>> {
     let n = b.len();

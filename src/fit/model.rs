@@ -1,8 +1,8 @@
 //! The model's frame values and the misfit to the measured ones.
 //!
-//! A bench traced with (rays, seed) gives every frame's light on each diode, u±(f) = Σ_j P_fj·g±_j
-//! + c± (crate::transport::Transport::frame_currents, the calibration frames as all-on/all-off
-//! pairs), and its Monte Carlo variance Σ_j P_fj·se(g±_j)² + se(c±)² (the units' batch sums taken
+//! A bench traced with (rays, seed) gives every frame's light on each diode,
+//! u±(f) = Σ_j P_fj·g±_j plus c± (crate::transport::Transport::frame_currents, the
+//! calibration frames as all-on/all-off pairs), and its Monte Carlo variance Σ_j P_fj·se(g±_j)² + se(c±)² (the units' batch sums taken
 //! as independent). What a lab does not know enters linearly and is profiled out by weighted
 //! least squares at every evaluation (variable projection: G. H. Golub and V. Pereyra, "The
 //! differentiation of pseudo-inverses and nonlinear least squares problems whose variables
