@@ -7,6 +7,7 @@
 //! where a field is written, [`numbers`] holds the checked number types.
 
 pub mod bench;
+pub mod budget_costs;
 pub mod dataset;
 pub mod doc;
 pub mod experiment;

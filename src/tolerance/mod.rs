@@ -31,6 +31,8 @@ use crate::scene::tolerance::{SensitivityRecord, ToleranceSet, TrialRecord, valu
 
 pub use crate::pipeline::evaluate::{quality_key, values};
 
+pub mod budget;
+pub mod budget_surface;
 pub mod summaries;
 pub mod work;
 pub use crate::pipeline::perturb::{TrialBench, draw, trial_doc};
