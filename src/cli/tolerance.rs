@@ -60,6 +60,28 @@ pub struct ToleranceArgs {
     /// Merge the output folders of the shards of one run into DIR (no tracing).
     #[arg(long, value_name = "DIR", num_args = 1..)]
     pub merge: Vec<PathBuf>,
+    /// Search a tolerance budget: the loosest tolerances, at the least total cost, whose
+    /// yield against the file's limits is at least --target-yield at --confidence, confirmed
+    /// by --trials traced trials per round (docs/guide/10-tolerance-budget.md). Writes
+    /// budget.ron, a tolerance file of the budget.
+    #[arg(long, requires = "target_yield", conflicts_with_all = ["merge", "shard", "trial", "quality"])]
+    pub budget: bool,
+    /// With --budget: the yield to reach, in (0, 1).
+    #[arg(long, value_name = "Y", requires = "budget")]
+    pub target_yield: Option<f64>,
+    /// With --budget: the confidence of the yield's lower bound, in (0, 1) (default 0.95).
+    #[arg(long, value_name = "C", requires = "budget")]
+    pub confidence: Option<f64>,
+    /// With --budget: the cost of tightening each tolerance and its scale bounds (RON; by
+    /// default cost 1/s, scales 0.01 … 1).
+    #[arg(long, value_name = "FILE", requires = "budget")]
+    pub costs: Option<PathBuf>,
+    /// With --budget: draws of the response surface's yield estimate.
+    #[arg(long, value_name = "N", default_value_t = 4000, requires = "budget")]
+    pub surface_samples: usize,
+    /// With --budget: the most confirmation rounds.
+    #[arg(long, value_name = "N", default_value_t = 6, requires = "budget")]
+    pub budget_rounds: usize,
     #[command(flatten)]
     pub work: super::args::WorkArgs,
 }
@@ -99,6 +121,9 @@ pub fn run(args: &ToleranceArgs) -> Result<()> {
     };
     if o.quality {
         check_quality_names(&doc, &set, &tol_text)?;
+    }
+    if args.budget {
+        return run_budget(args, (&doc, &set, &o), tol_path, resolve);
     }
     if let Some(k) = args.trial {
         let run = format!(
@@ -337,6 +362,109 @@ fn run_merge(args: &ToleranceArgs) -> Result<()> {
     );
     Ok(())
 }
+/// `--budget`: the budget search (crate::tolerance::budget) and its outputs. Everything that
+/// can be refused (target, confidence, costs file, work) is checked before any output.
+fn run_budget(
+    args: &ToleranceArgs,
+    (doc, set, o): (&BenchDoc, &ToleranceSet, &ToleranceOptions),
+    tol_path: &Path,
+    resolve: Option<crate::tolerance::Resolve>,
+) -> Result<()> {
+    use crate::outputs::tolerance::budget::{BudgetRun, write_budget};
+    use crate::tolerance::budget::{BudgetOptions, budget, check_options};
+    let b = BudgetOptions {
+        target_yield: args.target_yield.unwrap_or(f64::NAN),
+        confidence: args.confidence.unwrap_or(0.95),
+        trials: args.trials,
+        samples: args.surface_samples.clamp(100, 1_000_000),
+        max_rounds: args.budget_rounds.clamp(1, 50),
+    };
+    check_options(&b)?;
+    let costs = match &args.costs {
+        Some(p) => crate::scene::budget_costs::parse_costs(&crate::scene::read_text(p)?, p, set)?,
+        None => crate::scene::budget_costs::default_costs(set),
+    };
+    // The rounds and the baseline's confirmation, each `--trials` trials.
+    let all_trials = args.trials.saturating_mul(b.max_rounds as u64 + 1);
+    args.work.check(&work(
+        set,
+        all_trials,
+        super::args::Shard::WHOLE,
+        o.rays,
+        resolve.as_ref(),
+    ))?;
+    let out = OutputDir::create(&args.opts.out_or("out/tolerance"))?;
+    let start = std::time::Instant::now();
+    let name = doc.name();
+    eprintln!(
+        "{name}: budget of {} tolerance(s) for a yield ≥ {} at confidence {}; {} rays per \
+         trace, {} trials per confirmation (seed {})",
+        set.tolerances.len(),
+        b.target_yield,
+        b.confidence,
+        o.rays,
+        b.trials,
+        o.seed
+    );
+    let nom = nominal(doc, o)?;
+    let bar = super::progress::bar(2 * set.tolerances.len() as u64, "settings");
+    let sens = sensitivity(doc, set, &nom, o, resolve, &|d, _| bar.set_position(d as u64))?;
+    bar.finish_and_clear();
+    let outcome = budget(doc, set, &costs, &nom, &sens, o, &b, &|m| eprintln!("  {m}"))?;
+    let command = format!(
+        "spibench tolerance {name} --tolerances {} --budget --target-yield {} --confidence {} \
+         --trials {} --rays {} --seed {}",
+        tol_path.display(),
+        b.target_yield,
+        b.confidence,
+        b.trials,
+        o.rays,
+        o.seed
+    );
+    let costs_name = args.costs.as_ref().map(|p| p.display().to_string());
+    let tol_name = tol_path.display().to_string();
+    let run = BudgetRun {
+        scene: &name,
+        tolerances_file: &tol_name,
+        costs_file: costs_name.as_deref(),
+        rays: o.rays,
+        seed: o.seed,
+        trials: b.trials,
+        command: &command,
+    };
+    let mut provenance = crate::provenance::Provenance::of_bench(doc, &[o.seed])?.file(tol_path)?;
+    if let Some(p) = &args.costs {
+        provenance = provenance.file(p)?;
+    }
+    let files = write_budget(&outcome, set, &run, &provenance, &out)?;
+    let dir = out.commit()?;
+    let j = &outcome.joint;
+    let status = match (&j.confirmation, outcome.reached) {
+        (Some(c), true) => format!(
+            "reached: {} of {} trials pass, lower bound {:.4} ≥ {}",
+            c.passed, c.trials, c.lower_bound, b.target_yield
+        ),
+        _ => format!(
+            "UNREACHABLE: {}",
+            outcome.reason.as_deref().unwrap_or("unknown")
+        ),
+    };
+    println!(
+        "budget {status}; geometric-mean scale {:.4} (one at a time {:.4}, yield {:.4}); wrote {} \
+         ({files} files, {:.1} s)",
+        j.geometric_mean_scale,
+        outcome.baseline.geometric_mean_scale,
+        outcome
+            .baseline
+            .confirmation
+            .as_ref()
+            .map_or(f64::NAN, |c| c.fraction),
+        dir.display(),
+        start.elapsed().as_secs_f64()
+    );
+    Ok(())
+}
+
 /// Where a run's time went; the compensators' share only for a file that has some.
 fn time_split(compensators: usize, comp_s: f64, trace_s: f64) -> String {
     if compensators == 0 {

@@ -2,6 +2,7 @@
 //! counts, and the paper's claims on small problems. One binary, so CI links once.
 
 mod bad_input;
+mod cli_budget;
 mod cli_dataset;
 mod cli_fit;
 mod cli_intake;

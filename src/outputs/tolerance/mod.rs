@@ -22,6 +22,7 @@ use crate::tolerance::{Analysis, SENSITIVITY_METRICS, analyse};
 
 use super::rows::Row;
 
+pub mod budget;
 mod plots;
 mod report;
 

@@ -1,0 +1,140 @@
+//! `spibench tolerance --budget` end to end on the small symmetric test bench.
+
+use std::path::Path;
+
+use crate::common::{TempDir, assert_input_error, read_json, spibench, stderr};
+
+fn scene(name: &str) -> String {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("scenes")
+        .join(name)
+        .display()
+        .to_string()
+}
+
+fn budget(extra: &[&str], out: &Path) -> std::process::Output {
+    let bench = scene("tests/symmetric_arms.ron");
+    let tol = scene("tolerances/symmetric_arms_budget.ron");
+    let mut a = vec![
+        "tolerance",
+        bench.as_str(),
+        "--tolerances",
+        tol.as_str(),
+        "--rays",
+        "4096",
+        "--seed",
+        "3",
+        "--budget",
+    ];
+    a.extend_from_slice(extra);
+    a.extend(["--out", out.to_str().unwrap()]);
+    spibench(&a, &[])
+}
+
+/// The one-sided Wilson lower bound at 95 % (z = 1.6449).
+fn wilson_95(passed: f64, n: f64) -> f64 {
+    let (z, p) = (1.644_853_6_f64, passed / n);
+    let z2 = z * z;
+    (p + z2 / (2.0 * n) - z * (p * (1.0 - p) / n + z2 / (4.0 * n * n)).sqrt()) / (1.0 + z2 / n)
+}
+
+/// The budget for Y = 0.9 (100 trials per confirmation), read back by `spibench tolerance`
+/// with another seed and 300 trials: the one-sided 95 % Wilson lower bound of that yield is at
+/// least Y − 0.02. The joint budget's geometric-mean scale is at least the one-at-a-time one's.
+#[test]
+fn a_budget_reads_back_and_holds_its_yield_under_another_seed() {
+    let dir = TempDir::new("budget");
+    let out = dir.join("budget");
+    let o = budget(&["--target-yield", "0.9", "--trials", "100"], &out);
+    assert!(o.status.success(), "{}", stderr(&o));
+    crate::outputs_schema::check_file(&out.join("summary.json"), "BudgetSummary");
+    let s = read_json(&out.join("summary.json"));
+    assert_eq!(s["reached"], true, "{s}");
+    let (joint, base) = (&s["joint"], &s["baseline"]);
+    assert!(joint["confirmation"]["lower_bound"].as_f64().unwrap() >= 0.9);
+    assert!(
+        joint["geometric_mean_scale"].as_f64().unwrap()
+            >= base["geometric_mean_scale"].as_f64().unwrap() - 1e-12,
+        "{s}"
+    );
+    for f in ["budget.ron", "budget.csv", "report.html", "yield_vs_scale.svg"] {
+        assert!(out.join(f).is_file(), "{f}");
+    }
+    let text = std::fs::read_to_string(out.join("budget.ron")).unwrap();
+    assert!(text.contains("// scale ") && text.contains("% of the yield loss"), "{text}");
+    // Independently verified: the budget file, another seed, 300 trials.
+    let check = dir.join("check");
+    let b = out.join("budget.ron");
+    let o = spibench(
+        &[
+            "tolerance",
+            &scene("tests/symmetric_arms.ron"),
+            "--tolerances",
+            b.to_str().unwrap(),
+            "--rays",
+            "4096",
+            "--seed",
+            "11",
+            "--trials",
+            "300",
+            "--out",
+            check.to_str().unwrap(),
+        ],
+        &[],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v = read_json(&check.join("summary.json"));
+    let y = &v["analysis"]["yields"][0];
+    let lb = wilson_95(y["passed"].as_f64().unwrap(), y["trials"].as_f64().unwrap());
+    assert!(lb >= 0.9 - 0.02, "lower bound {lb}: {y}");
+}
+
+/// Bad targets, confidences and costs files exit 2 with nothing written; a target the bounds
+/// cannot reach is reported with its reason, exit 0.
+#[test]
+fn bad_budget_input_is_refused_and_an_unreachable_target_reported() {
+    let dir = TempDir::new("budget-bad");
+    for (args, frags) in [
+        (&["--target-yield", "1.0"][..], &["--target-yield", "between 0 and 1"][..]),
+        (&["--target-yield", "0"][..], &["--target-yield"][..]),
+        (
+            &["--target-yield", "0.9", "--confidence", "1.5"][..],
+            &["--confidence"][..],
+        ),
+    ] {
+        let out = dir.join("bad");
+        assert_input_error(&budget(args, &out), frags, &out);
+    }
+    let costs = dir.join("costs.ron");
+    std::fs::write(
+        &costs,
+        "(tolerances: [\n (path: \"detectors.plus.decenter_mm.x\"),\n (path: \"chart.despace_mm\", weight: 2.0),\n])",
+    )
+    .unwrap();
+    let out = dir.join("bad");
+    let o = budget(
+        &["--target-yield", "0.9", "--costs", costs.to_str().unwrap()],
+        &out,
+    );
+    assert_input_error(&o, &["costs.ron, line 3", "chart.despace_mm", "not a tolerance"], &out);
+    // No scale may go below the file's: the spot leaves the diode in too many benches.
+    std::fs::write(&costs, "(default: (min_scale: 1.0))").unwrap();
+    let out = dir.join("unreachable");
+    let o = budget(
+        &[
+            "--target-yield",
+            "0.9",
+            "--trials",
+            "40",
+            "--costs",
+            costs.to_str().unwrap(),
+        ],
+        &out,
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let s = read_json(&out.join("summary.json"));
+    assert_eq!(s["reached"], false, "{s}");
+    assert!(s["reason"].as_str().unwrap().contains("tightest scales"), "{s}");
+    assert!(String::from_utf8_lossy(&o.stdout).contains("UNREACHABLE"));
+    crate::outputs_schema::check_file(&out.join("summary.json"), "BudgetSummary");
+}
