@@ -408,9 +408,13 @@ fn run_budget(
     );
     let nom = nominal(doc, o)?;
     let bar = super::progress::bar(2 * set.tolerances.len() as u64, "settings");
-    let sens = sensitivity(doc, set, &nom, o, resolve, &|d, _| bar.set_position(d as u64))?;
+    let sens = sensitivity(doc, set, &nom, o, resolve, &|d, _| {
+        bar.set_position(d as u64)
+    })?;
     bar.finish_and_clear();
-    let outcome = budget(doc, set, &costs, &nom, &sens, o, &b, &|m| eprintln!("  {m}"))?;
+    let outcome = budget(doc, set, &costs, &nom, &sens, o, &b, &|m| {
+        eprintln!("  {m}")
+    })?;
     let command = format!(
         "spibench tolerance {name} --tolerances {} --budget --target-yield {} --confidence {} \
          --trials {} --rays {} --seed {}",

@@ -176,7 +176,11 @@ mod tests {
             &s,
         )
         .unwrap();
-        let i = s.tolerances.iter().position(|t| t.path == "dmd.tilt_deg").unwrap();
+        let i = s
+            .tolerances
+            .iter()
+            .position(|t| t.path == "dmd.tilt_deg")
+            .unwrap();
         assert_eq!(c[i].weight, 3.0);
         assert_eq!(c[i].max_scale, 2.0);
         assert_eq!(c[0].weight, 1.0);
@@ -199,8 +203,14 @@ mod tests {
                 "(tolerances: [(path: \"dmd.tilt_deg\", min_scale: 0.5, max_scale: 0.2)])",
                 &["line 1", "ordered"][..],
             ),
-            ("(tolerances: [(path: \"dmd.tilt_deg\", wieght: 2.0)])", &["wieght"][..]),
-            ("(tolerances: [(path: \"dmd.tilt_deg\", weight: -1.0)])", &["weight"][..]),
+            (
+                "(tolerances: [(path: \"dmd.tilt_deg\", wieght: 2.0)])",
+                &["wieght"][..],
+            ),
+            (
+                "(tolerances: [(path: \"dmd.tilt_deg\", weight: -1.0)])",
+                &["weight"][..],
+            ),
         ] {
             let e = parse_costs(text, Path::new("c.ron"), &s).unwrap_err();
             assert!(e.is_user_error(), "{e}");

@@ -69,10 +69,7 @@ pub fn check_options(b: &BudgetOptions) -> Result<()> {
     if !open(b.target_yield) {
         return Err(Error::field(
             "--target-yield",
-            format!(
-                "a yield strictly between 0 and 1, got {}",
-                b.target_yield
-            ),
+            format!("a yield strictly between 0 and 1, got {}", b.target_yield),
         ));
     }
     if !open(b.confidence) {
@@ -122,8 +119,8 @@ pub struct BudgetRow {
     pub max: f64,
     pub cost: f64,
     pub bounds: [f64; 2],
-    /// Its share of the budget's yield loss on the surface: the yield it alone costs
-    /// (Ŷ with it at 0 − Ŷ), over the sum of those.
+    /// Its share of the budget's yield loss on the surface: each failing draw shared in
+    /// proportion to |its term| of the failing metrics, averaged over the failing draws.
     pub loss_share: f64,
     pub baseline_scale: f64,
     pub baseline_cost: f64,
@@ -187,16 +184,36 @@ pub fn geometric_mean(scales: &[f64]) -> f64 {
     (scales.iter().map(|s| s.ln()).sum::<f64>() / scales.len() as f64).exp()
 }
 
+/// `v` to 12 significant digits: the product of a 3-digit scale and a file's range without its
+/// last bits of rounding noise (0.46, not 0.45999999999999996), for the budget file.
+fn decimal(v: f64) -> f64 {
+    format!("{v:.11e}").parse().unwrap_or(v)
+}
+
 /// `v` rounded down to 3 significant digits.
 fn round_down(v: f64) -> f64 {
     if !(v > 0.0 && v.is_finite()) {
         return v;
     }
-    let e = 10f64.powi(v.log10().floor() as i32 - 2);
-    let r = (v / e).floor() * e;
-    // (v / e) of an exact 3-digit value may fall a hair below its integer.
-    let up = ((v / e).round()) * e;
-    if (up - v).abs() <= 1e-12 * v { up } else { r }
+    // v = d·10^(−k) with d of 3 digits; dividing by the exact power 10^k gives the nearest
+    // double to the decimal (a product with 10^(−k), not exact, would not).
+    let k = 2 - v.log10().floor() as i32;
+    let scaled = if k >= 0 {
+        v * 10f64.powi(k)
+    } else {
+        v / 10f64.powi(-k)
+    };
+    // A 3-digit value may land a hair below its integer.
+    let d = if (scaled - scaled.round()).abs() <= 1e-9 * scaled {
+        scaled.round()
+    } else {
+        scaled.floor()
+    };
+    if k >= 0 {
+        d / 10f64.powi(k)
+    } else {
+        d * 10f64.powi(-k)
+    }
 }
 
 /// The scales minimising the total cost whose surface yield reaches `target`, within
@@ -238,7 +255,8 @@ pub fn allocate(
     // Loosen what the target allows, the largest saving first.
     for _ in 0..200 {
         let mut order: Vec<usize> = (0..n).filter(|i| s[*i] < hi[*i]).collect();
-        let saving = |i: usize| costs[i].cost(s[i]) - costs[i].cost((s[i] * LOOSEN_STEP).min(hi[i]));
+        let saving =
+            |i: usize| costs[i].cost(s[i]) - costs[i].cost((s[i] * LOOSEN_STEP).min(hi[i]));
         order.sort_by(|a, b| saving(*b).total_cmp(&saving(*a)));
         let mut moved = false;
         for i in order {
@@ -315,10 +333,12 @@ fn confirm(
         let (r, _) = super::trial(job.doc, &b, job.nominal, job.o, i)?;
         if r.error.is_some() {
             failed += 1;
-        } else if job.set.limits.iter().all(|l| {
-            r.value(&l.metric.to_string())
-                .is_some_and(|v| l.holds(v))
-        }) {
+        } else if job
+            .set
+            .limits
+            .iter()
+            .all(|l| r.value(&l.metric.to_string()).is_some_and(|v| l.holds(v)))
+        {
             passed += 1;
         }
         records.push(r);
@@ -501,8 +521,8 @@ pub fn budget(
         .map(|(i, t)| BudgetRow {
             path: t.path.clone(),
             scale: scales[i],
-            min: t.min * scales[i],
-            max: t.max * scales[i],
+            min: decimal(t.min * scales[i]),
+            max: decimal(t.max * scales[i]),
             cost: costs[i].cost(scales[i]),
             bounds: [lo[i], hi[i]],
             loss_share: shares[i],
@@ -514,7 +534,10 @@ pub fn budget(
     let common_scale = (0..=40)
         .map(|k| {
             let l = 0.01 * (top / 0.01f64).powf(k as f64 / 40.0);
-            (l, samples.yield_at(&surface, &vec![l; set.tolerances.len()]))
+            (
+                l,
+                samples.yield_at(&surface, &vec![l; set.tolerances.len()]),
+            )
         })
         .collect();
     Ok(BudgetOutcome {
@@ -551,21 +574,49 @@ fn spread_weights(surface: &Surface, set: &ToleranceSet) -> Vec<f64> {
         .collect()
 }
 
-/// Each tolerance's share of the yield loss at `scales` on the surface (module docs of
-/// [`BudgetRow::loss_share`]); zeros when nothing is lost.
+/// Each tolerance's share of the yield loss at `scales` on the surface: every sample that
+/// fails is shared among the tolerances in proportion to |their term| of the failing metrics
+/// (a cross term half to each), and the shares averaged over the failing samples (zeros when
+/// none fails). Removing a tolerance is no measure here: two that cancel (the two diodes'
+/// decentres) would each seem to cost nothing.
 fn loss_shares(surface: &Surface, samples: &Samples, scales: &[f64]) -> Vec<f64> {
-    let y = samples.yield_at(surface, scales);
-    let gains: Vec<f64> = (0..scales.len())
-        .map(|i| {
-            let mut t = scales.to_vec();
-            t[i] = 0.0;
-            (samples.yield_at(surface, &t) - y).max(0.0)
-        })
-        .collect();
-    let sum: f64 = gains.iter().sum();
-    gains
+    let n = scales.len();
+    let mut total = vec![0.0; n];
+    let mut failing = 0usize;
+    let mut x = vec![0.0; n];
+    for row in &samples.rows {
+        for ((xi, u), s) in x.iter_mut().zip(row).zip(scales) {
+            *xi = u * s;
+        }
+        if surface.passes(&x) {
+            continue;
+        }
+        let mut part = vec![0.0; n];
+        for (k, l) in &surface.limits {
+            let m = &surface.metrics[*k];
+            if l.holds(m.at(&x)) {
+                continue;
+            }
+            for (i, p) in part.iter_mut().enumerate() {
+                *p += (m.lin[i] * x[i] + m.quad[i] * x[i] * x[i]).abs();
+            }
+            for &(i, j, c) in &m.cross {
+                let v = 0.5 * (c * x[i] * x[j]).abs();
+                part[i] += v;
+                part[j] += v;
+            }
+        }
+        let sum: f64 = part.iter().sum();
+        if sum > 0.0 && sum.is_finite() {
+            failing += 1;
+            for (t, p) in total.iter_mut().zip(&part) {
+                *t += p / sum;
+            }
+        }
+    }
+    total
         .iter()
-        .map(|g| if sum > 0.0 { g / sum } else { 0.0 })
+        .map(|t| if failing > 0 { t / failing as f64 } else { 0.0 })
         .collect()
 }
 
@@ -624,7 +675,13 @@ mod tests {
         assert!(y >= 0.95, "{s:?} {y}");
         assert!(s[0] < s[1], "{s:?}");
         // Deterministic in the seed.
-        let again = allocate(&surface, &Samples::draw(&set, 7, 4000), &costs, (&lo, &hi), 0.95);
+        let again = allocate(
+            &surface,
+            &Samples::draw(&set, 7, 4000),
+            &costs,
+            (&lo, &hi),
+            0.95,
+        );
         assert_eq!(again, Some((s.clone(), y)));
         // The inverse limits: 0.04·s = 0.01 → s = 0.25; b alone never reaches the limit.
         let a = inverse_limit(&surface, &set, 0, 0.01, 1.0);
@@ -635,10 +692,16 @@ mod tests {
         assert!(y_base < 0.95, "{y_base}");
         // Shares of the loss sum to 1.
         let shares = loss_shares(&surface, &samples, &s);
-        assert!((shares.iter().sum::<f64>() - 1.0).abs() < 1e-12, "{shares:?}");
+        assert!(
+            (shares.iter().sum::<f64>() - 1.0).abs() < 1e-12,
+            "{shares:?}"
+        );
         // A target the bounds cannot reach.
         let tight = vec![0.9; 2];
-        assert_eq!(allocate(&surface, &samples, &costs, (&tight, &hi), 0.99), None);
+        assert_eq!(
+            allocate(&surface, &samples, &costs, (&tight, &hi), 0.99),
+            None
+        );
     }
 
     #[test]
@@ -668,7 +731,8 @@ mod tests {
         assert_eq!(round_down(0.123_456), 0.123);
         assert_eq!(round_down(0.25), 0.25);
         assert_eq!(round_down(1.0), 1.0);
-        assert!((round_down(0.019_99) - 0.0199).abs() < 1e-15);
+        assert_eq!(round_down(0.019_99), 0.0199);
+        assert_eq!(round_down(0.175_000_000_1), 0.175);
         assert!((geometric_mean(&[0.25, 1.0]) - 0.5).abs() < 1e-12);
     }
 }

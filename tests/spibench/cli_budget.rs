@@ -57,11 +57,19 @@ fn a_budget_reads_back_and_holds_its_yield_under_another_seed() {
             >= base["geometric_mean_scale"].as_f64().unwrap() - 1e-12,
         "{s}"
     );
-    for f in ["budget.ron", "budget.csv", "report.html", "yield_vs_scale.svg"] {
+    for f in [
+        "budget.ron",
+        "budget.csv",
+        "report.html",
+        "yield_vs_scale.svg",
+    ] {
         assert!(out.join(f).is_file(), "{f}");
     }
     let text = std::fs::read_to_string(out.join("budget.ron")).unwrap();
-    assert!(text.contains("// scale ") && text.contains("% of the yield loss"), "{text}");
+    assert!(
+        text.contains("// scale ") && text.contains("% of the yield loss"),
+        "{text}"
+    );
     // Independently verified: the budget file, another seed, 300 trials.
     let check = dir.join("check");
     let b = out.join("budget.ron");
@@ -95,7 +103,10 @@ fn a_budget_reads_back_and_holds_its_yield_under_another_seed() {
 fn bad_budget_input_is_refused_and_an_unreachable_target_reported() {
     let dir = TempDir::new("budget-bad");
     for (args, frags) in [
-        (&["--target-yield", "1.0"][..], &["--target-yield", "between 0 and 1"][..]),
+        (
+            &["--target-yield", "1.0"][..],
+            &["--target-yield", "between 0 and 1"][..],
+        ),
         (&["--target-yield", "0"][..], &["--target-yield"][..]),
         (
             &["--target-yield", "0.9", "--confidence", "1.5"][..],
@@ -116,7 +127,11 @@ fn bad_budget_input_is_refused_and_an_unreachable_target_reported() {
         &["--target-yield", "0.9", "--costs", costs.to_str().unwrap()],
         &out,
     );
-    assert_input_error(&o, &["costs.ron, line 3", "chart.despace_mm", "not a tolerance"], &out);
+    assert_input_error(
+        &o,
+        &["costs.ron, line 3", "chart.despace_mm", "not a tolerance"],
+        &out,
+    );
     // No scale may go below the file's: the spot leaves the diode in too many benches.
     std::fs::write(&costs, "(default: (min_scale: 1.0))").unwrap();
     let out = dir.join("unreachable");
@@ -134,7 +149,10 @@ fn bad_budget_input_is_refused_and_an_unreachable_target_reported() {
     assert!(o.status.success(), "{}", stderr(&o));
     let s = read_json(&out.join("summary.json"));
     assert_eq!(s["reached"], false, "{s}");
-    assert!(s["reason"].as_str().unwrap().contains("tightest scales"), "{s}");
+    assert!(
+        s["reason"].as_str().unwrap().contains("tightest scales"),
+        "{s}"
+    );
     assert!(String::from_utf8_lossy(&o.stdout).contains("UNREACHABLE"));
     crate::outputs_schema::check_file(&out.join("summary.json"), "BudgetSummary");
 }

@@ -42,7 +42,9 @@ fn range_ron(min: f64, max: f64) -> String {
 fn distribution_ron(d: &Distribution) -> String {
     match d {
         Distribution::Uniform => String::new(),
-        Distribution::Normal { sigmas } => format!(", distribution: Normal(sigmas: {})", num(*sigmas)),
+        Distribution::Normal { sigmas } => {
+            format!(", distribution: Normal(sigmas: {})", num(*sigmas))
+        }
         Distribution::TruncatedNormal { sigmas } => {
             format!(", distribution: TruncatedNormal(sigmas: {})", num(*sigmas))
         }
@@ -265,7 +267,10 @@ fn yield_figure(
     files: &mut Vec<String>,
 ) -> crate::Result<Block> {
     let (x, y): (Vec<f64>, Vec<f64>) = b.common_scale.iter().copied().unzip();
-    let (x0, x1) = (x.first().copied().unwrap_or(0.01), x.last().copied().unwrap_or(1.0));
+    let (x0, x1) = (
+        x.first().copied().unwrap_or(0.01),
+        x.last().copied().unwrap_or(1.0),
+    );
     let point = |label: &str, f: &BudgetFigures| {
         f.confirmation.as_ref().map(|c| Series {
             label: format!("{label} (confirmed, geometric-mean scale)"),
@@ -352,9 +357,15 @@ fn report_blocks(b: &BudgetOutcome, set: &ToleranceSet, fig: Block) -> Vec<Block
              at the scale where its limit is reached)"
                 .into(),
         ),
-        header: ["budget", "total cost", "geometric-mean scale", "surface yield", "confirmed yield"]
-            .map(String::from)
-            .to_vec(),
+        header: [
+            "budget",
+            "total cost",
+            "geometric-mean scale",
+            "surface yield",
+            "confirmed yield",
+        ]
+        .map(String::from)
+        .to_vec(),
         rows: [("joint", &b.joint), ("one at a time", &b.baseline)]
             .iter()
             .map(|(name, f)| {
@@ -370,8 +381,8 @@ fn report_blocks(b: &BudgetOutcome, set: &ToleranceSet, fig: Block) -> Vec<Block
     });
     blocks.push(Block::Table {
         caption: Some(
-            "Each tolerance, largest share of the budget's yield loss first (the yield it alone \
-             costs on the surface, over the sum)"
+            "Each tolerance, largest share of the budget's yield loss first (on the surface, \
+             each failing draw shared in proportion to |its term| of the failing metrics)"
                 .into(),
         ),
         header: [
@@ -401,9 +412,15 @@ fn report_blocks(b: &BudgetOutcome, set: &ToleranceSet, fig: Block) -> Vec<Block
     });
     blocks.push(Block::Table {
         caption: Some("The search's rounds: each allocated on the surface, then confirmed".into()),
-        header: ["round", "surface target", "surface yield", "cross terms", "confirmed yield"]
-            .map(String::from)
-            .to_vec(),
+        header: [
+            "round",
+            "surface target",
+            "surface yield",
+            "cross terms",
+            "confirmed yield",
+        ]
+        .map(String::from)
+        .to_vec(),
         rows: b
             .rounds
             .iter()
