@@ -261,7 +261,7 @@ fn ridge(rows: &[Vec<f64>], y: &[f64], lambda: f64) -> Option<Vec<f64>> {
         for k in 0..j {
             d -= a[j * p + k] * a[j * p + k];
         }
-        if !(d > 0.0) {
+        if d.is_nan() || d <= 0.0 {
             return None;
         }
         let d = d.sqrt();
@@ -486,7 +486,7 @@ mod tests {
     #[test]
     fn parabolas_pass_through_both_ends() {
         let (p, q) = parabola(-1.0, 2.0, 3.0, 5.0);
-        assert!((p * -1.0 + q - 3.0).abs() < 1e-12);
+        assert!((q - p - 3.0).abs() < 1e-12);
         assert!((p * 2.0 + q * 4.0 - 5.0).abs() < 1e-12);
         assert_eq!(parabola(0.0, 2.0, 0.0, 4.0), (2.0, 0.0));
         assert_eq!(parabola(0.0, 0.0, 0.0, 0.0), (0.0, 0.0));
