@@ -23,6 +23,8 @@ pub const FLAGS: &[(&str, &str)] = &[
     ("out", "--out"),
     ("data_range", "--data-range"),
     ("wavelength_nm", "--wavelength-nm"),
+    ("target_yield", "--target-yield"),
+    ("confidence", "--confidence"),
 ];
 
 /// Options named in messages only (`quality` is also a tolerance file's section, whose errors

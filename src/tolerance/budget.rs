@@ -63,18 +63,18 @@ pub struct BudgetOptions {
     pub max_rounds: usize,
 }
 
-/// Checks Y and C (each in the open interval (0, 1)); the errors name the flag.
+/// Checks Y and C (each in the open interval (0, 1)); the errors name the field.
 pub fn check_options(b: &BudgetOptions) -> Result<()> {
     let open = |v: f64| v.is_finite() && v > 0.0 && v < 1.0;
     if !open(b.target_yield) {
         return Err(Error::field(
-            "--target-yield",
+            "target_yield",
             format!("a yield strictly between 0 and 1, got {}", b.target_yield),
         ));
     }
     if !open(b.confidence) {
         return Err(Error::field(
-            "--confidence",
+            "confidence",
             format!(
                 "a confidence strictly between 0 and 1, got {}",
                 b.confidence
@@ -423,7 +423,7 @@ pub fn budget(
             .unwrap_or(10_000_000);
         format!(
             "{} trials cannot show a yield of {} at confidence {} even if every one passes: give \
-             --trials {n} or more",
+             `trials` {n} or more",
             b.trials, b.target_yield, b.confidence
         )
     });
@@ -715,11 +715,11 @@ mod tests {
         };
         assert!(check_options(&b(0.95, 0.95, 300)).is_ok());
         for (opt, flag) in [
-            (b(0.0, 0.95, 300), "--target-yield"),
-            (b(1.0, 0.95, 300), "--target-yield"),
-            (b(f64::NAN, 0.95, 300), "--target-yield"),
-            (b(0.9, 1.0, 300), "--confidence"),
-            (b(0.9, 0.0, 300), "--confidence"),
+            (b(0.0, 0.95, 300), "target_yield"),
+            (b(1.0, 0.95, 300), "target_yield"),
+            (b(f64::NAN, 0.95, 300), "target_yield"),
+            (b(0.9, 1.0, 300), "confidence"),
+            (b(0.9, 0.0, 300), "confidence"),
         ] {
             let e = check_options(&opt).unwrap_err();
             assert!(e.is_user_error() && e.to_string().contains(flag), "{e}");
