@@ -59,6 +59,7 @@ fn variant(doc: &BenchDoc, asphere: bool) -> BenchDoc {
                 diameter_mm: Some(l.diameter_mm),
                 clear_diameter_mm: l.clear_diameter_mm,
                 glass_catalogues: Vec::new(),
+                allow_glass_substitution: false,
                 coating: l.coating.clone(),
                 tilt_deg: l.tilt_deg,
             });

@@ -33,6 +33,10 @@ pub struct Provenance {
     pub command: Vec<String>,
     pub seeds: Vec<u64>,
     pub inputs: Vec<InputFile>,
+    /// The glasses a bench's lens prescriptions modelled from their files' nd and Vd (each
+    /// allowed by its element); absent when none was.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub glass_substitutions: Vec<String>,
 }
 
 /// The SHA-256 of `bytes` as lower-case hex (FIPS 180-4).
@@ -65,6 +69,7 @@ impl Provenance {
             command,
             seeds: seeds.to_vec(),
             inputs: Vec::new(),
+            glass_substitutions: Vec::new(),
         }
     }
 

@@ -102,6 +102,10 @@ impl BenchArgs {
             let (path, value) = super::parse_assignment(a, "--set")?;
             doc.set(&path, value)?;
         }
+        // A glass modelled from nd and Vd is never silent (also in check and summary.json).
+        for s in doc.glass_substitutions() {
+            eprintln!("warning: {s}");
+        }
         Ok(doc)
     }
 }

@@ -11,10 +11,11 @@
 
 use glam::DVec3;
 
-use super::bench::{Bench, Interaction};
+use super::bench::{AIR_MEDIUM, Bench, Interaction};
 use super::geometry::{Frame, Geometry, Shape2D, sag};
 use super::glass::Glass;
 use super::lamp::EmitterShape;
+use super::lens::{LensSurface, Medium, Prescription, Shape};
 
 /// Points per full circle of an outline.
 const CIRCLE_POINTS: usize = 72;
@@ -60,9 +61,11 @@ pub struct ElementOutline {
     pub polylines: Vec<Vec<DVec3>>,
 }
 
-/// A singlet lens as built: the first vertex, the axis (direction of light travel), signed radii
-/// (positive: centre of curvature after the surface; `None`: flat), centre thickness,
-/// semi-diameter and glass.
+/// A lens as built (a `Lens` or a `LensSystem`): the first vertex, the axis (direction of light
+/// travel), the first and last surfaces' signed paraxial radii (positive: centre of curvature
+/// after the surface; `None`: flat), the first-to-last vertex thickness, the first surface's
+/// semi-diameter and the first glass; and every surface as a [`Prescription`] in the light's
+/// direction, for its paraxial numbers.
 #[derive(Debug, Clone, PartialEq)]
 pub struct LensPrescription {
     pub name: String,
@@ -73,6 +76,7 @@ pub struct LensPrescription {
     pub thickness: f64,
     pub semi_diameter: f64,
     pub glass: Glass,
+    pub prescription: Prescription,
 }
 
 /// The kind of ledger element `id` from its surfaces and meshes (None: an element with no
@@ -338,53 +342,88 @@ pub fn element_outlines(bench: &Bench) -> Vec<ElementOutline> {
     out
 }
 
-/// The lenses of a bench, in the order of its elements. A lens's first two glass interfaces are
-/// its front and back faces (`BenchParts::lens` makes them in that order).
+/// The lenses of a bench, in the order of its elements: each lens element's glass interfaces,
+/// front to back (`BenchParts::lens` and `add_lens_system` make them in that order), as flats,
+/// spheres and aspheres on one axis.
 pub fn lenses(bench: &Bench) -> Vec<LensPrescription> {
     let mut out = Vec::new();
     for (id, name) in bench.elements().iter().enumerate() {
         if kind_of(bench, id) != Some(ElementKind::Lens) {
             continue;
         }
-        let faces: Vec<_> = bench
-            .surfaces()
-            .iter()
-            .filter(|s| s.element == id && matches!(s.interaction, Interaction::Interface { .. }))
-            .collect();
-        if faces.len() != 2 {
+        // (vertex, axis along the light, shape, semi-diameter, medium after)
+        let mut faces = Vec::new();
+        for s in bench.surfaces().iter().filter(|s| s.element == id) {
+            let Interaction::Interface { back, .. } = s.interaction else {
+                continue;
+            };
+            let face = match s.geometry {
+                Geometry::SphereCap {
+                    vertex,
+                    axis,
+                    radius,
+                    aperture,
+                    ..
+                } => (vertex, axis, Shape::Sphere { c: 1.0 / radius }, aperture),
+                // A flat lens face's frame looks back against the light (normal −axis).
+                Geometry::Plane {
+                    frame,
+                    shape: Shape2D::Disk { radius },
+                } => (frame.origin, -frame.w, Shape::Flat, radius),
+                Geometry::Asphere {
+                    frame,
+                    shape,
+                    aperture,
+                } => (frame.origin, frame.w, shape, aperture),
+                _ => {
+                    faces.clear();
+                    break;
+                }
+            };
+            faces.push((face, back));
+        }
+        if faces.len() < 2 {
             continue;
         }
-        // (vertex, axis along the light, signed radius, semi-diameter)
-        let face = |g: &Geometry| match *g {
-            Geometry::SphereCap {
-                vertex,
-                axis,
-                radius,
-                aperture,
-                ..
-            } => Some((vertex, axis, Some(radius), aperture)),
-            // A flat lens face's frame looks back against the light (normal −axis).
-            Geometry::Plane {
-                frame,
-                shape: Shape2D::Disk { radius },
-            } => Some((frame.origin, -frame.w, None, radius)),
-            _ => None,
+        let (v0, axis) = (faces[0].0.0, faces[0].0.1);
+        let surfaces: Vec<LensSurface> = faces
+            .iter()
+            .enumerate()
+            .map(|(k, ((v, _, shape, sd), back))| LensSurface {
+                shape: *shape,
+                semi_diameter_m: *sd,
+                thickness_m: faces.get(k + 1).map_or(0.0, |f| (f.0.0 - *v).dot(axis)),
+                medium_after: if *back == AIR_MEDIUM {
+                    Medium::air()
+                } else {
+                    Medium {
+                        name: format!("medium {back}"),
+                        glass: bench.media()[*back].glass.clone(),
+                        range_nm: None,
+                        source: "bench".into(),
+                    }
+                },
+            })
+            .collect();
+        let radius = |s: &Shape| {
+            let c = s.paraxial_curvature();
+            (c != 0.0).then(|| 1.0 / c)
         };
-        let (Some(f), Some(b)) = (face(&faces[0].geometry), face(&faces[1].geometry)) else {
-            continue;
-        };
-        let Interaction::Interface { back: medium, .. } = faces[0].interaction else {
-            continue;
-        };
+        let last = faces.len() - 1;
         out.push(LensPrescription {
             name: name.clone(),
-            vertex: f.0,
-            axis: f.1,
-            front_radius: f.2,
-            back_radius: b.2,
-            thickness: (b.0 - f.0).dot(f.1),
-            semi_diameter: f.3,
-            glass: bench.media()[medium].glass.clone(),
+            vertex: v0,
+            axis,
+            front_radius: radius(&faces[0].0.2),
+            back_radius: radius(&faces[last].0.2),
+            thickness: (faces[last].0.0 - v0).dot(axis),
+            semi_diameter: faces[0].0.3,
+            glass: bench.media()[faces[0].1].glass.clone(),
+            prescription: Prescription {
+                name: name.clone(),
+                surfaces,
+                image_distance_m: None,
+            },
         });
     }
     out

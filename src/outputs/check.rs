@@ -11,6 +11,7 @@ use crate::trace::paraxial::{ParaxialReport, paraxial_report};
 /// the file.
 pub fn report(doc: &BenchDoc, bench: &crate::optics::Bench, wl: f64) -> Result<ParaxialReport> {
     let mut report = paraxial_report(&doc.name(), bench, wl)?;
+    report.glass_substitutions = doc.glass_substitutions();
     let poses = file_positions(&doc.file);
     for e in &mut report.elements {
         e.position_m = poses.iter().find(|(n, _)| *n == e.name).map(|p| p.1);
@@ -120,6 +121,9 @@ pub fn printed(r: &ParaxialReport) -> Vec<String> {
         if let Some(a) = &l.arm {
             arm_lines(a, &mut out);
         }
+    }
+    for s in &r.glass_substitutions {
+        out.push(format!("  glass substituted: {s}"));
     }
     match r.chart_to_dmd_magnification {
         Some(m) => out.push(format!("chart → DMD magnification: {m:.4}")),

@@ -174,6 +174,7 @@ fn the_paper_bench_with_its_lenses_as_lens_systems_traces_the_same() {
                 diameter_mm: Some(l.diameter_mm),
                 clear_diameter_mm: l.clear_diameter_mm,
                 glass_catalogues: Vec::new(),
+                allow_glass_substitution: false,
                 coating: l.coating.clone(),
                 tilt_deg: l.tilt_deg,
             });

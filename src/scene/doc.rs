@@ -172,6 +172,15 @@ impl BenchDoc {
             .collect()
     }
 
+    /// The glasses this bench's `LensSystem` elements model from their prescriptions' nd and Vd
+    /// (allowed by `allow_glass_substitution`), as sentences naming the file and line. Empty
+    /// when the lenses cannot be read: building the bench then reports why.
+    pub fn glass_substitutions(&self) -> Vec<String> {
+        crate::scene::bench::lens_substitutions(&self.file, &self.path)
+            .map(|s| s.iter().map(|s| s.to_string()).collect())
+            .unwrap_or_default()
+    }
+
     /// The value of a bench variable.
     pub fn get(&self, path: &str) -> Result<f64> {
         crate::scene::variables::get(&self.file, path).map_err(|e| e.in_file(&self.path))
@@ -210,7 +219,9 @@ impl crate::provenance::Provenance {
             Some(t) => p.text(&doc.name(), t),
             None => p.file(&doc.path)?,
         };
-        p.files(&doc.input_files())
+        let mut p = p.files(&doc.input_files())?;
+        p.glass_substitutions = doc.glass_substitutions();
+        Ok(p)
     }
 }
 

@@ -19,8 +19,9 @@ use serde::Serialize;
 
 use crate::error::{Error, Result};
 use crate::optics::Bench;
-use crate::optics::bench::{Interaction, thick_lens};
+use crate::optics::bench::Interaction;
 use crate::optics::dmd::MirrorState;
+use crate::optics::lens::trace::Paraxial;
 use crate::optics::outline::{LensPrescription, element_outlines, lenses};
 use crate::trace::fan::{ChiefEnd, chief_ray, dmd_axes};
 
@@ -261,8 +262,7 @@ fn walk_chief_ray(
                     continue;
                 };
                 let l = &prescriptions[i];
-                let n = l.glass.index(wl);
-                let (f, _, h1, h2) = cardinal(l, n);
+                let (f, _, h1, h2) = cardinal(l, wl);
                 let front_h = l.vertex + h1 * l.axis;
                 let back_h = l.vertex + (l.thickness + h2) * l.axis;
                 let s = (front_h - object.0).dot(l.axis);
@@ -322,7 +322,7 @@ fn walk_chief_ray(
     if let (Some((i, z)), ChiefEnd::Detector(d)) = (arm_lens, ray.end) {
         let det = &bench.detectors()[d];
         let l = &prescriptions[i];
-        let (f, ..) = cardinal(l, l.glass.index(wl));
+        let (f, ..) = cardinal(l, wl);
         let e = &mut entries[i];
         if let (Some(arm), Some(s), Some((_, a, pl))) =
             (&mut e.arm, e.object_distance_m, &pupil_to_dmd)
@@ -378,6 +378,9 @@ pub struct ParaxialReport {
     pub design_wavelength_m: f64,
     pub elements: Vec<ElementEntry>,
     pub lenses: Vec<LensEntry>,
+    /// The glasses modelled from a prescription's nd and Vd (filled by `outputs::check`, which
+    /// has the bench file).
+    pub glass_substitutions: Vec<String>,
     /// Lateral magnification from the chart to the DMD (product over the lenses between).
     pub chart_to_dmd_magnification: Option<f64>,
     /// The pattern area on the DMD (width, height; m).
@@ -387,20 +390,20 @@ pub struct ParaxialReport {
     pub diodes: Vec<DiodeEntry>,
 }
 
-/// Paraxial data of a thick lens at index n: (f, BFL, front principal plane offset h1 from the
-/// front vertex, back principal plane offset h2 from the back vertex), offsets along the light.
-/// h1 = −f(n − 1)t/(n R2), h2 = −f(n − 1)t/(n R1) (Hecht §6.2).
-fn cardinal(lens: &LensPrescription, n: f64) -> (f64, f64, f64, f64) {
-    let (f, bfl) = thick_lens(n, lens.front_radius, lens.back_radius, lens.thickness);
-    let t = lens.thickness;
-    let c1 = lens.front_radius.map_or(0.0, |r| 1.0 / r);
-    let c2 = lens.back_radius.map_or(0.0, |r| 1.0 / r);
-    (
-        f,
-        bfl,
-        -f * (n - 1.0) * t * c2 / n,
-        -f * (n - 1.0) * t * c1 / n,
-    )
+/// Paraxial data of a lens at `wl` from every surface of its prescription (a y–nu trace,
+/// `Prescription::paraxial`): (f, BFL, front principal plane offset h1 from the first vertex,
+/// back principal plane offset h2 from the last vertex), offsets along the light: h1 = f − FFL,
+/// h2 = BFL − f (for a singlet h1 = −f(n − 1)t/(n R2), h2 = −f(n − 1)t/(n R1), Hecht §6.2). An
+/// afocal lens has f = BFL = ∞ and its principal planes at the vertices.
+fn cardinal(lens: &LensPrescription, wl: f64) -> (f64, f64, f64, f64) {
+    match lens.prescription.paraxial(wl) {
+        Ok(Paraxial {
+            efl_m: Some(f),
+            bfl_m: Some(bfl),
+            ffl_m: Some(ffl),
+        }) => (f, bfl, f - ffl, bfl - f),
+        _ => (f64::INFINITY, f64::INFINITY, 0.0, 0.0),
+    }
 }
 
 /// Computes the report at the design wavelength `wl` (m; see the module notes). The elements'
@@ -437,7 +440,7 @@ pub fn paraxial_report(scene: &str, bench: &Bench, wl: f64) -> Result<ParaxialRe
         .iter()
         .map(|l| {
             let n = l.glass.index(wl);
-            let (f, bfl, _, _) = cardinal(l, n);
+            let (f, bfl, _, _) = cardinal(l, wl);
             LensEntry {
                 name: l.name.clone(),
                 index: n,
@@ -488,6 +491,7 @@ pub fn paraxial_report(scene: &str, bench: &Bench, wl: f64) -> Result<ParaxialRe
         design_wavelength_m: wl,
         elements,
         lenses: entries,
+        glass_substitutions: Vec::new(),
         chart_to_dmd_magnification: chart_to_dmd,
         pattern_on_dmd_m: pattern_on_dmd,
         pattern_on_chart_m: pattern_on_chart,
@@ -547,24 +551,54 @@ mod tests {
     /// H' at t/n inside the flat vertex (so BFL = f − t/n); flat side first, the mirror image.
     #[test]
     fn principal_planes_of_a_plano_convex_lens() {
-        let mut l = LensPrescription {
-            name: "l".into(),
-            vertex: DVec3::ZERO,
-            axis: DVec3::Z,
-            front_radius: Some(0.05),
-            back_radius: None,
-            thickness: 0.01,
-            semi_diameter: 0.02,
-            glass: crate::optics::glass::Glass::Constant(1.5),
+        use crate::optics::lens::{LensSurface, Medium, Prescription, Shape};
+        let glass = crate::optics::glass::Glass::Constant(1.5);
+        let lens = |front: Shape, back: Shape| {
+            let medium = Medium {
+                name: "1.5".into(),
+                glass: glass.clone(),
+                range_nm: None,
+                source: "test".into(),
+            };
+            let surface = |shape, thickness_m, medium_after| LensSurface {
+                shape,
+                semi_diameter_m: 0.02,
+                thickness_m,
+                medium_after,
+            };
+            LensPrescription {
+                name: "l".into(),
+                vertex: DVec3::ZERO,
+                axis: DVec3::Z,
+                front_radius: None,
+                back_radius: None,
+                thickness: 0.01,
+                semi_diameter: 0.02,
+                glass: glass.clone(),
+                prescription: Prescription {
+                    name: "l".into(),
+                    surfaces: vec![
+                        surface(front, 0.01, medium),
+                        surface(back, 0.0, Medium::air()),
+                    ],
+                    image_distance_m: None,
+                },
+            }
         };
-        let (f, bfl, h1, h2) = cardinal(&l, 1.5);
+        let l = lens(Shape::Sphere { c: 20.0 }, Shape::Flat);
+        let (f, bfl, h1, h2) = cardinal(&l, 850e-9);
         assert!((f - 0.1).abs() < 1e-15);
         assert!(h1.abs() < 1e-15 && (h2 + 0.01 / 1.5).abs() < 1e-15);
         assert!((bfl - (f + h2)).abs() < 1e-15);
-        l.front_radius = None;
-        l.back_radius = Some(-0.05);
-        let (_, bfl, h1, h2) = cardinal(&l, 1.5);
+        let l = lens(Shape::Flat, Shape::Sphere { c: -20.0 });
+        let (_, bfl, h1, h2) = cardinal(&l, 850e-9);
         assert!((h1 - 0.01 / 1.5).abs() < 1e-15 && h2.abs() < 1e-15 && (bfl - 0.1).abs() < 1e-15);
+        // A flat plate is afocal: no focal length, the principal planes at the vertices.
+        let l = lens(Shape::Flat, Shape::Flat);
+        assert_eq!(
+            cardinal(&l, 850e-9),
+            (f64::INFINITY, f64::INFINITY, 0.0, 0.0)
+        );
     }
 
     /// The paper bench at 850 nm: the imaging lens at 2f–2f images the chart at −1 (the scene
@@ -704,5 +738,85 @@ mod tests {
                 "{a:?}"
             );
         }
+    }
+}
+
+#[cfg(test)]
+mod lens_system_tests {
+    use super::*;
+    use crate::lens::{GlassOptions, read_zmx};
+    use crate::scene::doc::BenchDoc;
+    use std::path::Path;
+
+    /// The paper bench's text with the `Lens` element `name` replaced by `with`.
+    fn replaced(text: &str, name: &str, with: &str) -> String {
+        let start = text
+            .find(&format!("        Lens(\n            name: \"{name}\""))
+            .unwrap();
+        let end = start + text[start..].find("        ),\n").unwrap() + "        ),\n".len();
+        format!("{}{with}{}", &text[..start], &text[end..])
+    }
+
+    /// `check`'s lens table covers `LensSystem` elements: the AC254-100-B doublet as the
+    /// imaging lens and the AL1815 even asphere in the + arm get the EFL and BFL of their
+    /// prescriptions (all surfaces, the asphere's paraxial curvature), and the doublet still
+    /// images the chart.
+    #[test]
+    fn doublets_and_aspheres_are_in_the_lens_table() {
+        let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+        let path = root.join("scenes/paper_bench.ron");
+        let text = std::fs::read_to_string(&path).unwrap();
+        let doublet = "        LensSystem(\n            name: \"imaging_lens\",\n            zmx: \"parts/thorlabs_ac254-100-b.zmx\",\n            position_mm: (0.0, 0.0, 205.668),\n            axis: Vector((0.0, 0.0, -1.0)),\n        ),\n";
+        let asphere = "        LensSystem(\n            name: \"arm_plus_lens\",\n            zmx: \"parts/thorlabs_al1815.zmx\",\n            position_mm: (28.7606, -28.7606, 91.3545),\n            axis: Polar(theta_deg: 24.0, phi_deg: -45.0),\n        ),\n";
+        let text = replaced(
+            &replaced(&text, "imaging_lens", doublet),
+            "arm_plus_lens",
+            asphere,
+        );
+        let doc = BenchDoc::parse(&text, &path).unwrap();
+        let bench = doc.build().unwrap();
+        let r = paraxial_report("paper", &bench, 850e-9).unwrap();
+        for (name, part, surfaces) in [
+            ("imaging_lens", "thorlabs_ac254-100-b.zmx", 3),
+            ("arm_plus_lens", "thorlabs_al1815.zmx", 2),
+        ] {
+            let p = read_zmx(
+                &root.join("scenes/parts").join(part),
+                &GlassOptions::default(),
+            )
+            .unwrap()
+            .prescription;
+            assert_eq!(p.surfaces.len(), surfaces);
+            let want = p.paraxial(850e-9).unwrap();
+            let l = r.lenses.iter().find(|l| l.name == name).unwrap();
+            let rel = |a: f64, b: f64| ((a - b) / b).abs();
+            assert!(
+                rel(l.focal_length_m, want.efl_m.unwrap()) < 1e-9,
+                "{name}: {l:?}"
+            );
+            assert!(
+                rel(l.back_focal_length_m, want.bfl_m.unwrap()) < 1e-9,
+                "{name}: {l:?}"
+            );
+            assert!((l.thickness_m - p.length_m()).abs() < 1e-12, "{name}");
+        }
+        let img = r.lenses.iter().find(|l| l.name == "imaging_lens").unwrap();
+        assert!(
+            img.object.as_deref().unwrap().starts_with("chart"),
+            "{img:?}"
+        );
+        // The shipped doublet is the f = 100 mm achromat, the asphere the f = 15 mm collector.
+        assert!(
+            (img.focal_length_m - 0.1).abs() < 1e-3,
+            "{}",
+            img.focal_length_m
+        );
+        let arm = r.lenses.iter().find(|l| l.name == "arm_plus_lens").unwrap();
+        assert!(
+            (arm.focal_length_m - 0.015).abs() < 1e-3,
+            "{}",
+            arm.focal_length_m
+        );
+        assert_eq!(r.lenses.len(), 4);
     }
 }

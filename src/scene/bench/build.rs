@@ -194,7 +194,11 @@ impl Builder<'_> {
     /// The bench's own glasses, checked: a name that is neither a catalogue glass, nor a number,
     /// nor used twice; coefficients whose index is finite, at least 1 and below
     /// `GLASS_MAX_INDEX` across the traced band, with no resonance (λ² = Cᵢ) inside it.
-    fn user_glasses(&self, file: &BenchFile, band_m: (f64, f64)) -> Result<Vec<(String, Glass)>> {
+    pub(super) fn user_glasses(
+        &self,
+        file: &BenchFile,
+        band_m: (f64, f64),
+    ) -> Result<Vec<(String, Glass)>> {
         let mut out: Vec<(String, Glass)> = Vec::new();
         for (i, g) in file.glasses.iter().enumerate() {
             let name = g.name.trim();

@@ -5,14 +5,17 @@
 use std::path::Path;
 
 use crate::error::{Error, Result};
-use crate::lens::{GlassOptions, agf::Catalogue, read_zmx};
+use crate::lens::{GlassOptions, Substitution, agf::Catalogue, read_zmx};
 use crate::optics::bench::{ElementId, Solid};
 use crate::optics::geometry::Frame;
 use crate::optics::lens::parts::add_lens_system;
 use crate::optics::lens::{Defect, LensSurface, Medium, Prescription, Shape};
 
-use super::build::{Builder, mm};
-use super::schema::{LensSurfaceSpec, LensSystemSpec};
+use super::build::{Builder, Ctx, mm};
+use super::schema::{BenchFile, ElementSpec, LensSpec, LensSurfaceSpec, LensSystemSpec};
+use crate::optics::bench::BenchParts;
+use crate::scene::locate::Locator;
+use crate::scene::numbers::RadiusMm;
 
 impl Builder<'_> {
     /// A `LensSystem` element.
@@ -28,32 +31,7 @@ impl Builder<'_> {
             .ctx
             .frame(mm(el.position_mm), el.axis, None, el.tilt_deg, &e)?;
         let coating = self.ctx.coating(&el.coating, |m| e("coating", m))?;
-        let base = self.ctx.path.parent().unwrap_or(Path::new(""));
-        let p = match (&el.zmx, &el.surfaces) {
-            (Some(file), None) => {
-                let catalogues = el
-                    .glass_catalogues
-                    .iter()
-                    .map(|c| Catalogue::read(&base.join(c)))
-                    .collect::<Result<Vec<_>>>()
-                    .map_err(|err| relocated(err, || e("glass_catalogues", String::new())))?;
-                // No nd/Vd substitution inside a bench: a bench has no report to state it in
-                // yet, and a substitution is never silent (`spibench lens` allows it).
-                let glasses = GlassOptions {
-                    catalogues,
-                    allow_substitution: false,
-                };
-                read_zmx(&base.join(file), &glasses)?.prescription
-            }
-            (None, Some(surfaces)) => self.inline(n, surfaces)?,
-            _ => {
-                return Err(e(
-                    "zmx",
-                    "a LensSystem takes either `zmx` (a prescription file) or `surfaces`".into(),
-                ));
-            }
-        };
-        let p = if el.reversed { p.reversed() } else { p };
+        let (p, _) = self.prescription(el, n)?;
         let widest = p
             .surfaces
             .iter()
@@ -83,6 +61,43 @@ impl Builder<'_> {
         };
         self.solids.push((name, solid));
         Ok(())
+    }
+
+    /// The element's prescription as the light meets it (turned round when `reversed`), with
+    /// the glasses modelled from a file's nd and Vd (only where `allow_glass_substitution`).
+    pub(super) fn prescription(
+        &self,
+        el: &LensSystemSpec,
+        n: &str,
+    ) -> Result<(Prescription, Vec<Substitution>)> {
+        let e = |f: &str, m: String| self.ctx.err_el(n, f, m);
+        let base = self.ctx.path.parent().unwrap_or(Path::new(""));
+        let (p, subs) = match (&el.zmx, &el.surfaces) {
+            (Some(file), None) => {
+                let catalogues = el
+                    .glass_catalogues
+                    .iter()
+                    .map(|c| Catalogue::read(&base.join(c)))
+                    .collect::<Result<Vec<_>>>()
+                    .map_err(|err| relocated(err, || e("glass_catalogues", String::new())))?;
+                // A substitution is never silent: the bench states its permission, and every
+                // command reports what was substituted (`lens_substitutions`).
+                let glasses = GlassOptions {
+                    catalogues,
+                    allow_substitution: el.allow_glass_substitution,
+                };
+                let loaded = read_zmx(&base.join(file), &glasses)?;
+                (loaded.prescription, loaded.substitutions)
+            }
+            (None, Some(surfaces)) => (self.inline(n, surfaces)?, Vec::new()),
+            _ => {
+                return Err(e(
+                    "zmx",
+                    "a LensSystem takes either `zmx` (a prescription file) or `surfaces`".into(),
+                ));
+            }
+        };
+        Ok((if el.reversed { p.reversed() } else { p }, subs))
     }
 
     /// The prescription of inline surfaces, its geometry checked.
@@ -206,5 +221,112 @@ fn relocated(err: Error, element: impl Fn() -> Error) -> Error {
         Error::Input { location, .. } if location.file.is_some() => err,
         Error::Io { .. } => err,
         _ => element(),
+    }
+}
+
+/// A `Builder` for reading the lens elements of `file` alone (its own glasses checked), without
+/// building the bench.
+fn lens_reader<'a>(file: &BenchFile, text: Option<&'a str>, path: &'a Path) -> Result<Builder<'a>> {
+    let mut b = Builder {
+        ctx: Ctx {
+            loc: text.map(|text| Locator { text }),
+            path,
+            glasses: Vec::new(),
+        },
+        parts: BenchParts::new(),
+        solids: Vec::new(),
+        throughput: Vec::new(),
+    };
+    let band = (file.band_nm.0.0 * 1e-9, file.band_nm.1.0 * 1e-9);
+    b.ctx.glasses = b.user_glasses(file, band)?;
+    Ok(b)
+}
+
+/// The prescription of the bench element `name` (a `Lens` or a `LensSystem`) as the bench
+/// builds it, in the light's direction, with the substitutions its glasses needed.
+pub fn element_prescription(
+    file: &BenchFile,
+    text: Option<&str>,
+    path: &Path,
+    name: &str,
+) -> Result<(Prescription, Vec<Substitution>)> {
+    let b = lens_reader(file, text, path)?;
+    let lenses: Vec<&str> = file
+        .elements
+        .iter()
+        .filter(|el| matches!(el, ElementSpec::Lens(_) | ElementSpec::LensSystem(_)))
+        .map(|el| el.name())
+        .collect();
+    let el = file.elements.iter().find(|el| el.name() == name);
+    match el {
+        Some(ElementSpec::LensSystem(l)) => b.prescription(l, name),
+        Some(ElementSpec::Lens(l)) => Ok((b.singlet(l, name)?, Vec::new())),
+        _ => Err(Error::field(
+            "--element",
+            format!(
+                "the bench has no lens named `{name}`{}; its lenses: {}",
+                if el.is_some() {
+                    " (that element is no lens)"
+                } else {
+                    ""
+                },
+                if lenses.is_empty() {
+                    "none".into()
+                } else {
+                    lenses.join(", ")
+                }
+            ),
+        )
+        .in_file(path)),
+    }
+}
+
+/// Every glass the bench's `LensSystem` elements model from a file's nd and Vd (each allowed
+/// by its element's `allow_glass_substitution`), in element order.
+pub fn lens_substitutions(file: &BenchFile, path: &Path) -> Result<Vec<Substitution>> {
+    let b = lens_reader(file, None, path)?;
+    let mut out = Vec::new();
+    for el in &file.elements {
+        if let ElementSpec::LensSystem(l) = el
+            && l.allow_glass_substitution
+        {
+            out.extend(b.prescription(l, &l.name)?.1);
+        }
+    }
+    Ok(out)
+}
+
+impl Builder<'_> {
+    /// A `Lens` element as a two-surface prescription (its clear aperture on both faces).
+    fn singlet(&self, el: &LensSpec, n: &str) -> Result<Prescription> {
+        let glass = self
+            .ctx
+            .glass(&el.glass, |m| self.ctx.err_el(n, "glass", m))?;
+        let sd = 0.5e-3 * el.clear_diameter_mm.unwrap_or(el.diameter_mm).0;
+        let shape = |r: Option<RadiusMm>| r.map_or(Shape::Flat, |r| Shape::Sphere { c: 1e3 / r.0 });
+        let p = Prescription {
+            name: n.to_string(),
+            surfaces: vec![
+                LensSurface {
+                    shape: shape(el.front_radius_mm),
+                    semi_diameter_m: sd,
+                    thickness_m: el.thickness_mm.0 * 1e-3,
+                    medium_after: Medium {
+                        name: el.glass.clone(),
+                        glass,
+                        range_nm: None,
+                        source: "bench".into(),
+                    },
+                },
+                LensSurface {
+                    shape: shape(el.back_radius_mm),
+                    semi_diameter_m: sd,
+                    thickness_m: 0.0,
+                    medium_after: Medium::air(),
+                },
+            ],
+            image_distance_m: None,
+        };
+        Ok(p)
     }
 }

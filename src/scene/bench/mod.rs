@@ -45,6 +45,7 @@ pub use crate::scene::numbers::{
     MAX_POSITION_MM, MAX_SCALAR, Mm3, NonNegative, OpticalDensity, Positive, PowerW, Probability,
     RadiusMm, TableNm, Temperature, TiltDeg, UnitFraction, WavelengthNm, Whole,
 };
+pub use lens_system::{element_prescription, lens_substitutions};
 pub use schema::{
     ApertureSpec, BaffleSpec, BenchFile, CenterOnSpec, ChartGuidedSpec, ChartPatternSpec,
     ChartSpec, CoatingSpec, DetectorsSpec, Direction, DmdModelSpec, DmdSpec, ElementSpec,

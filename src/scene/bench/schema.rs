@@ -455,6 +455,10 @@ pub struct LensSystemSpec {
     /// glasses through before the built-in catalogue.
     #[serde(default)]
     pub glass_catalogues: Vec<String>,
+    /// Model a glass that no catalogue has from the prescription's own nd and Vd (every such
+    /// substitution is reported on stderr, by `check` and in `summary.json`); default: refuse.
+    #[serde(default)]
+    pub allow_glass_substitution: bool,
     /// Coating of every surface.
     #[serde(default)]
     pub coating: CoatingSpec,
