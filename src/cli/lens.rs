@@ -2,19 +2,34 @@
 //! [--allow-glass-substitution] [--out DIR]`: a Zemax prescription's surface table, paraxial
 //! EFL, BFL and FFL, and a meridional fan of real rays to the file's image surface
 //! (crate::lens::report); with `--out`, `summary.json` and the drawing (crate::outputs::lens).
+//!
+//! `spibench lens [SCENE] --element NAME [--set PATH=VALUE …]`: the same report of a bench's
+//! `Lens` or `LensSystem` element as the bench builds it (its glasses, its substitutions,
+//! turned round where the bench turns it), SCENE being a bench file as for every bench
+//! command (default: the built-in paper bench).
 
 use std::path::PathBuf;
 
-use crate::error::Result;
-use crate::lens::{GlassOptions, agf::Catalogue, read_zmx, report::report};
+use crate::error::{Error, Result};
+use crate::lens::{GlassOptions, LoadedLens, agf::Catalogue, read_zmx, report::report};
 use crate::outputs::lens::{LensSummary, printed, write};
+use crate::provenance::Provenance;
 use crate::report::output::OutputDir;
 
 /// Arguments of `spibench lens`.
 #[derive(Debug, Clone, clap::Args)]
 pub struct LensArgs {
-    /// A sequential Zemax prescription (.zmx).
-    pub file: PathBuf,
+    /// A sequential Zemax prescription (.zmx); with `--element`, a bench file (default: the
+    /// paper's bench built into the binary).
+    pub file: Option<PathBuf>,
+    /// Report the bench's lens element of this name (a `Lens` or a `LensSystem`) instead of a
+    /// prescription file.
+    #[arg(long, value_name = "NAME")]
+    pub element: Option<String>,
+    /// With `--element`: set a bench variable first, e.g. `--set imaging_lens.position_mm.z=200`
+    /// (repeatable; paths as in `spibench sweep`).
+    #[arg(long = "set", value_name = "PATH=VALUE", requires = "element")]
+    pub set: Vec<String>,
     /// Wavelength of the indices (nm).
     #[arg(long, default_value_t = 850.0)]
     pub wavelength_nm: f64,
@@ -23,11 +38,13 @@ pub struct LensArgs {
     #[arg(long, value_delimiter = ',', value_name = "H,H,…")]
     pub heights_mm: Option<Vec<f64>>,
     /// A Zemax glass catalogue (.agf) to resolve glass names through, before the built-in
-    /// catalogue (repeatable; the file's GCAT order ranks them).
-    #[arg(long = "catalogue", value_name = "AGF")]
+    /// catalogue (repeatable; the file's GCAT order ranks them). A bench element uses the
+    /// bench's own `glass_catalogues`.
+    #[arg(long = "catalogue", value_name = "AGF", conflicts_with = "element")]
     pub catalogues: Vec<PathBuf>,
-    /// Model a glass that no catalogue has from its GLAS line's nd and Vd (always reported).
-    #[arg(long)]
+    /// Model a glass that no catalogue has from its GLAS line's nd and Vd (always reported). A
+    /// bench element follows its own `allow_glass_substitution`.
+    #[arg(long, conflicts_with = "element")]
     pub allow_glass_substitution: bool,
     /// Output directory for summary.json and the drawing (lens.svg, lens.png, lens.pdf).
     #[arg(long)]
@@ -36,8 +53,11 @@ pub struct LensArgs {
 
 pub fn run(args: &LensArgs) -> anyhow::Result<()> {
     let summary = lens(args)?;
-    for s in &summary.substitutions {
-        eprintln!("warning: {s}");
+    // A bench's substitutions were reported when it was read (`BenchArgs::load`).
+    if args.element.is_none() {
+        for s in &summary.substitutions {
+            eprintln!("warning: {s}");
+        }
     }
     println!("{}", printed(&summary));
     if let Some(out) = &args.out {
@@ -49,7 +69,31 @@ pub fn run(args: &LensArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-fn lens(args: &LensArgs) -> Result<LensSummary> {
+/// The prescription to report, what to call it, and the provenance of its inputs.
+fn load(args: &LensArgs) -> Result<(LoadedLens, String, Provenance)> {
+    if let Some(name) = &args.element {
+        let bench = super::args::BenchArgs {
+            scene: args.file.clone(),
+            set: args.set.clone(),
+        };
+        let doc = bench.load()?;
+        let (prescription, substitutions) =
+            crate::scene::bench::element_prescription(&doc.file, doc.text(), doc.path(), name)?;
+        let loaded = LoadedLens {
+            path: doc.path().to_path_buf(),
+            prescription,
+            substitutions,
+            ignored: Vec::new(),
+        };
+        let label = format!("{}, element {name}", doc.name());
+        return Ok((loaded, label, Provenance::of_bench(&doc, &[])?));
+    }
+    let Some(file) = &args.file else {
+        return Err(Error::field(
+            "FILE",
+            "name a prescription (.zmx), or a bench element with --element NAME",
+        ));
+    };
     let catalogues = args
         .catalogues
         .iter()
@@ -59,15 +103,20 @@ fn lens(args: &LensArgs) -> Result<LensSummary> {
         catalogues,
         allow_substitution: args.allow_glass_substitution,
     };
-    let loaded = read_zmx(&args.file, &glasses)?;
+    let loaded = read_zmx(file, &glasses)?;
+    let mut inputs = vec![file.clone()];
+    inputs.extend(args.catalogues.iter().cloned());
+    let provenance = Provenance::new(&[]).files(&inputs)?;
+    Ok((loaded, file.display().to_string(), provenance))
+}
+
+fn lens(args: &LensArgs) -> Result<LensSummary> {
+    let (loaded, label, provenance) = load(args)?;
     let r = report(&loaded, args.wavelength_nm, args.heights_mm.as_deref())?;
-    let summary = LensSummary::new(&args.file.display().to_string(), &r);
+    let summary = LensSummary::new(&label, &r);
     let Some(out) = &args.out else {
         return Ok(summary);
     };
-    let mut inputs = vec![args.file.clone()];
-    inputs.extend(args.catalogues.iter().cloned());
-    let provenance = crate::provenance::Provenance::new(&[]).files(&inputs)?;
     let dir = OutputDir::create(out)?;
     let summary = write(&dir, summary, &loaded.prescription, &provenance)?;
     dir.commit()?;

@@ -5,10 +5,13 @@
 //! output.
 
 use crate::error::Error;
+use crate::outputs::irradiance::IrradianceSummary;
 use crate::outputs::trace::{DiffractionSummary, printed, summarize, write};
-use crate::pipeline::{TraceRequest, trace_stage};
+use crate::pipeline::{CacheStatus, Traced};
 use crate::report::output::OutputDir;
+use crate::trace::TraceOptions;
 use crate::trace::collection::diffraction_pair;
+use crate::trace::irradiance::{DEFAULT_BINS, trace_with_maps};
 
 /// Arguments of `spibench trace`.
 #[derive(Debug, Clone, clap::Args)]
@@ -44,17 +47,20 @@ pub fn run(args: &TraceArgs) -> anyhow::Result<()> {
     let start = std::time::Instant::now();
     let bar = super::progress::bar(rays, "rays");
     let report = |done: u64, _: u64| bar.set_position(done);
-    let request = TraceRequest {
+    // The irradiance maps on the diodes come from the same paths (no second pass).
+    let options = TraceOptions {
         progress: Some(&report),
-        ..TraceRequest::new(rays, seed)
+        ..TraceOptions::new(rays, seed)
     };
-    let traced = trace_stage(&bench, &request)?;
+    let (tallies, irradiance) = trace_with_maps(&bench, &options, DEFAULT_BINS)?;
+    let traced = Traced::from_tallies(&bench, tallies, CacheStatus::Off);
     bar.finish_and_clear();
     let seconds = start.elapsed().as_secs_f64();
     // No light on the pattern area is the bench's fault, not a result: exit 2, naming the cause.
     traced.truth().map_err(|e| e.in_file(doc.path()))?;
     let t = &traced.transport;
     let mut summary = summarize(&doc.name(), &bench, t, &traced.metrics, traced.arrivals());
+    summary.irradiance = Some(IrradianceSummary::of(&irradiance));
     let provenance = crate::provenance::Provenance::of_bench(&doc, &[seed])?;
     let collections = match bench.dmd().and_then(|s| s.dmd.diffraction()) {
         Some(_) => {
@@ -73,6 +79,9 @@ pub fn run(args: &TraceArgs) -> anyhow::Result<()> {
         collections.as_ref(),
         &bench,
     )?;
+    let mut mapped = crate::outputs::irradiance::write(&dir, &irradiance)?;
+    summary.files.append(&mut mapped);
+    crate::outputs::summary::write_summary(&dir, &summary, &provenance)?;
     dir.commit()?;
     let json = serde_json::to_value(&summary)?;
     for line in crate::outputs::trace::card(&json).printed() {

@@ -15,6 +15,7 @@ pub mod check;
 pub mod export;
 pub mod fit;
 pub mod intake;
+pub mod irradiance;
 pub mod labels;
 pub mod layout;
 pub mod lens;

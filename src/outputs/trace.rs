@@ -75,6 +75,9 @@ pub struct TraceSummary {
     /// diffraction (docs/dmd_diffraction.md).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub dmd_diffraction: Option<DiffractionSummary>,
+    /// The irradiance maps on the diodes (`trace`; crate::outputs::irradiance).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub irradiance: Option<super::irradiance::IrradianceSummary>,
     /// Output files (relative to the output directory).
     pub files: Vec<String>,
 }
@@ -229,6 +232,7 @@ pub fn summarize(
             all_minus: world_summary(&t.ledger.worlds[1]),
         },
         dmd_diffraction: None,
+        irradiance: None,
         files: Vec::new(),
     }
 }

@@ -16,6 +16,7 @@
 
 pub mod collection;
 pub mod fan;
+pub mod irradiance;
 pub mod kernel;
 pub mod paraxial;
 pub mod path;
@@ -101,24 +102,7 @@ impl TraceOptions<'_> {
 
 /// Traces `options.rays` lamp rays through `bench` on the current rayon pool.
 pub fn trace(bench: &Bench, options: &TraceOptions) -> Result<Tallies> {
-    if options.rays == 0 {
-        return Err(Error::field(
-            "rays",
-            "the number of rays must be at least 1",
-        ));
-    }
-    if let PatternMode::Fixed(bits) = options.mode
-        && bits.len() != bench.units()
-    {
-        return Err(Error::field(
-            "pattern",
-            format!(
-                "a pattern of {} units for a DMD pattern area of {} units",
-                bits.len(),
-                bench.units()
-            ),
-        ));
-    }
+    check_options(bench, options)?;
     let (across, down) = bench.units_shape();
     let mut tallies = Tallies::new(
         across,
@@ -152,6 +136,29 @@ pub fn trace(bench: &Bench, options: &TraceOptions) -> Result<Tallies> {
         },
     );
     Ok(tallies)
+}
+
+/// The options' rays and pattern, checked against the bench.
+fn check_options(bench: &Bench, options: &TraceOptions) -> Result<()> {
+    if options.rays == 0 {
+        return Err(Error::field(
+            "rays",
+            "the number of rays must be at least 1",
+        ));
+    }
+    if let PatternMode::Fixed(bits) = options.mode
+        && bits.len() != bench.units()
+    {
+        return Err(Error::field(
+            "pattern",
+            format!(
+                "a pattern of {} units for a DMD pattern area of {} units",
+                bits.len(),
+                bench.units()
+            ),
+        ));
+    }
+    Ok(())
 }
 
 /// Computes `make(b)` for the batches `0..n_batches` on the current rayon pool and hands every

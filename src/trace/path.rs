@@ -242,6 +242,11 @@ pub(super) trait Recorder {
     /// offset) and its starting weight (W), before it is traced.
     #[inline(always)]
     fn emission(&mut self, _u: &[f64; EMISSION_DIMS], _w: f64) {}
+    /// A path of power `w` (W) in ledger world `world` absorbed by a black surface of
+    /// `element` at `hit` (the irradiance maps of `trace::irradiance` see the diodes' front
+    /// plates this way).
+    #[inline(always)]
+    fn absorbed(&mut self, _world: usize, _element: usize, _hit: DVec3, _w: f64) {}
 }
 
 /// One photocurrent tallied by a path, for [`Recorder::detected`].
@@ -258,6 +263,8 @@ pub(super) struct Detection {
     pub current_a: f64,
     /// The power the path brought to the diode (W).
     pub power_w: f64,
+    /// Where it met the diode (m, bench frame).
+    pub hit: DVec3,
 }
 
 /// The recorder of an ordinary trace: records nothing.
@@ -515,6 +522,7 @@ fn surface<R: Recorder>(
     }
     match &s.interaction {
         Interaction::Absorber => {
+            rec.absorbed(p.world, s.element, hit, p.w);
             book(tally, p.world, s.element, p.w);
             Flow::End
         }
@@ -535,7 +543,7 @@ fn surface<R: Recorder>(
             if cos_signed <= 0.0 {
                 book(tally, p.world, s.element, p.w);
             } else {
-                detect(ctx, p, *arm, tally, rec);
+                detect(ctx, p, *arm, hit, tally, rec);
             }
             Flow::End
         }
@@ -561,7 +569,14 @@ fn surface<R: Recorder>(
 
 /// A path reaching the photodiode of `arm`: its photocurrent w·ℜ(λ) is tallied (to B± before
 /// the pattern area, to T[arm][state][unit] in a branch) and its power booked as detected.
-fn detect<R: Recorder>(ctx: &Walk, p: &Path, arm: Arm, tally: &mut BatchTally, rec: &mut R) {
+fn detect<R: Recorder>(
+    ctx: &Walk,
+    p: &Path,
+    arm: Arm,
+    hit: DVec3,
+    tally: &mut BatchTally,
+    rec: &mut R,
+) {
     let det = &ctx.bench.detectors()[arm];
     let current = p.w * det.responsivity.at(ctx.wl);
     rec.detected(Detection {
@@ -572,6 +587,7 @@ fn detect<R: Recorder>(ctx: &Walk, p: &Path, arm: Arm, tally: &mut BatchTally, r
         detector: arm,
         current_a: current,
         power_w: p.w,
+        hit,
     });
     match branch_state(p.world) {
         None => tally.b[arm] += current,

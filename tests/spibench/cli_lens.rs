@@ -121,3 +121,126 @@ fn bad_prescriptions_exit_2_and_write_nothing() {
     let s = read_json(&out.join("summary.json"));
     assert_eq!(s["substitutions"].as_array().unwrap().len(), 1);
 }
+
+/// The paper bench's text with the `Lens` element `name` replaced by `with`.
+fn replaced(text: &str, name: &str, with: &str) -> String {
+    let start = text
+        .find(&format!("        Lens(\n            name: \"{name}\""))
+        .unwrap();
+    let end = start + text[start..].find("        ),\n").unwrap() + "        ),\n".len();
+    format!("{}{with}{}", &text[..start], &text[end..])
+}
+
+/// `spibench lens BENCH --element NAME` reports a bench's `Lens` (the built-in bench's imaging
+/// lens, the same numbers as the shipped LA1050 prescription) and `LensSystem` (the AC254-100-B
+/// doublet) elements; a glass the bench allows to be modelled from nd/Vd is reported on
+/// stderr, by `check` (printed and check.json) and in `trace`'s summary.json, and without the
+/// permission the bench is refused naming the glass.
+#[test]
+fn lens_reports_bench_elements_and_bench_substitutions() {
+    let tmp = TempDir::new("cli-lens-bench");
+    // A Lens element of the built-in bench against the part's own file.
+    let o = spibench(&["lens", "--element", "imaging_lens"], &[]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let part = root().join("scenes/parts/thorlabs_la1050.zmx");
+    let p = spibench(&["lens", part.to_str().unwrap()], &[]);
+    let efl = |t: &str| {
+        t.lines()
+            .find(|l| l.starts_with("EFL"))
+            .unwrap()
+            .to_string()
+    };
+    assert_eq!(efl(&stdout(&o)), efl(&stdout(&p)));
+    // A bench whose imaging lens is the doublet and whose + arm lens is an LA1050 whose glass
+    // no catalogue has (its nd and Vd are N-BK7's).
+    let zmx = tmp.join("la1050_unknown.zmx");
+    let text = std::fs::read_to_string(&part)
+        .unwrap()
+        .replace("GLAS N-BK7", "GLAS NOT-A-GLASS");
+    std::fs::write(&zmx, text).unwrap();
+    let doublet = format!(
+        "        LensSystem(\n            name: \"imaging_lens\",\n            zmx: \"{}\",\n            position_mm: (0.0, 0.0, 205.668),\n            axis: Vector((0.0, 0.0, -1.0)),\n        ),\n",
+        root()
+            .join("scenes/parts/thorlabs_ac254-100-b.zmx")
+            .display()
+    );
+    let arm = |allow: bool| {
+        format!(
+            "        LensSystem(\n            name: \"arm_plus_lens\",\n            zmx: \"{}\",\n            allow_glass_substitution: {allow},\n            position_mm: (28.7606, -28.7606, 91.3545),\n            axis: Polar(theta_deg: 24.0, phi_deg: -45.0),\n        ),\n",
+            zmx.display()
+        )
+    };
+    let paper = std::fs::read_to_string(root().join("scenes/paper_bench.ron")).unwrap();
+    let with_doublet = replaced(&paper, "imaging_lens", &doublet);
+    let bench = tmp.join("bench.ron");
+    std::fs::write(&bench, replaced(&with_doublet, "arm_plus_lens", &arm(true))).unwrap();
+    let b = bench.to_str().unwrap();
+    let out = tmp.join("doublet");
+    let o = spibench(
+        &[
+            "lens",
+            b,
+            "--element",
+            "imaging_lens",
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        &[],
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    crate::outputs_schema::check_file(&out.join("summary.json"), "LensSummary");
+    let s = read_json(&out.join("summary.json"));
+    assert_eq!(s["surfaces"].as_array().unwrap().len(), 3);
+    // The doublet's EFL at 850 nm, near its nominal 100 mm.
+    assert!((s["efl_mm"].as_f64().unwrap() - 100.0).abs() < 1.0, "{s}");
+    // The substituted element: reported by `lens`, `check` and `trace`.
+    let o = spibench(&["lens", b, "--element", "arm_plus_lens"], &[]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("NOT-A-GLASS is in no catalogue"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(stdout(&o).contains("substituted: "), "{}", stdout(&o));
+    let out = tmp.join("check");
+    let o = spibench(&["check", b, "--out", out.to_str().unwrap()], &[]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(stderr(&o).contains("NOT-A-GLASS"), "{}", stderr(&o));
+    assert!(stdout(&o).contains("glass substituted: "), "{}", stdout(&o));
+    crate::outputs_schema::check_file(&out.join("check.json"), "CheckJson");
+    let c = read_json(&out.join("check.json"));
+    assert_eq!(c["glass_substitutions"].as_array().unwrap().len(), 1);
+    let lenses = c["lenses"].as_array().unwrap();
+    assert!(lenses.iter().any(|l| l["name"] == "imaging_lens"), "{c}");
+    let out = tmp.join("trace");
+    let o = spibench(
+        &["trace", b, "--rays", "4096", "--out", out.to_str().unwrap()],
+        &[],
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    crate::outputs_schema::check_file(&out.join("summary.json"), "TraceSummary");
+    let t = read_json(&out.join("summary.json"));
+    let subs = t["provenance"]["glass_substitutions"].as_array().unwrap();
+    assert_eq!(subs.len(), 1);
+    assert!(subs[0].as_str().unwrap().contains("NOT-A-GLASS"));
+    // Without the permission: refused, naming the glass; and no such element is located.
+    std::fs::write(
+        &bench,
+        replaced(&with_doublet, "arm_plus_lens", &arm(false)),
+    )
+    .unwrap();
+    let out = tmp.join("refused");
+    let o = spibench(&["check", b, "--out", out.to_str().unwrap()], &[]);
+    assert_input_error(&o, &["NOT-A-GLASS", "substitution"], &out);
+    let o = spibench(
+        &[
+            "lens",
+            "--element",
+            "no_such_lens",
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        &[],
+    );
+    assert_input_error(&o, &["no_such_lens", "imaging_lens"], &out);
+}

@@ -330,3 +330,103 @@ impl Builder<'_> {
         Ok(p)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::doc::BenchDoc;
+
+    /// The paper bench with its four LA1050 singlets as `LensSystem(zmx: "parts/…")`.
+    fn lens_system_paper() -> BenchDoc {
+        let doc =
+            BenchDoc::read(&Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/paper_bench.ron"))
+                .unwrap();
+        let mut file = doc.file.clone();
+        for el in &mut file.elements {
+            if let ElementSpec::Lens(l) = el {
+                *el = ElementSpec::LensSystem(LensSystemSpec {
+                    name: l.name.clone(),
+                    part: l.part.clone(),
+                    zmx: Some("parts/thorlabs_la1050.zmx".into()),
+                    surfaces: None,
+                    reversed: l.front_radius_mm.is_none(),
+                    position_mm: l.position_mm,
+                    axis: l.axis,
+                    diameter_mm: Some(l.diameter_mm),
+                    clear_diameter_mm: l.clear_diameter_mm,
+                    glass_catalogues: Vec::new(),
+                    allow_glass_substitution: false,
+                    coating: l.coating.clone(),
+                    tilt_deg: l.tilt_deg,
+                });
+            }
+        }
+        BenchDoc::from_file(file, doc.path())
+    }
+
+    /// The shipped tolerance file of the paper bench reads against the bench rebuilt with
+    /// `LensSystem` elements, and each of its lens tolerances, at either end of its range,
+    /// builds a bench whose lens moved: decentred across the axis, despaced along it, tilted.
+    #[test]
+    fn the_paper_tolerances_move_lens_systems() {
+        let doc = lens_system_paper();
+        let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+        let set = crate::scene::tolerance::ToleranceSet::read(
+            &root.join("scenes/tolerances/paper_bench.ron"),
+            &doc,
+        )
+        .unwrap();
+        let nominal = crate::optics::outline::lenses(&doc.build().unwrap());
+        let mut moved = 0;
+        for t in set.tolerances.iter().filter(|t| t.path.contains("_lens.")) {
+            let name = t.path.split('.').next().unwrap();
+            let before = nominal.iter().find(|l| l.name == name).unwrap();
+            for end in [t.min, t.max] {
+                let edited = doc.with(&[(t.path.clone(), t.nominal + end)]).unwrap();
+                let bench = edited.build().unwrap();
+                let after = crate::optics::outline::lenses(&bench)
+                    .into_iter()
+                    .find(|l| l.name == name)
+                    .unwrap();
+                let shift = after.vertex - before.vertex;
+                let along = shift.dot(before.axis);
+                if t.path.ends_with("despace_mm") {
+                    // Along the part's axis, which the lens's own tilt turns a little from its optics.
+                    assert!(
+                        (shift.length() - end.abs() * 1e-3).abs() < 1e-9,
+                        "{}",
+                        t.path
+                    );
+                    assert!(
+                        (along - end * 1e-3).abs() < 1e-2 * end.abs() * 1e-3,
+                        "{}: {shift}",
+                        t.path
+                    );
+                } else if t.path.contains("decenter_mm") {
+                    // Across the part's axis (the file's own tilt of a lens, a fraction of a
+                    // degree, turns its optical axis a little from the part frame's).
+                    assert!(
+                        along.abs() < 1e-2 * end.abs() * 1e-3,
+                        "{}: {along} m",
+                        t.path
+                    );
+                    assert!(
+                        (shift.length() - end.abs() * 1e-3).abs() < 1e-9,
+                        "{}",
+                        t.path
+                    );
+                } else {
+                    let turn = after.axis.angle_between(before.axis).to_degrees();
+                    // Composed with the lens's own tilt in the file: the same turn to 1 %.
+                    assert!(
+                        (turn - end.abs()).abs() < 1e-2 * end.abs(),
+                        "{}: {turn}°",
+                        t.path
+                    );
+                }
+                moved += 1;
+            }
+        }
+        assert_eq!(moved, 2 * 10);
+    }
+}

@@ -1,0 +1,414 @@
+//! Irradiance maps on the photodiodes, from the same trace as the tallies
+//! ([`trace_with_maps`]; no second pass): for each diode, the power per square bin of its plane
+//! over the active area and the front plate of its housing around it, per mirror state (every
+//! pattern unit +, every unit −, and the pattern-independent part: light that never met the
+//! pattern area), with the standard error of every bin from the batch totals.
+//!
+//! A path reaching the active area is binned where it lands (the same path, the same weight,
+//! as the detected power of the ledger), a path absorbed by the housing's front plate likewise
+//! (the plate is the annulus of `housing_diameter_mm` in the diode's plane); light beyond the
+//! map's square, or on a bench without a housing beyond the active area, is not mapped. So the
+//! map's active-area layer sums to the ledger's detected power of each state to rounding.
+//!
+//! Each batch keeps its hits as a short list (a few hundred for 1024 rays), so a batch waiting
+//! for the merge costs little memory; the merge bins them in batch order, so the maps are
+//! bit-identical on any number of threads.
+
+use glam::DVec3;
+
+use super::path::{Detection, Recorder};
+use super::tally::{BRANCH_MINUS, BRANCH_PLUS, BatchTally, COMMON, Tallies};
+use super::{RAYS_PER_BATCH, TraceOptions, batches_in_order, path};
+use crate::error::Result;
+use crate::optics::Bench;
+use crate::optics::geometry::Frame;
+
+/// Bins across each map (square bins, the same count along both axes).
+pub const DEFAULT_BINS: usize = 64;
+
+/// The map's half-width as a multiple of the active radius when a diode has no housing.
+const BARE_HALF_WIDTH: f64 = 2.0;
+
+/// The mirror states of the maps, in array order: every unit +, every unit −, and the
+/// pattern-independent part.
+pub const STATES: [&str; 3] = ["all_plus", "all_minus", "pattern_independent"];
+
+/// Layers of a map: what reached the active area, what the front plate absorbed.
+const LAYERS: usize = 2;
+
+/// One diode's map window: its frame (centre of the active area, w its normal, u and v the
+/// map's x and y axes), active radius, half-width of the square and the housing's element.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Window {
+    pub frame: Frame,
+    pub radius_m: f64,
+    pub half_width_m: f64,
+    pub housing: Option<usize>,
+}
+
+impl Window {
+    /// The bin of a point of the diode's plane, if inside the square.
+    fn bin(&self, bins: usize, hit: DVec3) -> Option<usize> {
+        let l = self.frame.to_local(hit);
+        let k = |x: f64| {
+            let f = (x + self.half_width_m) / (2.0 * self.half_width_m);
+            (0.0..1.0).contains(&f).then(|| (f * bins as f64) as usize)
+        };
+        // Row 0 at +v (the top of an image), column 0 at −u.
+        Some((bins - 1 - k(l.y)?) * bins + k(l.x)?)
+    }
+
+    /// The centre of bin (row, col) in the map's (u, v) coordinates (m).
+    pub fn bin_centre(&self, bins: usize, row: usize, col: usize) -> (f64, f64) {
+        let s = 2.0 * self.half_width_m / bins as f64;
+        (
+            -self.half_width_m + (col as f64 + 0.5) * s,
+            self.half_width_m - (row as f64 + 0.5) * s,
+        )
+    }
+}
+
+/// The map windows of a bench's two diodes.
+pub fn windows(bench: &Bench) -> [Window; 2] {
+    let names = ["pd_plus_housing", "pd_minus_housing"];
+    std::array::from_fn(|d| {
+        let det = &bench.detectors()[d];
+        let housing = bench.elements().iter().position(|e| e == names[d]);
+        let outer = housing.and_then(|id| {
+            bench.surfaces().iter().find_map(|s| match s.geometry {
+                crate::optics::geometry::Geometry::Plane {
+                    shape: crate::optics::geometry::Shape2D::Annulus { outer, .. },
+                    ..
+                } if s.element == id => Some(outer),
+                _ => None,
+            })
+        });
+        Window {
+            frame: det.frame,
+            radius_m: det.radius,
+            half_width_m: outer.unwrap_or(BARE_HALF_WIDTH * det.radius),
+            housing,
+        }
+    })
+}
+
+/// One mapped hit of a batch: (diode, ledger world, layer, bin) and its power (W).
+type Hit = (u8, u8, u8, u32, f64);
+
+/// The recorder of a mapped trace: every hit on a diode's map, in the order traced.
+pub(super) struct MapRecorder<'a> {
+    windows: &'a [Window; 2],
+    bins: usize,
+    hits: Vec<Hit>,
+}
+
+impl MapRecorder<'_> {
+    fn add(&mut self, d: usize, world: usize, layer: u8, hit: DVec3, w: f64) {
+        if let Some(b) = self.windows[d].bin(self.bins, hit) {
+            self.hits.push((d as u8, world as u8, layer, b as u32, w));
+        }
+    }
+}
+
+impl Recorder for MapRecorder<'_> {
+    #[inline(always)]
+    fn segment(&mut self, _: DVec3, _: DVec3, _: f64) {}
+    #[inline(always)]
+    fn ray_done(&mut self, _: &BatchTally) {}
+    fn detected(&mut self, h: Detection) {
+        self.add(h.detector.index(), h.world, 0, h.hit, h.power_w);
+    }
+    fn absorbed(&mut self, world: usize, element: usize, hit: DVec3, w: f64) {
+        for d in 0..2 {
+            if self.windows[d].housing == Some(element) {
+                self.add(d, world, 1, hit, w);
+            }
+        }
+    }
+}
+
+/// The maps of a trace: for diode d, state s and layer l, bin i (row-major, row 0 at +v) at
+/// index ((d·3 + s)·2 + l)·bins² + i, the power (W) summed over batches and the sum of squares
+/// of the batch totals.
+#[derive(Debug, Clone, PartialEq)]
+pub struct IrradianceMaps {
+    pub bins: usize,
+    pub windows: [Window; 2],
+    pub batches: u64,
+    pub power_w: Vec<f64>,
+    pub sum_sq: Vec<f64>,
+    /// The merge's scratch: one batch's bins per diode, world and layer, and the bins touched.
+    scratch: Vec<f64>,
+    touched: Vec<u32>,
+}
+
+/// The index of (diode, state, layer, bin).
+#[inline]
+pub fn index(bins: usize, d: usize, s: usize, l: usize, i: usize) -> usize {
+    ((d * 3 + s) * LAYERS + l) * bins * bins + i
+}
+
+impl IrradianceMaps {
+    pub fn new(windows: [Window; 2], bins: usize) -> IrradianceMaps {
+        let n = 2 * 3 * LAYERS * bins * bins;
+        IrradianceMaps {
+            bins,
+            windows,
+            batches: 0,
+            power_w: vec![0.0; n],
+            sum_sq: vec![0.0; n],
+            scratch: vec![0.0; n],
+            touched: Vec::new(),
+        }
+    }
+
+    /// Adds one batch's hits (called in batch order).
+    fn absorb(&mut self, hits: &[Hit]) {
+        let bins = self.bins;
+        // scratch holds worlds (COMMON, BRANCH_PLUS, BRANCH_MINUS) in the state slots.
+        for &(d, world, l, b, w) in hits {
+            let k = index(bins, d as usize, world as usize, l as usize, b as usize);
+            if self.scratch[k] == 0.0 {
+                self.touched
+                    .push(index(bins, d as usize, 0, l as usize, b as usize) as u32);
+            }
+            self.scratch[k] += w;
+        }
+        self.touched.sort_unstable();
+        self.touched.dedup();
+        let stride = LAYERS * bins * bins;
+        for &k0 in &self.touched {
+            let k0 = k0 as usize;
+            let (c, p, m) = (
+                self.scratch[k0 + COMMON * stride],
+                self.scratch[k0 + BRANCH_PLUS * stride],
+                self.scratch[k0 + BRANCH_MINUS * stride],
+            );
+            for (s, v) in [c + p, c + m, c].into_iter().enumerate() {
+                self.power_w[k0 + s * stride] += v;
+                self.sum_sq[k0 + s * stride] += v * v;
+            }
+            for world in 0..3 {
+                self.scratch[k0 + world * stride] = 0.0;
+            }
+        }
+        self.touched.clear();
+        self.batches += 1;
+    }
+
+    /// The standard error (W) of the power in entry `k` (batch means: the total is a sum of
+    /// `batches` independent batch totals).
+    pub fn stderr_w(&self, k: usize) -> f64 {
+        let n = self.batches as f64;
+        if n < 2.0 {
+            return 0.0;
+        }
+        let (s, q) = (self.power_w[k], self.sum_sq[k]);
+        (n / (n - 1.0) * (q - s * s / n).max(0.0)).sqrt()
+    }
+
+    /// The area of one bin (m²).
+    pub fn bin_area_m2(&self, d: usize) -> f64 {
+        (2.0 * self.windows[d].half_width_m / self.bins as f64).powi(2)
+    }
+
+    /// Diode d's map in state s, both layers: irradiance (W/m²) and its standard error, row-major.
+    pub fn irradiance(&self, d: usize, s: usize) -> (Vec<f64>, Vec<f64>) {
+        let (n, a) = (self.bins * self.bins, self.bin_area_m2(d));
+        let mut e = vec![0.0; n];
+        let mut se = vec![0.0; n];
+        for i in 0..n {
+            let (k0, k1) = (index(self.bins, d, s, 0, i), index(self.bins, d, s, 1, i));
+            e[i] = (self.power_w[k0] + self.power_w[k1]) / a;
+            // Active area and plate are disjoint in a bin only at the edge; a bin's error is
+            // that of the sum of its two layers, bounded by the sum of their errors.
+            se[i] = (self.stderr_w(k0) + self.stderr_w(k1)) / a;
+        }
+        (e, se)
+    }
+
+    /// The summary numbers of diode d in state s.
+    pub fn stats(&self, d: usize, s: usize) -> MapStats {
+        let bins = self.bins;
+        let n = bins * bins;
+        let layer =
+            |l: usize| -> f64 { (0..n).map(|i| self.power_w[index(bins, d, s, l, i)]).sum() };
+        let (active, plate) = (layer(0), layer(1));
+        let layer_se = |l: usize| -> f64 {
+            // The batch totals' error of a layer: from the per-bin sums it is not available,
+            // so the quadrature sum of the bins' errors is given (bins are correlated only
+            // through the batches they share).
+            (0..n)
+                .map(|i| self.stderr_w(index(bins, d, s, l, i)).powi(2))
+                .sum::<f64>()
+                .sqrt()
+        };
+        let total = active + plate;
+        let (mut cx, mut cy) = (0.0, 0.0);
+        let w = &self.windows[d];
+        let weight = |i: usize| {
+            self.power_w[index(bins, d, s, 0, i)] + self.power_w[index(bins, d, s, 1, i)]
+        };
+        for i in 0..n {
+            let (x, y) = w.bin_centre(bins, i / bins, i % bins);
+            cx += weight(i) * x;
+            cy += weight(i) * y;
+        }
+        let (cx, cy) = if total > 0.0 {
+            (cx / total, cy / total)
+        } else {
+            (0.0, 0.0)
+        };
+        let mut r2 = 0.0;
+        for i in 0..n {
+            let (x, y) = w.bin_centre(bins, i / bins, i % bins);
+            r2 += weight(i) * ((x - cx).powi(2) + (y - cy).powi(2));
+        }
+        MapStats {
+            active_w: active,
+            active_stderr_w: layer_se(0),
+            plate_w: plate,
+            centroid_m: [cx, cy],
+            rms_radius_m: if total > 0.0 {
+                (r2 / total).sqrt()
+            } else {
+                0.0
+            },
+            spill: if total > 0.0 { plate / total } else { 0.0 },
+        }
+    }
+}
+
+/// A map's summary numbers (positions in the map's (u, v) axes from the active area's centre).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MapStats {
+    /// Power on the active area (W): the ledger's detected power of the state.
+    pub active_w: f64,
+    pub active_stderr_w: f64,
+    /// Power on the front plate around it (W).
+    pub plate_w: f64,
+    /// The centre of the light (m).
+    pub centroid_m: [f64; 2],
+    /// The RMS radius about it (m).
+    pub rms_radius_m: f64,
+    /// The share of the mapped light outside the active area: plate ÷ (active + plate).
+    pub spill: f64,
+}
+
+/// Traces as [`super::trace`] does and maps the light on the diodes from the same paths, with
+/// `bins` bins across each map.
+pub fn trace_with_maps(
+    bench: &Bench,
+    options: &TraceOptions,
+    bins: usize,
+) -> Result<(Tallies, IrradianceMaps)> {
+    super::check_options(bench, options)?;
+    let (across, down) = bench.units_shape();
+    let mut tallies = Tallies::new(
+        across,
+        down,
+        bench.elements().len(),
+        options.seed,
+        bench.lamp().power_outside_cone(),
+    );
+    let windows = windows(bench);
+    let mut maps = IrradianceMaps::new(windows, bins);
+    let n = options.rays;
+    let inv = 1.0 / n as f64;
+    batches_in_order(
+        n.div_ceil(RAYS_PER_BATCH),
+        |b| {
+            let rays = RAYS_PER_BATCH.min(n - b * RAYS_PER_BATCH);
+            let mut rec = MapRecorder {
+                windows: &windows,
+                bins,
+                hits: Vec::new(),
+            };
+            let t = path::run_batch_sampled(
+                bench,
+                options.mode,
+                options.sampling,
+                options.seed,
+                b,
+                rays,
+                inv,
+                &mut rec,
+            );
+            (t, rec.hits)
+        },
+        |_, (t, hits)| {
+            tallies.absorb(&t);
+            maps.absorb(&hits);
+        },
+        |batches| {
+            if let Some(report) = options.progress {
+                report((batches * RAYS_PER_BATCH).min(n), n);
+            }
+        },
+    );
+    Ok((tallies, maps))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::optics::Arm;
+    use crate::trace::tally::{EXTRA_SLOTS, slot_detected};
+
+    /// The map summed over each diode's active area is the ledger's detected power of each
+    /// mirror state (the same paths: equal to rounding, far inside the standard error), the
+    /// tallies are those of the plain trace, and the light lands near the diode's centre.
+    #[test]
+    fn the_active_area_sums_to_the_detected_power() {
+        let bench = crate::trace::testing::paper_bench_with_mask();
+        let o = TraceOptions::new(20_000, 3);
+        let (t, maps) = trace_with_maps(&bench, &o, DEFAULT_BINS).unwrap();
+        let plain = super::super::trace(&bench, &o).unwrap();
+        assert_eq!(t, plain);
+        let n_el = bench.elements().len();
+        for arm in Arm::ALL {
+            let slot = n_el + slot_detected(arm);
+            let common = t.ledger[COMMON][slot];
+            let want = [
+                common + t.ledger[BRANCH_PLUS][slot],
+                common + t.ledger[BRANCH_MINUS][slot],
+                common,
+            ];
+            for (s, w) in want.into_iter().enumerate() {
+                let st = maps.stats(arm.index(), s);
+                assert!(
+                    (st.active_w - w).abs() <= 1e-12 * w.abs().max(1e-30),
+                    "{arm:?} {}: {} vs {w}",
+                    STATES[s],
+                    st.active_w
+                );
+                assert!((st.active_w - w).abs() <= st.active_stderr_w.max(1e-300));
+                assert!((0.0..=1.0).contains(&st.spill));
+            }
+            let own = maps.stats(arm.index(), arm.index());
+            assert!(own.active_w > 0.0);
+            assert!(
+                own.centroid_m[0].hypot(own.centroid_m[1]) < maps.windows[arm.index()].half_width_m
+            );
+        }
+        assert_eq!(EXTRA_SLOTS, t.ledger[COMMON].len() - n_el);
+    }
+
+    /// The maps are bit-identical on one and two threads.
+    #[test]
+    fn maps_are_identical_on_one_and_two_threads() {
+        let bench = crate::trace::testing::paper_bench_with_mask();
+        let o = TraceOptions::new(6_000, 11);
+        let run = |threads| {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap()
+                .install(|| trace_with_maps(&bench, &o, 32).unwrap())
+        };
+        let (a, b) = (run(1), run(2));
+        assert_eq!(a.1.power_w, b.1.power_w);
+        assert_eq!(a.1.sum_sq, b.1.sum_sq);
+        assert_eq!(a.0, b.0);
+    }
+}
