@@ -52,7 +52,9 @@ impl Window {
         let l = self.frame.to_local(hit);
         let k = |x: f64| {
             let f = (x + self.half_width_m) / (2.0 * self.half_width_m);
-            (0.0..1.0).contains(&f).then(|| (f * bins as f64) as usize)
+            (0.0..1.0)
+                .contains(&f)
+                .then_some((f * bins as f64) as usize)
         };
         // Row 0 at +v (the top of an image), column 0 at −u.
         Some((bins - 1 - k(l.y)?) * bins + k(l.x)?)

@@ -141,7 +141,16 @@ fn trace_writes_print_size_figures_with_pdfs() {
     let stems: Vec<&str> = figures.iter().map(|(n, _)| n.as_str()).collect();
     assert_eq!(
         stems,
-        ["collection", "g_minus", "g_plus", "k_minus", "k_plus", "x"]
+        [
+            "collection",
+            "g_minus",
+            "g_plus",
+            "irradiance_minus",
+            "irradiance_plus",
+            "k_minus",
+            "k_plus",
+            "x"
+        ]
     );
     // The maps are single-column figures with axes and a colour bar.
     for (name, w) in &figures[1..] {

@@ -262,7 +262,7 @@ pub fn element_prescription(
         Some(ElementSpec::LensSystem(l)) => b.prescription(l, name),
         Some(ElementSpec::Lens(l)) => Ok((b.singlet(l, name)?, Vec::new())),
         _ => Err(Error::field(
-            "--element",
+            "element",
             format!(
                 "the bench has no lens named `{name}`{}; its lenses: {}",
                 if el.is_some() {
