@@ -11,6 +11,7 @@
 pub const FLAGS: &[(&str, &str)] = &[
     ("vary", "--vary"),
     ("set", "--set"),
+    ("element", "--element"),
     ("limit", "--limit"),
     ("free", "--free"),
     ("weight", "--weight"),
