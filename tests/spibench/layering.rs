@@ -661,6 +661,8 @@ const API: &[&str] = &[
     "scene::variables",
     "scene::parse_ron",
     "scene::read_text",
+    "scene::budget_costs",
+    "scene::bench::element_prescription",
     // The jobs and what each command writes.
     "run",
     "sweep",
@@ -682,6 +684,8 @@ const API: &[&str] = &[
     "trace::collection",
     "trace::fan",
     "trace::paraxial",
+    "trace::irradiance",
+    "trace::TraceOptions",
     "transport::Transport",
     "transport::Estimate",
     "optics::Arm",
