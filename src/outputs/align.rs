@@ -103,11 +103,7 @@ pub fn card(summary: &serde_json::Value) -> crate::outputs::card::Card {
     c.line(summary, "stopped", &["/stop_reason", "/evaluations"], |v| {
         format!("{} ({} evaluations)", v[0].as_str().unwrap_or(""), v[1])
     });
-    let n = summary
-        .pointer("/free")
-        .and_then(serde_json::Value::as_array)
-        .map_or(0, Vec::len);
-    for i in 0..n {
+    for i in 0..crate::outputs::card::array_len(summary, "/free") {
         let f = format!("/free/{i}");
         let keys = [
             "path",
@@ -117,8 +113,7 @@ pub fn card(summary: &serde_json::Value) -> crate::outputs::card::Card {
             "start_from_file",
         ]
         .map(|k| format!("{f}/{k}"));
-        let refs: Vec<&str> = keys.iter().map(String::as_str).collect();
-        c.line(summary, format!("free {}", i + 1), &refs, |v| {
+        c.line(summary, format!("free {}", i + 1), &keys, |v| {
             format!(
                 "{} = {}, moved {:+.5} from {:.5}",
                 v[0].as_str().unwrap_or(""),
@@ -137,8 +132,7 @@ pub fn card(summary: &serde_json::Value) -> crate::outputs::card::Card {
             format!("/aligned/{key}_diff"),
             format!("/aligned/{key}_diff_stderr"),
         ];
-        let refs: Vec<&str> = keys.iter().map(String::as_str).collect();
-        c.line(summary, label, &refs, |v| {
+        c.line(summary, label, &keys, |v| {
             format!(
                 "{} → {} (change {})",
                 pm(num(&v[0]), num(&v[1]), unit),

@@ -39,17 +39,21 @@ impl Card {
         &mut self,
         summary: &Value,
         label: impl Into<String>,
-        pointers: &[&str],
+        pointers: &[impl AsRef<str>],
         text: impl FnOnce(&[Value]) -> String,
     ) {
         let values: Vec<Value> = pointers
             .iter()
-            .map(|p| summary.pointer(p).cloned().unwrap_or(Value::Null))
+            .map(|p| summary.pointer(p.as_ref()).cloned().unwrap_or(Value::Null))
             .collect();
         self.lines.push(CardLine {
             label: label.into(),
             text: text(&values),
-            sources: pointers.iter().map(|p| p.to_string()).zip(values).collect(),
+            sources: pointers
+                .iter()
+                .map(|p| p.as_ref().to_string())
+                .zip(values)
+                .collect(),
         });
     }
 
@@ -125,6 +129,14 @@ fn wrap(text: &str, width: usize) -> Vec<String> {
     }
     lines.push(line);
     lines
+}
+
+/// The length of the array at `pointer` in `summary` (0 where there is none).
+pub fn array_len(summary: &Value, pointer: &str) -> usize {
+    summary
+        .pointer(pointer)
+        .and_then(Value::as_array)
+        .map_or(0, Vec::len)
 }
 
 /// A number of a card from a JSON value (NaN for null or a non-number).
@@ -207,7 +219,7 @@ mod tests {
         assert!(c.check_against(&summary).is_ok());
         // A long text wraps under itself within 100 columns.
         let mut long = Card::new("summary");
-        long.line(&summary, "k", &[], |_| {
+        long.line(&summary, "k", &[] as &[&str], |_| {
             "word ".repeat(40).trim().to_string()
         });
         let lines = long.printed();

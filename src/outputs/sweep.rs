@@ -240,17 +240,10 @@ pub fn write(
 pub fn card(summary: &serde_json::Value) -> crate::outputs::card::Card {
     use crate::outputs::card::{Card, num, pm, sig};
     let mut c = Card::new("summary");
-    let len = |p: &str| {
-        summary
-            .pointer(p)
-            .and_then(serde_json::Value::as_array)
-            .map_or(0, Vec::len)
-    };
-    for i in 0..len("/vary") {
+    for i in 0..crate::outputs::card::array_len(summary, "/vary") {
         let v = format!("/vary/{i}");
         let keys = ["path", "start", "stop", "n", "nominal"].map(|k| format!("{v}/{k}"));
-        let refs: Vec<&str> = keys.iter().map(String::as_str).collect();
-        c.line(summary, "swept", &refs, |v| {
+        c.line(summary, "swept", &keys, |v| {
             format!(
                 "{} from {} to {} ({} points; nominal {})",
                 v[0].as_str().unwrap_or(""),
@@ -279,7 +272,7 @@ pub fn card(summary: &serde_json::Value) -> crate::outputs::card::Card {
         },
     );
     // The grid points with the lowest and the highest imbalance.
-    let rows = len("/rows");
+    let rows = crate::outputs::card::array_len(summary, "/rows");
     let at = |i: usize| {
         summary
             .pointer(&format!("/rows/{i}/imbalance"))
@@ -301,17 +294,16 @@ pub fn card(summary: &serde_json::Value) -> crate::outputs::card::Card {
             |v| format!("{:.3e} to {:.3e}", num(&v[0]), num(&v[1])),
         );
     }
-    for j in 0..len("/limits") {
+    for j in 0..crate::outputs::card::array_len(summary, "/limits") {
         let l = format!("/limits/{j}");
         let mut keys: Vec<String> = ["metric", "limit", "points_within", "points"]
             .map(|k| format!("{l}/{k}"))
             .to_vec();
-        for k in 0..len(&format!("{l}/crossings")) {
+        for k in 0..crate::outputs::card::array_len(summary, &format!("{l}/crossings")) {
             keys.push(format!("{l}/crossings/{k}/at"));
             keys.push(format!("{l}/crossings/{k}/stderr"));
         }
-        let refs: Vec<&str> = keys.iter().map(String::as_str).collect();
-        c.line(summary, "limit", &refs, |v| {
+        c.line(summary, "limit", &keys, |v| {
             let mut text = format!(
                 "|{}| ≤ {}: met at {} of {} points",
                 v[0].as_str().unwrap_or(""),

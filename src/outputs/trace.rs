@@ -437,8 +437,7 @@ pub fn card(summary: &serde_json::Value) -> crate::outputs::card::Card {
             .iter()
             .flat_map(|k| [format!("/{k}"), format!("/{k}_stderr")])
             .collect();
-        let refs: Vec<&str> = p.iter().map(String::as_str).collect();
-        c.line(summary, label, &refs, |v| {
+        c.line(summary, label, &p, |v| {
             format!("{}, {}", pmv(&v[..2], unit), pmv(&v[2..], unit))
         });
     }

@@ -178,17 +178,10 @@ pub fn write(
 pub fn card(summary: &serde_json::Value) -> crate::outputs::card::Card {
     use crate::outputs::card::{Card, num};
     let mut c = Card::new("summary");
-    let len = |p: &str| {
-        summary
-            .pointer(p)
-            .and_then(serde_json::Value::as_array)
-            .map_or(0, Vec::len)
-    };
-    for i in 0..len("/analysis/yields") {
+    for i in 0..crate::outputs::card::array_len(summary, "/analysis/yields") {
         let y = format!("/analysis/yields/{i}");
         let keys = ["limit", "passed", "trials", "fraction", "stderr"].map(|k| format!("{y}/{k}"));
-        let refs: Vec<&str> = keys.iter().map(String::as_str).collect();
-        c.line(summary, "yield", &refs, |v| {
+        c.line(summary, "yield", &keys, |v| {
             let (f, se) = (num(&v[3]), num(&v[4]));
             let ci = if f.is_finite() && se.is_finite() {
                 format!(
@@ -208,22 +201,20 @@ pub fn card(summary: &serde_json::Value) -> crate::outputs::card::Card {
             )
         });
     }
-    let top = len("/sensitivity").min(5);
+    let top = crate::outputs::card::array_len(summary, "/sensitivity").min(5);
     if top > 0 {
         let keys: Vec<String> = (0..top).map(|i| format!("/sensitivity/{i}/path")).collect();
-        let refs: Vec<&str> = keys.iter().map(String::as_str).collect();
-        c.line(summary, "most imbalance from", &refs, |v| {
+        c.line(summary, "most imbalance from", &keys, |v| {
             v.iter()
                 .filter_map(|p| p.as_str())
                 .collect::<Vec<_>>()
                 .join(", ")
         });
     }
-    for i in 0..len("/analysis/compensators") {
+    for i in 0..crate::outputs::card::array_len(summary, "/analysis/compensators") {
         let m = format!("/analysis/compensators/{i}");
         let keys = ["path", "at_min", "at_max", "trials", "min", "max"].map(|k| format!("{m}/{k}"));
-        let refs: Vec<&str> = keys.iter().map(String::as_str).collect();
-        c.line(summary, "compensator", &refs, |v| {
+        c.line(summary, "compensator", &keys, |v| {
             let at = v[1].as_u64().unwrap_or(0) + v[2].as_u64().unwrap_or(0);
             format!(
                 "{}: at its travel limit ({} … {}) in {at} of {} trials{}",
