@@ -2,7 +2,8 @@
 //! `irradiance_plus.npy` / `irradiance_minus.npy` (float64, shape (3, bins, bins): the states
 //! all +, all −, pattern-independent; W/m²; row 0 at the map's +v, column 0 at −u),
 //! `…_stderr.npy` beside them, a figure of each diode's own-state map (`irradiance_plus.svg`,
-//! …; the diffraction orders show as separate spots), and the summary numbers in
+//! …: mm on the diode's plane, the active area's outline, the centre of the light marked; the
+//! diffraction orders show as separate spots), and the summary numbers in
 //! `summary.json` (`irradiance`, docs/outputs.md).
 
 use serde::Serialize;
@@ -115,28 +116,50 @@ pub fn write(dir: &OutputDir, maps: &IrradianceMaps) -> Result<Vec<String>> {
         }
         #[cfg(feature = "figures")]
         {
-            use crate::report::heatmap::{UnitMap, write_unit_map};
-            let own = &e[d * bins * bins..(d + 1) * bins * bins];
-            let map = UnitMap {
-                label: format!(
-                    "irradiance on pd_{key}, all units {} ({:.3} mm bins)",
-                    ["+", "−"][d],
-                    2e3 * maps.windows[d].half_width_m / bins as f64
-                ),
-                unit: "W/m²".into(),
-                width: bins,
-                height: bins,
-                values: own.to_vec(),
-                light_w: own.to_vec(),
-                from_zero: true,
-            };
             let (svg, png) = (
                 format!("irradiance_{key}.svg"),
                 format!("irradiance_{key}.png"),
             );
-            write_unit_map(&map, &dir.path(&svg), &dir.path(&png))?;
+            let own = &e[d * bins * bins..(d + 1) * bins * bins];
+            write_figure(maps, d, own, &dir.path(&svg), &dir.path(&png))?;
             files.extend([svg, png, format!("irradiance_{key}.pdf")]);
         }
     }
     Ok(files)
+}
+
+/// Draws diode d's own-state map (`own`, W/m², row-major, row 0 at +v) in mm on the diode's
+/// plane, with the active area's outline and the centre of the light marked.
+#[cfg(feature = "figures")]
+fn write_figure(
+    maps: &IrradianceMaps,
+    d: usize,
+    own: &[f64],
+    svg: &std::path::Path,
+    png: &std::path::Path,
+) -> Result<()> {
+    use crate::report::heatmap::{Circle, Heatmap, write_heatmap_with};
+    let (bins, w) = (maps.bins, &maps.windows[d]);
+    let centres: Vec<f64> = (0..bins)
+        .map(|i| 1e3 * w.bin_centre(bins, 0, i).0)
+        .collect();
+    // Heatmap cells run x-major with y ascending; the map's rows run from +v down.
+    let values = (0..bins * bins)
+        .map(|k| own[(bins - 1 - k % bins) * bins + k / bins])
+        .collect();
+    let c = maps.stats(d, d).centroid_m;
+    let h = Heatmap {
+        x_label: format!("u on pd_{} (mm)", ["plus", "minus"][d]),
+        y_label: "v (mm)".into(),
+        value_label: format!("irradiance, all units {} (W/m²)", ["+", "−"][d]),
+        xs: centres.clone(),
+        ys: centres,
+        values,
+        mark: Some((1e3 * c[0], 1e3 * c[1])),
+    };
+    let outline = Circle {
+        centre: (0.0, 0.0),
+        radius: 1e3 * w.radius_m,
+    };
+    write_heatmap_with(&h, &[outline], svg, png)
 }

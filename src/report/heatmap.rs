@@ -101,10 +101,18 @@ fn check(h: &Heatmap) -> Result<(f64, f64)> {
     })
 }
 
+/// A circle drawn over a heatmap in its axes' units (an outline, e.g. a diode's active area).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Circle {
+    pub centre: (f64, f64),
+    pub radius: f64,
+}
+
 fn draw<DB: DrawingBackend>(
     root: &DrawingArea<DB, plotters::coord::Shift>,
     h: &Heatmap,
     (lo, hi): (f64, f64),
+    circles: &[Circle],
 ) -> std::result::Result<(), String> {
     if !font::ensure_registered() {
         return Err(font::unavailable().to_string());
@@ -143,6 +151,29 @@ fn draw<DB: DrawingBackend>(
                 )))
                 .map_err(|e| e.to_string())?;
         }
+    }
+    for c in circles {
+        // A white line under a thin black one: visible on any colour of the map.
+        let ring = |style: ShapeStyle| {
+            PathElement::new(
+                (0..=128)
+                    .map(|k| {
+                        let t = std::f64::consts::TAU * k as f64 / 128.0;
+                        (
+                            c.centre.0 + c.radius * t.cos(),
+                            c.centre.1 + c.radius * t.sin(),
+                        )
+                    })
+                    .collect::<Vec<_>>(),
+                style,
+            )
+        };
+        chart
+            .draw_series([
+                ring(ShapeStyle::from(&WHITE).stroke_width(3)),
+                ring(ShapeStyle::from(&BLACK).stroke_width(1)),
+            ])
+            .map_err(|e| e.to_string())?;
     }
     if let Some((mx, my)) = h.mark
         && xr.contains(&mx)
@@ -200,11 +231,16 @@ fn draw<DB: DrawingBackend>(
 
 /// The SVG text (print size, text as outlines) of a heatmap.
 pub fn heatmap_svg(h: &Heatmap) -> Result<String> {
+    heatmap_svg_with(h, &[])
+}
+
+/// The SVG text of a heatmap with circles drawn over it.
+pub fn heatmap_svg_with(h: &Heatmap, circles: &[Circle]) -> Result<String> {
     let range = check(h)?;
     let mut svg = String::new();
     {
         let root = SVGBackend::with_string(&mut svg, (WIDTH, HEIGHT)).into_drawing_area();
-        draw(&root, h, range).map_err(Error::Numerical)?;
+        draw(&root, h, range, circles).map_err(Error::Numerical)?;
     }
     super::svg::at_print_size(&super::outline::outline_text(&svg)?)
 }
@@ -219,7 +255,17 @@ pub fn render(h: &Heatmap) -> Result<(String, Vec<u8>)> {
 
 /// Writes the heatmap as SVG, its PNG rendering and PDF (beside the SVG).
 pub fn write_heatmap(h: &Heatmap, svg_path: &Path, png_path: &Path) -> Result<()> {
-    let svg = heatmap_svg(h).map_err(|e| e.in_file(svg_path))?;
+    write_heatmap_with(h, &[], svg_path, png_path)
+}
+
+/// Writes the heatmap with circles drawn over it, as [`write_heatmap`] does.
+pub fn write_heatmap_with(
+    h: &Heatmap,
+    circles: &[Circle],
+    svg_path: &Path,
+    png_path: &Path,
+) -> Result<()> {
+    let svg = heatmap_svg_with(h, circles).map_err(|e| e.in_file(svg_path))?;
     super::svg::write_figure(&svg, svg_path, png_path, true)
 }
 
