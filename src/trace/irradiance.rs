@@ -455,8 +455,8 @@ mod tests {
     ),
 )"#
         );
-        let bench = crate::scene::bench::parse_bench(&text, std::path::Path::new("disk.ron"))
-            .unwrap();
+        let bench =
+            crate::scene::bench::parse_bench(&text, std::path::Path::new("disk.ron")).unwrap();
         // The power through the stop: the view factor of a disk of radius a at distance s from
         // a point at ρ on a parallel plane (F = ½[1 − (s² + ρ² − a²)/√((s² + ρ² + a²)² −
         // 4a²ρ²)]), averaged over the uniformly emitting source disk (radius 1 mm).

@@ -58,8 +58,8 @@ pub use crate::optics::geometry::SURFACE_OFFSET;
 use super::strata::{BatchStrata, EMISSION_DIMS, EmissionPoints, PathRng, STREAMS, Sampling};
 
 use super::tally::{
-    BatchTally, COMMON, SLOT_EMITTED, SLOT_ESCAPED, SLOT_PATH_CAP, branch,
-    branch_state, slot_detected,
+    BatchTally, COMMON, SLOT_EMITTED, SLOT_ESCAPED, SLOT_PATH_CAP, branch, branch_state,
+    slot_detected,
 };
 
 /// How the pattern area is set during a trace.

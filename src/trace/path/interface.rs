@@ -52,7 +52,14 @@ pub(super) fn chrome_event(rc: f64, tc: f64, u: f64) -> (ChromeEvent, f64) {
 
 /// Bulk absorption over the last segment (length t) in medium `m`.
 #[inline]
-pub(super) fn attenuate(bench: &Bench, m: usize, t: f64, wl: f64, p: &mut Path, tally: &mut BatchTally) {
+pub(super) fn attenuate(
+    bench: &Bench,
+    m: usize,
+    t: f64,
+    wl: f64,
+    p: &mut Path,
+    tally: &mut BatchTally,
+) {
     if let Some((od, element)) = &bench.media()[m].absorption {
         let tau = 10f64.powf(-od.at(wl) * t);
         let kept = p.w * tau;
@@ -127,7 +134,15 @@ pub(super) fn cross_interface(
 /// Reflect with probability `r`, else refract from n1 into n2 (normal `nn` faces the incoming
 /// ray). The ray leaves from `hit`, offset to its outgoing side.
 #[inline]
-pub(super) fn scatter(p: &mut Path, hit: DVec3, nn: DVec3, n1: f64, n2: f64, r: f64, rng: &mut PathRng) {
+pub(super) fn scatter(
+    p: &mut Path,
+    hit: DVec3,
+    nn: DVec3,
+    n1: f64,
+    n2: f64,
+    r: f64,
+    rng: &mut PathRng,
+) {
     let refracted = if r >= 1.0 || rng.uniform() < r {
         None
     } else {
