@@ -154,6 +154,28 @@ pub fn printed(r: &ParaxialReport) -> Vec<String> {
             d.numerical_aperture
                 .map_or("—".into(), |v| format!("{v:.4}"))
         ));
+        if let Some([u, v]) = d.chief_ray_on_diode_m {
+            out.push(format!(
+                "            chief ray at (u, v) = ({}, {}) mm from the active area's centre",
+                mm(u),
+                mm(v)
+            ));
+        }
+        if let (Some(a), Some(s)) = (d.acceptance_rad, d.order_spacing_rad) {
+            out.push(format!(
+                "            accepts ± {:.1} mrad at the DMD; order spacing λ/p = {:.1} mrad",
+                1e3 * a,
+                1e3 * s
+            ));
+        }
+        if d.acceptance_below_order_spacing() {
+            out.push(format!(
+                "warning: {} accepts less than one order spacing of the DMD: with the \
+                 diffractive model it collects only the orders that fall on it (k′ can drop \
+                 by half; docs/guide/12-designing-for-diffraction.md)",
+                d.name
+            ));
+        }
     }
     out
 }

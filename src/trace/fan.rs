@@ -435,7 +435,13 @@ impl DmdAxes {
     /// that sends light into the arm.
     pub fn arm_chief_ray(&self, bench: &Bench, k: usize, wl: f64) -> ChiefRay {
         let state = Arm::from_index(k).state();
-        let d = self.outgoing[state_index(state)];
+        self.arm_ray(bench, k, self.outgoing[state_index(state)], wl)
+    }
+
+    /// A ray of arm k leaving the arrival point along `d` (unit; the chief ray's direction
+    /// turned, for an arm's angular acceptance), started as [`DmdAxes::arm_chief_ray`] is.
+    pub fn arm_ray(&self, bench: &Bench, k: usize, d: DVec3, wl: f64) -> ChiefRay {
+        let state = Arm::from_index(k).state();
         let h = bench.dmd().map_or(0.0, |s| s.dmd.slab_half_height());
         let start = self.arrival + ((h - self.arrival.z) / d.z.max(1e-9) + SURFACE_OFFSET) * d;
         let mut ray = chief_ray(bench, start, d, wl, state);

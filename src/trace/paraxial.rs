@@ -369,6 +369,66 @@ pub struct DiodeEntry {
     pub numerical_aperture: Option<f64>,
     /// Where the arm's chief ray from the pattern centre ends.
     pub chief_ray_end: String,
+    /// Where it meets the diode, in the diode's (u, v) axes from the active area's centre (the
+    /// axes of the irradiance maps; m), when it ends there.
+    pub chief_ray_on_diode_m: Option<[f64; 2]>,
+    /// The angular acceptance at the DMD: the smallest angle, over eight directions around the
+    /// arm's chief ray at the pattern centre, by which a ray must turn before it no longer
+    /// reaches the diode (rad; up to [`ACCEPTANCE_MAX_RAD`]).
+    pub acceptance_rad: Option<f64>,
+    /// The DMD's order spacing λ/p at the design wavelength (rad; the spacing along a mirror
+    /// axis, the closest orders; docs/dmd_diffraction.md).
+    pub order_spacing_rad: Option<f64>,
+}
+
+/// The largest angle the acceptance search turns a ray by (rad): beyond it no arm's optics
+/// matter for the orders (the envelope of a mirror is a few λ/p wide).
+pub const ACCEPTANCE_MAX_RAD: f64 = 0.5;
+
+impl DiodeEntry {
+    /// The diode accepts less than one order spacing: with the diffractive DMD it collects only
+    /// the orders that happen to fall on it (docs/guide/05-dmd-diffraction.md).
+    pub fn acceptance_below_order_spacing(&self) -> bool {
+        matches!((self.acceptance_rad, self.order_spacing_rad), (Some(a), Some(s)) if a < s)
+    }
+}
+
+/// The angular acceptance of arm k's diode (see [`DiodeEntry::acceptance_rad`]): along each of
+/// eight directions around the chief ray, the turn at which the ray first misses the diode, by
+/// bisection to 0.1 mrad after a scan in 5 mrad steps (a diode accepts a range of angles about
+/// its chief ray, not a scattered set, for any arm of lenses and mirrors).
+fn acceptance(bench: &Bench, axes: &crate::trace::fan::DmdAxes, k: usize, wl: f64) -> f64 {
+    let state = crate::optics::Arm::from_index(k).state();
+    let d = axes.outgoing[crate::optics::dmd::state_index(state)];
+    let a = d.any_orthonormal_vector();
+    let b = d.cross(a);
+    let reaches = |t: f64, phi: f64| {
+        let dir = (d * t.cos() + (a * phi.cos() + b * phi.sin()) * t.sin()).normalize();
+        axes.arm_ray(bench, k, dir, wl).end == ChiefEnd::Detector(k)
+    };
+    let mut least = ACCEPTANCE_MAX_RAD;
+    for j in 0..8 {
+        let phi = std::f64::consts::TAU * j as f64 / 8.0;
+        let step = 5e-3;
+        let mut t = step;
+        while t <= least && reaches(t, phi) {
+            t += step;
+        }
+        if t > least {
+            continue;
+        }
+        let (mut lo, mut hi) = (t - step, t);
+        while hi - lo > 1e-4 {
+            let mid = 0.5 * (lo + hi);
+            if reaches(mid, phi) {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        least = least.min(lo);
+    }
+    least
 }
 
 /// The paraxial numbers of a bench (`check.json`).
@@ -516,6 +576,9 @@ fn diode_entries(bench: &Bench, wl: f64) -> Vec<DiodeEntry> {
             distance_m: None,
             numerical_aperture: None,
             chief_ray_end: "no DMD".into(),
+            chief_ray_on_diode_m: None,
+            acceptance_rad: None,
+            order_spacing_rad: bench.dmd().map(|s| wl / s.dmd.pitch),
         };
         if let Some(axes) = &axes {
             let ray = axes.arm_chief_ray(bench, k, wl);
@@ -536,6 +599,9 @@ fn diode_entries(bench: &Bench, wl: f64) -> Vec<DiodeEntry> {
                 entry.last_optic = Some(optic);
                 entry.distance_m = Some(d);
                 entry.numerical_aperture = Some(det.radius / det.radius.hypot(d));
+                let l = det.frame.to_local(ray.points[n - 1]);
+                entry.chief_ray_on_diode_m = Some([l.x, l.y]);
+                entry.acceptance_rad = Some(acceptance(bench, axes, k, wl));
             }
         }
         diodes.push(entry);
@@ -818,5 +884,39 @@ mod lens_system_tests {
             arm.focal_length_m
         );
         assert_eq!(r.lenses.len(), 4);
+    }
+
+    /// A diode's angular acceptance against the DMD's order spacing. The paper's arms relay the
+    /// lit pupil (101.4 mm behind the array) about 1:1 onto the diode, so a ray turned by θ at
+    /// the pattern centre moves about 101 mm × θ on it: the 2.5 mm radius accepts ~25 mrad (less
+    /// where the chief ray is off centre), below λ/p = 62 mrad at 850 nm, and `check` warns. The
+    /// condenser bench images the DMD onto its diodes, so the turn moves the ray through the
+    /// arm's apertures instead: its arm lens's 22.9 mm clear radius at 100 mm, less the field,
+    /// accepts at least 0.15 rad, more than two order spacings, and nothing is warned. Both
+    /// chief rays land within 1 mm of their diode's centre.
+    #[test]
+    fn acceptance_against_the_order_spacing() {
+        let wl = crate::trace::fan::DESIGN_WAVELENGTH_M;
+        let paper = crate::trace::testing::bench_with("paper_bench.ron", &[]);
+        let condenser = crate::trace::testing::bench_with("paper_bench_condenser.ron", &[]);
+        for d in diode_entries(&paper, wl) {
+            let (a, s) = (d.acceptance_rad.unwrap(), d.order_spacing_rad.unwrap());
+            assert!((s - wl / 13.68e-6).abs() < 1e-12);
+            assert!((0.012..0.030).contains(&a), "{}: {a}", d.name);
+            assert!(d.acceptance_below_order_spacing());
+            let [u, v] = d.chief_ray_on_diode_m.unwrap();
+            assert!(u.hypot(v) < 1e-3, "{}: ({u}, {v})", d.name);
+        }
+        for d in diode_entries(&condenser, wl) {
+            let a = d.acceptance_rad.unwrap();
+            assert!(
+                a > 0.15 && a > 2.0 * d.order_spacing_rad.unwrap(),
+                "{}: {a}",
+                d.name
+            );
+            assert!(!d.acceptance_below_order_spacing());
+            let [u, v] = d.chief_ray_on_diode_m.unwrap();
+            assert!(u.hypot(v) < 1e-3, "{}: ({u}, {v})", d.name);
+        }
     }
 }
