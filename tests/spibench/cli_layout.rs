@@ -28,7 +28,7 @@ fn shipped_benches() -> Vec<PathBuf> {
 }
 
 #[test]
-fn the_shipped_benches_are_the_paper_bench_and_fig8() {
+fn the_shipped_benches_are_the_paper_benches_and_fig8() {
     let names: Vec<String> = shipped_benches()
         .iter()
         .map(|p| p.file_name().unwrap().to_string_lossy().into_owned())
@@ -39,7 +39,8 @@ fn the_shipped_benches_are_the_paper_bench_and_fig8() {
             "fig8_region_b_48.ron",
             "fig8_region_b_96.ron",
             "fig8_region_c_96.ron",
-            "paper_bench.ron"
+            "paper_bench.ron",
+            "paper_bench_condenser.ron"
         ]
     );
 }

@@ -16,6 +16,7 @@ mod cli_sweep;
 mod cli_tolerance;
 mod cli_trace;
 mod common;
+mod condenser;
 mod dataset_provenance;
 mod dmd;
 mod figures;
