@@ -888,12 +888,12 @@ mod lens_system_tests {
 
     /// A diode's angular acceptance against the DMD's order spacing. The paper's arms relay the
     /// lit pupil (101.4 mm behind the array) about 1:1 onto the diode, so a ray turned by θ at
-    /// the pattern centre moves about 101 mm × θ on it: the 2.5 mm radius accepts ~25 mrad (less
-    /// where the chief ray is off centre), below λ/p = 62 mrad at 850 nm, and `check` warns. The
+    /// the pattern centre moves about 101 mm × θ on it: what the chief ray leaves of the 2.5 mm
+    /// radius, over 101 mm, within 20 % (~25 mrad on the + arm), below λ/p = 62 mrad at 850 nm, and `check` warns. The
     /// condenser bench images the DMD onto its diodes, so the turn moves the ray through the
     /// arm's apertures instead: its arm lens's 22.9 mm clear radius at 100 mm, less the field,
-    /// accepts at least 0.15 rad, more than two order spacings, and nothing is warned. Both
-    /// chief rays land within 1 mm of their diode's centre.
+    /// accepts at least 0.15 rad, more than two order spacings, and nothing is warned; its
+    /// chief rays land within 1 mm of their diodes' centres.
     #[test]
     fn acceptance_against_the_order_spacing() {
         let wl = crate::trace::fan::DESIGN_WAVELENGTH_M;
@@ -902,10 +902,23 @@ mod lens_system_tests {
         for d in diode_entries(&paper, wl) {
             let (a, s) = (d.acceptance_rad.unwrap(), d.order_spacing_rad.unwrap());
             assert!((s - wl / 13.68e-6).abs() < 1e-12);
-            assert!((0.012..0.030).contains(&a), "{}: {a}", d.name);
             assert!(d.acceptance_below_order_spacing());
             let [u, v] = d.chief_ray_on_diode_m.unwrap();
-            assert!(u.hypot(v) < 1e-3, "{}: ({u}, {v})", d.name);
+            // The − arm's built-in errors (its fold tilted by (0.2, −0.1)°, its diode 0.3 mm
+            // off) put its chief ray ~1.2 mm from the centre; the + arm's lands near it.
+            let off = u.hypot(v);
+            assert!(
+                off < [0.5e-3, 1.5e-3][d.name.ends_with("minus") as usize],
+                "{}: {off}",
+                d.name
+            );
+            // What is left of the radius, over the ~101 mm per radian of the 1:1 relay.
+            let want = (2.5e-3 - off) / 0.1014;
+            assert!(
+                (a / want - 1.0).abs() < 0.2,
+                "{}: {a} against {want}",
+                d.name
+            );
         }
         for d in diode_entries(&condenser, wl) {
             let a = d.acceptance_rad.unwrap();
