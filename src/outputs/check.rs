@@ -169,12 +169,16 @@ pub fn printed(r: &ParaxialReport) -> Vec<String> {
             ));
         }
         if d.acceptance_below_order_spacing() {
+            // Three lines: the tables fit 100 columns.
             out.push(format!(
                 "warning: {} accepts less than one order spacing of the DMD: with the \
-                 diffractive model it collects only the orders that fall on it (k′ can drop \
-                 by half; docs/guide/12-designing-for-diffraction.md)",
+                 diffractive model",
                 d.name
             ));
+            out.push(
+                "  it collects only the orders that fall on it (k′ can drop by half;".to_string(),
+            );
+            out.push("  docs/guide/12-designing-for-diffraction.md)".to_string());
         }
     }
     out
