@@ -152,16 +152,28 @@ fn trace_writes_print_size_figures_with_pdfs() {
             "x"
         ]
     );
-    // The maps are single-column figures with axes and a colour bar.
+    // The maps are single-column figures with axes and a colour bar: the per-unit maps in
+    // units, the irradiance maps in mm on the diode's plane.
     for (name, w) in &figures[1..] {
         assert_eq!(*w, 3.5, "{name}");
         let svg = std::fs::read_to_string(out.join(format!("{name}.svg"))).unwrap();
-        for part in [
-            r#"aria-label="unit column""#,
-            r#"aria-label="unit row (0 = top)""#,
-            r#"class="colour-bar""#,
-        ] {
-            assert!(svg.contains(part), "{name}: {part}");
+        let parts = match name.strip_prefix("irradiance_") {
+            Some(arm) => vec![
+                format!(r#"aria-label="u on pd_{arm} (mm)""#),
+                r#"aria-label="v (mm)""#.to_string(),
+                format!(
+                    r#"aria-label="irradiance, all units {} (W/m²)""#,
+                    if arm == "plus" { "+" } else { "−" }
+                ),
+            ],
+            None => vec![
+                r#"aria-label="unit column""#.to_string(),
+                r#"aria-label="unit row (0 = top)""#.to_string(),
+                r#"class="colour-bar""#.to_string(),
+            ],
+        };
+        for part in parts {
+            assert!(svg.contains(&part), "{name}: {part}");
         }
     }
     let svg = std::fs::read_to_string(out.join("collection.svg")).unwrap();
