@@ -37,6 +37,11 @@ pub struct Provenance {
     /// allowed by its element); absent when none was.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub glass_substitutions: Vec<String>,
+    /// The model the bench's DMD was traced with, `geometric` or `diffractive`, after any
+    /// override of the file's (docs/dmd_diffraction.md); absent for an output of no bench with
+    /// a DMD.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub dmd_model: Option<&'static str>,
 }
 
 /// The SHA-256 of `bytes` as lower-case hex (FIPS 180-4).
@@ -70,6 +75,7 @@ impl Provenance {
             seeds: seeds.to_vec(),
             inputs: Vec::new(),
             glass_substitutions: Vec::new(),
+            dmd_model: None,
         }
     }
 

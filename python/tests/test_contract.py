@@ -96,3 +96,10 @@ def test_both_readers_read_the_same_manifest(dataset, reader):
     m = reader.manifest(ds.path)
     assert [a["name"] for a in m["schema"]] == ds.names
     assert m["shards"] == ds.manifest["shards"] and m["seed"] == ds.seed
+
+
+def test_the_manifest_names_the_dmd_model(dataset, reader):
+    """The shipped paper bench traces its DMD as a grating; the manifest says so."""
+    ds, _ = dataset
+    assert ds.manifest["dmd_model"] == "diffractive"
+    assert reader.manifest(ds.path)["dmd_model"] == "diffractive"

@@ -12,7 +12,7 @@ use std::path::PathBuf;
 
 use clap::Args;
 
-use crate::scene::doc::BenchDoc;
+use crate::scene::doc::{BenchDoc, DmdModel};
 use crate::scene::run::MAX_RAYS;
 
 /// `--rays`, `--seed` and `--out`: every command that traces a bench has them.
@@ -92,12 +92,39 @@ pub struct BenchArgs {
     /// (repeatable; paths as in `spibench sweep`).
     #[arg(long = "set", value_name = "PATH=VALUE")]
     pub set: Vec<String>,
+    /// The DMD's model, over the bench file's `dmd.model`: `diffractive`, the mirror array as a
+    /// blazed grating (the shipped bench's), or `geometric`, plane mirrors
+    /// (docs/dmd_diffraction.md).
+    #[arg(long = "dmd-model", value_name = "MODEL")]
+    pub dmd_model: Option<DmdModelArg>,
+}
+
+/// The values of `--dmd-model`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum DmdModelArg {
+    /// Plane mirrors (specular reflection).
+    Geometric,
+    /// The array as a blazed grating: each ray leaves in one diffraction order.
+    Diffractive,
+}
+
+impl DmdModelArg {
+    pub fn model(self) -> DmdModel {
+        match self {
+            DmdModelArg::Geometric => DmdModel::Geometric,
+            DmdModelArg::Diffractive => DmdModel::Diffractive,
+        }
+    }
 }
 
 impl BenchArgs {
-    /// Reads the bench (or the built-in one) and applies `--set`, in order.
+    /// Reads the bench (or the built-in one), selects `--dmd-model` and applies `--set`, in
+    /// order.
     pub fn load(&self) -> crate::Result<BenchDoc> {
         let mut doc = BenchDoc::open(self.scene.as_deref())?;
+        if let Some(m) = self.dmd_model {
+            doc.set_dmd_model(m.model())?;
+        }
         for a in &self.set {
             let (path, value) = super::parse_assignment(a, "--set")?;
             doc.set(&path, value)?;

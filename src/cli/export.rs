@@ -147,6 +147,7 @@ mod tests {
             bench: crate::cli::args::BenchArgs {
                 scene: Some(scene),
                 set: Vec::new(),
+                dmd_model: None,
             },
             out,
             pattern: pattern.into(),
@@ -164,10 +165,7 @@ mod tests {
         let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
         let text = std::fs::read_to_string(root.join("scenes/tests/symmetric_arms.ron"))
             .unwrap()
-            .replace(
-                "package_mm: (10.0, 10.0),",
-                "package_mm: (10.0, 10.0),\n        model: Diffractive(),",
-            );
+            .replace("model: Geometric,", "model: Diffractive(),");
         let dir = tmp("diffractive");
         std::fs::create_dir_all(&dir).unwrap();
         let scene = dir.join("bench.ron");

@@ -11,6 +11,7 @@
 pub const FLAGS: &[(&str, &str)] = &[
     ("vary", "--vary"),
     ("set", "--set"),
+    ("dmd_model", "--dmd-model"),
     ("element", "--element"),
     ("limit", "--limit"),
     ("free", "--free"),

@@ -75,6 +75,7 @@ fn load(args: &LensArgs) -> Result<(LoadedLens, String, Provenance)> {
         let bench = super::args::BenchArgs {
             scene: args.file.clone(),
             set: args.set.clone(),
+            dmd_model: None,
         };
         let doc = bench.load()?;
         let (prescription, substitutions) =

@@ -349,6 +349,8 @@ fn run_merge(args: &ToleranceArgs) -> Result<()> {
     for (p, text) in &read {
         provenance = provenance.text(&p.display().to_string(), text);
     }
+    // The shards' bench as they traced it (their records hold it with any `--dmd-model`).
+    provenance.dmd_model = doc.dmd_model().map(|m| m.name());
     let (files, card) = write(&merged, &set, &provenance, &out)?;
     let dir = out.commit()?;
     for line in card.printed() {

@@ -575,6 +575,7 @@ mod tests {
             },
             pattern_family: "random".into(),
             record: "frames".into(),
+            dmd_model: "diffractive".into(),
             measurements_max: 1,
             schemes: vec!["double_arm".into()],
             ratios: vec![0.05],

@@ -107,6 +107,10 @@ pub struct Manifest {
     pub pattern_family: String,
     /// How the detector outputs were recorded: `frames` or `samples`.
     pub record: String,
+    /// The model the bench's DMD was traced with: `geometric` or `diffractive`
+    /// (docs/dmd_diffraction.md). Empty in a manifest written before this field.
+    #[serde(default)]
+    pub dmd_model: String,
     pub measurements_max: usize,
     pub schemes: Vec<String>,
     pub ratios: Vec<f64>,
@@ -304,6 +308,11 @@ impl Prepared {
             record: match self.scene.settings.record {
                 crate::detector::RecordModel::Frames => "frames".into(),
                 crate::detector::RecordModel::Samples => "samples".into(),
+            },
+            // From the bench as built, which every kernel's bench shares.
+            dmd_model: match self.scene.bench.dmd() {
+                Some(s) if s.dmd.diffraction().is_some() => "diffractive".into(),
+                _ => "geometric".into(),
             },
             measurements_max: self.patterns.set().measurements(),
             schemes: self.schemes.iter().map(|s| s.key().to_string()).collect(),

@@ -133,6 +133,12 @@ impl Prepared {
             // the spec was read).
             doc.file.electronics = e.clone();
         }
+        // The spec's DMD model replaces the bench's (a bench without a DMD is refused below).
+        if let Some(m) = spec.file.dmd_model
+            && doc.file.dmd.is_some()
+        {
+            doc.set_dmd_model(m)?;
+        }
         let scene = checked_scene(&doc, &spec)?;
         let (schemes, ratios) = match &spec.file.acquisition {
             Some(a) => (a.schemes.clone(), a.ratios.clone()),

@@ -20,6 +20,8 @@
 //!     record: Frames,
 //!     // Optional: the detector and oscilloscope in place of the bench's electronics: section.
 //!     electronics: (detector: (load: FiftyOhm)),
+//!     // Optional: the DMD's model in place of the bench's (Geometric or Diffractive).
+//!     dmd_model: Geometric,
 //! )
 //! ```
 
@@ -106,6 +108,11 @@ pub struct DatasetFile {
     /// of the bench's (default: the bench's own).
     #[serde(default)]
     pub electronics: Option<crate::scene::run::ElectronicsSpec>,
+    /// The DMD's model, in place of the bench file's `dmd.model`: `Geometric` (plane mirrors)
+    /// or `Diffractive` (the array as a blazed grating; docs/dmd_diffraction.md); default: the
+    /// bench's own. The manifest's `dmd_model` names the model the kernels were traced with.
+    #[serde(default)]
+    pub dmd_model: Option<crate::scene::doc::DmdModel>,
 }
 
 /// How the detector outputs of each sample are recorded.

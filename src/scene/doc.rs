@@ -19,7 +19,7 @@ use std::path::{Path, PathBuf};
 
 use crate::error::{Error, Result};
 use crate::optics::Bench;
-use crate::scene::bench::{BenchFile, build_bench};
+use crate::scene::bench::{BenchFile, DmdModelSpec, build_bench};
 use crate::scene::run::{RunScene, run_scene};
 
 /// The paper's bench, built into the program (`scenes/paper_bench.ron`).
@@ -27,6 +27,25 @@ pub const PAPER_BENCH: &str = include_str!("../../scenes/paper_bench.ron");
 
 /// The name the built-in bench has in messages and summaries.
 pub const PAPER_BENCH_NAME: &str = "<built-in scenes/paper_bench.ron>";
+
+/// The DMD model a caller selects over the bench file's `dmd.model` ([`BenchDoc::set_dmd_model`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Deserialize, serde::Serialize)]
+pub enum DmdModel {
+    /// Plane mirrors: each mirror reflects specularly.
+    Geometric,
+    /// The array as a blazed two-dimensional grating (docs/dmd_diffraction.md).
+    Diffractive,
+}
+
+impl DmdModel {
+    /// The model's name in summaries and manifests: `geometric` or `diffractive`.
+    pub fn name(self) -> &'static str {
+        match self {
+            DmdModel::Geometric => "geometric",
+            DmdModel::Diffractive => "diffractive",
+        }
+    }
+}
 
 /// A bench file with its origin, and the variables set on it since it was read.
 #[derive(Debug, Clone, PartialEq)]
@@ -135,6 +154,33 @@ impl BenchDoc {
         Ok(())
     }
 
+    /// Selects the DMD's model over the file's `dmd.model`: plane mirrors, or the diffractive
+    /// model with the file's own `tail_bin_nm` when the file states one (else its default).
+    /// The bench is built from the edited file, so its diffraction tables always follow the
+    /// model and every other field. An error names the field `dmd_model`.
+    pub fn set_dmd_model(&mut self, model: DmdModel) -> Result<()> {
+        let Some(dmd) = self.file.dmd.as_mut() else {
+            return Err(Error::field(
+                "dmd_model",
+                format!("`{}` has no DMD whose model could be chosen", self.name()),
+            ));
+        };
+        dmd.model = match (model, dmd.model) {
+            (DmdModel::Geometric, _) => DmdModelSpec::Geometric,
+            (DmdModel::Diffractive, m @ DmdModelSpec::Diffractive { .. }) => m,
+            (DmdModel::Diffractive, DmdModelSpec::Geometric) => DmdModelSpec::diffractive(),
+        };
+        Ok(())
+    }
+
+    /// The DMD's model as this document builds it; None for a bench without a DMD.
+    pub fn dmd_model(&self) -> Option<DmdModel> {
+        self.file.dmd.as_ref().map(|d| match d.model {
+            DmdModelSpec::Geometric => DmdModel::Geometric,
+            DmdModelSpec::Diffractive { .. } => DmdModel::Diffractive,
+        })
+    }
+
     /// A copy with the variables set (in order).
     pub fn with(&self, settings: &[(String, f64)]) -> Result<BenchDoc> {
         let mut d = self.clone();
@@ -221,6 +267,7 @@ impl crate::provenance::Provenance {
         };
         let mut p = p.files(&doc.input_files())?;
         p.glass_substitutions = doc.glass_substitutions();
+        p.dmd_model = doc.dmd_model().map(DmdModel::name);
         Ok(p)
     }
 }

@@ -34,9 +34,11 @@ pub const ESCAPE_LENGTH_M: f64 = 0.05;
 /// without hiding the outlines.
 pub const DEFAULT_FAN_RAYS: usize = 400;
 
-/// The design wavelength of the paraxial numbers and the chief rays: 850 nm, near the centroid
-/// of the detected photocurrent of a tungsten lamp on silicon photodiodes (the paper bench's
-/// lenses are laid out for N-BK7 at this wavelength, n = 1.50984).
+/// The design wavelength of the paraxial numbers and the chief rays: 850 nm, the centroid of the
+/// photocurrent of a tungsten lamp on silicon photodiodes without ND filters (docs/bench-facts.md
+/// §3.4; on the paper bench, whose ND filters pass the near infrared far more than the visible,
+/// the centroid is about 947 nm, docs/dmd_diffraction.md). The paper bench's lenses are laid out
+/// for N-BK7 at 850 nm, n = 1.50984.
 pub const DESIGN_WAVELENGTH_M: f64 = 850e-9;
 
 /// How a fan ray ended.

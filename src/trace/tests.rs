@@ -411,8 +411,8 @@ fn paper_bench_with_model(model: &str) -> Bench {
                 "center_on: Point((0.0, 0.0)),",
             ),
             (
-                "package_mm: (40.0, 32.0),",
-                &format!("package_mm: (40.0, 32.0),\n        model: {model},"),
+                "model: Diffractive(tail_bin_nm: 10.0),",
+                &format!("model: {model},"),
             ),
         ],
     )
@@ -488,8 +488,8 @@ fn diffractive_dmd_is_deterministic_balanced_and_optional() {
 fn diffractive_tail_bin_is_checked() {
     let path = scene_path("paper_bench.ron");
     let text = std::fs::read_to_string(&path).unwrap().replace(
-        "package_mm: (40.0, 32.0),",
-        "package_mm: (40.0, 32.0),\n        model: Diffractive(tail_bin_nm: 0.1),",
+        "model: Diffractive(tail_bin_nm: 10.0),",
+        "model: Diffractive(tail_bin_nm: 0.1),",
     );
     let err = crate::scene::bench::parse_bench(&text, &path)
         .unwrap_err()

@@ -176,7 +176,10 @@ fn two_dimensional_sweeps_and_bad_paths() {
 /// again when normal deviates came from the ziggurat instead of Box–Muller (a new noise
 /// realisation: every traced number identical, each MSSIM and PSNR moved by its run-to-run
 /// spread, e.g. SCB at 40 % 0.974 (26.0 dB) both before and after, and near-ties among the
-/// schemes that agree within noise changed their order in `findings`).
+/// schemes that agree within noise changed their order in `findings`); and again when the
+/// shipped bench's DMD became diffractive (`model: Diffractive(tail_bin_nm: 10.0)`: k₊ 0.35324
+/// → 0.15986 ± 0.00046 A/W, k₋ 0.35304 → 0.13976 ± 0.00040 A/W, the imbalance 0.00029 →
+/// 0.0671 ± 0.0016; every reconstructed number moved with them).
 #[test]
 fn run_summary_of_the_default_bench_is_pinned() {
     let dir = TempDir::new("run-pin");

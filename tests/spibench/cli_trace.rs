@@ -107,10 +107,9 @@ fn trace_writes_summary_maps_and_images() {
 #[test]
 fn a_diffractive_bench_reports_the_collection() {
     let tmp = TempDir::new("cli-trace-diffractive");
-    let text = std::fs::read_to_string(symmetric_arms()).unwrap().replace(
-        "package_mm: (10.0, 10.0),",
-        "package_mm: (10.0, 10.0),\n        model: Diffractive(),",
-    );
+    let text = std::fs::read_to_string(symmetric_arms())
+        .unwrap()
+        .replace("model: Geometric,", "model: Diffractive(),");
     let scene = tmp.join("bench.ron");
     std::fs::write(&scene, text).unwrap();
     let out = tmp.join("out");

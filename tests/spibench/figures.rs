@@ -115,10 +115,9 @@ fn check_figures(dir: &Path) -> Vec<(String, f64)> {
 fn trace_writes_print_size_figures_with_pdfs() {
     let tmp = TempDir::new("figures-trace");
     let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/tests/symmetric_arms.ron");
-    let text = std::fs::read_to_string(&src).unwrap().replace(
-        "package_mm: (10.0, 10.0),",
-        "package_mm: (10.0, 10.0),\n        model: Diffractive(),",
-    );
+    let text = std::fs::read_to_string(&src)
+        .unwrap()
+        .replace("model: Geometric,", "model: Diffractive(),");
     assert!(text.contains("Diffractive"));
     let scene = tmp.join("bench.ron");
     std::fs::write(&scene, text).unwrap();

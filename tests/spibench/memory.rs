@@ -61,10 +61,8 @@ fn diffractive(dir: &TempDir, bin_nm: f64, edit: (&str, &str)) -> PathBuf {
         ),
         ("outside_state: Minus,", "outside_state: Flat,"),
         (
-            "package_mm: (40.0, 32.0),",
-            &format!(
-                "package_mm: (40.0, 32.0),\n        model: Diffractive(tail_bin_nm: {bin_nm:?}),"
-            ),
+            "model: Diffractive(tail_bin_nm: 10.0),",
+            &format!("model: Diffractive(tail_bin_nm: {bin_nm:?}),"),
         ),
         edit,
     ] {

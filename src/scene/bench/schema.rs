@@ -758,8 +758,9 @@ pub struct DmdSpec {
     pub outside_state: StateSpec,
     /// Package outline around the array (mm): light landing on it outside the array is absorbed.
     pub package_mm: (Positive, Positive),
-    /// How the mirrors reflect: `Geometric` (default) or `Diffractive(...)`, the array as a
-    /// blazed grating (docs/dmd_diffraction.md).
+    /// How the mirrors reflect: `Geometric`, plane mirrors, or `Diffractive(...)`, the array as
+    /// a blazed grating (docs/dmd_diffraction.md). A bench without the field is geometric, as it
+    /// always was; the shipped paper bench states `Diffractive(...)`, the DMD as built.
     #[serde(default, skip_serializing_if = "DmdModelSpec::is_geometric")]
     pub model: DmdModelSpec,
 }
@@ -785,6 +786,13 @@ pub enum DmdModelSpec {
 impl DmdModelSpec {
     pub fn is_geometric(&self) -> bool {
         matches!(self, DmdModelSpec::Geometric)
+    }
+
+    /// `Diffractive()`: the diffractive model with its default tail bin.
+    pub fn diffractive() -> DmdModelSpec {
+        DmdModelSpec::Diffractive {
+            tail_bin_nm: default_tail_bin(),
+        }
     }
 }
 
