@@ -178,7 +178,8 @@ mod tests {
     /// little reaches the other.
     #[test]
     fn collection_is_deterministic_and_geometric_arms_collect() {
-        let bench = crate::trace::testing::paper_bench_with_mask();
+        // The shipped bench is diffractive: its geometric twin.
+        let bench = crate::trace::testing::paper_bench_with_mask().with_geometric_dmd();
         let run = |threads| {
             rayon::ThreadPoolBuilder::new()
                 .num_threads(threads)

@@ -159,7 +159,12 @@ fn paper_bench_with_usaf_chart() {
 /// error for the same number of rays (measured: 5.0× smaller at 300 000 rays).
 #[test]
 fn chart_guidance_is_unbiased_and_pays() {
-    let doc = crate::scene::doc::BenchDoc::read(&scene_path("paper_bench.ron")).unwrap();
+    // Plane mirrors: the guide is the lamp's sampling and does not depend on the DMD's model;
+    // with the diffractive DMD the off-arm offsets become rare events (a tail order reaching
+    // the other diode) that 300 000 rays do not resolve.
+    let mut doc = crate::scene::doc::BenchDoc::read(&scene_path("paper_bench.ron")).unwrap();
+    doc.set_dmd_model(crate::scene::doc::DmdModel::Geometric)
+        .unwrap();
     let guided = doc.build().unwrap();
     assert!(guided.lamp().guide.is_some());
     // The same bench without the chart guide, built as a bench of its own.
@@ -412,7 +417,12 @@ fn paper_bench_with_model(model: &str) -> Bench {
             ),
             (
                 "model: Diffractive(tail_bin_nm: 10.0),",
-                &format!("model: {model},"),
+                // An empty `model` drops the field (the geometric default).
+                &if model.is_empty() {
+                    String::new()
+                } else {
+                    format!("model: {model},")
+                },
             ),
         ],
     )
@@ -444,7 +454,7 @@ fn diffractive_dmd_is_deterministic_balanced_and_optional() {
         assert_eq!(bits(&a.ledger[w]), bits(&b.ledger[w]));
     }
     assert_ledger_balances(&bench, 20_000, "paper bench, diffractive DMD");
-    let geometric = go(&paper_bench_with_mask(), 2);
+    let geometric = go(&paper_bench_with_model(""), 2);
     let explicit = go(&paper_bench_with_model("Geometric"), 2);
     let twin = go(&bench.with_geometric_dmd(), 2);
     for t in [&explicit, &twin] {
