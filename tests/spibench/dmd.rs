@@ -176,7 +176,9 @@ fn no_light_passes_the_array_from_behind() {
     assert!(o.status.success(), "{}", stderr(&o));
     let rows = read_json(&out.join("summary.json"))["rows"].clone();
     let k = |r: &serde_json::Value, key: &str| r[key].as_f64();
-    assert!(k(&rows[0], "k_plus").unwrap() > 0.3, "{}", rows[0]);
+    // Lit from the front the + arm collects (0.16 A/W with the diffractive DMD, 0.35 with
+    // plane mirrors).
+    assert!(k(&rows[0], "k_plus").unwrap() > 0.1, "{}", rows[0]);
     let behind = &rows[1];
     for key in ["power_plus_w", "power_minus_w", "x_total_w"] {
         assert_eq!(k(behind, key), Some(0.0), "{key}: {behind}");
