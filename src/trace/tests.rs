@@ -478,7 +478,7 @@ fn diffractive_dmd_is_deterministic_balanced_and_optional() {
         };
         trace(b, &o).unwrap()
     };
-    let (a, geometric) = (analogue(&bench), analogue(&paper_bench_with_mask()));
+    let (a, geometric) = (analogue(&bench), analogue(&paper_bench_with_model("")));
     let (xa, xg): (f64, f64) = (a.x.iter().sum(), geometric.x.iter().sum());
     assert!((xa - xg).abs() < 1e-3 * xg, "{xa} vs {xg}");
     let own = |t: &Tallies, arm: Arm| -> f64 {
