@@ -274,6 +274,31 @@ impl RunOutcome {
     }
 }
 
+/// What every acquisition of one traced bench shares, whatever its noise: the ideal object,
+/// its 0–255 view and the USAF chart's registration (a search over the chart's placement that
+/// costs as much as a record stage). Made once per trace ([`Shared::of`]), so that the repeats
+/// of a run pay only for their own record and solve.
+#[derive(Debug, Clone)]
+pub struct Shared {
+    pub x: Raster,
+    pub truth: Raster,
+    pub resolution: Option<ResolutionContext>,
+}
+
+impl Shared {
+    /// The shared inputs of a traced bench of `scene`.
+    pub fn of(scene: &RunScene, traced: &Traced) -> Result<Shared> {
+        let x = traced.x()?;
+        let truth = traced.truth()?;
+        let resolution = pipeline::resolution_context(&scene.bench, &x)?;
+        Ok(Shared {
+            x,
+            truth,
+            resolution,
+        })
+    }
+}
+
 /// Everything after the trace: record, solve and score a traced bench (a fresh or cached trace,
 /// one point of a sweep, one repeat of a run). `patterns` holds the base patterns for the
 /// highest ratio ([`base_patterns`]).
@@ -284,22 +309,38 @@ pub fn evaluate_traced(
     seed: u64,
     progress: Progress,
 ) -> Result<RunOutcome> {
-    let s = &scene.settings;
-    let x = traced.x()?;
-    let truth = traced.truth()?;
-    let t1 = std::time::Instant::now();
+    let t0 = std::time::Instant::now();
+    let shared = Shared::of(scene, traced)?;
+    let shared_s = t0.elapsed().as_secs_f64();
     let packed = PackedPatterns::new(patterns.clone());
-    let recorded = acquire(scene, &traced.transport, &packed, seed, progress)?;
+    let mut o = evaluate_shared(scene, traced, &shared, &packed, seed, progress)?;
+    o.timings.solve_s += shared_s;
+    o.timings.total_s += shared_s;
+    Ok(o)
+}
+
+/// [`evaluate_traced`] with the trace's [`Shared`] inputs and the packed patterns made by the
+/// caller (once for every repeat that reads the same patterns).
+pub fn evaluate_shared(
+    scene: &RunScene,
+    traced: &Traced,
+    shared: &Shared,
+    packed: &PackedPatterns,
+    seed: u64,
+    progress: Progress,
+) -> Result<RunOutcome> {
+    let s = &scene.settings;
+    let t1 = std::time::Instant::now();
+    let recorded = acquire(scene, &traced.transport, packed, seed, progress)?;
     let record_s = t1.elapsed().as_secs_f64();
     let t2 = std::time::Instant::now();
-    let resolution = pipeline::resolution_context(&scene.bench, &x)?;
     let results = solve_scored(
         s,
         &recorded,
         &s.schemes,
         &s.sampling_ratios,
-        &truth,
-        resolution.as_ref(),
+        &shared.truth,
+        shared.resolution.as_ref(),
         progress,
     )?;
     let solve_s = t2.elapsed().as_secs_f64();
@@ -312,10 +353,10 @@ pub fn evaluate_traced(
         scope: scene.scope.clone(),
         channels: recorded.channels,
         timing: recorded.timing,
-        x,
-        truth,
+        x: shared.x.clone(),
+        truth: shared.truth.clone(),
         results,
-        resolution,
+        resolution: shared.resolution.clone(),
         traces: recorded.traces(),
         sequences: recorded.sequences,
         saturation: recorded.saturation,

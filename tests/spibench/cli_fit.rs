@@ -48,6 +48,8 @@ fn measure(dir: &TempDir, scene: &Path, sets: &[&str], name: &str) -> PathBuf {
     let run = dir.join(&format!("run-{name}"));
     let mut args = vec![
         "run",
+        "--repeats",
+        "1",
         s(scene),
         "--rays",
         "300000",

@@ -81,6 +81,8 @@ fn intake_of_a_runs_scope_records_gives_the_run_bit_for_bit() {
     let o = spibench(
         &[
             "run",
+            "--repeats",
+            "1",
             scene.to_str().unwrap(),
             "--out",
             run.to_str().unwrap(),

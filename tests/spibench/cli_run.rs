@@ -34,6 +34,8 @@ fn run_to(scene: &Path, out: &Path, threads: &str) -> std::process::Output {
     spibench(
         &[
             "run",
+            "--repeats",
+            "1",
             scene.to_str().unwrap(),
             "--out",
             out.to_str().unwrap(),
@@ -71,9 +73,9 @@ fn run_writes_every_output_identically_on_one_and_two_threads() {
     for f in &files {
         assert!(a.join(f).is_file(), "missing {f}");
     }
-    // Without --repeats, no repeat statistics (one repeat has no spread).
+    // With --repeats 1, no repeat statistics (one repeat has no spread).
     for f in ["repeats.json", "repeats.csv", "mssim_vs_frames.svg"] {
-        assert!(!a.join(f).exists(), "{f} written without --repeats");
+        assert!(!a.join(f).exists(), "{f} written with --repeats 1");
     }
     assert_report_page(&a.join("report.html"));
     let sa = read_json(&a.join("summary.json"));
@@ -267,6 +269,8 @@ fn assert_other_seed_and_settings(scene: &Path, dir: &TempDir, a: &Path, sa: &se
     let oc = spibench(
         &[
             "run",
+            "--repeats",
+            "1",
             scene.to_str().unwrap(),
             "--out",
             c.to_str().unwrap(),
@@ -285,6 +289,8 @@ fn assert_other_seed_and_settings(scene: &Path, dir: &TempDir, a: &Path, sa: &se
     let od = spibench(
         &[
             "run",
+            "--repeats",
+            "1",
             a.join("bench.ron").to_str().unwrap(),
             "--out",
             d.to_str().unwrap(),

@@ -185,7 +185,15 @@ fn run_summary_of_the_default_bench_is_pinned() {
     let dir = TempDir::new("run-pin");
     let out = dir.join("run");
     let o = spibench(
-        &["run", "--rays", "300000", "--out", out.to_str().unwrap()],
+        &[
+            "run",
+            "--repeats",
+            "1",
+            "--rays",
+            "300000",
+            "--out",
+            out.to_str().unwrap(),
+        ],
         &[],
     );
     assert!(o.status.success(), "{}", stderr(&o));
