@@ -379,3 +379,54 @@ fn other_figure_kinds_state_their_resolution() {
     );
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// The tolerance run's tornado chart: pHYs, everything on the canvas (long row labels are
+/// fitted into their column), one bar per end of each row, the rows' labels in the figure.
+#[test]
+fn tornado_charts_render_on_the_canvas() {
+    use super::plot::{Tornado, TornadoPanel, write_tornado};
+    let dir = scratch("tornado");
+    let rows = [
+        "dmd.tilt_deg (fixed)",
+        "electronics.detector.responsivity_scale_minus",
+        "detectors.minus.decenter_mm.x",
+        "a_very_long_element_name_that_cannot_fit.decenter_mm.x",
+    ];
+    let t = Tornado {
+        rows: rows.iter().map(|s| s.to_string()).collect(),
+        panels: vec![
+            TornadoPanel {
+                x_label: "Δ imbalance ι′ (electrical)".into(),
+                bars: vec![
+                    [[-0.81, 0.0025], [0.85, 0.06]],
+                    [[-0.01, 1e-9], [0.01, 1e-9]],
+                    [[2e-3, 4e-4], [-2.5e-3, 4e-4]],
+                    [[f64::NAN, f64::NAN], [1e-4, 1e-4]],
+                ],
+            },
+            TornadoPanel {
+                x_label: "Δ k′ (A/W)".into(),
+                bars: vec![
+                    [[-0.45, 0.01], [-0.7, 0.01]],
+                    [[0.0, 0.0], [0.0, 0.0]],
+                    [[-1e-3, 2e-4], [-1.2e-3, 2e-4]],
+                    [[0.0, 0.0], [0.0, 0.0]],
+                ],
+            },
+        ],
+        ends: ["tolerance at its min".into(), "at its max".into()],
+    };
+    let (svg, png) = (dir.join("tornado.svg"), dir.join("tornado.png"));
+    write_tornado(&t, &svg, &png).unwrap();
+    assert_png_dpi(&png, PNG_DPI);
+    assert!(svg.with_extension("pdf").exists());
+    let text = std::fs::read_to_string(&svg).unwrap();
+    assert_on_canvas(&text, "tornado");
+    for label in ["dmd.tilt_deg (fixed)", "detectors.minus.decenter_mm.x"] {
+        assert!(text.contains(label), "no row label {label:?}");
+    }
+    // A row whose bars do not match the rows is refused.
+    let mut bad = t.clone();
+    bad.panels[1].bars.pop();
+    assert!(super::plot::render_tornado_svg(&bad).is_err());
+}

@@ -11,21 +11,25 @@
 //! different periods, so curves that coincide (single-arm and SCB on a balanced bench) stay
 //! visible under each other and series stay distinct in grayscale print.
 //!
-//! The module's files: `lines.rs` (line plots and their writers), `ticks.rs` (tick positions
-//! and labels), `scope.rs` (oscilloscope panels).
+//! The module's files: `lines.rs` (line plots), `write.rs` (their SVG, PNG and PDF writers),
+//! `ticks.rs` (tick positions and labels), `scope.rs` (oscilloscope panels), `tornado.rs`
+//! (tornado charts of a sensitivity table).
 
 mod lines;
 mod scope;
 #[cfg(test)]
 mod tests;
 mod ticks;
+mod tornado;
+mod write;
 
 pub use super::svg::FigureSize;
 pub use lines::{
     Area, Band, BandAxis, LinePlot, MARK_EVERY_POINT_UP_TO, Mark, Markers, PLOT_HEIGHT_PX,
-    PLOT_WIDTH_PX, PlotOptions, Series, default_size, render_svg, render_svg_with, write_plot,
-    write_plot_sized, write_plot_with,
+    PLOT_WIDTH_PX, PlotOptions, Series, default_size,
 };
+pub use write::{render_svg, render_svg_with, write_plot, write_plot_sized, write_plot_with};
 pub use scope::{SCOPE_PANEL_PX, SCOPE_WIDTH_PX, ScopePlot, scope_svg, write_scope};
 pub use ticks::format_tick;
+pub use tornado::{Tornado, TornadoBar, TornadoPanel, render_tornado_svg, write_tornado};
 pub(crate) use ticks::linear_ticks;

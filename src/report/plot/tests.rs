@@ -1,4 +1,5 @@
 use super::lines::*;
+use super::write::*;
 use super::scope::*;
 use super::ticks::*;
 use super::*;
