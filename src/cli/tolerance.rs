@@ -184,7 +184,7 @@ pub fn run(args: &ToleranceArgs) -> Result<()> {
         trials: args.trials,
         quality: args.quality,
         shard: shard.pair(),
-        nominal: crate::tolerance::values(&nom, &nom),
+        nominal: crate::tolerance::recorded((&doc, &nom), (&doc, &nom)),
         sensitivity: sens,
         records,
     };

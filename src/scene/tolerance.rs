@@ -6,7 +6,8 @@
 //!     tolerances: [
 //!         // A rigid-body move (relative) or a field (a deviation from its nominal value).
 //!         (path: "arm_minus_lens.decenter_mm.x", range: PlusMinus(0.1)),
-//!         (path: "dmd.tilt_deg", range: Between(-1.0, 1.0), distribution: Normal(sigmas: 3.0)),
+//!         (path: "dmd.tilt_deg", range: Between(-1.0, 1.0), distribution: Normal(sigmas: 3.0),
+//!          fixed: true),
 //!     ],
 //!     compensators: [
 //!         (path: "detectors.minus.decenter_mm.x", range: PlusMinus(1.0), objective: Balance),
@@ -22,7 +23,10 @@
 //! [`crate::scene::variables`]). A range is `PlusMinus(h)` (−h … +h) or `Between(min, max)`.
 //! A distribution is `Uniform` (default), `Normal(sigmas: k)` (centred on the middle of the
 //! range, with the range's ends at ±kσ, not truncated), or `TruncatedNormal(sigmas: k)` (the
-//! same normal, redrawn until it falls inside the range).
+//! same normal, redrawn until it falls inside the range). `fixed: true` marks a device
+//! specification (a data sheet's spread, such as the DMD's micromirror tilt): it is drawn like
+//! any tolerance, but the reports flag it as one that cannot be tightened and a tolerance
+//! budget keeps it at its file's range ([`Tolerance::scale_bounds`]).
 //!
 //! This module also reads and writes the trial records of a sharded `spibench tolerance` run
 //! ([`ShardFile`]), since it is the one module that parses files.
@@ -116,6 +120,10 @@ struct ToleranceSpec {
     /// How the Monte Carlo draws a deviation over the range.
     #[serde(default)]
     distribution: Distribution,
+    /// A device specification (a data sheet's spread, such as the DMD's micromirror tilt):
+    /// drawn like any tolerance, but nobody building the bench can tighten it.
+    #[serde(default)]
+    fixed: bool,
 }
 
 /// One compensator as written: a bench variable the builder adjusts after assembly.
@@ -168,6 +176,25 @@ impl ToleranceLimit {
             && self.abs_max.is_none_or(|m| v.abs() <= m)
     }
 
+    /// The recorded value of a trial this limit judges: for a limit on the imbalance, the
+    /// electrical imbalance ι′ ([`IMBALANCE_ELECTRICAL`], what the balanced detector's
+    /// difference output sees, the diodes' responsivity mismatch included) where the record
+    /// holds it, else (records of an older spibench) the optical one; any other metric as
+    /// recorded.
+    pub fn value_in(&self, r: &TrialRecord) -> Option<f64> {
+        if self.is_on_imbalance()
+            && let Some(v) = r.value(IMBALANCE_ELECTRICAL)
+        {
+            return Some(v);
+        }
+        r.value(&self.metric.to_string())
+    }
+
+    /// Whether the limit is on the imbalance (judged electrically, [`Self::value_in`]).
+    pub fn is_on_imbalance(&self) -> bool {
+        self.metric == Quantity::Metric(crate::quantities::BenchMetric::Imbalance)
+    }
+
     /// The limit as text, e.g. `|imbalance| ≤ 0.01`.
     pub fn describe(&self) -> String {
         let mut parts = Vec::new();
@@ -183,6 +210,11 @@ impl ToleranceLimit {
         parts.join(" and ")
     }
 }
+
+/// The name under which a tolerance run records each bench's electrical imbalance
+/// ι′ = (s₊k₊ − s₋k₋)/(s₊k₊ + s₋k₋) (`crate::transport::metrics::electrical_imbalance`),
+/// beside the optical `imbalance`; its standard error is `imbalance_electrical_stderr`.
+pub const IMBALANCE_ELECTRICAL: &str = "imbalance_electrical";
 
 /// The image-quality limit applied to every scheme alike (with `--quality`).
 #[derive(Debug, Clone, Copy, PartialEq, Deserialize, Serialize)]
@@ -222,6 +254,22 @@ pub struct Tolerance {
     pub distribution: Distribution,
     /// The variable's nominal value (0 for a rigid-body move).
     pub nominal: f64,
+    /// A device specification that cannot be tightened (`fixed: true` in the file).
+    pub fixed: bool,
+}
+
+impl Tolerance {
+    /// Whether the tolerance is a device specification that cannot be tightened: a budget
+    /// keeps it at scale 1, and reports flag it instead of asking for it to be held closer.
+    pub fn is_fixed(&self) -> bool {
+        self.fixed
+    }
+
+    /// The scale bounds a budget may give this tolerance: `min … max` as asked, or exactly 1
+    /// for a fixed one (a device specification is neither tightened nor loosened).
+    pub fn scale_bounds(&self, min: f64, max: f64) -> (f64, f64) {
+        if self.fixed { (1.0, 1.0) } else { (min, max) }
+    }
 }
 
 /// One validated compensator: adjusted within `min ..= max` of the value it has after the
@@ -318,6 +366,7 @@ impl ToleranceSet {
                 distribution: t.distribution,
                 nominal: crate::scene::variables::get(&doc.file, &t.path)
                     .map_err(|e| locate(&t.path, "path", e.to_string()))?,
+                fixed: t.fixed,
             });
         }
         let mut compensators: Vec<Compensator> = Vec::new();
@@ -445,6 +494,26 @@ impl ToleranceSet {
         Ok(())
     }
 
+    /// The budget's cost rules with every fixed tolerance's scale bounds pinned to 1
+    /// ([`Tolerance::scale_bounds`]); `costs` holds one rule per tolerance, in file order.
+    pub fn pin_fixed(
+        &self,
+        costs: &[crate::scene::budget_costs::ToleranceCost],
+    ) -> Vec<crate::scene::budget_costs::ToleranceCost> {
+        costs
+            .iter()
+            .zip(&self.tolerances)
+            .map(|(c, t)| {
+                let (min_scale, max_scale) = t.scale_bounds(c.min_scale, c.max_scale);
+                crate::scene::budget_costs::ToleranceCost {
+                    min_scale,
+                    max_scale,
+                    ..*c
+                }
+            })
+            .collect()
+    }
+
     /// A set with every tolerance range scaled by `factor` (0 gives the nominal bench).
     pub fn scaled(&self, factor: f64) -> ToleranceSet {
         let mut s = self.clone();
@@ -469,6 +538,24 @@ pub struct TrialRecord {
     pub values: Vec<(String, f64)>,
     /// Why the trial could not be traced (a perturbed bench that is not valid), if so.
     pub error: Option<String>,
+    /// The compensators that ended this trial at a limit of their travel, each with the
+    /// travel the same adjustment needs when allowed more (`crate::tolerance::trial`).
+    #[serde(default)]
+    pub needed_travel: Vec<NeededTravel>,
+}
+
+/// A compensator that ended a trial at a limit of its travel, and the travel it would need.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct NeededTravel {
+    pub path: String,
+    /// The deviation it settled at (at a limit of the file's range).
+    pub settled: f64,
+    /// The deviation the same adjustment settles at with its range widened about its centre
+    /// (`crate::tolerance::WIDER_TRAVEL` times); NaN where that adjustment failed.
+    pub needed: f64,
+    /// True when the wider range was not enough either: `needed` is then a lower bound on
+    /// the travel.
+    pub beyond: bool,
 }
 
 impl TrialRecord {
@@ -560,7 +647,25 @@ mod tests {
         let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/tolerances/paper_bench.ron");
         let s = ToleranceSet::read(&p, &doc()).unwrap();
         assert!(s.tolerances.len() >= 10);
-        assert!(s.tolerances.iter().any(|t| t.path == "dmd.tilt_deg"));
+        // The DMD's tilt is a device specification, marked fixed; nothing else is.
+        let fixed: Vec<&str> = s
+            .tolerances
+            .iter()
+            .filter(|t| t.is_fixed())
+            .map(|t| t.path.as_str())
+            .collect();
+        assert_eq!(fixed, ["dmd.tilt_deg"]);
+        // A budget keeps a fixed tolerance at scale 1, the others within their bounds.
+        let costs = crate::scene::budget_costs::default_costs(&s);
+        let pinned = s.pin_fixed(&costs);
+        for (t, c) in s.tolerances.iter().zip(&pinned) {
+            let want = if t.is_fixed() {
+                (1.0, 1.0)
+            } else {
+                (costs[0].min_scale, costs[0].max_scale)
+            };
+            assert_eq!((c.min_scale, c.max_scale), want, "{}", t.path);
+        }
     }
 
     #[test]
@@ -610,6 +715,11 @@ mod tests {
                  distribution: Normal(sigmas: 0.0))])",
                 &["sigmas"][..],
             ),
+            (
+                "(tolerances: [(path: \"chart.despace_mm\", range: PlusMinus(1.0), \
+                 fixed: 1)])",
+                &["fixed"][..],
+            ),
         ] {
             let e = parse(text).unwrap_err();
             assert!(e.is_user_error(), "{e}");
@@ -644,6 +754,12 @@ mod tests {
                     ("n".into(), 1e300),
                 ],
                 error: None,
+                needed_travel: vec![NeededTravel {
+                    path: "d.x".into(),
+                    settled: 1.5,
+                    needed: 2.25,
+                    beyond: false,
+                }],
             }],
         };
         let text = shard_to_ron(&s).unwrap();

@@ -393,6 +393,7 @@ pub fn budget(
     progress: &(dyn Fn(&str) + Sync),
 ) -> Result<BudgetOutcome> {
     check_options(b)?;
+    let costs = &set.pin_fixed(costs);
     let job = Job {
         doc,
         set,
@@ -637,6 +638,7 @@ mod tests {
             max: 1.0,
             distribution: Distribution::Uniform,
             nominal: 0.0,
+            fixed: false,
         };
         let limit = ToleranceLimit {
             metric: BenchMetric::Imbalance.into(),

@@ -27,7 +27,9 @@ use crate::error::{Error, Result};
 use crate::pipeline::evaluate::{EvaluateOptions, Evaluation, evaluate};
 use crate::quantities::{BenchMetric, ImageScore, Quantity};
 use crate::scene::doc::BenchDoc;
-use crate::scene::tolerance::{SensitivityRecord, ToleranceSet, TrialRecord, value_of};
+use crate::scene::tolerance::{
+    IMBALANCE_ELECTRICAL, SensitivityRecord, ToleranceSet, TrialRecord, value_of,
+};
 
 pub use crate::pipeline::evaluate::{quality_key, values};
 
@@ -50,6 +52,52 @@ pub const SENSITIVITY_METRICS: [Quantity; 6] = [
 /// How to analyse: the rays and seed of every traced bench, and whether every trial runs the
 /// whole pipeline (image scores).
 pub type ToleranceOptions = EvaluateOptions;
+
+/// Every value a tolerance run records for bench `p` (evaluated from `doc`) against the
+/// nominal bench `nominal` (from `nominal_doc`): [`values`], then the electrical imbalance ι′
+/// ([`IMBALANCE_ELECTRICAL`]), its standard error, its change from the nominal bench's and
+/// that change's paired standard error: the optical imbalance through the diodes'
+/// responsivity scales of each bench's electronics
+/// ([`crate::transport::metrics::electrical_imbalance`]; the RF stage's one gain multiplies
+/// both arms' currents alike, so only the responsivity mismatch moves ι′ away from ι). NaN
+/// where the electronics are not valid.
+pub fn recorded(
+    (doc, p): (&BenchDoc, &Evaluation),
+    (nominal_doc, nominal): (&BenchDoc, &Evaluation),
+) -> Vec<(String, f64)> {
+    let mut v = values(p, nominal);
+    let e = electrical(doc, p);
+    let e0 = electrical(nominal_doc, nominal);
+    let d = e.as_ref().zip(e0.as_ref()).map(|(a, b)| {
+        let mut d = a.diff(b);
+        if a.value == b.value {
+            // The same bench: no change (and no standard error of one).
+            d.stderr = 0.0;
+        }
+        d
+    });
+    let name = IMBALANCE_ELECTRICAL;
+    v.push((name.to_string(), e.as_ref().map_or(f64::NAN, |e| e.value)));
+    v.push((
+        format!("{name}_stderr"),
+        e.as_ref().map_or(f64::NAN, |e| e.stderr()),
+    ));
+    v.push((format!("{name}_diff"), d.map_or(f64::NAN, |d| d.value)));
+    v.push((
+        format!("{name}_diff_stderr"),
+        d.map_or(f64::NAN, |d| d.stderr),
+    ));
+    v
+}
+
+/// The electrical imbalance of bench `p` of `doc` (None for electronics that are not valid).
+fn electrical(doc: &BenchDoc, p: &Evaluation) -> Option<crate::transport::metrics::TracedValue> {
+    let d = crate::scene::run::detector_si(&doc.file.electronics.detector).ok()?;
+    Some(crate::transport::metrics::electrical_imbalance(
+        &p.metrics[BenchMetric::Imbalance],
+        d.responsivity_scale,
+    ))
+}
 
 /// The nominal bench, traced (with `quality`, through the whole pipeline).
 pub fn nominal(doc: &BenchDoc, o: &ToleranceOptions) -> Result<Evaluation> {
@@ -138,10 +186,15 @@ pub fn sensitivity(
                     }
                 };
                 let p = evaluate(&d, s.clone(), &at.with_quality(false))?;
-                let end: Vec<(String, f64)> = values(&p, nom)
+                let names: Vec<String> = SENSITIVITY_METRICS
+                    .iter()
+                    .map(|m| m.to_string())
+                    .chain([IMBALANCE_ELECTRICAL.to_string()])
+                    .collect();
+                let end: Vec<(String, f64)> = recorded((&d, &p), (doc, nom))
                     .into_iter()
                     .filter(|(k, _)| {
-                        SENSITIVITY_METRICS
+                        names
                             .iter()
                             .any(|m| k == &format!("{m}_diff") || k == &format!("{m}_diff_stderr"))
                     })
@@ -209,6 +262,7 @@ pub fn trial(
                     compensators: Vec::new(),
                     values: Vec::new(),
                     error: Some(e.to_string()),
+                    needed_travel: Vec::new(),
                 },
                 TrialTiming {
                     compensators_s: (t1 - t0).as_secs_f64(),
@@ -218,13 +272,16 @@ pub fn trial(
         }
         Err(e) => return Err(e),
     };
+    let needed_travel = needed_travel(doc, set, o, i, &compensators);
+    let t1 = std::time::Instant::now();
     let p = evaluate(&d, Vec::new(), o)?;
     let rec = TrialRecord {
         index: i,
         deviations,
         compensators,
-        values: values(&p, nominal),
+        values: recorded((&d, &p), (doc, nominal)),
         error: None,
+        needed_travel,
     };
     Ok((
         rec,
@@ -233,6 +290,59 @@ pub fn trial(
             trace_s: t1.elapsed().as_secs_f64(),
         },
     ))
+}
+
+/// How much wider a compensator's range is made, about its centre, to find the travel a trial
+/// that ran out of it would need.
+pub const WIDER_TRAVEL: f64 = 4.0;
+
+/// The compensators of trial `i` that settled at a bound of their range (`comp`: each one's
+/// settled deviation), with the deviation the same adjustment reaches when every one of them
+/// may move [`WIDER_TRAVEL`] times as far about its range's centre. Empty when none is at a
+/// bound (no extra trace). A wider range that gives no valid bench, or whose adjustment fails,
+/// gives NaN.
+fn needed_travel(
+    doc: &BenchDoc,
+    set: &ToleranceSet,
+    o: &ToleranceOptions,
+    i: u64,
+    comp: &[(String, f64)],
+) -> Vec<crate::scene::tolerance::NeededTravel> {
+    let settled = |path: &str| comp.iter().find(|(p, _)| p == path).map(|(_, v)| *v);
+    let short: Vec<&crate::scene::tolerance::Compensator> = set
+        .compensators
+        .iter()
+        .filter(|c| settled(&c.path).is_some_and(|v| summaries::at_bound(c, v)))
+        .collect();
+    if short.is_empty() {
+        return Vec::new();
+    }
+    let mut wide = set.clone();
+    for c in &mut wide.compensators {
+        if short.iter().any(|s| s.path == c.path) {
+            let (mid, half) = (0.5 * (c.min + c.max), 0.5 * (c.max - c.min));
+            (c.min, c.max) = (mid - WIDER_TRAVEL * half, mid + WIDER_TRAVEL * half);
+        }
+    }
+    let moved = trial_doc(doc, &wide, o, i)
+        .and_then(|(d, _, comp)| d.build().map(|_| comp))
+        .ok();
+    short
+        .iter()
+        .map(|c| {
+            let w = wide.compensators.iter().find(|w| w.path == c.path);
+            let needed = moved
+                .as_ref()
+                .and_then(|m| m.iter().find(|(p, _)| *p == c.path))
+                .map_or(f64::NAN, |(_, v)| *v);
+            crate::scene::tolerance::NeededTravel {
+                path: c.path.clone(),
+                settled: settled(&c.path).unwrap_or(f64::NAN),
+                needed,
+                beyond: w.is_some_and(|w| needed.is_finite() && summaries::at_bound(w, needed)),
+            }
+        })
+        .collect()
 }
 
 /// Where a trial's time went (s).
@@ -272,6 +382,30 @@ pub struct YieldRow {
     pub fraction: f64,
     /// The binomial standard error of the fraction, √(p(1 − p)/n).
     pub stderr: f64,
+    /// The Wilson score interval of the fraction at 95 % (Wilson 1927): unlike p ± 1.96·SE it
+    /// keeps a width when every trial passes or none does.
+    pub ci95: [f64; 2],
+    /// For a limit on the imbalance (judged on the electrical imbalance, what the balanced
+    /// detector's output sees): the same limit judged on the optical imbalance, beside it.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub optical: Option<Box<YieldRow>>,
+}
+
+/// The two-sided 95 % Wilson score interval of `passed` successes in `trials` (NaN for none):
+/// (p + z²/2n ± z·√(p(1 − p)/n + z²/4n²)) / (1 + z²/n), z = 1.959964.
+pub fn wilson95(passed: usize, trials: usize) -> [f64; 2] {
+    if trials == 0 {
+        return [f64::NAN; 2];
+    }
+    let (n, z) = (trials as f64, 1.959_964);
+    let p = passed as f64 / n;
+    let centre = p + z * z / (2.0 * n);
+    let half = z * (p * (1.0 - p) / n + z * z / (4.0 * n * n)).sqrt();
+    let d = 1.0 + z * z / n;
+    [
+        ((centre - half) / d).max(0.0),
+        ((centre + half) / d).min(1.0),
+    ]
 }
 
 fn yield_row(limit: String, passed: usize, trials: usize) -> YieldRow {
@@ -286,6 +420,8 @@ fn yield_row(limit: String, passed: usize, trials: usize) -> YieldRow {
         trials,
         fraction: p,
         stderr: (p * (1.0 - p) / trials.max(1) as f64).sqrt(),
+        ci95: wilson95(passed, trials),
+        optical: None,
     }
 }
 
@@ -318,6 +454,11 @@ pub struct Analysis {
     pub tails: Vec<summaries::TailRow>,
     /// Each compensator's settled moves: mean, SD, extremes, how often at a bound.
     pub compensators: Vec<summaries::CompensatorRow>,
+    /// The tolerances that cause the failing trials, most first (`summaries::failure_causes`;
+    /// empty without the sensitivity table).
+    pub failure_causes: Vec<summaries::FailureCause>,
+    /// The failing good trials (beyond some limit, judged as the yields are).
+    pub failing_trials: usize,
     pub failed_trials: usize,
 }
 
@@ -392,30 +533,41 @@ pub fn analyse(
         });
     }
     let n = records.len();
+    // A limit on the imbalance is judged on the electrical imbalance (ToleranceLimit::value_in),
+    // and again on the optical one beside it.
+    let optical = |r: &TrialRecord, l: &crate::scene::tolerance::ToleranceLimit| {
+        r.value(&l.metric.to_string()).is_some_and(|v| l.holds(v))
+    };
+    let judged = |r: &TrialRecord, l: &crate::scene::tolerance::ToleranceLimit| {
+        l.value_in(r).is_some_and(|v| l.holds(v))
+    };
+    let row = |label: String, holds: &dyn Fn(&TrialRecord) -> bool, opt: &dyn Fn(&TrialRecord) -> bool, on_imbalance: bool| {
+        let mut y = yield_row(label.clone(), ok.iter().filter(|r| holds(r)).count(), n);
+        if on_imbalance {
+            let o = ok.iter().filter(|r| opt(r)).count();
+            y.optical = Some(Box::new(yield_row(format!("{label}, optical"), o, n)));
+        }
+        y
+    };
     let mut yields: Vec<YieldRow> = set
         .limits
         .iter()
         .map(|l| {
-            let name = l.metric.to_string();
-            let passed = ok
-                .iter()
-                .filter(|r| r.value(&name).is_some_and(|v| l.holds(v)))
-                .count();
-            yield_row(l.describe(), passed, n)
+            row(
+                l.describe(),
+                &|r| judged(r, l),
+                &|r| optical(r, l),
+                l.is_on_imbalance(),
+            )
         })
         .collect();
     if set.limits.len() > 1 {
-        let names: Vec<String> = set.limits.iter().map(|l| l.metric.to_string()).collect();
-        let passed = ok
-            .iter()
-            .filter(|r| {
-                set.limits
-                    .iter()
-                    .zip(&names)
-                    .all(|(l, name)| r.value(name).is_some_and(|v| l.holds(v)))
-            })
-            .count();
-        yields.push(yield_row("all limits".into(), passed, n));
+        yields.push(row(
+            "all limits".into(),
+            &|r| set.limits.iter().all(|l| judged(r, l)),
+            &|r| set.limits.iter().all(|l| optical(r, l)),
+            set.limits.iter().any(|l| l.is_on_imbalance()),
+        ));
     }
     let mut quality_yields = Vec::new();
     if let (Some(q), Some(first)) = (set.quality, ok.first()) {
@@ -482,6 +634,13 @@ pub fn analyse(
         rss,
         tails,
         compensators: summaries::compensators(&set.compensators, &ok),
+        failure_causes: sensitivity.map_or_else(Vec::new, |sens| {
+            summaries::failure_causes(&set.tolerances, &set.limits, &ok, sens)
+        }),
+        failing_trials: ok
+            .iter()
+            .filter(|r| !set.limits.iter().all(|l| judged(r, l)))
+            .count(),
         failed_trials: records.len() - ok.len(),
     }
 }
@@ -610,7 +769,10 @@ pub fn is_value_name(name: &str) -> bool {
         .iter()
         .find_map(|s| name.strip_suffix(s))
         .unwrap_or(name);
-    if base.parse::<Quantity>().is_ok_and(|q| q.is_traced()) || name == "arrivals" {
+    if base.parse::<Quantity>().is_ok_and(|q| q.is_traced())
+        || name == "arrivals"
+        || base == IMBALANCE_ELECTRICAL
+    {
         return true;
     }
     ImageScore::split(name)

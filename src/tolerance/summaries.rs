@@ -160,6 +160,26 @@ pub struct CompensatorRow {
     pub at_max: usize,
     /// (at_min + at_max) / trials: how often the compensator ran out of range.
     pub at_bound_fraction: f64,
+    /// Each trial that ended at a bound, with the travel it would need (trial order).
+    pub short: Vec<ShortTravel>,
+}
+
+/// One trial whose compensator ran out of travel.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ShortTravel {
+    pub trial: u64,
+    /// The deviation it settled at, at a bound.
+    pub settled: f64,
+    /// The deviation a wider range settles at (NaN where that adjustment failed).
+    pub needed: f64,
+    /// The wider range was not enough either: `needed` is a lower bound.
+    pub beyond: bool,
+}
+
+/// Whether a compensator's settled deviation `v` lies at a bound of its range.
+pub fn at_bound(c: &Compensator, v: f64) -> bool {
+    let tol = AT_BOUND_FRACTION * (c.max - c.min).abs();
+    v <= c.min + tol || v >= c.max - tol
 }
 
 /// The compensators' moves over the good trials.
@@ -181,6 +201,20 @@ pub fn compensators(set: &[Compensator], ok: &[&TrialRecord]) -> Vec<Compensator
             let tol = AT_BOUND_FRACTION * (c.max - c.min).abs();
             let at_min = v.iter().filter(|&&x| x <= c.min + tol).count();
             let at_max = v.iter().filter(|&&x| x >= c.max - tol).count();
+            let short = ok
+                .iter()
+                .flat_map(|r| {
+                    r.needed_travel
+                        .iter()
+                        .filter(|t| t.path == c.path)
+                        .map(|t| ShortTravel {
+                            trial: r.index,
+                            settled: t.settled,
+                            needed: t.needed,
+                            beyond: t.beyond,
+                        })
+                })
+                .collect();
             Some(CompensatorRow {
                 path: c.path.clone(),
                 min: c.min,
@@ -193,9 +227,85 @@ pub fn compensators(set: &[Compensator], ok: &[&TrialRecord]) -> Vec<Compensator
                 at_min,
                 at_max,
                 at_bound_fraction: (at_min + at_max) as f64 / n,
+                short,
             })
         })
         .collect()
+}
+
+/// How many failing trials one tolerance is the leading cause of.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct FailureCause {
+    pub path: String,
+    /// Failing trials (good trials beyond a limit) in which this tolerance's predicted share of
+    /// the failing metric's change is the largest.
+    pub failures: usize,
+    /// A device specification (`fixed: true`): it cannot be tightened.
+    pub fixed: bool,
+}
+
+/// The recorded name whose change the sensitivity table holds for a limit: the electrical
+/// imbalance for a limit on the imbalance (the yield judges it so), else the limit's metric.
+fn change_name(l: &ToleranceLimit) -> String {
+    if l.is_on_imbalance() {
+        crate::scene::tolerance::IMBALANCE_ELECTRICAL.to_string()
+    } else {
+        l.metric.to_string()
+    }
+}
+
+/// Which tolerances cause the failures: in each good trial that fails a limit, every
+/// tolerance's predicted change of the failing metric is its secant slope across the
+/// sensitivity table's row times the trial's deviation ((m(max) − m(min))/(max − min) · δ, the
+/// RSS's linear model), and the tolerance with the largest |change| is that failure's cause.
+/// Tolerances causing at least one failure, most failures first (ties in file order). Limits on
+/// a metric the sensitivity table does not hold (image scores) attribute nothing.
+pub fn failure_causes(
+    tolerances: &[crate::scene::tolerance::Tolerance],
+    limits: &[ToleranceLimit],
+    ok: &[&TrialRecord],
+    sens: &[SensitivityRecord],
+) -> Vec<FailureCause> {
+    let mut counts = vec![0usize; tolerances.len()];
+    for r in ok {
+        for l in limits {
+            if l.value_in(r).is_some_and(|v| l.holds(v)) {
+                continue;
+            }
+            let d = format!("{}_diff", change_name(l));
+            let change = |i: usize| -> f64 {
+                let t = &tolerances[i];
+                let Some(row) = sens.iter().find(|s| s.path == t.path) else {
+                    return 0.0;
+                };
+                let width = row.max - row.min;
+                let dev = r.deviations.get(i).map_or(0.0, |(_, v)| *v);
+                let c = (row.at(true, &d) - row.at(false, &d)) / width * dev;
+                if c.is_finite() { c.abs() } else { 0.0 }
+            };
+            let lead = (0..tolerances.len())
+                .map(|i| (i, change(i)))
+                .filter(|(_, c)| *c > 0.0)
+                .max_by(|a, b| a.1.total_cmp(&b.1).then(b.0.cmp(&a.0)));
+            if let Some((i, _)) = lead {
+                counts[i] += 1;
+            }
+            // One cause per failing trial: its first failing limit.
+            break;
+        }
+    }
+    let mut out: Vec<FailureCause> = tolerances
+        .iter()
+        .zip(counts)
+        .filter(|(_, n)| *n > 0)
+        .map(|(t, failures)| FailureCause {
+            path: t.path.clone(),
+            failures,
+            fixed: t.is_fixed(),
+        })
+        .collect();
+    out.sort_by(|a, b| b.failures.cmp(&a.failures));
+    out
 }
 
 /// Histogram bins for `n` sorted values: the Freedman–Diaconis width 2·IQR·n^(−1/3) (Freedman
@@ -354,6 +464,7 @@ mod tests {
             compensators: vec![("d.x".into(), v)],
             values: Vec::new(),
             error: None,
+            needed_travel: Vec::new(),
         };
         let recs = [rec(-1.0), rec(0.2), rec(1.0), rec(0.99)];
         let ok: Vec<&TrialRecord> = recs.iter().collect();
@@ -390,6 +501,7 @@ mod tests {
             compensators: Vec::new(),
             values: vec![("imbalance".into(), v), ("k_prime".into(), 1.0 + v)],
             error: None,
+            needed_travel: Vec::new(),
         };
         let recs: Vec<TrialRecord> = (0..101).map(|i| rec((i as f64 - 50.0) / 1000.0)).collect();
         let ok: Vec<&TrialRecord> = recs.iter().collect();

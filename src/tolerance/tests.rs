@@ -42,7 +42,7 @@ fn zero_tolerances_reproduce_the_nominal_bench_exactly() {
     assert!(dev.iter().all(|(_, v)| *v == 0.0));
     assert_eq!(d.file, doc.file);
     let (r, _) = trial(&doc, &s, &nominal, &o, 5).unwrap();
-    assert_eq!(r.values, values(&nominal, &nominal));
+    assert_eq!(r.values, recorded((&doc, &nominal), (&doc, &nominal)));
     for name in [
         "imbalance_diff",
         "k_prime_diff",
@@ -132,7 +132,7 @@ fn a_trial_rebuilt_from_ron_traces_identically() {
     let text = d.to_ron().unwrap();
     let back = BenchDoc::parse(&text, Path::new("trial_3.ron")).unwrap();
     let p = evaluate(&back, Vec::new(), &o.with_quality(false)).unwrap();
-    assert_eq!(values(&p, &nom), rec.values);
+    assert_eq!(recorded((&back, &p), (&doc, &nom)), rec.values);
 }
 
 #[test]
@@ -167,6 +167,94 @@ fn percentiles_and_yields() {
     let y = yield_row("x".into(), 3, 4);
     assert_eq!(y.fraction, 0.75);
     assert!((y.stderr - (0.75f64 * 0.25 / 4.0).sqrt()).abs() < 1e-15);
+    // Wilson 95 % interval of 3 of 4: 0.3006 … 0.9544 (Newcombe 1998, method 3); of 20 of
+    // 20: 0.8389 … 1, where p ± 1.96·SE would have no width.
+    let [lo, hi] = y.ci95;
+    assert!((lo - 0.3006).abs() < 1e-4 && (hi - 0.9544).abs() < 1e-4, "{lo} {hi}");
+    let [lo, hi] = wilson95(20, 20);
+    assert!((lo - 0.8389).abs() < 1e-4 && hi == 1.0, "{lo} {hi}");
+}
+
+/// The electrical imbalance a trial records equals the optical one when the diodes are
+/// matched, and moves by their responsivity mismatch otherwise, in closed form: with
+/// r = s₊/s₋, ι′ = (r(1 + ι) − (1 − ι))/(r(1 + ι) + (1 − ι)). The responsivity does not
+/// enter the trace, so both benches have the same optical ι (common random numbers).
+#[test]
+fn the_electrical_imbalance_moves_by_the_responsivity_mismatch() {
+    let doc = symmetric();
+    let o = opts(7);
+    let nom = nominal(&doc, &o).unwrap();
+    let v = recorded((&doc, &nom), (&doc, &nom));
+    let get = |v: &[(String, f64)], k: &str| value_of(v, k);
+    let iota = get(&v, "imbalance");
+    assert!(iota != 0.0);
+    let s = crate::scene::run::detector_si(&doc.file.electronics.detector)
+        .unwrap()
+        .responsivity_scale;
+    assert_eq!(s[0], s[1], "the test bench has matched diodes");
+    assert_eq!(get(&v, IMBALANCE_ELECTRICAL), iota);
+    assert_eq!(get(&v, &format!("{IMBALANCE_ELECTRICAL}_diff")), 0.0);
+    let path = "electronics.detector.responsivity_scale_minus";
+    let s_minus = 0.98 * doc.get(path).unwrap();
+    let mismatched = doc.with(&[(path.to_string(), s_minus)]).unwrap();
+    let p = evaluate(&mismatched, Vec::new(), &o).unwrap();
+    let w = recorded((&mismatched, &p), (&doc, &nom));
+    assert_eq!(get(&w, "imbalance"), iota, "the optical imbalance moved");
+    let r = s[0] / s_minus;
+    let closed = (r * (1.0 + iota) - (1.0 - iota)) / (r * (1.0 + iota) + (1.0 - iota));
+    let e = get(&w, IMBALANCE_ELECTRICAL);
+    assert!((e - closed).abs() <= 1e-15, "{e} vs {closed}");
+    // To first order the mismatch (s₊ − s₋)/(s₊ + s₋) = 0.02/1.98 adds to ι.
+    assert!((e - iota - 0.02 / 1.98).abs() < 1e-3, "{e} {iota}");
+    // The yield judges a limit on the imbalance electrically, the optical one beside it: a
+    // limit between the two passes optically and fails electrically.
+    let limit = (iota.abs() + e.abs()) / 2.0;
+    let set = set(
+        &doc,
+        &format!(
+            "(tolerances: [(path: \"{path}\", range: PlusMinus(0.05))], \
+             limits: [(metric: \"imbalance\", abs_max: {limit})])"
+        ),
+    );
+    let rec = TrialRecord {
+        index: 0,
+        deviations: vec![(path.into(), s_minus - s[1])],
+        compensators: Vec::new(),
+        values: w,
+        error: None,
+        needed_travel: Vec::new(),
+    };
+    let a = analyse(&set, &[rec], None);
+    assert_eq!(a.yields[0].passed, 0);
+    assert_eq!(a.yields[0].optical.as_ref().unwrap().passed, 1);
+    assert_eq!(a.failing_trials, 1);
+}
+
+/// A compensator with too little travel ends a trial at its limit; the trial records the
+/// travel a wider range settles at, beyond the file's.
+#[test]
+fn a_compensator_out_of_travel_records_the_travel_it_would_need() {
+    let doc = symmetric();
+    let s = set(
+        &doc,
+        "(tolerances: [(path: \"detectors.minus.decenter_mm.x\", range: Between(0.5, 0.6))], \
+         compensators: [(path: \"detectors.minus.decenter_mm.x\", range: PlusMinus(0.02), \
+         objective: Balance)], limits: [(metric: \"imbalance\", abs_max: 0.01)])",
+    );
+    let o = opts(8);
+    let nom = nominal(&doc, &o).unwrap();
+    let (rec, _) = trial(&doc, &s, &nom, &o, 0).unwrap();
+    let (_, settled) = &rec.compensators[0];
+    assert!(settled.abs() > 0.019, "not at its limit: {settled}");
+    let t = &rec.needed_travel[0];
+    assert_eq!(t.settled, *settled);
+    assert!(
+        t.needed.abs() > settled.abs() && t.needed.signum() == settled.signum(),
+        "{t:?}"
+    );
+    let a = analyse(&s, &[rec.clone()], None);
+    assert_eq!(a.compensators[0].short.len(), 1);
+    assert_eq!(a.compensators[0].short[0].needed, t.needed);
 }
 
 /// `Resolve`: a row whose imbalance change is not resolved at the run's rays is traced again

@@ -105,10 +105,11 @@ pub fn write(
     if let Some(sens) = &s.sensitivity {
         files.push("sensitivity.csv".into());
         write_sensitivity_csv(sens, out)?;
-        blocks.extend(report::sensitivity_blocks(sens));
+        let tornado = plots::tornado_plot(sens, set, out, &mut files)?;
+        blocks.extend(report::sensitivity_blocks(sens, set, tornado));
     }
     if !s.records.is_empty() {
-        blocks.extend(report::monte_carlo_blocks(&analysis));
+        blocks.extend(report::monte_carlo_blocks(&analysis, set));
         blocks.extend(plots::distribution_plots(
             s, set, &analysis, out, &mut files,
         )?);
@@ -152,6 +153,7 @@ pub fn write(
                 compensators: Row(r.compensators.clone()),
                 values,
                 error: r.error.as_deref(),
+                needed_travel: &r.needed_travel,
             })
             .collect(),
         files: &files,
@@ -173,60 +175,142 @@ pub fn write(
 }
 
 /// The summary card of `tolerance` (from its summary.json as a value): each yield with its
-/// 95 % interval, the five tolerances that move the imbalance most (the sensitivity table's
-/// order), and how often each compensator ran out of travel.
+/// 95 % Wilson interval (a limit on the imbalance judged on the electrical imbalance, the
+/// optical one beside it), the five tolerances that cause most failing trials (or, where none
+/// fails or there is no sensitivity table, that move the imbalance most), the device
+/// specifications that cannot be tightened, and how often each compensator ran out of travel
+/// with the travel it would need.
 pub fn card(summary: &serde_json::Value) -> crate::outputs::card::Card {
-    use crate::outputs::card::{Card, num};
+    use crate::outputs::card::{Card, array_len};
     let mut c = Card::new("summary");
-    for i in 0..crate::outputs::card::array_len(summary, "/analysis/yields") {
+    for i in 0..array_len(summary, "/analysis/yields") {
         let y = format!("/analysis/yields/{i}");
-        let keys = ["limit", "passed", "trials", "fraction", "stderr"].map(|k| format!("{y}/{k}"));
-        c.line(summary, "yield", &keys, |v| {
-            let (f, se) = (num(&v[3]), num(&v[4]));
-            let ci = if f.is_finite() && se.is_finite() {
-                format!(
-                    ", 95 % interval [{:.2}, {:.2}]",
-                    (f - 1.96 * se).max(0.0),
-                    (f + 1.96 * se).min(1.0)
-                )
-            } else {
-                String::new()
-            };
+        let mut keys: Vec<String> = ["limit", "passed", "trials", "fraction", "ci95"]
+            .map(|k| format!("{y}/{k}"))
+            .to_vec();
+        keys.extend(["passed", "fraction"].map(|k| format!("{y}/optical/{k}")));
+        c.line(summary, "yield", &keys, yield_text);
+    }
+    card_causes(&mut c, summary);
+    let fixed: Vec<String> = (0..array_len(summary, "/tolerances"))
+        .filter(|i| summary.pointer(&format!("/tolerances/{i}/fixed")) == Some(&true.into()))
+        .map(|i| format!("/tolerances/{i}/path"))
+        .collect();
+    if !fixed.is_empty() {
+        c.line(summary, "cannot be tightened", &fixed, |v| {
             format!(
-                "{}: {} of {} trials ({:.2}{ci})",
-                v[0].as_str().unwrap_or(""),
-                v[1],
-                v[2],
-                f
+                "{} (device specifications, `fixed` in the tolerance file)",
+                names(v).join(", ")
             )
         });
     }
-    let top = crate::outputs::card::array_len(summary, "/sensitivity").min(5);
-    if top > 0 {
-        let keys: Vec<String> = (0..top).map(|i| format!("/sensitivity/{i}/path")).collect();
-        c.line(summary, "most imbalance from", &keys, |v| {
-            v.iter()
-                .filter_map(|p| p.as_str())
-                .collect::<Vec<_>>()
-                .join(", ")
-        });
-    }
-    for i in 0..crate::outputs::card::array_len(summary, "/analysis/compensators") {
+    for i in 0..array_len(summary, "/analysis/compensators") {
         let m = format!("/analysis/compensators/{i}");
-        let keys = ["path", "at_min", "at_max", "trials", "min", "max"].map(|k| format!("{m}/{k}"));
-        c.line(summary, "compensator", &keys, |v| {
-            let at = v[1].as_u64().unwrap_or(0) + v[2].as_u64().unwrap_or(0);
-            format!(
-                "{}: at its travel limit ({} … {}) in {at} of {} trials{}",
-                v[0].as_str().unwrap_or(""),
-                v[4],
-                v[5],
-                v[3],
-                if at > 0 { " ⚠" } else { "" }
-            )
-        });
+        let keys = ["path", "at_min", "at_max", "trials", "min", "max", "short"]
+            .map(|k| format!("{m}/{k}"));
+        c.line(summary, "compensator", &keys, compensator_text);
     }
     c
+}
+
+/// The string values of `v`, in order.
+fn names(v: &[serde_json::Value]) -> Vec<&str> {
+    v.iter().filter_map(|p| p.as_str()).collect()
+}
+
+/// "|imbalance| ≤ 0.01, electrical: 12 of 20 trials (0.60, 95 % interval 0.39 … 0.78);
+/// optical: 15 of 20 (0.75)".
+fn yield_text(v: &[serde_json::Value]) -> String {
+    use crate::outputs::card::num;
+    let ci = v[4]
+        .as_array()
+        .filter(|a| a.len() == 2)
+        .map_or_else(String::new, |a| {
+            format!(", 95 % interval {:.2} … {:.2}", num(&a[0]), num(&a[1]))
+        });
+    let head = format!(
+        "{}{}: {} of {} trials ({:.2}{ci})",
+        v[0].as_str().unwrap_or(""),
+        if v[5].is_null() { "" } else { ", electrical" },
+        v[1],
+        v[2],
+        num(&v[3])
+    );
+    if v[5].is_null() {
+        head
+    } else {
+        format!("{head}; optical: {} of {} ({:.2})", v[5], v[2], num(&v[6]))
+    }
+}
+
+/// The card's line of the tolerances that cause most failures (the five first), or that move
+/// the imbalance most where nothing failed or there is no sensitivity table.
+fn card_causes(c: &mut crate::outputs::card::Card, summary: &serde_json::Value) {
+    use crate::outputs::card::array_len;
+    let causes = array_len(summary, "/analysis/failure_causes").min(5);
+    if causes > 0 {
+        let mut keys = vec!["/analysis/failing_trials".to_string()];
+        for i in 0..causes {
+            let f = format!("/analysis/failure_causes/{i}");
+            keys.extend(["path", "failures", "fixed"].map(|k| format!("{f}/{k}")));
+        }
+        c.line(summary, "most failures from", &keys, |v| {
+            let list: Vec<String> = v[1..]
+                .chunks(3)
+                .map(|t| {
+                    format!(
+                        "{} {}{}",
+                        t[0].as_str().unwrap_or(""),
+                        t[1],
+                        if t[2] == true { " (fixed: cannot be tightened)" } else { "" }
+                    )
+                })
+                .collect();
+            format!("{} (of {} failing trials)", list.join(", "), v[0])
+        });
+        return;
+    }
+    let top = array_len(summary, "/sensitivity").min(5);
+    if top > 0 {
+        let keys: Vec<String> = (0..top).map(|i| format!("/sensitivity/{i}/path")).collect();
+        c.line(summary, "most imbalance from", &keys, |v| names(v).join(", "));
+    }
+}
+
+/// "d.x: at its travel limit (−1.5 … 1.5) in 5 of 8 trials ⚠; would need −2.1 … +2.4 (trials
+/// 0, 2, 3, 5, 7)".
+fn compensator_text(v: &[serde_json::Value]) -> String {
+    use crate::outputs::card::num;
+    let at = v[1].as_u64().unwrap_or(0) + v[2].as_u64().unwrap_or(0);
+    let mut text = format!(
+        "{}: at its travel limit ({} … {}) in {at} of {} trials{}",
+        v[0].as_str().unwrap_or(""),
+        v[4],
+        v[5],
+        v[3],
+        if at > 0 { " ⚠" } else { "" }
+    );
+    let short = v[6].as_array().map_or(&[][..], Vec::as_slice);
+    if !short.is_empty() {
+        let needs: Vec<String> = short
+            .iter()
+            .map(|s| {
+                let n = num(&s["needed"]);
+                format!(
+                    "trial {}: {}{}",
+                    s["trial"],
+                    if n.is_finite() {
+                        format!("{n:+.3}")
+                    } else {
+                        "no valid wider adjustment".into()
+                    },
+                    if s["beyond"] == true { " or more" } else { "" }
+                )
+            })
+            .collect();
+        text += &format!("; the travel it would need: {}", needs.join(", "));
+    }
+    text
 }
 
 /// `trials.csv`: index, deviations, compensators, each trial's metric row, error.
@@ -361,6 +445,8 @@ struct TrialSummary<'a> {
     compensators: Row,
     values: Row,
     error: Option<&'a str>,
+    /// The compensators at a limit of their travel, with the travel they would need.
+    needed_travel: &'a [crate::scene::tolerance::NeededTravel],
 }
 
 /// `trial_K.ron` of `--trial K`: the bench of trial `k` (perturbed and compensated) as RON,

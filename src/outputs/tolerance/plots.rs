@@ -6,7 +6,7 @@ use crate::report::output::OutputDir;
 use crate::report::plot::{
     Band, BandAxis, LinePlot, Markers, PlotOptions, Series, write_plot_with,
 };
-use crate::scene::tolerance::{ShardFile, ToleranceSet};
+use crate::scene::tolerance::{SensitivityRecord, ShardFile, ToleranceSet};
 use crate::tolerance::Analysis;
 
 /// The limits of the file (and the quality limit) on `metric` as shaded bands of the values
@@ -238,4 +238,70 @@ pub(super) fn distribution_plots(
         }
     }
     Ok(figs)
+}
+
+/// The tornado chart of the sensitivity table (`tornado.svg`, `.png`, `.pdf`): each tolerance's
+/// change of the electrical imbalance ι′ and of k′ at its min and at its max, with ±1 paired
+/// standard error, the tolerances ordered by their largest |Δι′|, largest at the top; fixed
+/// tolerances (device specifications) marked. None for an empty table.
+pub(super) fn tornado_plot(
+    sens: &[SensitivityRecord],
+    set: &ToleranceSet,
+    out: &OutputDir,
+    files: &mut Vec<String>,
+) -> crate::Result<Option<Block>> {
+    use crate::report::plot::{Tornado, TornadoPanel, write_tornado};
+    if sens.is_empty() {
+        return Ok(None);
+    }
+    let e = crate::scene::tolerance::IMBALANCE_ELECTRICAL;
+    let bar = |r: &SensitivityRecord, m: &str| {
+        [false, true].map(|high| {
+            [
+                r.at(high, &format!("{m}_diff")),
+                r.at(high, &format!("{m}_diff_stderr")),
+            ]
+        })
+    };
+    let size = |r: &SensitivityRecord| {
+        let b = bar(r, e);
+        let m = b[0][0].abs().max(b[1][0].abs());
+        if m.is_nan() { 0.0 } else { m }
+    };
+    let mut rows: Vec<&SensitivityRecord> = sens.iter().collect();
+    // Stable: equal changes keep the table's order.
+    rows.sort_by(|a, b| size(b).total_cmp(&size(a)));
+    let tornado = Tornado {
+        rows: rows
+            .iter()
+            .map(|r| {
+                let fixed = set.tolerances.iter().any(|t| t.path == r.path && t.is_fixed());
+                format!("{}{}", r.path, if fixed { " (fixed)" } else { "" })
+            })
+            .collect(),
+        panels: vec![
+            TornadoPanel {
+                x_label: "Δ imbalance ι′ (electrical)".into(),
+                bars: rows.iter().map(|r| bar(r, e)).collect(),
+            },
+            TornadoPanel {
+                x_label: "Δ k′ (A/W)".into(),
+                bars: rows.iter().map(|r| bar(r, "k_prime")).collect(),
+            },
+        ],
+        ends: ["tolerance at its min".into(), "at its max".into()],
+    };
+    let (svg, png) = ("tornado.svg".to_string(), "tornado.png".to_string());
+    write_tornado(&tornado, &out.path(&svg), &out.path(&png))?;
+    let text = std::fs::read_to_string(out.path(&svg))
+        .map_err(|e| crate::Error::read(&out.path(&svg), e))?;
+    files.extend([svg, png]);
+    Ok(Some(Block::Svg {
+        caption: "Tornado chart of the sensitivity table: the change of the electrical \
+                  imbalance ι′ (left) and of k′ (right) with each tolerance alone at its min and \
+                  at its max, whiskers ±1 paired standard error; largest |Δι′| at the top; \
+                  (fixed): a device specification, which cannot be tightened"
+            .into(),
+        svg: text,
+    }))
 }

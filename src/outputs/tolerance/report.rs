@@ -5,8 +5,61 @@ use crate::report::html::Block;
 use crate::scene::tolerance::{SensitivityRecord, ShardFile, ToleranceSet};
 use crate::tolerance::{Analysis, SENSITIVITY_METRICS};
 
-fn pm(v: f64, se: f64) -> String {
-    format!("{v:+.3e} ± {se:.1e}")
+/// `value ± stderr` in engineering notation: one power of ten that is a multiple of 3 for
+/// both, the standard error to two significant digits and the value to the same place
+/// ("(−814.6 ± 2.5)×10⁻³"); without a finite standard error, the value to four digits.
+pub(super) fn pm(v: f64, se: f64) -> String {
+    if !v.is_finite() {
+        return "–".into();
+    }
+    let mag = if v != 0.0 {
+        v.abs()
+    } else if se.is_finite() && se > 0.0 {
+        se
+    } else {
+        return "0".into();
+    };
+    let e3 = 3 * (mag.log10().floor() as i32).div_euclid(3);
+    let scale = 10f64.powi(e3);
+    let (m, ms) = (v / scale, se / scale);
+    let body = if ms.is_finite() && ms > 0.0 {
+        let d = (1 - ms.log10().floor() as i32).clamp(0, 6) as usize;
+        format!("{m:+.d$} ± {ms:.d$}")
+    } else {
+        let d = (3 - m.abs().log10().floor() as i32).clamp(0, 6) as usize;
+        format!("{m:+.d$}")
+    };
+    let body = body.replace('-', "−");
+    if e3 == 0 {
+        body
+    } else {
+        format!("({body})×10{}", superscript(e3))
+    }
+}
+
+/// An exponent in superscript digits ("⁻³").
+fn superscript(e: i32) -> String {
+    let digits = ['⁰', '¹', '²', '³', '⁴', '⁵', '⁶', '⁷', '⁸', '⁹'];
+    let mut s: String = e
+        .unsigned_abs()
+        .to_string()
+        .chars()
+        .map(|c| digits[c.to_digit(10).unwrap_or(0) as usize])
+        .collect();
+    if e < 0 {
+        s.insert(0, '⁻');
+    }
+    s
+}
+
+/// A tolerance's name in the report: its path, and "(fixed: cannot be tightened)" for a
+/// device specification.
+pub(super) fn tolerance_name(set: &ToleranceSet, path: &str) -> String {
+    if set.tolerances.iter().any(|t| t.path == path && t.is_fixed()) {
+        format!("{path} (fixed: cannot be tightened)")
+    } else {
+        path.to_string()
+    }
 }
 
 /// The report's opening paragraph: what was traced, how often, and how many trials failed.
@@ -38,24 +91,32 @@ pub(super) fn intro_block(s: &ShardFile, set: &ToleranceSet, analysis: &Analysis
     ))
 }
 
-/// The sensitivity table of the report.
-pub(super) fn sensitivity_blocks(sens: &[SensitivityRecord]) -> Vec<Block> {
+/// The sensitivity table of the report (after its tornado chart, `tornado`).
+pub(super) fn sensitivity_blocks(
+    sens: &[SensitivityRecord],
+    set: &ToleranceSet,
+    tornado: Option<Block>,
+) -> Vec<Block> {
     let mut blocks = Vec::new();
     blocks.push(Block::Heading {
         level: 2,
         text: "Sensitivity".into(),
     });
+    blocks.extend(tornado);
     blocks.push(Block::Table {
         caption: Some(
             "Each tolerance alone at its min / max: change from the nominal bench ± its \
-             paired standard error, sorted by the largest |Δ imbalance|; the rays of the \
-             row's traces (more than the run's where --resolve asked for them)"
+             paired standard error, in engineering notation, sorted by the largest |Δ \
+             imbalance| (optical); ι′ is the electrical imbalance, the diodes' responsivity \
+             mismatch included; the rays of the row's traces (more than the run's where \
+             --resolve asked for them)"
                 .into(),
         ),
         header: [
             "tolerance",
             "range",
             "rays",
+            "Δ ι′ (electrical)",
             "Δ imbalance",
             "Δ k' (A/W)",
             "Δ(b₋ − b₊) (A)",
@@ -69,10 +130,19 @@ pub(super) fn sensitivity_blocks(sens: &[SensitivityRecord]) -> Vec<Block> {
             .iter()
             .flat_map(|r| {
                 [false, true].map(|high| {
+                    let e = crate::scene::tolerance::IMBALANCE_ELECTRICAL;
                     let mut row = vec![
-                        if high { String::new() } else { r.path.clone() },
+                        if high {
+                            String::new()
+                        } else {
+                            tolerance_name(set, &r.path)
+                        },
                         format!("{}", if high { r.max } else { r.min }),
                         r.rays[usize::from(high)].to_string(),
+                        pm(
+                            r.at(high, &format!("{e}_diff")),
+                            r.at(high, &format!("{e}_diff_stderr")),
+                        ),
                     ];
                     for m in SENSITIVITY_METRICS {
                         row.push(pm(
@@ -88,8 +158,9 @@ pub(super) fn sensitivity_blocks(sens: &[SensitivityRecord]) -> Vec<Block> {
     blocks
 }
 
-/// The Monte Carlo tables of the report: percentiles, yields, RSS against Monte Carlo.
-pub(super) fn monte_carlo_blocks(analysis: &Analysis) -> Vec<Block> {
+/// The Monte Carlo tables of the report: percentiles, yields, the causes of the failures, RSS
+/// against Monte Carlo.
+pub(super) fn monte_carlo_blocks(analysis: &Analysis, set: &ToleranceSet) -> Vec<Block> {
     let mut blocks = Vec::new();
     blocks.push(Block::Heading {
         level: 2,
@@ -139,37 +210,56 @@ pub(super) fn monte_carlo_blocks(analysis: &Analysis) -> Vec<Block> {
             })
             .collect(),
     });
+    let yield_cells = |y: &crate::tolerance::YieldRow| {
+        vec![
+            format!("{}/{}", y.passed, y.trials),
+            format!("{:.1} % ± {:.1} %", 100.0 * y.fraction, 100.0 * y.stderr),
+            format!("{:.1} … {:.1} %", 100.0 * y.ci95[0], 100.0 * y.ci95[1]),
+        ]
+    };
     let mut yrows: Vec<Vec<String>> = analysis
         .yields
         .iter()
         .map(|y| {
-            vec![
-                y.limit.clone(),
-                format!("{}/{}", y.passed, y.trials),
-                format!("{:.1} % ± {:.1} %", 100.0 * y.fraction, 100.0 * y.stderr),
-            ]
+            let mut r = vec![y.limit.clone()];
+            r.extend(yield_cells(y));
+            r.push(y.optical.as_ref().map_or_else(
+                || "–".into(),
+                |o| format!("{}/{} ({:.1} %)", o.passed, o.trials, 100.0 * o.fraction),
+            ));
+            r
         })
         .collect();
     yrows.extend(analysis.quality_yields.iter().map(|(scheme, y)| {
-        vec![
-            format!("{scheme}: {}", y.limit),
-            format!("{}/{}", y.passed, y.trials),
-            format!("{:.1} % ± {:.1} %", 100.0 * y.fraction, 100.0 * y.stderr),
-        ]
+        let mut r = vec![format!("{scheme}: {}", y.limit)];
+        r.extend(yield_cells(y));
+        r.push("–".into());
+        r
     }));
     if !yrows.is_empty() {
         blocks.push(Block::Table {
             caption: Some(
                 "Yield: the fraction of trials meeting each limit (± binomial standard \
-                 error); image quality per scheme side by side"
+                 error; the 95 % Wilson interval). A limit on the imbalance is judged on the \
+                 electrical imbalance ι′ = (s₊k₊ − s₋k₋)/(s₊k₊ + s₋k₋), what the balanced \
+                 detector's difference output sees with the diodes' responsivity mismatch; \
+                 the same limit on the optical imbalance (k₊ − k₋)/(k₊ + k₋) is beside it. \
+                 Image quality per scheme side by side"
                     .into(),
             ),
-            header: ["limit", "trials passing", "yield"]
-                .map(String::from)
-                .to_vec(),
+            header: [
+                "limit",
+                "trials passing",
+                "yield",
+                "95 % interval",
+                "on the optical imbalance",
+            ]
+            .map(String::from)
+            .to_vec(),
             rows: yrows,
         });
     }
+    blocks.extend(causes_block(analysis, set));
     blocks.extend(tail_block(analysis));
     blocks.extend(compensator_block(analysis));
     if !analysis.rss.is_empty() {
@@ -217,6 +307,36 @@ pub(super) fn monte_carlo_blocks(analysis: &Analysis) -> Vec<Block> {
         });
     }
     blocks
+}
+
+/// The tolerances that cause the failing trials (`summaries::failure_causes`).
+fn causes_block(analysis: &Analysis, set: &ToleranceSet) -> Option<Block> {
+    if analysis.failure_causes.is_empty() {
+        return None;
+    }
+    Some(Block::Table {
+        caption: Some(format!(
+            "What causes the {} failing trials: in each, the tolerance whose predicted change \
+             of the failing metric (its secant slope across the sensitivity table times the \
+             trial's deviation, the RSS's linear model; the electrical imbalance for a limit \
+             on the imbalance) is the largest. A fixed tolerance is a device specification: it \
+             cannot be tightened, so its failures call for a compensator or a wider limit",
+            analysis.failing_trials
+        )),
+        header: ["tolerance", "failing trials it leads"]
+            .map(String::from)
+            .to_vec(),
+        rows: analysis
+            .failure_causes
+            .iter()
+            .map(|c| {
+                vec![
+                    tolerance_name(set, &c.path),
+                    format!("{} of {}", c.failures, analysis.failing_trials),
+                ]
+            })
+            .collect(),
+    })
 }
 
 /// A metric's unit for the report (the leaks as bounded fractions).
@@ -299,8 +419,11 @@ fn compensator_block(analysis: &Analysis) -> Option<Block> {
         caption: Some(format!(
             "Compensator moves over the trials (from the value after the tolerances are \
              applied); at a bound: within {} of the range of min or max, where the compensator \
-             ran out of travel",
-            crate::tolerance::summaries::AT_BOUND_FRACTION
+             ran out of travel; for those trials, the deviation the same adjustment settles at \
+             when its range is {}× as wide about its centre (\"or more\": at that wider bound \
+             too)",
+            crate::tolerance::summaries::AT_BOUND_FRACTION,
+            crate::tolerance::WIDER_TRAVEL
         )),
         header: [
             "compensator",
@@ -311,6 +434,7 @@ fn compensator_block(analysis: &Analysis) -> Option<Block> {
             "highest",
             "at min / at max",
             "at a bound",
+            "travel it would need (trial: deviation)",
         ]
         .map(String::from)
         .to_vec(),
@@ -327,6 +451,26 @@ fn compensator_block(analysis: &Analysis) -> Option<Block> {
                     format!("{:+.4e}", c.highest),
                     format!("{} / {}", c.at_min, c.at_max),
                     format!("{:.1} % of {}", 100.0 * c.at_bound_fraction, c.trials),
+                    if c.short.is_empty() {
+                        "–".into()
+                    } else {
+                        c.short
+                            .iter()
+                            .map(|t| {
+                                format!(
+                                    "{}: {}{}",
+                                    t.trial,
+                                    if t.needed.is_finite() {
+                                        format!("{:+.4e}", t.needed)
+                                    } else {
+                                        "no valid wider adjustment".into()
+                                    },
+                                    if t.beyond { " or more" } else { "" }
+                                )
+                            })
+                            .collect::<Vec<_>>()
+                            .join(", ")
+                    },
                 ]
             })
             .collect(),
