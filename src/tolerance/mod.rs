@@ -541,7 +541,10 @@ pub fn analyse(
     let judged = |r: &TrialRecord, l: &crate::scene::tolerance::ToleranceLimit| {
         l.value_in(r).is_some_and(|v| l.holds(v))
     };
-    let row = |label: String, holds: &dyn Fn(&TrialRecord) -> bool, opt: &dyn Fn(&TrialRecord) -> bool, on_imbalance: bool| {
+    let row = |label: String,
+               holds: &dyn Fn(&TrialRecord) -> bool,
+               opt: &dyn Fn(&TrialRecord) -> bool,
+               on_imbalance: bool| {
         let mut y = yield_row(label.clone(), ok.iter().filter(|r| holds(r)).count(), n);
         if on_imbalance {
             let o = ok.iter().filter(|r| opt(r)).count();

@@ -170,7 +170,10 @@ fn percentiles_and_yields() {
     // Wilson 95 % interval of 3 of 4: 0.3006 … 0.9544 (Newcombe 1998, method 3); of 20 of
     // 20: 0.8389 … 1, where p ± 1.96·SE would have no width.
     let [lo, hi] = y.ci95;
-    assert!((lo - 0.3006).abs() < 1e-4 && (hi - 0.9544).abs() < 1e-4, "{lo} {hi}");
+    assert!(
+        (lo - 0.3006).abs() < 1e-4 && (hi - 0.9544).abs() < 1e-4,
+        "{lo} {hi}"
+    );
     let [lo, hi] = wilson95(20, 20);
     assert!((lo - 0.8389).abs() < 1e-4 && hi == 1.0, "{lo} {hi}");
 }
@@ -184,7 +187,9 @@ fn the_electrical_imbalance_moves_by_the_responsivity_mismatch() {
     let doc = symmetric();
     let o = opts(7);
     let path = "electronics.detector.responsivity_scale_minus";
-    let plus = doc.get("electronics.detector.responsivity_scale_plus").unwrap();
+    let plus = doc
+        .get("electronics.detector.responsivity_scale_plus")
+        .unwrap();
     // Matched diodes first.
     let doc = doc.with(&[(path.to_string(), plus)]).unwrap();
     let nom = nominal(&doc, &o).unwrap();

@@ -162,5 +162,16 @@ fn printed_tables_fit_100_columns() {
             assert!(text.starts_with(&card.printed().join("\n")), "{text}");
             assert!(text.contains(", moved "), "{text}");
         }
+        // Tolerance's card too: its yields, causes and compensators are summary.json's.
+        if args[0] == "tolerance" {
+            let s: serde_json::Value = serde_json::from_str(
+                &std::fs::read_to_string(std::path::Path::new(&o3).join("summary.json")).unwrap(),
+            )
+            .unwrap();
+            let card = spibench::outputs::tolerance::card(&s);
+            card.check_against(&s).unwrap();
+            assert!(text.starts_with(&card.printed().join("\n")), "{text}");
+            assert!(text.contains("95 % interval"), "{text}");
+        }
     }
 }

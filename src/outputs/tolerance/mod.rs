@@ -262,7 +262,11 @@ fn card_causes(c: &mut crate::outputs::card::Card, summary: &serde_json::Value) 
                         "{} {}{}",
                         t[0].as_str().unwrap_or(""),
                         t[1],
-                        if t[2] == true { " (fixed: cannot be tightened)" } else { "" }
+                        if t[2] == true {
+                            " (fixed: cannot be tightened)"
+                        } else {
+                            ""
+                        }
                     )
                 })
                 .collect();
@@ -273,7 +277,9 @@ fn card_causes(c: &mut crate::outputs::card::Card, summary: &serde_json::Value) 
     let top = array_len(summary, "/sensitivity").min(5);
     if top > 0 {
         let keys: Vec<String> = (0..top).map(|i| format!("/sensitivity/{i}/path")).collect();
-        c.line(summary, "most imbalance from", &keys, |v| names(v).join(", "));
+        c.line(summary, "most imbalance from", &keys, |v| {
+            names(v).join(", ")
+        });
     }
 }
 

@@ -275,7 +275,10 @@ pub(super) fn tornado_plot(
         rows: rows
             .iter()
             .map(|r| {
-                let fixed = set.tolerances.iter().any(|t| t.path == r.path && t.is_fixed());
+                let fixed = set
+                    .tolerances
+                    .iter()
+                    .any(|t| t.path == r.path && t.is_fixed());
                 format!("{}{}", r.path, if fixed { " (fixed)" } else { "" })
             })
             .collect(),

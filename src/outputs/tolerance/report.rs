@@ -55,7 +55,11 @@ fn superscript(e: i32) -> String {
 /// A tolerance's name in the report: its path, and "(fixed: cannot be tightened)" for a
 /// device specification.
 pub(super) fn tolerance_name(set: &ToleranceSet, path: &str) -> String {
-    if set.tolerances.iter().any(|t| t.path == path && t.is_fixed()) {
+    if set
+        .tolerances
+        .iter()
+        .any(|t| t.path == path && t.is_fixed())
+    {
         format!("{path} (fixed: cannot be tightened)")
     } else {
         path.to_string()

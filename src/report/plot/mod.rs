@@ -28,8 +28,8 @@ pub use lines::{
     Area, Band, BandAxis, LinePlot, MARK_EVERY_POINT_UP_TO, Mark, Markers, PLOT_HEIGHT_PX,
     PLOT_WIDTH_PX, PlotOptions, Series, default_size,
 };
-pub use write::{render_svg, render_svg_with, write_plot, write_plot_sized, write_plot_with};
 pub use scope::{SCOPE_PANEL_PX, SCOPE_WIDTH_PX, ScopePlot, scope_svg, write_scope};
 pub use ticks::format_tick;
-pub use tornado::{Tornado, TornadoBar, TornadoPanel, render_tornado_svg, write_tornado};
 pub(crate) use ticks::linear_ticks;
+pub use tornado::{Tornado, TornadoBar, TornadoPanel, render_tornado_svg, write_tornado};
+pub use write::{render_svg, render_svg_with, write_plot, write_plot_sized, write_plot_with};

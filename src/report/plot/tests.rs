@@ -1,7 +1,7 @@
 use super::lines::*;
-use super::write::*;
 use super::scope::*;
 use super::ticks::*;
+use super::write::*;
 use super::*;
 use plotters::prelude::*;
 

@@ -56,7 +56,10 @@ impl Tornado {
 
     fn check(&self) -> Result<()> {
         if self.rows.is_empty() || self.panels.is_empty() {
-            return Err(Error::field("rows", "a tornado chart needs a row and a panel"));
+            return Err(Error::field(
+                "rows",
+                "a tornado chart needs a row and a panel",
+            ));
         }
         for (i, p) in self.panels.iter().enumerate() {
             if p.bars.len() != self.rows.len() {
@@ -180,11 +183,7 @@ fn draw(root: &Area, t: &Tornado) -> std::result::Result<(), String> {
 }
 
 /// Draws one panel and returns the pixel heights (in the figure) of its rows' centres.
-fn draw_panel(
-    area: &Area,
-    p: &TornadoPanel,
-    rows: usize,
-) -> std::result::Result<Vec<i32>, String> {
+fn draw_panel(area: &Area, p: &TornadoPanel, rows: usize) -> std::result::Result<Vec<i32>, String> {
     let x = x_range(p);
     let ticks = linear_ticks(x.start, x.end);
     let style = tick_style(&ticks);

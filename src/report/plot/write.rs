@@ -6,7 +6,9 @@ use std::path::Path;
 
 use plotters::prelude::*;
 
-use super::lines::{BandAxis, LinePlot, PlotOptions, default_size, draw_figure, prepare, prepare_extras};
+use super::lines::{
+    BandAxis, LinePlot, PlotOptions, default_size, draw_figure, prepare, prepare_extras,
+};
 use crate::error::{Error, Result};
 use crate::report::svg::FigureSize;
 
