@@ -307,7 +307,7 @@ pub fn failure_causes(
             fixed: t.is_fixed(),
         })
         .collect();
-    out.sort_by(|a, b| b.failures.cmp(&a.failures));
+    out.sort_by_key(|c| std::cmp::Reverse(c.failures));
     out
 }
 
