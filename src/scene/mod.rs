@@ -234,7 +234,12 @@ mod tests {
     /// own merges (tolerance shards) hold results, not input, and are listed here by name.
     #[test]
     fn input_files_hold_no_bare_numbers() {
-        const RECORDS: [&str; 3] = ["ShardFile", "TrialRecord", "SensitivityRecord"];
+        const RECORDS: [&str; 4] = [
+            "ShardFile",
+            "TrialRecord",
+            "SensitivityRecord",
+            "NeededTravel",
+        ];
         const BARE: [&str; 14] = [
             "f32", "f64", "u8", "u16", "u32", "u64", "u128", "usize", "i8", "i16", "i32", "i64",
             "i128", "isize",
