@@ -60,6 +60,7 @@ class Acquisition:
     def _set(self, inner: "_spibench.Acquisition") -> None:
         self._a = inner
         self.kernel_grid: Tuple[int, int] = tuple(inner.grid)
+        self._norm: Optional[float] = None
 
     @property
     def scheme(self) -> str:
@@ -174,6 +175,20 @@ class Acquisition:
             matvec=lambda v: self.apply(np.reshape(v, (h, w))),
             rmatvec=lambda y: self.adjoint(np.ravel(y)).ravel(),
         )
+
+    def operator_norm(self) -> float:
+        """‖A‖, the spectral norm of the linear part (its largest singular value, V per unit
+        transmittance; the calibrated scheme: per unit transmittance), by ARPACK on
+        :meth:`apply` and :meth:`adjoint` from a fixed start, so the same acquisition gives the
+        same number; computed once. The normalised deepinv physics divides A by it."""
+        if self._norm is None:
+            from scipy.sparse.linalg import svds
+
+            op = self.as_linear_operator()
+            v0 = np.ones(min(op.shape))
+            k = svds(op, k=1, v0=v0, return_singular_vectors=False, tol=1e-12)
+            self._norm = float(k[0])
+        return self._norm
 
     def __repr__(self) -> str:
         return f"Acquisition({self.scheme}, M={self.measurements}, grid={self.grid}, units={self.units})"

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import json
 import os
-from typing import List, Optional
+from typing import List, Optional, Sequence
 
 import numpy as np
 import numpy.typing as npt
@@ -104,16 +104,51 @@ class OpenDataset:
         return Acquisition._of(self._rust().acquisition(str(scheme), float(ratio)))
 
     def kernel(self) -> Kernel:
-        """The dataset's object kernel, traced again from the spec (bit for bit the same)."""
+        """The dataset's object kernel, traced again from the spec (bit for bit the same); for
+        benches drawn from a tolerance file, the nominal bench's (see :meth:`drawn_bench`)."""
         return Kernel(self._rust().kernel())
 
-    def torch_dataset(self, scheme: str, ratio: float):
-        """A ``torch.utils.data.Dataset`` of (measurement, dmd_image, object) per sample:
-        the measurement y (M,), the light the measurement sees on the DMD units x_j (W, down ×
-        across, the kernel product of the object), and the object on the kernel grid."""
+    @property
+    def benches(self) -> int:
+        """The benches the samples were measured through: 1 (the nominal bench), or for benches
+        drawn from a tolerance file ⌈samples / samples_per_bench⌉ (sample s: bench
+        ``array("bench")[s]``)."""
+        return int(self._rust().benches)
+
+    @property
+    def deviation_names(self) -> List[str]:
+        """The names of a drawn bench's deviations (tolerances, then compensators)."""
+        return list(self._rust().deviation_names())
+
+    def drawn_bench(self, t: int):
+        """Drawn bench ``t`` of a dataset over benches drawn from a tolerance file, as the
+        dataset measured its samples: (kernel, deviations), the kernel traced again with the
+        spec's rays and seed (the dataset's bit for bit; one trace per call), the deviations in
+        :attr:`deviation_names` order."""
+        k, dev = self._rust().drawn_bench(_u64(t, "t"))
+        return Kernel(k), np.asarray(dev, dtype=np.float64)
+
+    def acquisition_on(self, kernel: Kernel, scheme: str, ratio: float) -> Acquisition:
+        """The acquisition of ``meas_SCHEME_rRATIO`` through ``kernel`` (a drawn bench's, from
+        :meth:`drawn_bench`), with the dataset's patterns and schemes recorded together."""
+        if not isinstance(kernel, Kernel):
+            raise InputError("argument `kernel`: a spibench.Kernel is needed")
+        return Acquisition._of(self._rust().acquisition_on(kernel._k, str(scheme), float(ratio)))
+
+    def torch_dataset(self, scheme: str, ratio: float,
+                      records: Sequence[str] = ("object", "measurement"),
+                      scale: Optional[float] = None):
+        """A ``torch.utils.data.Dataset`` of (object, measurement) per sample, deepinv's
+        (x, y), float32: the object on the kernel grid (1, H, W) and the measurement of
+        ``meas_SCHEME_rRATIO`` as :class:`spibench.deepinv.TracedSinglePixel` models it, the
+        recorded volts minus the offset y₀ divided by ``scale`` (default: ‖A‖, the normalised
+        physics' ``scale``; 1 keeps volts). ``records`` picks other records and their order:
+        ``"object"``, ``"measurement"``, ``"measurement_v"`` (the volts as recorded) and
+        ``"dmd_light_w"`` (the light on each DMD unit, W, in the DMD's order, where the
+        object appears rotated by 180°); see ``spibench._torch.MeasurementDataset``."""
         from ._torch import MeasurementDataset
 
-        return MeasurementDataset(self, scheme, ratio)
+        return MeasurementDataset(self, scheme, ratio, records, scale)
 
 
 def open_dataset(path: PathLike) -> OpenDataset:

@@ -4,33 +4,43 @@ Optional: importing this module needs ``torch`` and ``deepinv``; the rest of spi
 numpy and scipy only.
 
 deepinv's physics are linear, y = N(A x). spibench's measurement is affine,
-y_V = A x + y₀ (V) plus the bench's noise, so the adapter works with the offset removed:
+y_V = A_V x + y₀ (V) plus the bench's noise, so the adapter works with the offset removed and,
+by default, normalised as deepinv's own operators are (‖A‖ = 1), so that deepinv's solvers and
+their usual parameters apply (a TV prior with λ = 1e-3, a step size of 1):
 
-- ``physics.A(x)`` is the traced linear part A and ``A_adjoint`` its exact adjoint, on tensors
-  of shape (B, 1, H, W) and (B, M), computed by torch on the module's device and in its dtype
+- ``physics.A(x) = A_V x / s`` with s = ‖A_V‖ (``physics.scale``, V per unit transmittance;
+  ``normalise=False`` keeps volts, s = 1), ``A_adjoint`` its exact adjoint, on tensors of shape
+  (B, 1, H, W) and (B, M), computed by torch on the module's device and in its dtype
   (:class:`spibench.nn.TracedLinear`, float32 by default; ``.double()``, ``.to(device)``);
   autograd goes through the adjoint, so unrolled networks train through them;
-- ``physics(x)`` (``forward``) gives measurements with the offset removed, y = y_V − y₀: with
-  ``noise="bench"`` (the default) the bench's own simulated measurement (detector, oscilloscope,
-  drift and noise: ``Acquisition.forward(noise=True)``, computed by the library on the host and
-  returned on the input's device) minus y₀; with a deepinv noise model, that model applied to
-  A x;
+- ``physics(x)`` (``forward``) gives y = (y_V − y₀)/s: with ``noise="bench"`` (the default)
+  from the bench's own simulated measurement (detector, oscilloscope, drift and noise:
+  ``Acquisition.forward(noise=True)``, computed by the library on the host and returned on the
+  input's device; the printed physics shows it as ``noise_model: BenchSimulation(…)``); with a
+  deepinv noise model, that model applied to A x (:class:`spibench.noise.BenchGaussianNoise`
+  is the bench's noise reduced to a signal-dependent Gaussian, on the device);
 - ``physics.remove_offset(y_v)`` turns recorded volts (a dataset's ``meas_…`` arrays) into
-  what ``A`` models, and ``physics.offset`` is y₀ as a tensor (a buffer of the operator).
+  what ``A`` models, ``physics.to_volts(y)`` back; ``physics.offset`` is y₀ (V).
+
+:class:`TracedBenches` is the same physics over several benches as built (drawn from a
+tolerance file: one traced kernel each), the bench of each sample a parameter, and
+:class:`BenchGenerator` the deepinv ``PhysicsGenerator`` that draws it per sample.
 """
 
 from __future__ import annotations
 
-from typing import Optional, Union
+from typing import Optional, Sequence, Union
 
 import numpy as np
 import torch
-from deepinv.physics import LinearPhysics
+from deepinv.physics import LinearPhysics, NoiseModel
+from deepinv.physics.generator import PhysicsGenerator
 
 from . import Acquisition, InputError, Kernel
 from .nn import TracedLinear
+from .noise import BenchGaussianNoise
 
-__all__ = ["TracedSinglePixel"]
+__all__ = ["TracedSinglePixel", "TracedBenches", "BenchGenerator", "BenchSimulation"]
 
 
 def _to_numpy(t: torch.Tensor, name: str) -> np.ndarray:
@@ -42,21 +52,74 @@ def _to_numpy(t: torch.Tensor, name: str) -> np.ndarray:
     return t.detach().to("cpu", torch.float64).contiguous().numpy()
 
 
+class BenchSimulation(NoiseModel):
+    """The bench's own noise: the library's full simulation of the detector, oscilloscope,
+    drift and noise (``Acquisition.forward(noise=True)``) on the host. It measures the object,
+    not A x, so the physics applies it (``physics(x)``); called on measurements alone it
+    refuses. Record seeds: ``seed``, then the next one at each call."""
+
+    def __init__(self, scheme: str, seed: int = 0, threads: Optional[int] = None):
+        super().__init__()
+        self.scheme = str(scheme)
+        self.seed = int(seed)
+        self.threads = threads
+
+    def next_seed(self) -> int:
+        """The record seed of the next call (and advances it)."""
+        s, self.seed = self.seed, self.seed + 1
+        return s
+
+    def forward(self, y: torch.Tensor, *args, **kwargs) -> torch.Tensor:
+        """Refused: the simulation needs the object (use ``physics(x)``)."""
+        raise InputError("BenchSimulation measures the object through the bench: call physics(x), "
+                         "not physics.noise(y); for a noise model of A x use "
+                         "spibench.noise.BenchGaussianNoise")
+
+    def extra_repr(self) -> str:
+        """The scheme and the next record seed."""
+        return (f"scheme={self.scheme}, next_seed={self.seed}: the library's simulation of the "
+                f"bench's detector, oscilloscope, drift and noise (CPU)")
+
+
+def _noise_model(noise, acquisition: Acquisition, seed: int, threads: Optional[int],
+                 scale: float, dtype, device):
+    """The physics' noise model of the ``noise`` argument."""
+    if isinstance(noise, torch.nn.Module):
+        return noise
+    if noise == "bench":
+        return BenchSimulation(acquisition.scheme, seed, threads)
+    if noise == "gaussian":
+        rng = torch.Generator(device=device or "cpu")
+        rng.manual_seed(int(seed))
+        return BenchGaussianNoise.fit(acquisition, scale=scale, threads=threads, rng=rng,
+                                      dtype=dtype, device=device or "cpu")
+    if noise is None:
+        return None
+    raise InputError(f"argument `noise`: \"bench\", \"gaussian\", None or a deepinv noise "
+                     f"model, got {noise!r}")
+
+
 class TracedSinglePixel(LinearPhysics):
     """The traced single-pixel acquisition ``acquisition`` as deepinv physics (module
     documentation). Images are (B, 1, H, W) on the kernel grid (transmittance); measurements
-    (B, M) in volts with the offset removed (the calibrated scheme: dimensionless).
+    (B, M), offset removed, divided by ``scale``.
 
     :param Acquisition acquisition: the spibench acquisition (scheme, ratio, kernel).
-    :param noise: ``"bench"`` (the bench's simulated electronics and noise), ``None`` (none),
-        or a deepinv noise model applied to ``A x``.
-    :param int seed: record seed of the bench noise; each call draws the next seeds.
+    :param noise: ``"bench"`` (the bench's simulated electronics and noise, on the host),
+        ``"gaussian"`` (the same reduced to :class:`spibench.noise.BenchGaussianNoise`, fitted
+        here to the library's simulation, drawn on the device), ``None`` (none), or a deepinv
+        noise model applied to ``A x``.
+    :param int seed: record seed of the bench noise (each call draws the next seeds), or the
+        seed of the Gaussian model's generator.
     :param int threads: library threads of the bench simulation (default: all cores).
     :param Kernel kernel: the acquisition's object kernel: A is then held as its sparse
         matrices (:class:`spibench.nn.TracedLinear`); without it, as a dense matrix read from
         the acquisition (small sizes only).
     :param dtype: ``torch.float32`` (default) or ``torch.float64``.
     :param device: where the operator's buffers go (default: CPU).
+    :param bool normalise: divide A by its spectral norm (default), so ‖A‖ = 1 as deepinv's
+        operators; ``False`` keeps volts.
+    :param float scale: the divisor itself, instead of ‖A‖ (several physics sharing one).
     """
 
     def __init__(
@@ -68,26 +131,31 @@ class TracedSinglePixel(LinearPhysics):
         kernel: Optional[Kernel] = None,
         dtype: torch.dtype = torch.float32,
         device=None,
+        normalise: bool = True,
+        scale: Optional[float] = None,
         **kwargs,
     ):
         if not isinstance(acquisition, Acquisition):
             raise InputError("argument `acquisition`: a spibench.Acquisition is needed")
         h, w = acquisition.grid
-        model = noise if isinstance(noise, torch.nn.Module) else None
-        if model is None and noise not in ("bench", None):
-            raise InputError(f"argument `noise`: \"bench\", None or a deepinv noise model, got {noise!r}")
-        extra = {"noise_model": model} if model is not None else {}
-        super().__init__(img_size=(1, h, w), **extra, **kwargs)
+        s = _scale(acquisition, normalise, scale)
+        model = _noise_model(noise, acquisition, seed, threads, s, dtype, device)
+        super().__init__(img_size=(1, h, w), noise_model=model, **kwargs)
         self.acquisition = acquisition
         self.operator = TracedLinear(acquisition, kernel, dtype=dtype, device=device)
-        self.bench_noise = noise == "bench"
+        self.register_buffer("scale", torch.tensor(s, dtype=dtype, device=device))
         self.threads = threads
-        self._seed = int(seed)
 
     @property
     def offset(self) -> torch.Tensor:
-        """y₀ (M,), the measurement of the black object, on the operator's device and dtype."""
+        """y₀ (M,) (V), the measurement of the black object, on the operator's device and
+        dtype."""
         return self.operator.offset
+
+    @property
+    def bench_noise(self) -> bool:
+        """Whether ``physics(x)`` is the bench's own simulation."""
+        return isinstance(self.noise_model, BenchSimulation)
 
     def _check_x(self, x: torch.Tensor) -> torch.Tensor:
         """``x`` itself, refused unless a (B, 1, H, W) tensor on the kernel grid."""
@@ -98,35 +166,219 @@ class TracedSinglePixel(LinearPhysics):
             raise InputError(f"argument `x`: shape {tuple(x.shape)}, expected (B, 1, {h}, {w})")
         return x
 
-    def A(self, x: torch.Tensor, **kwargs) -> torch.Tensor:
-        """A x: (B, 1, H, W) → (B, M)."""
-        return self.operator(self._check_x(x)[:, 0])
-
-    def A_adjoint(self, y: torch.Tensor, **kwargs) -> torch.Tensor:
-        """Aᵀ y: (B, M) → (B, 1, H, W)."""
+    def _check_y(self, y: torch.Tensor) -> torch.Tensor:
         m = self.acquisition.measurements
         if not isinstance(y, torch.Tensor) or y.ndim != 2 or y.shape[1] != m:
             shape = tuple(y.shape) if isinstance(y, torch.Tensor) else type(y).__name__
             raise InputError(f"argument `y`: shape {shape}, expected (B, {m})")
-        return self.operator.adjoint(y).unsqueeze(1)
+        return y
+
+    def A(self, x: torch.Tensor, **kwargs) -> torch.Tensor:
+        """A x: (B, 1, H, W) → (B, M)."""
+        return self.operator(self._check_x(x)[:, 0]) / self.scale
+
+    def A_adjoint(self, y: torch.Tensor, **kwargs) -> torch.Tensor:
+        """Aᵀ y: (B, M) → (B, 1, H, W)."""
+        return (self.operator.adjoint(self._check_y(y)) / self.scale).unsqueeze(1)
 
     def simulate(self, x: torch.Tensor, seed: Optional[int] = None) -> torch.Tensor:
         """The bench's simulated measurement in volts, offset included (noise on), computed by
         the library on the host and returned on ``x``'s device and in its dtype."""
         self._check_x(x)
         if seed is None:
-            seed, self._seed = self._seed, self._seed + 1
+            sim = self.noise_model if self.bench_noise else None
+            seed = sim.next_seed() if sim is not None else 0
+        threads = self.noise_model.threads if self.bench_noise else self.threads
         y = self.acquisition.forward(_to_numpy(x, "x")[:, 0], noise=True, seed=int(seed),
-                                     threads=self.threads)
+                                     threads=threads)
         y = torch.from_numpy(np.asarray(y).reshape(x.shape[0], -1))
         return y.to(device=x.device, dtype=x.dtype)
 
     def remove_offset(self, y_v: torch.Tensor) -> torch.Tensor:
-        """Recorded volts → the linear model's measurement, y_v − y₀."""
-        return y_v - self.offset.to(device=y_v.device, dtype=y_v.dtype)
+        """Recorded volts → the physics' measurement, (y_v − y₀) / scale."""
+        off = self.offset.to(device=y_v.device, dtype=y_v.dtype)
+        return (y_v - off) / self.scale.to(device=y_v.device, dtype=y_v.dtype)
+
+    def to_volts(self, y: torch.Tensor) -> torch.Tensor:
+        """The physics' measurement → volts, y·scale + y₀."""
+        return y * self.scale.to(y.device, y.dtype) + self.offset.to(y.device, y.dtype)
 
     def forward(self, x: torch.Tensor, **kwargs) -> torch.Tensor:
-        """Measurements with the offset removed (module documentation)."""
+        """Measurements, offset removed and divided by ``scale`` (module documentation)."""
         if self.bench_noise:
             return self.remove_offset(self.simulate(x))
+        if isinstance(self.noise_model, BenchGaussianNoise):
+            # The shot noise of the differencing schemes follows the object's total light.
+            return self.noise_model(self.A(x), light=x.mean(dim=(1, 2, 3)))
         return super().forward(x, **kwargs)
+
+
+def _scale(acquisition: Acquisition, normalise: bool, scale: Optional[float]) -> float:
+    """The divisor of the normalised physics."""
+    if scale is not None:
+        s = float(scale)
+        if not (np.isfinite(s) and s > 0):
+            raise InputError(f"argument `scale`: a positive number, got {scale!r}")
+        return s
+    return acquisition.operator_norm() if normalise else 1.0
+
+
+class TracedBenches(LinearPhysics):
+    """The traced acquisition over K benches as built (each its own traced kernel, the same
+    patterns and scheme): sample b of a batch is measured through bench ``bench[b]``, a
+    parameter that ``physics.update(bench=…)`` sets (deepinv's trainers do so with the
+    parameters of :class:`BenchGenerator`); one index for the whole batch when it holds one.
+    Measurements are offset-removed (each bench its own y₀) and divided by one ``scale`` for
+    all benches (default: ‖A‖ of bench 0), so they share units.
+
+    :param acquisitions: one :class:`spibench.Acquisition` per bench.
+    :param kernels: their kernels (sparse operators), or ``None`` (dense, small sizes).
+    :param noise: ``"bench"``, ``None`` or a deepinv noise model, as for
+        :class:`TracedSinglePixel`.
+    """
+
+    def __init__(
+        self,
+        acquisitions: Sequence[Acquisition],
+        kernels: Optional[Sequence[Kernel]] = None,
+        noise: Union[str, None, torch.nn.Module] = "bench",
+        seed: int = 0,
+        threads: Optional[int] = None,
+        dtype: torch.dtype = torch.float32,
+        device=None,
+        normalise: bool = True,
+        scale: Optional[float] = None,
+        **kwargs,
+    ):
+        acqs = list(acquisitions)
+        if not acqs or not all(isinstance(a, Acquisition) for a in acqs):
+            raise InputError("argument `acquisitions`: a non-empty sequence of spibench.Acquisition")
+        ks = [None] * len(acqs) if kernels is None else list(kernels)
+        if len(ks) != len(acqs):
+            raise InputError(f"argument `kernels`: {len(ks)} kernels for {len(acqs)} acquisitions")
+        a0 = acqs[0]
+        for a in acqs[1:]:
+            if (a.grid, a.measurements, a.scheme) != (a0.grid, a0.measurements, a0.scheme):
+                raise InputError("argument `acquisitions`: every bench needs the same grid, "
+                                 "scheme and number of measurements")
+        h, w = a0.grid
+        s = _scale(a0, normalise, scale)
+        if noise == "gaussian":
+            raise InputError("argument `noise`: \"bench\", None or a deepinv noise model (a "
+                             "BenchGaussianNoise fitted to one of the benches)")
+        model = _noise_model(noise, a0, seed, threads, s, dtype, device)
+        super().__init__(img_size=(1, h, w), noise_model=model, **kwargs)
+        self.acquisitions = acqs
+        self.operators = torch.nn.ModuleList(
+            TracedLinear(a, k, dtype=dtype, device=device) for a, k in zip(acqs, ks))
+        self.register_buffer("scale", torch.tensor(s, dtype=dtype, device=device))
+        self.register_buffer("bench", torch.zeros(1, dtype=torch.int64, device=device))
+
+    @property
+    def benches(self) -> int:
+        """K, the number of benches."""
+        return len(self.operators)
+
+    @property
+    def bench_noise(self) -> bool:
+        """Whether ``physics(x)`` is the bench's own simulation."""
+        return isinstance(self.noise_model, BenchSimulation)
+
+    def update_parameters(self, bench=None, **kwargs):
+        """Sets the bench index of each sample (an int, or a (B,) integer tensor)."""
+        if bench is not None:
+            b = torch.as_tensor(bench, dtype=torch.int64).reshape(-1)
+            if b.numel() == 0 or int(b.min()) < 0 or int(b.max()) >= self.benches:
+                raise InputError(f"argument `bench`: indices in 0…{self.benches - 1}, got {bench}")
+            self.bench = b.to(self.scale.device)
+        super().update_parameters(**kwargs)
+
+    def _groups(self, n: int):
+        """(bench k, sample indices) of a batch of n."""
+        b = self.bench
+        if b.numel() == 1:
+            return [(int(b), None)]
+        if b.numel() != n:
+            raise InputError(f"parameter `bench`: {b.numel()} indices for a batch of {n}")
+        return [(int(k), torch.nonzero(b == k).reshape(-1)) for k in torch.unique(b).tolist()]
+
+    def _per_bench(self, v: torch.Tensor, f, out_shape):
+        groups = self._groups(v.shape[0])
+        if groups[0][1] is None:
+            return f(groups[0][0], v)
+        out = v.new_zeros((v.shape[0],) + out_shape)
+        for k, idx in groups:
+            out = out.index_copy(0, idx, f(k, v.index_select(0, idx)))
+        return out
+
+    def A(self, x: torch.Tensor, bench=None, **kwargs) -> torch.Tensor:
+        """A x through each sample's bench: (B, 1, H, W) → (B, M)."""
+        self.update_parameters(bench=bench)
+        m = self.acquisitions[0].measurements
+        return self._per_bench(x[:, 0], lambda k, v: self.operators[k](v), (m,)) / self.scale
+
+    def A_adjoint(self, y: torch.Tensor, bench=None, **kwargs) -> torch.Tensor:
+        """Aᵀ y through each sample's bench: (B, M) → (B, 1, H, W)."""
+        self.update_parameters(bench=bench)
+        grid = self.acquisitions[0].grid
+        x = self._per_bench(y, lambda k, v: self.operators[k].adjoint(v), grid)
+        return (x / self.scale).unsqueeze(1)
+
+    def offsets(self, n: int) -> torch.Tensor:
+        """y₀ (V) of each sample's bench, (n, M)."""
+        m = self.acquisitions[0].measurements
+        off = torch.stack([op.offset for op in self.operators])
+        b = self.bench if self.bench.numel() > 1 else self.bench.expand(n)
+        return off.index_select(0, b).reshape(n, m)
+
+    def forward(self, x: torch.Tensor, bench=None, **kwargs) -> torch.Tensor:
+        """Measurements through each sample's bench, offset removed and divided by ``scale``."""
+        self.update_parameters(bench=bench)
+        if not self.bench_noise:
+            return super().forward(x, **kwargs)
+        sim = self.noise_model
+        seed = sim.next_seed()
+        xs = _to_numpy(x, "x")[:, 0]
+        y = torch.empty(x.shape[0], self.acquisitions[0].measurements, dtype=torch.float64)
+        for k, idx in self._groups(x.shape[0]):
+            rows = np.arange(x.shape[0]) if idx is None else idx.cpu().numpy()
+            # Sample b keeps the record seed it would have in one call over the batch.
+            seeds = [_record_seed(seed, int(r)) for r in rows]
+            y[rows] = torch.from_numpy(np.asarray(self.acquisitions[k].forward(
+                xs[rows], noise=True, seed=seeds, threads=sim.threads)).reshape(len(rows), -1))
+        return self.remove_offset(y.to(device=x.device, dtype=x.dtype))
+
+    def remove_offset(self, y_v: torch.Tensor, bench=None) -> torch.Tensor:
+        """Recorded volts of each sample's bench → the physics' measurement,
+        (y_v − y₀[bench]) / scale."""
+        self.update_parameters(bench=bench)
+        off = self.offsets(y_v.shape[0]).to(device=y_v.device, dtype=y_v.dtype)
+        return (y_v - off) / self.scale.to(device=y_v.device, dtype=y_v.dtype)
+
+
+def _record_seed(seed: int, s: int) -> int:
+    from . import dataset_noise_seed
+
+    return dataset_noise_seed(seed, s)
+
+
+class BenchGenerator(PhysicsGenerator):
+    """deepinv ``PhysicsGenerator`` of :class:`TracedBenches`: each sample's bench drawn
+    uniformly from the K benches, with this generator's own ``torch.Generator``:
+    ``step(batch_size)`` returns ``{"bench": (B,) int64}``."""
+
+    def __init__(self, benches: int, rng: Optional[torch.Generator] = None, device="cpu",
+                 seed: Optional[int] = None):
+        if int(benches) < 1:
+            raise InputError(f"argument `benches`: at least 1, got {benches}")
+        super().__init__(rng=rng, device=device)
+        self.benches = int(benches)
+        if seed is not None:
+            self.rng.manual_seed(int(seed))
+            self.initial_random_state = self.rng.get_state()
+
+    def step(self, batch_size: int = 1, seed: Optional[int] = None, **kwargs) -> dict:
+        """``{"bench": …}``: the bench index of each of ``batch_size`` samples."""
+        self.rng_manual_seed(seed)
+        b = torch.randint(0, self.benches, (batch_size,), generator=self.rng, device=self.device)
+        return {"bench": b}

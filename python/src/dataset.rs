@@ -46,14 +46,8 @@ impl Dataset {
     fn new(py: Python<'_>, path: PathBuf, threads: Option<usize>) -> PyResult<Dataset> {
         run(py, threads, || {
             let spec = dataset_spec(&path)?;
-            if spec.tolerance_path.is_some() {
-                return Err(Error::field(
-                    "benches",
-                    "a dataset over benches drawn from a tolerance file has one kernel per \
-                     bench; open_dataset rebuilds nominal datasets only",
-                )
-                .in_file(&path));
-            }
+            // A dataset over benches drawn from a tolerance file opens with its nominal
+            // bench's kernel; `drawn_bench` rebuilds each drawn one.
             let prep = Prepared::new(spec)?;
             let matrices = KernelMatrices::new(&prep.kernel);
             let kernel = Arc::new(prep.kernel.clone());
@@ -74,33 +68,52 @@ impl Dataset {
     /// The acquisition of `scheme` at `ratio` exactly as the dataset recorded it (every scheme
     /// of the dataset recorded together, its patterns, electronics and record model).
     fn acquisition(&self, scheme: &str, ratio: f64) -> PyResult<Acquisition> {
-        let make = || -> Result<Acquisition> {
-            let scheme = scheme_named(scheme)?;
-            let p = &self.prep;
-            if !p.schemes.contains(&scheme) {
-                return Err(Error::field(
-                    "scheme",
-                    format!("the dataset has no {} measurements", scheme.key()),
-                ));
-            }
-            if !p.ratios.contains(&ratio) {
-                return Err(Error::field(
-                    "ratio",
-                    format!("the dataset's ratios are {:?}", p.ratios),
-                ));
-            }
-            let m = spibench::acquisition::patterns_for_ratio(ratio, p.units());
-            Acquisition::build(
-                &p.scene,
-                self.kernel.clone(),
-                &self.matrices,
-                p.patterns.clone(),
-                scheme,
-                m,
-                p.schemes.clone(),
-            )
+        self.cell(&self.kernel(), scheme, ratio).map_err(to_py)
+    }
+
+    /// The benches the dataset's samples were measured through: 1 for a nominal dataset,
+    /// ⌈samples / samples_per_bench⌉ for benches drawn from a tolerance file.
+    #[getter]
+    fn benches(&self) -> u64 {
+        let p = &self.prep;
+        match &p.drawn {
+            None => 1,
+            Some(d) => p.spec.file.samples.div_ceil(d.samples_per_bench),
+        }
+    }
+
+    /// The names of a drawn bench's deviations (tolerances, then compensators); empty for a
+    /// nominal dataset.
+    fn deviation_names(&self) -> Vec<String> {
+        self.prep.deviation_names()
+    }
+
+    /// Drawn bench `t` of a dataset over benches drawn from a tolerance file, as the dataset
+    /// measured its samples: its kernel (traced again with the spec's rays and seed, bit for
+    /// bit the dataset's) and its deviations.
+    fn drawn_bench(&self, py: Python<'_>, t: u64) -> PyResult<(Kernel, Vec<f64>)> {
+        let Some(d) = &self.prep.drawn else {
+            return Err(to_py(Error::field(
+                "t",
+                "the dataset's samples were measured through its nominal bench alone",
+            )));
         };
-        make().map_err(to_py)
+        let n = self.benches();
+        if t >= n {
+            return Err(to_py(Error::field(
+                "t",
+                format!("bench {t} of a dataset with {n} benches"),
+            )));
+        }
+        let b = run(py, None, || self.prep.drawn_bench(d, t))?;
+        Ok((Kernel::new(b.scene, b.kernel), b.deviations))
+    }
+
+    /// The acquisition of `scheme` at `ratio` through `kernel` (a drawn bench's, from
+    /// `drawn_bench`), recorded as the dataset records (every scheme of the dataset together,
+    /// its patterns).
+    fn acquisition_on(&self, kernel: &Kernel, scheme: &str, ratio: f64) -> PyResult<Acquisition> {
+        self.cell(kernel, scheme, ratio).map_err(to_py)
     }
 
     /// The dataset's kernel (with its bench's scene).
@@ -110,6 +123,37 @@ impl Dataset {
             kernel: self.kernel.clone(),
             matrices: self.matrices.clone(),
         }
+    }
+}
+
+impl Dataset {
+    /// The acquisition of `scheme` at `ratio` through `kernel` with the dataset's patterns and
+    /// recorded schemes.
+    fn cell(&self, kernel: &Kernel, scheme: &str, ratio: f64) -> Result<Acquisition> {
+        let scheme = scheme_named(scheme)?;
+        let p = &self.prep;
+        if !p.schemes.contains(&scheme) {
+            return Err(Error::field(
+                "scheme",
+                format!("the dataset has no {} measurements", scheme.key()),
+            ));
+        }
+        if !p.ratios.contains(&ratio) {
+            return Err(Error::field(
+                "ratio",
+                format!("the dataset's ratios are {:?}", p.ratios),
+            ));
+        }
+        let m = spibench::acquisition::patterns_for_ratio(ratio, p.units());
+        Acquisition::build(
+            &kernel.scene,
+            kernel.kernel.clone(),
+            &kernel.matrices,
+            p.patterns.clone(),
+            scheme,
+            m,
+            p.schemes.clone(),
+        )
     }
 }
 
