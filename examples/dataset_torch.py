@@ -1,9 +1,14 @@
 #!/usr/bin/env python3
-"""A PyTorch Dataset over a spibench dataset folder (manifest.json + .npy shards).
+"""A PyTorch Dataset over a spibench dataset folder (manifest.json + .npy shards), numpy and
+torch only (the spibench package's own is ``spibench.open_dataset(dir).torch_dataset(...)``).
 
     ds = SpibenchDataset("out/dataset", measurement="meas_secondary_complementary_balancing_r0.2500")
-    y, x = ds[0]           # measurements (float32), object (float32, 1 x H x W)
+    x, y = ds[0]           # object (float32, 1 x H x W), measurements (float32, volts as recorded)
     loader = torch.utils.data.DataLoader(ds, batch_size=32, shuffle=True)
+
+(x, y) is the order of deepinv's trainers. The measurements are the recorded volts; the
+package's torch_dataset gives them as its deepinv physics models them (offset removed,
+normalised).
 
 Shards are memory-mapped (np.load(..., mmap_mode="r")), so the dataset can be larger than RAM.
 The manifest is read by dataset_numpy.manifest, which refuses shard folders, array names and
@@ -46,14 +51,14 @@ class SpibenchDataset(torch.utils.data.Dataset):
     def __getitem__(self, i):
         k = bisect.bisect_right(self.starts, i) - 1
         j = i - self.starts[k]
-        y = torch.from_numpy(np.array(self.y[k][j], dtype=np.float32))
         x = torch.from_numpy(np.array(self.x[k][j], dtype=np.float32))[None]
-        return y, x
+        y = torch.from_numpy(np.array(self.y[k][j], dtype=np.float32))
+        return x, y
 
 
 if __name__ == "__main__":
     import sys
 
     ds = SpibenchDataset(sys.argv[1])
-    y, x = ds[0]
-    print(len(ds), "samples;", ds.measurement, tuple(y.shape), "object", tuple(x.shape))
+    x, y = ds[0]
+    print(len(ds), "samples;", "object", tuple(x.shape), ds.measurement, tuple(y.shape))
