@@ -14,10 +14,10 @@ out=${2:-target/python-docs}
 # out (and said so).
 modules=(spibench)
 if "$py" -c "import torch, deepinv" >/dev/null 2>&1; then
-    modules+=(spibench.nn spibench.deepinv)
+    modules+=(spibench.nn spibench.deepinv spibench.noise)
 else
-    modules+=('!spibench.nn' '!spibench.deepinv')
-    echo "python/docs.sh: torch or deepinv is not installed: spibench.nn and spibench.deepinv" \
+    modules+=('!spibench.nn' '!spibench.deepinv' '!spibench.noise')
+    echo "python/docs.sh: torch or deepinv is not installed: spibench.nn, spibench.deepinv and spibench.noise" \
         "are left out" >&2
 fi
 rm -rf "$out"

@@ -236,5 +236,13 @@ class Dataset:
     def __init__(self, path: str, threads: Optional[int] = None) -> None: ...
     def acquisition(self, scheme: str, ratio: float) -> Acquisition:
         """The acquisition of `scheme` at `ratio` as the dataset recorded it."""
+    benches: int
+    """The benches the samples were measured through (1: the nominal bench)."""
+    def deviation_names(self) -> List[str]:
+        """The names of a drawn bench's deviations (tolerances, then compensators)."""
+    def drawn_bench(self, t: int) -> Tuple[Kernel, List[float]]:
+        """Drawn bench `t`: its kernel (traced again) and its deviations."""
+    def acquisition_on(self, kernel: Kernel, scheme: str, ratio: float) -> Acquisition:
+        """The acquisition of `scheme` at `ratio` through `kernel`, as the dataset records."""
     def kernel(self) -> Kernel:
         """The dataset's object kernel."""
