@@ -8,9 +8,10 @@ Needs the spibench package, torch and deepinv. The network (``Net``) back-projec
 measurement through its physics' adjoint and refines the image with a small residual CNN.
 It is trained
 
-- ``ideal``: on the ideal single-pixel camera of the same patterns (deepinv physics: each DMD
-  unit sees the object pixels that perfect imaging puts on it, rotated by 180° as the bench's
-  lens images, normalised to ‖A‖ = 1), with Gaussian noise of the traced measurements' level;
+- ``ideal``: on the ideal single-pixel camera of the same patterns measured complementarily
+  (deepinv physics, y = (2P − 1) D x: each DMD unit sees the object pixel that perfect imaging
+  puts on it, rotated by 180° as the bench's lens images, normalised to ‖A‖ = 1), with
+  Gaussian noise of the traced measurements' level;
 - ``traced``: on a dataset of the paper bench's traced measurements (bench noise), with the
   traced physics (spibench.deepinv.TracedSinglePixel);
 - ``drawn``: on a dataset measured through benches drawn from the paper bench's tolerance file
@@ -75,11 +76,13 @@ def make(folder, name, text):
 
 
 def ideal_physics(acq: spibench.Acquisition, dtype=torch.float32) -> LinearPhysics:
-    """The ideal single-pixel camera of ``acq``'s patterns: unit j sees the mean of the object
-    pixels perfect imaging puts on it (the object rotated by 180°), y = P D x, normalised."""
+    """The ideal single-pixel camera of ``acq``'s patterns, as a complementary scheme measures
+    them (each pattern minus its complement, 2P − 1, as SCB and the double arm do): unit j
+    sees the object pixel perfect imaging puts on it (the object rotated by 180°),
+    y = (2P − 1) D x, normalised."""
     h, w = acq.grid
     down, across = acq.units
-    p = torch.from_numpy(acq.patterns.reshape(acq.measurements, -1).astype(np.float64))
+    p = torch.from_numpy(2.0 * acq.patterns.reshape(acq.measurements, -1).astype(np.float64) - 1)
     # D: object pixel (r, c) → unit (down − 1 − ⌊r·down/h⌋, across − 1 − ⌊c·across/w⌋), area
     # weights; with fewer pixels than units each pixel covers several units.
     rows = np.minimum((np.arange(down) + 0.5) * h / down, h - 1e-9).astype(int)
