@@ -16,6 +16,7 @@ use crate::outputs::tolerance::{read_shard_record, trial_ron, write};
 use crate::report::output::OutputDir;
 use crate::scene::doc::BenchDoc;
 use crate::scene::tolerance::{ShardFile, ToleranceSet};
+use crate::tolerance::budget_search::BudgetTrialsFile;
 use crate::tolerance::{ToleranceOptions, merge, nominal, sensitivity, trial, trial_doc};
 
 /// Arguments of `spibench tolerance`.
@@ -64,7 +65,7 @@ pub struct ToleranceArgs {
     /// yield against the file's limits is at least --target-yield at --confidence, confirmed
     /// by --trials traced trials per round (docs/guide/10-tolerance-budget.md). Writes
     /// budget.ron, a tolerance file of the budget.
-    #[arg(long, requires = "target_yield", conflicts_with_all = ["merge", "shard", "trial", "quality"])]
+    #[arg(long, requires = "target_yield", conflicts_with_all = ["merge", "trial"])]
     pub budget: bool,
     /// With --budget: the yield to reach, in (0, 1).
     #[arg(long, value_name = "Y", requires = "budget")]
@@ -79,6 +80,12 @@ pub struct ToleranceArgs {
     /// With --budget: draws of the response surface's yield estimate.
     #[arg(long, value_name = "N", default_value_t = 4000, requires = "budget")]
     pub surface_samples: usize,
+    /// With --budget: continue from the budget runs in these folders (their
+    /// budget_trials.ron): the search replays, reusing every trial they traced, and goes on.
+    /// With --shard I/N, a run traces its part of the first confirmation they do not complete
+    /// and stops; a resume with every shard's folder goes on from there.
+    #[arg(long, value_name = "DIR", num_args = 1.., requires = "budget")]
+    pub resume: Vec<PathBuf>,
     /// With --budget: the most confirmation rounds.
     #[arg(long, value_name = "N", default_value_t = 6, requires = "budget")]
     pub budget_rounds: usize,
@@ -365,15 +372,18 @@ fn run_merge(args: &ToleranceArgs) -> Result<()> {
     Ok(())
 }
 /// `--budget`: the budget search (crate::tolerance::budget) and its outputs. Everything that
-/// can be refused (target, confidence, costs file, work) is checked before any output.
+/// can be refused (target, confidence, costs file, resumed records, work) is checked before any
+/// output.
 fn run_budget(
     args: &ToleranceArgs,
     (doc, set, o): (&BenchDoc, &ToleranceSet, &ToleranceOptions),
     tol_path: &Path,
     resolve: Option<crate::tolerance::Resolve>,
 ) -> Result<()> {
-    use crate::outputs::tolerance::budget::{BudgetRun, write_budget};
-    use crate::tolerance::budget::{BudgetOptions, budget, check_options};
+    use crate::outputs::tolerance::budget::write_budget_trials;
+    use crate::tolerance::budget::{
+        BudgetInputs, BudgetOptions, BudgetRunOptions, budget, check_options,
+    };
     let b = BudgetOptions {
         target_yield: args.target_yield.unwrap_or(f64::NAN),
         confidence: args.confidence.unwrap_or(0.95),
@@ -386,46 +396,142 @@ fn run_budget(
         Some(p) => crate::scene::budget_costs::parse_costs(&crate::scene::read_text(p)?, p, set)?,
         None => crate::scene::budget_costs::default_costs(set),
     };
-    // The rounds and the baseline's confirmation, each `--trials` trials.
+    let shard =
+        super::args::Shard::parse_opt(args.shard.as_deref())?.unwrap_or(super::args::Shard::WHOLE);
+    let mut trials_file = BudgetTrialsFile {
+        spibench_version: env!("CARGO_PKG_VERSION").into(),
+        scene: doc.name(),
+        bench_ron: doc.to_ron()?,
+        tolerances_text: crate::scene::read_text(tol_path)?,
+        costs: costs.clone(),
+        rays: o.rays,
+        seed: o.seed,
+        trials: b.trials,
+        quality: o.quality,
+        target_yield: b.target_yield,
+        confidence: b.confidence,
+        surface_samples: b.samples,
+        shard: shard.pair(),
+        sensitivity: Vec::new(),
+        confirmations: Vec::new(),
+    };
+    let prior = read_resumed(&args.resume, &trials_file, set)?;
+    // The rounds and the baseline's confirmation, each `--trials` trials (a resume's traced
+    // ones not counted apart: an estimate errs high).
     let all_trials = args.trials.saturating_mul(b.max_rounds as u64 + 1);
-    args.work.check(&work(
-        set,
-        all_trials,
-        super::args::Shard::WHOLE,
-        o.rays,
-        resolve.as_ref(),
-    ))?;
+    args.work
+        .check(&work(set, all_trials, shard, o.rays, resolve.as_ref()))?;
     let out = OutputDir::create(&args.opts.out_or("out/tolerance"))?;
     let start = std::time::Instant::now();
-    let name = doc.name();
     eprintln!(
-        "{name}: budget of {} tolerance(s) for a yield ≥ {} at confidence {}; {} rays per \
-         trace, {} trials per confirmation (seed {})",
+        "{}: budget of {} tolerance(s) for a yield ≥ {} at confidence {}; {} rays per trace, {} \
+         trials per confirmation (seed {}){}",
+        trials_file.scene,
         set.tolerances.len(),
         b.target_yield,
         b.confidence,
         o.rays,
         b.trials,
-        o.seed
+        o.seed,
+        if o.quality { ", full pipeline" } else { "" }
     );
     let nom = nominal(doc, o)?;
-    let bar = super::progress::bar(2 * set.tolerances.len() as u64, "settings");
-    let sens = sensitivity(doc, set, &nom, o, resolve, &|d, _| {
-        bar.set_position(d as u64)
-    })?;
-    bar.finish_and_clear();
-    let outcome = budget(doc, set, &costs, &nom, &sens, o, &b, &|m| {
-        eprintln!("  {m}")
-    })?;
+    let sens = match prior.iter().find(|p| !p.sensitivity.is_empty()) {
+        Some(p) => p.sensitivity.clone(),
+        None => {
+            let bar = super::progress::bar(2 * set.tolerances.len() as u64, "settings");
+            let rows = sensitivity(doc, set, &nom, o, resolve, &|d, _| {
+                bar.set_position(d as u64)
+            })?;
+            bar.finish_and_clear();
+            rows
+        }
+    };
+    let inputs = BudgetInputs {
+        doc,
+        set,
+        costs: &costs,
+        nominal: &nom,
+        sens: &sens,
+    };
+    let confirmations: Vec<_> = prior.into_iter().flat_map(|p| p.confirmations).collect();
+    let run_opts = BudgetRunOptions {
+        o,
+        b: &b,
+        prior: &confirmations,
+        shard: shard.pair(),
+    };
+    let outcome = budget(&inputs, &run_opts, &|m| eprintln!("  {m}"))?;
+    trials_file.sensitivity = sens;
+    trials_file.confirmations = outcome.traced.clone();
+    write_budget_trials(&trials_file, &out)?;
+    if outcome.incomplete {
+        let dir = out.commit()?;
+        println!(
+            "shard {}/{}: traced its part of the next confirmation; resume with every shard's \
+             folder (--resume) to go on; wrote {} ({:.1} s)",
+            shard.index,
+            shard.count,
+            dir.join(crate::outputs::tolerance::budget::BUDGET_TRIALS)
+                .display(),
+            start.elapsed().as_secs_f64()
+        );
+        return Ok(());
+    }
+    finish_budget(args, (doc, set, o), tol_path, &b, &outcome, out, start)
+}
+
+/// The records of the budget runs `--resume` names (each folder's `budget_trials.ron`),
+/// checked to be of this run.
+fn read_resumed(
+    dirs: &[PathBuf],
+    this: &BudgetTrialsFile,
+    set: &ToleranceSet,
+) -> crate::Result<Vec<BudgetTrialsFile>> {
+    dirs.iter()
+        .map(|d| {
+            let p = d.join(crate::outputs::tolerance::budget::BUDGET_TRIALS);
+            let text = crate::scene::read_text(&p)?;
+            let f: BudgetTrialsFile = crate::scene::parse_ron(&text, &p)?;
+            match this.mismatch(&f, set) {
+                Some(why) => Err(crate::Error::field(
+                    "resume",
+                    format!(
+                        "{} is not of this budget run: {why} (resume with the same bench, \
+                         tolerance file, costs, rays, seed, trials, quality, target, confidence \
+                         and surface samples)",
+                        p.display()
+                    ),
+                )),
+                None => Ok(f),
+            }
+        })
+        .collect()
+}
+
+/// Writes a finished budget's outputs and prints its outcome.
+#[allow(clippy::too_many_arguments)]
+fn finish_budget(
+    args: &ToleranceArgs,
+    (doc, set, o): (&BenchDoc, &ToleranceSet, &ToleranceOptions),
+    tol_path: &Path,
+    b: &crate::tolerance::budget::BudgetOptions,
+    outcome: &crate::tolerance::budget::BudgetOutcome,
+    out: OutputDir,
+    start: std::time::Instant,
+) -> Result<()> {
+    use crate::outputs::tolerance::budget::{BudgetRun, write_budget};
+    let name = doc.name();
     let command = format!(
         "spibench tolerance {name} --tolerances {} --budget --target-yield {} --confidence {} \
-         --trials {} --rays {} --seed {}",
+         --trials {} --rays {} --seed {}{}",
         tol_path.display(),
         b.target_yield,
         b.confidence,
         b.trials,
         o.rays,
-        o.seed
+        o.seed,
+        if o.quality { " --quality" } else { "" }
     );
     let costs_name = args.costs.as_ref().map(|p| p.display().to_string());
     let tol_name = tol_path.display().to_string();
@@ -436,13 +542,14 @@ fn run_budget(
         rays: o.rays,
         seed: o.seed,
         trials: b.trials,
+        quality: o.quality,
         command: &command,
     };
     let mut provenance = crate::provenance::Provenance::of_bench(doc, &[o.seed])?.file(tol_path)?;
     if let Some(p) = &args.costs {
         provenance = provenance.file(p)?;
     }
-    let files = write_budget(&outcome, set, &run, &provenance, &out)?;
+    let files = write_budget(outcome, set, &run, &provenance, &out)?;
     let dir = out.commit()?;
     let j = &outcome.joint;
     let status = match (&j.confirmation, outcome.reached) {

@@ -8,24 +8,36 @@
 //! 1. **Surface.** The sensitivity table gives each limited metric as a sum of parabolas, one
 //!    per tolerance ([`budget_surface::Surface`]); the yield of a budget is estimated on it over
 //!    fixed draws at scale 1, scaled (common random numbers: deterministic in the seed).
-//! 2. **Allocation** ([`allocate`]): from the loosest scales, the tolerance whose tightening
+//! 2. **Baseline.** The one-at-a-time inverse limit of lens-design tools (OpticStudio's Inverse
+//!    Limit): each tolerance alone set, on that surface, to the largest scale at which its
+//!    limits still hold at both ends of its range; then the Monte Carlo yield of that budget
+//!    (`budget_search::baseline`). Its trials are the first data the surface is recalibrated
+//!    on.
+//! 3. **Allocation** ([`allocate`]): from the loosest scales, the tolerance whose tightening
 //!    (× [`TIGHTEN_STEP`]) buys the most surface yield per unit of cost is tightened until the
-//!    surface yield reaches the surface target; then every tolerance that can be loosened
-//!    (× [`LOOSEN_STEP`]) without losing the target is (marginal analysis, the classic greedy
-//!    allocation of tolerance costs: Chase and Parkinson 1991). Scales are rounded down to 3
-//!    significant digits.
-//! 3. **Confirmation.** `trials` Monte Carlo trials of real traced benches drawn from the
+//!    surface yield reaches the round's surface target; then every tolerance that can be
+//!    loosened (× [`LOOSEN_STEP`]) without losing the target is (marginal analysis, the classic
+//!    greedy allocation of tolerance costs: Chase and Parkinson 1991). Scales are rounded down
+//!    to 3 significant digits.
+//! 4. **Confirmation.** `trials` Monte Carlo trials of real traced benches drawn from the
 //!    budget, compensators adjusted in each ([`super::trial`]), judged by every limit of the
-//!    file; the one-sided Wilson lower bound of their yield at confidence C must reach Y. Each
-//!    round's trials are fresh (round r traces trials r·n … r·n + n − 1), so the bound of the
-//!    round that stops is not biased by the rounds before.
-//! 4. **Iteration.** A round that falls short refits the surface on every trial so far (cross
-//!    terms and the compensators' corrections, [`budget_surface::Surface::refit`]) and raises the
-//!    surface target by the gap between surface and trials, and at least half-way to 1.
+//!    file (with `quality`, the image-quality limit too); the one-sided Wilson score lower
+//!    bound of their yield at confidence C must reach Y. Each round's trials are fresh (round r
+//!    traces trials r·n … r·n + n − 1), so a round's bound is not biased by the rounds before.
+//! 5. **Rounds** (`budget_search::rounds`). After each confirmation the surface is
+//!    recalibrated on every trial so far ([`budget_surface::Surface::refit`]: per-tolerance
+//!    corrections, cross terms, what the compensators change), and the next surface target is
+//!    the pass fraction the bound needs, plus one binomial standard error, plus the recalibrated
+//!    surface's bias at the budget just confirmed (its yield there less the confirmed one). So
+//!    a budget confirmed with room to spare (the surface pessimistic) is loosened, one that fell
+//!    short tightened. The search stops when the next budget would save less than
+//!    `budget_search::MIN_SAVING` of the cheapest passing budget's cost, repeats a round, or the
+//!    rounds run out; the joint budget is the cheapest round that met the bound.
 //!
-//! The baseline is the one-at-a-time inverse limit of lens-design tools (OpticStudio's Inverse
-//! Limit): each tolerance alone set, on the surface, to the largest scale at which its limits
-//! still hold at both ends of its range, then the Monte Carlo yield of that budget.
+//! A round that passes after several were tried is the cheapest of the passing rounds: each
+//! bound is its own round's, from fresh trials, but choosing among passing rounds is a mild
+//! selection the independent check (`spibench tolerance` on the budget file, another seed)
+//! guards against.
 
 use serde::Serialize;
 
@@ -33,18 +45,21 @@ use crate::error::{Error, Result};
 use crate::pipeline::evaluate::Evaluation;
 use crate::scene::budget_costs::ToleranceCost;
 use crate::scene::doc::BenchDoc;
-use crate::scene::tolerance::{SensitivityRecord, ToleranceSet, TrialRecord};
+use crate::scene::tolerance::{SensitivityRecord, ToleranceSet};
 
 use super::ToleranceOptions;
+use super::budget_search::{
+    Aim, Job, Rounds, TracedConfirmation, baseline, calibrated, cheapest_pass, rounds,
+};
 use super::budget_surface::{Samples, Surface, fraction_needed, soft_widths, wilson_lower};
+
+/// How the lower bound of a confirmation's yield is computed (named in `summary.json`).
+pub const LOWER_BOUND_METHOD: &str = "Wilson score, one-sided";
 
 /// The factor a tightening step scales a tolerance by.
 pub const TIGHTEN_STEP: f64 = 0.8;
 /// The factor a loosening step scales a tolerance by.
 pub const LOOSEN_STEP: f64 = 1.05;
-/// The tolerances (largest share of the surface's variance first) whose pairs get cross terms
-/// in a refit.
-pub const REFIT_TOP: usize = 5;
 /// The first trial index of the baseline's confirmation (the joint rounds use 0, n, 2n, …).
 pub const BASELINE_INDEX_BASE: u64 = 1 << 40;
 
@@ -148,8 +163,16 @@ pub struct BudgetOutcome {
     pub reached: bool,
     /// Why not, when not.
     pub reason: Option<String>,
+    /// The round whose budget is the joint one (0-based; none when no round ran).
+    pub chosen_round: Option<usize>,
+    /// Why the rounds stopped where they did.
+    pub stop: String,
+    /// A shard's run that stopped at a confirmation the other shards complete: only
+    /// `traced` is meaningful.
+    #[serde(skip)]
+    pub incomplete: bool,
     pub rows: Vec<BudgetRow>,
-    /// The joint budget: the last round's (met the bound, or the best found).
+    /// The joint budget: the cheapest round that met the bound, or the best found.
     pub joint: BudgetFigures,
     pub baseline: BudgetFigures,
     pub rounds: Vec<Round>,
@@ -157,9 +180,9 @@ pub struct BudgetOutcome {
     pub common_scale: Vec<(f64, f64)>,
     /// The limits no surface models (judged by the confirmations only).
     pub unmodelled_limits: Vec<String>,
-    /// The trials of the confirmations, joint rounds then the baseline.
+    /// The confirmations' trials, the baseline's then the rounds'.
     #[serde(skip)]
-    pub records: Vec<TrialRecord>,
+    pub traced: Vec<TracedConfirmation>,
 }
 
 /// The tolerance file with each range scaled by its scale.
@@ -172,7 +195,7 @@ pub fn scaled_set(set: &ToleranceSet, scales: &[f64]) -> ToleranceSet {
     s
 }
 
-fn total_cost(costs: &[ToleranceCost], scales: &[f64]) -> f64 {
+pub fn total_cost(costs: &[ToleranceCost], scales: &[f64]) -> f64 {
     costs.iter().zip(scales).map(|(c, s)| c.cost(*s)).sum()
 }
 
@@ -317,52 +340,6 @@ pub fn inverse_limit(surface: &Surface, set: &ToleranceSet, i: usize, lo: f64, h
     round_down(a.exp()).max(lo)
 }
 
-/// Traces the confirmation trials `first … first + n − 1` of the budget `scales` and judges
-/// them by every limit of the file.
-fn confirm(
-    job: &Job,
-    scales: &[f64],
-    first: u64,
-    records: &mut Vec<TrialRecord>,
-) -> Result<Confirmation> {
-    let b = scaled_set(job.set, scales);
-    let n = job.b.trials as usize;
-    let mut passed = 0;
-    let mut failed = 0;
-    for i in first..first + n as u64 {
-        let (r, _) = super::trial(job.doc, &b, job.nominal, job.o, i)?;
-        if r.error.is_some() {
-            failed += 1;
-        } else if job
-            .set
-            .limits
-            .iter()
-            .all(|l| r.value(&l.metric.to_string()).is_some_and(|v| l.holds(v)))
-        {
-            passed += 1;
-        }
-        records.push(r);
-    }
-    (job.progress)(&format!("trials {first}…: {passed} of {n} pass"));
-    Ok(Confirmation {
-        first_index: first,
-        trials: n,
-        passed,
-        failed_trials: failed,
-        fraction: passed as f64 / n.max(1) as f64,
-        lower_bound: wilson_lower(passed, n, job.b.confidence),
-    })
-}
-
-struct Job<'a> {
-    doc: &'a BenchDoc,
-    set: &'a ToleranceSet,
-    nominal: &'a Evaluation,
-    o: &'a ToleranceOptions,
-    b: &'a BudgetOptions,
-    progress: &'a (dyn Fn(&str) + Sync),
-}
-
 /// The largest scale ≤ `hi` (halving from `hi`, never below 1) at which both ends of
 /// tolerance `i`'s range are a valid bench.
 fn valid_hi(doc: &BenchDoc, set: &ToleranceSet, i: usize, hi: f64) -> f64 {
@@ -379,142 +356,135 @@ fn valid_hi(doc: &BenchDoc, set: &ToleranceSet, i: usize, hi: f64) -> f64 {
     s
 }
 
-/// Searches the budget for `set`'s limits (module docs). `sens` is the sensitivity table at
-/// the file's ranges, `costs` one rule per tolerance; `progress` reports what runs.
-#[allow(clippy::too_many_arguments)]
+/// The inputs of a budget search beside the bench: the tolerance file, one cost rule per
+/// tolerance, the nominal bench, the sensitivity table at the file's ranges.
+pub struct BudgetInputs<'a> {
+    pub doc: &'a BenchDoc,
+    pub set: &'a ToleranceSet,
+    pub costs: &'a [ToleranceCost],
+    pub nominal: &'a Evaluation,
+    pub sens: &'a [SensitivityRecord],
+}
+
+/// How a run traces: the options of every trace, the search's, the confirmations of a run
+/// before (reused where they agree: a resume, or the shards of one), and the shard (I, N) this
+/// run traces of a confirmation they do not complete ((0, 1): all of it).
+pub struct BudgetRunOptions<'a> {
+    pub o: &'a ToleranceOptions,
+    pub b: &'a BudgetOptions,
+    pub prior: &'a [TracedConfirmation],
+    pub shard: (u64, u64),
+}
+
+/// Searches the budget for the file's limits (module docs); `progress` reports what runs.
 pub fn budget(
-    doc: &BenchDoc,
-    set: &ToleranceSet,
-    costs: &[ToleranceCost],
-    nominal: &Evaluation,
-    sens: &[SensitivityRecord],
-    o: &ToleranceOptions,
-    b: &BudgetOptions,
+    inputs: &BudgetInputs,
+    run: &BudgetRunOptions,
     progress: &(dyn Fn(&str) + Sync),
 ) -> Result<BudgetOutcome> {
+    let (set, costs, b) = (inputs.set, inputs.costs, run.b);
     check_options(b)?;
     let costs = &set.pin_fixed(costs);
     let job = Job {
-        doc,
+        doc: inputs.doc,
         set,
-        nominal,
-        o,
+        nominal: inputs.nominal,
+        o: run.o,
         b,
         progress,
+        prior: run.prior,
+        shard: run.shard,
     };
-    let nominal_values = super::values(nominal, nominal);
-    let mut surface = Surface::from_sensitivity(set, sens, &nominal_values);
-    let samples = Samples::draw(set, o.seed, b.samples);
+    let nominal_values = super::values(inputs.nominal, inputs.nominal);
+    let base = Surface::from_sensitivity(set, inputs.sens, &nominal_values);
+    let samples = Samples::draw(set, run.o.seed, b.samples);
     let lo: Vec<f64> = costs.iter().map(|c| c.min_scale).collect();
     let hi: Vec<f64> = costs
         .iter()
         .enumerate()
-        .map(|(i, c)| valid_hi(doc, set, i, c.max_scale).max(c.min_scale))
+        .map(|(i, c)| valid_hi(inputs.doc, set, i, c.max_scale).max(c.min_scale))
         .collect();
     let fraction = fraction_needed(b.target_yield, b.confidence, b.trials as usize);
     let needed = fraction.unwrap_or(1.0);
-    let mut records = Vec::new();
-    let mut rounds: Vec<Round> = Vec::new();
-    let mut target = needed;
-    // Too few trials to show the target even if all pass: reported, not refused, so that a
-    // small trial run still writes its baseline and surface.
-    let mut reason = fraction.is_none().then(|| {
-        let n = (1..=10_000_000usize)
-            .find(|n| wilson_lower(*n, *n, b.confidence) >= b.target_yield)
-            .unwrap_or(10_000_000);
-        format!(
-            "{} trials cannot show a yield of {} at confidence {} even if every one passes: give \
-             `trials` {n} or more",
-            b.trials, b.target_yield, b.confidence
-        )
-    });
-    let rounds_allowed = if fraction.is_some() { b.max_rounds } else { 0 };
-    for r in 0..rounds_allowed {
-        let Some((scales, y)) = allocate(&surface, &samples, costs, (&lo, &hi), target) else {
-            let y = samples.yield_at(&surface, &lo);
-            reason = Some(format!(
-                "on the response surface the tightest scales the bounds allow give a yield of \
-                 {y:.4}, below the {target:.4} this round needs"
-            ));
-            break;
-        };
-        progress(&format!(
-            "round {}: surface yield {y:.4} (target {target:.4}), confirming",
-            r + 1
-        ));
-        let first = r as u64 * b.trials;
-        let c = confirm(&job, &scales, first, &mut records)?;
-        let met = c.lower_bound >= b.target_yield;
-        rounds.push(Round {
-            surface_target: target,
-            surface_yield: y,
-            total_cost: total_cost(costs, &scales),
-            geometric_mean_scale: geometric_mean(&scales),
-            cross_terms: surface.metrics.iter().map(|m| m.cross.len()).sum(),
-            scales: scales.clone(),
-            confirmation: c.clone(),
-        });
-        if met {
-            break;
+    let mut traced = Vec::new();
+    // The baseline first: its trials are the first calibration of the joint search's surface.
+    let (base_scales, base_c) = baseline(&job, &base, (&lo, &hi), &mut traced)?;
+    let search = match (fraction, &base_c) {
+        (Some(_), Some(_)) => {
+            let aim = Aim {
+                needed,
+                margin: (needed * (1.0 - needed) / b.trials as f64).sqrt(),
+            };
+            rounds(&job, &base, &samples, costs, (&lo, &hi), &aim, &mut traced)?
         }
-        // Refit on every trial so far, weighting tolerances by their share of the surface's
-        // spread at the file's ranges.
-        let weight = spread_weights(&surface, set);
-        if surface.metrics.iter().all(|m| m.cross.is_empty()) {
-            surface.refit(set, &records, &weight, REFIT_TOP);
-        } else {
-            surface.refit(set, &records, &weight, 0);
-        }
-        let y_now = samples.yield_at(&surface, &scales);
-        let gap = (y_now - c.fraction).max(0.0);
-        target = (needed + gap).max(target + 0.5 * (1.0 - target)).min(1.0);
-    }
-    let reached = rounds
-        .last()
-        .is_some_and(|r| r.confirmation.lower_bound >= b.target_yield);
-    if !reached && reason.is_none() {
-        reason = Some(match rounds.last() {
-            Some(last) => format!(
-                "{} rounds did not confirm the target: the last budget's yield was {:.4} \
-                 (lower bound {:.4} at confidence {})",
-                rounds.len(),
-                last.confirmation.fraction,
-                last.confirmation.lower_bound,
-                b.confidence
-            ),
-            None => "no round ran".into(),
-        });
-    }
-    // The budget reported: the last round's when it met the bound, else the round with the
-    // best confirmed yield.
-    let chosen = if reached {
-        rounds.last()
-    } else {
-        rounds
-            .iter()
-            .max_by(|a, b| a.confirmation.fraction.total_cmp(&b.confirmation.fraction))
+        _ => Rounds {
+            rounds: Vec::new(),
+            surface: calibrated(&base, set, &traced),
+            reason: fraction.is_none().then(|| too_few_trials(b)),
+            stop: "no round ran".into(),
+            incomplete: base_c.is_none(),
+        },
     };
-    let scales = chosen.map_or_else(|| lo.clone(), |r| r.scales.clone());
+    let baseline = BudgetFigures {
+        total_cost: total_cost(costs, &base_scales),
+        geometric_mean_scale: geometric_mean(&base_scales),
+        surface_yield: samples.yield_at(&search.surface, &base_scales),
+        confirmation: base_c,
+        scales: base_scales,
+    };
+    Ok(outcome(
+        inputs,
+        b,
+        &samples,
+        (lo, hi),
+        needed,
+        (search, baseline),
+        traced,
+    ))
+}
+
+/// Too few trials to show the target even if all pass: reported, not refused, so that a small
+/// trial run still writes its baseline and surface.
+fn too_few_trials(b: &BudgetOptions) -> String {
+    let n = (1..=10_000_000usize)
+        .find(|n| wilson_lower(*n, *n, b.confidence) >= b.target_yield)
+        .unwrap_or(10_000_000);
+    format!(
+        "{} trials cannot show a yield of {} at confidence {} even if every one passes: give \
+         `trials` {n} or more",
+        b.trials, b.target_yield, b.confidence
+    )
+}
+
+/// The outcome of a search: the joint budget (the cheapest round that met the bound, else the
+/// round with the best confirmed yield), its rows beside the baseline's, the common-scale
+/// curve on the final surface.
+fn outcome(
+    inputs: &BudgetInputs,
+    b: &BudgetOptions,
+    samples: &Samples,
+    (lo, hi): (Vec<f64>, Vec<f64>),
+    needed: f64,
+    (search, baseline): (Rounds, BudgetFigures),
+    traced: Vec<TracedConfirmation>,
+) -> BudgetOutcome {
+    let (set, costs, surface) = (inputs.set, inputs.costs, &search.surface);
+    let passing = cheapest_pass(&search.rounds, b.target_yield);
+    let chosen = passing.or_else(|| {
+        (0..search.rounds.len()).max_by(|x, y| {
+            let f = |k: usize| search.rounds[k].confirmation.fraction;
+            f(*x).total_cmp(&f(*y))
+        })
+    });
+    let scales = chosen.map_or_else(|| lo.clone(), |k| search.rounds[k].scales.clone());
     let joint = BudgetFigures {
         total_cost: total_cost(costs, &scales),
         geometric_mean_scale: geometric_mean(&scales),
-        surface_yield: samples.yield_at(&surface, &scales),
-        confirmation: chosen.map(|r| r.confirmation.clone()),
+        surface_yield: samples.yield_at(surface, &scales),
+        confirmation: chosen.map(|k| search.rounds[k].confirmation.clone()),
         scales: scales.clone(),
     };
-    let base: Vec<f64> = (0..set.tolerances.len())
-        .map(|i| inverse_limit(&surface, set, i, lo[i], hi[i]))
-        .collect();
-    progress("baseline (one at a time): confirming");
-    let bc = confirm(&job, &base, BASELINE_INDEX_BASE, &mut records)?;
-    let baseline = BudgetFigures {
-        total_cost: total_cost(costs, &base),
-        geometric_mean_scale: geometric_mean(&base),
-        surface_yield: samples.yield_at(&surface, &base),
-        confirmation: Some(bc),
-        scales: base.clone(),
-    };
-    let shares = loss_shares(&surface, &samples, &scales);
+    let shares = loss_shares(surface, samples, &scales);
     let rows = set
         .tolerances
         .iter()
@@ -527,52 +497,39 @@ pub fn budget(
             cost: costs[i].cost(scales[i]),
             bounds: [lo[i], hi[i]],
             loss_share: shares[i],
-            baseline_scale: base[i],
-            baseline_cost: costs[i].cost(base[i]),
+            baseline_scale: baseline.scales[i],
+            baseline_cost: costs[i].cost(baseline.scales[i]),
         })
         .collect();
     let top = hi.iter().copied().fold(1.0, f64::max);
     let common_scale = (0..=40)
         .map(|k| {
             let l = 0.01 * (top / 0.01f64).powf(k as f64 / 40.0);
-            (
-                l,
-                samples.yield_at(&surface, &vec![l; set.tolerances.len()]),
-            )
+            (l, samples.yield_at(surface, &vec![l; set.tolerances.len()]))
         })
         .collect();
-    Ok(BudgetOutcome {
+    BudgetOutcome {
         target_yield: b.target_yield,
         confidence: b.confidence,
         fraction_needed: needed,
         surface_samples: b.samples,
-        reached,
-        reason,
+        reached: passing.is_some(),
+        reason: if passing.is_some() {
+            None
+        } else {
+            search.reason
+        },
+        chosen_round: chosen,
+        stop: search.stop,
+        incomplete: search.incomplete,
         rows,
         joint,
         baseline,
-        rounds,
+        rounds: search.rounds,
         common_scale,
         unmodelled_limits: surface.unmodelled.clone(),
-        records,
-    })
-}
-
-/// Each tolerance's weight in the surface at the file's ranges: Σ over the metrics of
-/// (|p|·w + |q|·w²)² with w the half width, normalised by the metric's limit scale.
-fn spread_weights(surface: &Surface, set: &ToleranceSet) -> Vec<f64> {
-    set.tolerances
-        .iter()
-        .enumerate()
-        .map(|(i, t)| {
-            let w = t.min.abs().max(t.max.abs());
-            surface
-                .metrics
-                .iter()
-                .map(|m| (m.lin[i].abs() * w + m.quad[i].abs() * w * w).powi(2))
-                .sum()
-        })
-        .collect()
+        traced,
+    }
 }
 
 /// Each tolerance's share of the yield loss at `scales` on the surface: every sample that

@@ -73,6 +73,24 @@ fn parabola(a: f64, b: f64, da: f64, db: f64) -> (f64, f64) {
     }
 }
 
+/// A change of the sensitivity table within [`NOISE_Z`] of its paired standard errors of zero
+/// is not told from ray noise, and is taken as none: summed over the many tolerances that barely
+/// act on a metric, such noise would read as a spread the built benches do not have (at 20 000
+/// rays the paper bench's lens and chart moves change the imbalance by about 10⁻³ ± 10⁻³, a
+/// tenth of its limit), and the budget would tighten them for nothing. A change that is real
+/// but this small still shows in the confirmations, and through their pass fractions in the
+/// surface targets of the rounds (`budget_search::rounds`).
+fn denoised(d: f64, se: f64) -> f64 {
+    if se.is_finite() && d.abs() < NOISE_Z * se {
+        0.0
+    } else {
+        d
+    }
+}
+
+/// How many standard errors from zero a change of the sensitivity table must lie to count.
+pub const NOISE_Z: f64 = 2.0;
+
 impl Surface {
     /// The surface from the sensitivity table and the nominal bench's values, for the file's
     /// limits on metrics the table records.
@@ -100,10 +118,11 @@ impl Surface {
                 None => {
                     let mut lin = vec![0.0; set.tolerances.len()];
                     let mut quad = vec![0.0; set.tolerances.len()];
+                    let se = format!("{diff}_stderr");
                     for r in sens {
                         if let Some(i) = set.tolerances.iter().position(|t| t.path == r.path) {
-                            (lin[i], quad[i]) =
-                                parabola(r.min, r.max, r.at(false, &diff), r.at(true, &diff));
+                            let end = |high: bool| denoised(r.at(high, &diff), r.at(high, &se));
+                            (lin[i], quad[i]) = parabola(r.min, r.max, end(false), end(true));
                         }
                     }
                     metrics.push(MetricSurface {
@@ -133,11 +152,13 @@ impl Surface {
 
     /// Refits each metric's surface on the trials' measured values (the confirmations'
     /// benches, with their compensators): a ridge least-squares correction of the residual
-    /// m_trial − m_surface over an intercept and, for the `top` tolerances (by `weight`,
-    /// largest first), xᵢ, xᵢ² and every xᵢxⱼ (in units of each tolerance's half range, so the
-    /// ridge treats them alike). The correction is kept when it removes at least
-    /// [`REFIT_GAIN`] of the residual sum of squares. Returns the number of cross terms
-    /// added.
+    /// m_trial − m_surface over an intercept, xᵢ and xᵢ² of every tolerance with a positive `weight`
+    /// (one the surface sees acting: a fit over every tolerance would read the trials' noise
+    /// as effects of those that do nothing), and xᵢxⱼ among the `top` of them (by `weight`, largest first), in units of each
+    /// tolerance's half range. The ridge ([`REFIT_RIDGE`]) shrinks what the trials barely
+    /// explore (a tolerance the budget holds tight), so the correction does not extrapolate
+    /// noise to scales no trial drew. The correction is kept when it removes at least
+    /// [`REFIT_GAIN`] of the residual sum of squares. Returns the number of cross terms added.
     pub fn refit(
         &mut self,
         set: &ToleranceSet,
@@ -148,7 +169,7 @@ impl Surface {
         let mut order: Vec<usize> = (0..set.tolerances.len()).collect();
         order.sort_by(|a, b| weight[*b].total_cmp(&weight[*a]));
         order.retain(|i| weight[*i] > 0.0);
-        order.truncate(top);
+        let paired = &order[..top.min(order.len())];
         let half: Vec<f64> = set
             .tolerances
             .iter()
@@ -170,8 +191,8 @@ impl Surface {
             for &i in &order {
                 feats.extend([Feature::Lin(i), Feature::Quad(i)]);
             }
-            for (a, &i) in order.iter().enumerate() {
-                for &j in &order[a + 1..] {
+            for (a, &i) in paired.iter().enumerate() {
+                for &j in &paired[a + 1..] {
                     feats.push(Feature::Cross(i, j));
                 }
             }
@@ -183,7 +204,7 @@ impl Surface {
                 .map(|(x, _)| feats.iter().map(|f| f.value(x, &half)).collect())
                 .collect();
             let y: Vec<f64> = data.iter().map(|(_, r)| *r).collect();
-            let Some(beta) = ridge(&rows, &y, 1e-6 * data.len() as f64) else {
+            let Some(beta) = ridge(&rows, &y, REFIT_RIDGE * data.len() as f64) else {
                 continue;
             };
             let ss0: f64 = y.iter().map(|r| r * r).sum();
@@ -213,6 +234,11 @@ impl Surface {
 
 /// The share of the residual sum of squares a refit must remove to be kept.
 pub const REFIT_GAIN: f64 = 0.1;
+
+/// The ridge of a refit per trial, λ/n: a feature whose mean square over the trials is below it
+/// (a tolerance drawn uniformly within about ±0.05 of its file's half range) has its
+/// correction shrunk by half or more.
+pub const REFIT_RIDGE: f64 = 1e-3;
 
 #[derive(Debug, Clone, Copy)]
 enum Feature {

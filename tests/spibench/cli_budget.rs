@@ -156,3 +156,75 @@ fn bad_budget_input_is_refused_and_an_unreachable_target_reported() {
     assert!(String::from_utf8_lossy(&o.stdout).contains("UNREACHABLE"));
     crate::outputs_schema::check_file(&out.join("summary.json"), "BudgetSummary");
 }
+
+/// summary.json without what a resume changes by design (its provenance names the resumed
+/// records it read).
+fn outcome_of(dir: &Path) -> serde_json::Value {
+    let mut s = read_json(&dir.join("summary.json"));
+    s.as_object_mut().unwrap().remove("provenance");
+    s
+}
+
+/// A search stopped after its first round and resumed, and one whose baseline was traced by two
+/// shards and then resumed from both, give exactly the uninterrupted search's outputs (every
+/// trial is a function of the seed, its index and its budget).
+#[test]
+fn a_resumed_or_sharded_budget_equals_the_uninterrupted_one() {
+    let dir = TempDir::new("budget-resume");
+    let args = |rounds: &'static str| {
+        [
+            "--target-yield",
+            "0.9",
+            "--trials",
+            "60",
+            "--budget-rounds",
+            rounds,
+        ]
+    };
+    let whole = dir.join("whole");
+    let o = budget(&args("3"), &whole);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let first = dir.join("first");
+    let o = budget(&args("1"), &first);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let resumed = dir.join("resumed");
+    let mut a = args("3").to_vec();
+    a.extend(["--resume", first.to_str().unwrap()]);
+    let o = budget(&a, &resumed);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("from the resumed records"),
+        "{}",
+        stderr(&o)
+    );
+    assert_eq!(outcome_of(&resumed), outcome_of(&whole));
+    let text = |d: &Path| std::fs::read_to_string(d.join("budget.ron")).unwrap();
+    assert_eq!(text(&resumed), text(&whole));
+    // Two shards trace the baseline's trials between them and stop; a resume from both goes on.
+    let mut shards = Vec::new();
+    for k in ["0/2", "1/2"] {
+        let out = dir.join(&format!("shard{}", &k[..1]));
+        let mut a = args("3").to_vec();
+        a.extend(["--shard", k]);
+        let o = budget(&a, &out);
+        assert!(o.status.success(), "{}", stderr(&o));
+        assert!(!out.join("summary.json").exists());
+        shards.push(out);
+    }
+    let merged = dir.join("merged");
+    let mut a = args("3").to_vec();
+    a.push("--resume");
+    a.extend(shards.iter().map(|p| p.to_str().unwrap()));
+    let o = budget(&a, &merged);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(outcome_of(&merged), outcome_of(&whole));
+    // Records of another run are refused at the field.
+    let mut a = vec!["--target-yield", "0.8", "--trials", "60", "--resume"];
+    a.push(first.to_str().unwrap());
+    let bad = dir.join("bad");
+    assert_input_error(
+        &budget(&a, &bad),
+        &["--resume", "target_yield differs"],
+        &bad,
+    );
+}

@@ -2,7 +2,8 @@
 //! `budget.ron`, the budget as a tolerance file that `spibench tolerance` reads back (each
 //! tolerance's scale and share of the yield loss in comments), `summary.json`
 //! (`BudgetSummary`), `budget.csv`, the figure of the surface yield against a common scale of
-//! every tolerance with the target marked (`yield_vs_scale.svg`, `.png`) and `report.html`.
+//! every tolerance with the target marked (`yield_vs_scale.svg`, `.png`), `report.html` and
+//! `budget_trials.ron` (what `--resume` continues from).
 
 use serde::Serialize;
 
@@ -12,6 +13,7 @@ use crate::report::output::OutputDir;
 use crate::report::plot::{LinePlot, Series, write_plot};
 use crate::scene::tolerance::{CompensatorObjective, Distribution, ToleranceSet};
 use crate::tolerance::budget::{BudgetFigures, BudgetOutcome, BudgetRow, Round};
+use crate::tolerance::budget_search::BudgetTrialsFile;
 
 /// What the run was, for the summary and the file's heading.
 #[derive(Debug, Clone)]
@@ -22,6 +24,8 @@ pub struct BudgetRun<'a> {
     pub rays: u64,
     pub seed: u64,
     pub trials: u64,
+    /// Whether every trial ran the whole pipeline and the image-quality limit took part.
+    pub quality: bool,
     /// The command words that made the budget.
     pub command: &'a str,
 }
@@ -149,8 +153,12 @@ struct BudgetSummary<'a> {
     confidence: f64,
     fraction_needed: f64,
     surface_samples: usize,
+    quality: bool,
+    lower_bound_method: &'static str,
     reached: bool,
     reason: Option<&'a str>,
+    chosen_round: Option<usize>,
+    stop: &'a str,
     unmodelled_limits: &'a [String],
     tolerances: &'a [BudgetRow],
     joint: &'a BudgetFigures,
@@ -160,6 +168,22 @@ struct BudgetSummary<'a> {
     files: &'a [String],
 }
 
+/// `budget_trials.ron`: the run's identity, sensitivity table and every confirmation's trials,
+/// from which `--resume` continues (floats written so that they read back bit for bit).
+pub fn write_budget_trials(file: &BudgetTrialsFile, out: &OutputDir) -> crate::Result<()> {
+    let config = ron::ser::PrettyConfig::new()
+        .struct_names(false)
+        .indentor(" ".to_string());
+    let text = ron::ser::to_string_pretty(file, config).map_err(|e| {
+        crate::Error::Numerical(format!("the trial records cannot be written: {e}"))
+    })?;
+    let path = out.path(BUDGET_TRIALS);
+    std::fs::write(&path, text).map_err(|e| crate::Error::write(&path, e))
+}
+
+/// The file of a budget run's trials.
+pub const BUDGET_TRIALS: &str = "budget_trials.ron";
+
 /// Writes every output of a budget into `out` (a staging folder); returns the count of files.
 pub fn write_budget(
     b: &BudgetOutcome,
@@ -168,9 +192,15 @@ pub fn write_budget(
     provenance: &crate::provenance::Provenance,
     out: &OutputDir,
 ) -> crate::Result<usize> {
-    let mut files: Vec<String> = ["summary.json", "budget.ron", "budget.csv", "report.html"]
-        .map(String::from)
-        .to_vec();
+    let mut files: Vec<String> = [
+        "summary.json",
+        "budget.ron",
+        "budget.csv",
+        "report.html",
+        BUDGET_TRIALS,
+    ]
+    .map(String::from)
+    .to_vec();
     let path = out.path("budget.ron");
     std::fs::write(&path, budget_ron(set, b, run)).map_err(|e| crate::Error::write(&path, e))?;
     write_budget_csv(b, set, out)?;
@@ -196,8 +226,12 @@ pub fn write_budget(
         confidence: b.confidence,
         fraction_needed: b.fraction_needed,
         surface_samples: b.surface_samples,
+        quality: run.quality,
+        lower_bound_method: crate::tolerance::budget::LOWER_BOUND_METHOD,
         reached: b.reached,
         reason: b.reason.as_deref(),
+        chosen_round: b.chosen_round,
+        stop: &b.stop,
         unmodelled_limits: &b.unmodelled_limits,
         tolerances: &b.rows,
         joint: &b.joint,
