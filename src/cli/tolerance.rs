@@ -403,7 +403,10 @@ fn run_budget(
         scene: doc.name(),
         bench_ron: doc.to_ron()?,
         tolerances_text: crate::scene::read_text(tol_path)?,
-        costs: costs.clone(),
+        costs: costs
+            .iter()
+            .map(|c| [c.weight, c.exponent, c.min_scale, c.max_scale])
+            .collect(),
         rays: o.rays,
         seed: o.seed,
         trials: b.trials,

@@ -26,7 +26,7 @@ use crate::scene::numbers::{Positive, via};
 use crate::scene::tolerance::ToleranceSet;
 
 /// The cost rule and scale bounds of one tolerance.
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct ToleranceCost {
     pub weight: f64,
     pub exponent: f64,

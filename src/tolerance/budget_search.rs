@@ -52,7 +52,8 @@ pub struct BudgetTrialsFile {
     pub scene: String,
     pub bench_ron: String,
     pub tolerances_text: String,
-    pub costs: Vec<ToleranceCost>,
+    /// Each tolerance's cost rule: [weight, exponent, min_scale, max_scale].
+    pub costs: Vec<[f64; 4]>,
     pub rays: u64,
     pub seed: u64,
     pub trials: u64,
