@@ -2,17 +2,20 @@
 //!
 //! With J the Jacobian of the whitened residuals in the unit box, JᵀJ = V·diag(s²)·Vᵀ; s are
 //! J's singular values and V's columns the directions they belong to. Along direction k one
-//! standard deviation is σ_k = √max(1, χ²/dof) / s_k (box units; the factor inflates the
-//! errors when the model explains the frames less well than the noise allows). A direction
+//! standard deviation is σ_k = √(max(1, χ²/dof)·v_kᵀ·M·v_k) / s_k² (box units, M below; with
+//! noise independent from frame to frame and of the weights' size M = A and σ_k = 1/s_k; the
+//! factor inflates the errors when the model explains the frames less well than the noise
+//! allows). A direction
 //! whose σ_k exceeds [`UNIDENTIFIED_SIGMA`] of the box is *unidentified*: the frames do not pin
 //! it, and it is scanned instead (the misfit traced at [`SCAN_POINTS`] points across the box
 //! along it, common random numbers); its range of equally good values is the stretch around the
 //! optimum where χ² stays within Δχ² = 4·max(1, χ²/dof) of the optimum (≈ 95 % for one
 //! parameter), extended to the first point beyond it on each side (or the bound).
 //!
-//! The covariance of the variables is the pseudo-inverse over the identified directions,
-//! C = Σ_k v_k v_kᵀ σ_k², plus the covariance the model's own trace noise gives them
-//! ([`trace_covariance`]: its errors are shared by every frame), in the variables' units; a variable with a share above
+//! The covariance of the variables is the sandwich C = max(1, χ²/dof)·A⁺·M·A⁺ with A = JᵀJ,
+//! A⁺ its pseudo-inverse over the identified directions and M the covariance of Jᵀ·δr
+//! ([`noise_moment`]: the measurement noise, independent from frame to frame, and the model
+//! trace's, which every frame shares), in the variables' units; a variable with a share above
 //! [`LOADING`] in an unidentified direction is reported unidentified (no standard error) with
 //! its range from the scan.
 
@@ -83,7 +86,7 @@ pub fn identify(
     u: &[f64],
     jac: &[Vec<f64>],
     prof: &super::Profiled,
-    g_stderr: &[Vec<f64>; 2],
+    batches: &super::model::BatchFrames,
     chi2: f64,
     chi2_dof: f64,
     rays: u64,
@@ -96,23 +99,26 @@ pub fn identify(
         .collect();
     let (eig, vecs) = linalg::symmetric_eigen(&a);
     let s: Vec<f64> = eig.iter().map(|e| e.max(0.0).sqrt()).collect();
-    let inflate = chi2_dof.max(1.0).sqrt();
+    let inflate2 = chi2_dof.max(1.0);
     let range: Vec<f64> = p.free.iter().map(|f| f.hi - f.lo).collect();
-    let mut cov = vec![vec![0.0; n]; n];
+    let m = noise_moment(p, jac, prof, batches);
     let mut pinv = vec![vec![0.0; n]; n];
     let mut identified = vec![true; n];
     let mut unidentified = Vec::new();
     for k in 0..n {
+        let v: Vec<f64> = (0..n).map(|i| vecs[i][k]).collect();
+        // Along v: δt = vᵀ·Jᵀ·δr / s², variance vᵀ·M·v / s⁴.
+        let vmv: f64 = (0..n)
+            .map(|i| (0..n).map(|j| v[i] * m[i][j] * v[j]).sum::<f64>())
+            .sum();
         let sigma = if s[k] > 0.0 {
-            inflate / s[k]
+            (inflate2 * vmv.max(0.0)).sqrt() / (s[k] * s[k])
         } else {
             f64::INFINITY
         };
-        let v: Vec<f64> = (0..n).map(|i| vecs[i][k]).collect();
         if sigma <= UNIDENTIFIED_SIGMA {
             for i in 0..n {
                 for j in 0..n {
-                    cov[i][j] += v[i] * v[j] * sigma * sigma * range[i] * range[j];
                     pinv[i][j] += v[i] * v[j] / (s[k] * s[k]);
                 }
             }
@@ -125,10 +131,17 @@ pub fn identify(
         }
         unidentified.push(scan(p, u, &v, s[k], chi2, chi2_dof, rays, seed, count)?);
     }
-    let trace = trace_covariance(p, jac, &pinv, prof, g_stderr);
+    // C = A⁺·M·A⁺ over the identified directions, in the variables' units.
+    let mut cov = vec![vec![0.0; n]; n];
     for i in 0..n {
         for j in 0..n {
-            cov[i][j] += trace[i][j] * range[i] * range[j];
+            let mut c = 0.0;
+            for k in 0..n {
+                for l in 0..n {
+                    c += pinv[i][k] * m[k][l] * pinv[l][j];
+                }
+            }
+            cov[i][j] = inflate2 * c * range[i] * range[j];
         }
     }
     let stderr: Vec<f64> = (0..n)
@@ -230,84 +243,64 @@ fn scan(
     })
 }
 
-/// The covariance (unit box) that the model's own trace noise gives the fitted variables.
+/// M = Cov(Jᵀ·δr), the noise moment of the whitened residuals' projection on the Jacobian
+/// (unit box), from the two noises the residuals carry:
 ///
-/// The per-frame weights count each frame's Monte Carlo variance, but a trace's errors are
-/// shared by the frames: every frame sums the same per-unit gains g±_j, so their errors move
-/// the optimum together. To first order the optimum moves by δθ = A⁺·Jᵀ·(δmodel/σ), with
-/// δmodel(f, o) = Σ_arms c_o,arm·Σ_j P^arm_fj·δg^arm_j (c the fitted scales, P^+ the frame's
-/// pattern and P^− its complement); so cov = Σ_arms Σ_j h_i,j·h_k,j·se(g_j)² with
-/// h_i = (P^arm)ᵀ·(c·z_i/σ) and z_i = J·A⁺·e_i.
-pub fn trace_covariance(
+/// - the measurement's, independent from frame to frame: δr_i = ε_i/σ_i with var ε_i = σ_o²
+///   (the channel's frame noise), so M_meas = Σ_i J_i·J_iᵀ·σ_o²/σ_i²;
+/// - the model trace's, shared by the frames: every frame sums the same traced per-unit gains,
+///   so batch b of the trace moves residual i by d_b,i = Σ_arm c_o,arm·δu_b,arm(f)/σ_i (c the
+///   fitted scales of the channel on each arm's light, δu_b the batch's frame light less the
+///   batch mean), and M_trace = B/(B − 1)·Σ_b (Jᵀ·d_b)(Jᵀ·d_b)ᵀ (batch means).
+///
+/// The weights 1/σ_i² count both variances frame by frame, so that χ² measures the misfit
+/// against both; the covariance A⁺·M·A⁺ counts the trace's once, with its correlations.
+pub fn noise_moment(
     p: &Problem,
     jac: &[Vec<f64>],
-    pinv: &[Vec<f64>],
     prof: &super::Profiled,
-    g_stderr: &[Vec<f64>; 2],
+    batches: &super::model::BatchFrames,
 ) -> Vec<Vec<f64>> {
-    use crate::acquisition::Sequence;
-    use crate::acquisition::schemes::CALIBRATION_PAIRS;
     let n = jac.len();
-    let units = p.bits.cols();
     let nu = &prof.nuisances;
     // Scales per channel [RF, MON+, MON−] on [u₊, u₋].
     let scale = [[nu[0], -nu[1]], [nu[3], 0.0], [0.0, nu[5]]];
-    let mut h = vec![[vec![0.0; units], vec![0.0; units]]; n];
-    let mut idx = 0;
+    let noise2 = p.measured.noise_v.map(|s| s * s);
+    let mut m = vec![vec![0.0; n]; n];
+    let nb = batches.deviations.len();
+    let mut jd = vec![vec![0.0; n]; nb];
+    let (mut idx, mut flat) = (0, 0);
     for (s, q) in p.measured.sequences.iter().enumerate() {
         for f in 0..q.values.len() {
             if q.flagged[f] {
+                flat += 1;
                 continue;
             }
-            // The frame's pattern as (row of the base patterns, inverted), or all on / all off.
-            let pattern: (Option<usize>, bool) = match q.sequence {
-                Sequence::Base => (Some(f), false),
-                Sequence::Complementary => (Some(f / 2), f % 2 == 1),
-                Sequence::CalibratedBase if f < 2 * CALIBRATION_PAIRS => (None, f % 2 == 1),
-                Sequence::CalibratedBase => (Some(f - 2 * CALIBRATION_PAIRS), false),
-            };
-            let mut w = vec![[0.0; 2]; n];
             for o in 0..3 {
                 let sg = prof.sigma_v[s][f][o];
-                for (i, wi) in w.iter_mut().enumerate() {
-                    let z: f64 = (0..n).map(|m| jac[m][idx] * pinv[m][i]).sum();
-                    wi[0] += z / sg * scale[o][0];
-                    wi[1] += z / sg * scale[o][1];
+                let share = noise2[o] / (sg * sg);
+                for i in 0..n {
+                    for j in 0..n {
+                        m[i][j] += jac[i][idx] * jac[j][idx] * share;
+                    }
+                }
+                for (b, dev) in batches.deviations.iter().enumerate() {
+                    let d = (scale[o][0] * dev[flat][0] + scale[o][1] * dev[flat][1]) / sg;
+                    for i in 0..n {
+                        jd[b][i] += jac[i][idx] * d;
+                    }
                 }
                 idx += 1;
             }
-            for j in 0..units {
-                let on = match pattern {
-                    (Some(r), inv) => p.bits.get(r, j) != inv,
-                    (None, inv) => !inv,
-                };
-                for (i, wi) in w.iter().enumerate() {
-                    if on {
-                        h[i][0][j] += wi[0];
-                    } else {
-                        h[i][1][j] += wi[1];
-                    }
-                }
+            flat += 1;
+        }
+    }
+    for v in &jd {
+        for i in 0..n {
+            for j in 0..n {
+                m[i][j] += batches.factor * v[i] * v[j];
             }
         }
     }
-    let se2 = |a: usize, j: usize| {
-        let s = g_stderr[a][j];
-        if s.is_finite() { s * s } else { 0.0 }
-    };
-    (0..n)
-        .map(|i| {
-            (0..n)
-                .map(|k| {
-                    (0..2)
-                        .map(|a| {
-                            (0..units)
-                                .map(|j| h[i][a][j] * h[k][a][j] * se2(a, j))
-                                .sum::<f64>()
-                        })
-                        .sum()
-                })
-                .collect()
-        })
-        .collect()
+    m
 }

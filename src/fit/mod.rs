@@ -16,6 +16,7 @@
 //! interior at a bound) are paired, their trace noise cancelling ray by ray. The first stage
 //! traces a quarter of the rays; the second, from the first's optimum, all of them.
 
+pub mod chi2;
 pub mod identify;
 pub mod linalg;
 pub mod measured;
@@ -98,6 +99,10 @@ pub struct Fit {
     pub nominal_scales: [f64; 4],
     pub adjustment: Option<Adjustment>,
     pub evaluations: usize,
+    /// What a correct model's χ² should be at these rays ([`chi2`]).
+    pub chi2_expected: chi2::Expected,
+    /// The Monte Carlo variance scale at the optimum ([`model::VarianceScale`]).
+    pub variance_scale: model::VarianceScale,
 }
 
 impl Fit {
@@ -132,32 +137,55 @@ pub struct Problem<'a> {
     pub free: &'a [Free],
     pub measured: &'a Measured,
     pub bits: BitMatrix,
+    /// The Monte Carlo variance scale the evaluations use ([`Problem::calibrate`] sets it).
+    pub scale: std::cell::Cell<model::VarianceScale>,
 }
 
 impl Problem<'_> {
     /// The misfit at `x` (the variables' values) traced with (rays, seed); None when the bench
     /// at `x` does not build.
     pub fn at(&self, x: &[f64], rays: u64, seed: u64) -> Result<Option<Profiled>> {
-        Ok(self.at_with_stderr(x, rays, seed)?.map(|(p, _)| p))
+        let Some(bench) = self.bench_at(x) else {
+            return Ok(None);
+        };
+        let traced = trace_stage(&bench, &TraceRequest::new(rays, seed))?;
+        let frames = model::model_frames(
+            &traced.transport,
+            &self.bits,
+            self.measured,
+            &self.scale.get(),
+        );
+        // A bench whose arm sees no light at all cannot be profiled: no better than a bench
+        // that does not build.
+        Ok(model::profile(&frames, self.measured).ok())
     }
 
-    /// [`Problem::at`] with the traced per-unit gains' standard errors g±_j (A).
-    pub fn at_with_stderr(
+    /// The bench at `x` built, or None.
+    fn bench_at(&self, x: &[f64]) -> Option<crate::optics::bench::Bench> {
+        self.doc.with(&settings(self.free, x)).ok()?.build().ok()
+    }
+
+    /// Traces `x` keeping each batch's frames, sets the Monte Carlo variance scale from them
+    /// ([`model::VarianceScale`]: every later evaluation uses it) and returns the misfit at `x`
+    /// with that scale and the batches; None when the bench at `x` does not build.
+    pub fn calibrate(
         &self,
         x: &[f64],
         rays: u64,
         seed: u64,
-    ) -> Result<Option<(Profiled, [Vec<f64>; 2])>> {
-        let Ok(d) = self.doc.with(&settings(self.free, x)) else {
+    ) -> Result<Option<(Profiled, model::BatchFrames)>> {
+        let Some(bench) = self.bench_at(x) else {
             return Ok(None);
         };
-        let Ok(bench) = d.build() else {
-            return Ok(None);
-        };
-        let traced = trace_stage(&bench, &TraceRequest::new(rays, seed))?;
-        let frames = model::model_frames(&traced.transport, &self.bits, self.measured);
-        let prof = model::profile(&frames, self.measured)?;
-        Ok(Some((prof, traced.transport.g_map_stderr.clone())))
+        let (traced, batches) = model::batch_frames(&bench, rays, seed, &self.bits, self.measured)?;
+        let t = &traced.transport;
+        let unit = model::model_frames(t, &self.bits, self.measured, &model::VarianceScale::default());
+        let scale = batches.scale(&unit, self.measured);
+        self.scale.set(scale);
+        let frames = model::model_frames(t, &self.bits, self.measured, &scale);
+        Ok(model::profile(&frames, self.measured)
+            .ok()
+            .map(|p| (p, batches)))
     }
 
     pub fn to_values(&self, u: &[f64]) -> Vec<f64> {
@@ -273,6 +301,7 @@ pub fn fit(
         free: &req.free,
         measured,
         bits,
+        scale: std::cell::Cell::new(model::VarianceScale::default()),
     };
     let rays = req.rays.max(2 * crate::trace::RAYS_PER_BATCH);
     let stages = [(rays / 4).max(2 * crate::trace::RAYS_PER_BATCH), rays];
@@ -281,20 +310,27 @@ pub fn fit(
         let n = evals.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
         progress(n);
     };
-    let nominal = p
-        .at(&start, rays, req.seed)?
-        .ok_or_else(|| Error::input("the nominal bench does not build"))?;
+    let (nominal, _) = p
+        .calibrate(&start, rays, req.seed)?
+        .ok_or_else(|| {
+            Error::input(
+                "the nominal bench does not build, or its frames do not separate the light from \
+                 the offsets (an arm without light)",
+            )
+        })?;
     count();
     let mut history = Vec::new();
     let mut u = coarse_start(&p, p.to_unit(&start), stages[0], req.seed, &count)?;
     for (stage, &r) in stages.iter().enumerate() {
+        p.calibrate(&p.to_values(&u), r, req.seed)?;
+        count();
         u = levenberg_marquardt(&p, u, r, req.seed, stage, &mut history, &count)?;
     }
     let mut restarts = 0;
-    let (u, best_prof, identification) = loop {
+    let (u, best_prof, identification, chi2_expected) = loop {
         let x = p.to_values(&u);
-        let (prof, g_stderr) = p
-            .at_with_stderr(&x, rays, req.seed)?
+        let (prof, batches) = p
+            .calibrate(&x, rays, req.seed)?
             .ok_or_else(|| Error::input("the fitted bench does not build"))?;
         count();
         let dof = prof
@@ -307,7 +343,7 @@ pub fn fit(
         }
         let chi2_dof = prof.chi2 / dof.max(1) as f64;
         let id = identify::identify(
-            &p, &u, &jac, &prof, &g_stderr, prof.chi2, chi2_dof, rays, req.seed, &count,
+            &p, &u, &jac, &prof, &batches, prof.chi2, chi2_dof, rays, req.seed, &count,
         )?;
         // A scan that found a clearly better point: the optimum was local; go on from there.
         match id.better_point() {
@@ -324,7 +360,10 @@ pub fn fit(
                     &count,
                 )?;
             }
-            _ => break (u, prof, id),
+            _ => {
+                let expected = chi2::expected(&p, &prof, &jac, &batches);
+                break (u, prof, id, expected);
+            }
         }
     };
     let x = p.to_values(&u);
@@ -353,6 +392,8 @@ pub fn fit(
         adjustment,
         best,
         evaluations: evals.load(std::sync::atomic::Ordering::Relaxed),
+        chi2_expected,
+        variance_scale: p.scale.get(),
     })
 }
 

@@ -82,62 +82,243 @@ fn products(op: &PackedOperator, v: &[f64]) -> Vec<f64> {
     out
 }
 
-/// The model's frames of every measured sequence for a traced transport.
-pub fn model_frames(t: &Transport, bits: &BitMatrix, measured: &Measured) -> ModelFrames {
+/// The light [u₊, u₋] (A) of every measured frame, sequence by sequence, from per-unit gains
+/// g± (A), the pattern-independent light c± (A) and the gains' pattern products `pg` (Σ_j P_ij·g±_j
+/// for every base pattern): the forward model of [`Transport::frame_currents_of`], with the
+/// calibration frames as all-on/all-off pairs.
+fn frame_lights(
+    g: [&[f64]; 2],
+    c: [f64; 2],
+    pg: &[Vec<f64>; 2],
+    measured: &Measured,
+) -> Vec<Vec<[f64; 2]>> {
+    let total = [g[0].iter().sum::<f64>(), g[1].iter().sum::<f64>()];
+    let base = |i: usize| [pg[0][i] + c[0], total[1] - pg[1][i] + c[1]];
+    let inverse = |i: usize| [total[0] - pg[0][i] + c[0], pg[1][i] + c[1]];
+    let m = pg[0].len();
+    measured
+        .sequences
+        .iter()
+        .map(|q| match q.sequence {
+            Sequence::Base => (0..m).map(base).collect(),
+            Sequence::Complementary => (0..m).flat_map(|i| [base(i), inverse(i)]).collect(),
+            Sequence::CalibratedBase => {
+                let (all, none) = ([total[0] + c[0], c[1]], [c[0], total[1] + c[1]]);
+                let mut l: Vec<[f64; 2]> =
+                    (0..CALIBRATION_PAIRS).flat_map(|_| [all, none]).collect();
+                l.extend((0..m).map(base));
+                l
+            }
+        })
+        .collect()
+}
+
+/// Whether frame `f` of sequence `q` is a calibration frame (all on or all off) rather than a
+/// pattern: the two classes of [`VarianceScale`].
+pub fn is_calibration_frame(q: Sequence, f: usize) -> bool {
+    q == Sequence::CalibratedBase && f < 2 * CALIBRATION_PAIRS
+}
+
+/// The ratio of the frames' batch-means Monte Carlo variance to the sum of their units'
+/// variances, per frame class (calibration frames, pattern frames) and arm ([`batch_frames`]).
+/// The per-unit sum leaves out the covariances of the units: the rays of a batch are spread
+/// over the lamp and the chart by one scrambled Sobol' sequence and each lands on one unit, so
+/// their units' errors are anticorrelated and a frame's sum varies less than its units do.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct VarianceScale(pub [[f64; 2]; 2]);
+
+impl Default for VarianceScale {
+    fn default() -> Self {
+        VarianceScale([[1.0; 2]; 2])
+    }
+}
+
+/// The model's frames of every measured sequence for a traced transport, their Monte Carlo
+/// variances the per-unit sums times `scale`.
+pub fn model_frames(
+    t: &Transport,
+    bits: &BitMatrix,
+    measured: &Measured,
+    scale: &VarianceScale,
+) -> ModelFrames {
     let op = PackedOperator::new(bits.clone(), PatternForm::ZeroOne);
+    let light_a = frame_lights(
+        [&t.g_a[0], &t.g_a[1]],
+        [t.c_traced[0].value, t.c_traced[1].value],
+        &t.pattern_products_of(&op),
+        measured,
+    );
+    let mut var_a2 = naive_variances(t, &op, measured);
+    for (q, v) in measured.sequences.iter().zip(&mut var_a2) {
+        for (f, vf) in v.iter_mut().enumerate() {
+            let class = usize::from(!is_calibration_frame(q.sequence, f));
+            for a in 0..2 {
+                vf[a] *= scale.0[class][a];
+            }
+        }
+    }
+    ModelFrames { light_a, var_a2 }
+}
+
+/// Each frame's Monte Carlo variance as the sum of its units' (and c±'s) variances.
+fn naive_variances(t: &Transport, op: &PackedOperator, measured: &Measured) -> Vec<Vec<[f64; 2]>> {
     let finite2 = |v: &[f64]| -> Vec<f64> {
         v.iter()
             .map(|s| if s.is_finite() { s * s } else { 0.0 })
             .collect()
     };
     let se2 = [finite2(&t.g_map_stderr[0]), finite2(&t.g_map_stderr[1])];
-    let pv = [products(&op, &se2[0]), products(&op, &se2[1])];
-    let tot_v = [se2[0].iter().sum::<f64>(), se2[1].iter().sum::<f64>()];
+    let pv = [products(op, &se2[0]), products(op, &se2[1])];
     let c_v = [0, 1].map(|a| {
         let s = t.c_traced[a].stderr;
         if s.is_finite() { s * s } else { 0.0 }
     });
-    let products_g = t.pattern_products_of(&op);
-    let units = bits.cols();
-    let (mut light_a, mut var_a2) = (Vec::new(), Vec::new());
-    for q in &measured.sequences {
-        // Variance of frame with pattern P: arm + sees the units on, arm − those off.
-        let base_var = |i: usize, inverted: bool| -> [f64; 2] {
-            let (on_p, on_m) = (pv[0][i], pv[1][i]);
-            if inverted {
-                [tot_v[0] - on_p + c_v[0], on_m + c_v[1]]
-            } else {
-                [on_p + c_v[0], tot_v[1] - on_m + c_v[1]]
+    // Variance of frame with pattern P: arm + sees the units on, arm − those off; the same
+    // forward model with the variances in place of the gains.
+    frame_lights([&se2[0], &se2[1]], c_v, &pv, measured)
+}
+
+/// A trace whose batches' frames are kept: for every measured frame, each batch's light less
+/// its share of the total, [u₊, u₋] (A), frames in the measured order (flagged ones included).
+pub struct BatchFrames {
+    pub deviations: Vec<Vec<[f64; 2]>>,
+    /// The batch-means factor B/(B − 1): the variance of a total is factor·Σ_b deviation².
+    pub factor: f64,
+}
+
+impl BatchFrames {
+    /// The batch-means variance of every frame (A²), sequences flattened in order.
+    pub fn variances(&self) -> Vec<[f64; 2]> {
+        let n = self.deviations.first().map_or(0, Vec::len);
+        let mut v = vec![[0.0; 2]; n];
+        for d in &self.deviations {
+            for (vi, di) in v.iter_mut().zip(d) {
+                for a in 0..2 {
+                    vi[a] += di[a] * di[a];
+                }
             }
-        };
-        let m = bits.rows();
-        let (l, v) = match q.sequence {
-            Sequence::Base => (
-                t.frame_currents_of(&products_g, false),
-                (0..m).map(|i| base_var(i, false)).collect(),
-            ),
-            Sequence::Complementary => (
-                t.frame_currents_of(&products_g, true),
-                (0..m)
-                    .flat_map(|i| [base_var(i, false), base_var(i, true)])
-                    .collect(),
-            ),
-            Sequence::CalibratedBase => {
-                let on = BitMatrix::from_fn(CALIBRATION_PAIRS, units, |_, _| true);
-                let mut l = t.frame_currents(&on, CALIBRATION_PAIRS, true);
-                l.extend(t.frame_currents_of(&products_g, false));
-                let all = [tot_v[0] + c_v[0], c_v[1]];
-                let none = [c_v[0], tot_v[1] + c_v[1]];
-                let mut v: Vec<[f64; 2]> =
-                    (0..CALIBRATION_PAIRS).flat_map(|_| [all, none]).collect();
-                v.extend((0..m).map(|i| base_var(i, false)));
-                (l, v)
+        }
+        for vi in &mut v {
+            for a in 0..2 {
+                vi[a] *= self.factor;
             }
-        };
-        light_a.push(l);
-        var_a2.push(v);
+        }
+        v
     }
-    ModelFrames { light_a, var_a2 }
+
+    /// The [`VarianceScale`] of these batches against the per-unit sums of `model`: per class
+    /// and arm, Σ batch-means variance / Σ per-unit sum over the frames.
+    pub fn scale(&self, model: &ModelFrames, measured: &Measured) -> VarianceScale {
+        let exact = self.variances();
+        let (mut num, mut den) = ([[0.0; 2]; 2], [[0.0; 2]; 2]);
+        let mut i = 0;
+        for (s, q) in measured.sequences.iter().enumerate() {
+            for f in 0..q.values.len() {
+                let class = usize::from(!is_calibration_frame(q.sequence, f));
+                for a in 0..2 {
+                    num[class][a] += exact[i][a];
+                    den[class][a] += model.var_a2[s][f][a];
+                }
+                i += 1;
+            }
+        }
+        let mut out = VarianceScale::default();
+        for class in 0..2 {
+            for a in 0..2 {
+                if den[class][a] > 0.0 && num[class][a].is_finite() {
+                    out.0[class][a] = num[class][a] / den[class][a];
+                }
+            }
+        }
+        out
+    }
+}
+
+/// The trace of `bench` with (rays, seed), the same tallies as [`crate::trace::trace`] (the
+/// same batches, absorbed in order), keeping each batch's frames ([`BatchFrames`]).
+pub fn batch_frames(
+    bench: &crate::optics::bench::Bench,
+    rays: u64,
+    seed: u64,
+    bits: &BitMatrix,
+    measured: &Measured,
+) -> Result<(crate::pipeline::Traced, BatchFrames)> {
+    use crate::trace::{RAYS_PER_BATCH, Tallies, TraceOptions, path};
+    let opts = TraceOptions::new(rays.max(1), seed);
+    let (across, down) = bench.units_shape();
+    let mut tallies = Tallies::new(
+        across,
+        down,
+        bench.elements().len(),
+        seed,
+        bench.lamp().power_outside_cone(),
+    );
+    let n = opts.rays;
+    let n_batches = n.div_ceil(RAYS_PER_BATCH);
+    let inv = 1.0 / n as f64;
+    let op = PackedOperator::new(bits.clone(), PatternForm::ZeroOne);
+    let units = bits.cols();
+    let mut lights: Vec<Vec<[f64; 2]>> = Vec::with_capacity(n_batches as usize);
+    crate::trace::batches_in_order(
+        n_batches,
+        |b| {
+            let rays_b = RAYS_PER_BATCH.min(n - b * RAYS_PER_BATCH);
+            let t = path::run_batch(bench, opts.mode, opts.sampling, seed, b, rays_b, inv);
+            let g = crate::optics::Arm::ALL.map(|arm| {
+                let (on, off) = (arm.state(), arm.other().state());
+                (0..units)
+                    .map(|j| {
+                        t.t[crate::trace::BatchTally::t_index(units, arm, on, j)]
+                            - t.t[crate::trace::BatchTally::t_index(units, arm, off, j)]
+                    })
+                    .collect::<Vec<f64>>()
+            });
+            let c = crate::optics::Arm::ALL.map(|arm| t.offset_sum(arm));
+            let pg = [products(&op, &g[0]), products(&op, &g[1])];
+            let l: Vec<[f64; 2]> = frame_lights([&g[0], &g[1]], c, &pg, measured)
+                .into_iter()
+                .flatten()
+                .collect();
+            (t, l)
+        },
+        |_, (t, l)| {
+            tallies.absorb(&t);
+            lights.push(l);
+        },
+        |_| {},
+    );
+    // Each batch's expected share of a total is its share of the rays (the last batch may be
+    // short): the deviations are taken from that share.
+    let nb = lights.len();
+    let mut total = vec![[0.0; 2]; lights.first().map_or(0, Vec::len)];
+    for l in &lights {
+        for (m, v) in total.iter_mut().zip(l) {
+            for a in 0..2 {
+                m[a] += v[a];
+            }
+        }
+    }
+    for (b, l) in lights.iter_mut().enumerate() {
+        let share = tallies.batches[b].rays as f64 / n as f64;
+        for (v, m) in l.iter_mut().zip(&total) {
+            for a in 0..2 {
+                v[a] -= share * m[a];
+            }
+        }
+    }
+    let factor = crate::transport::batch_factor(nb as u64).unwrap_or(f64::INFINITY);
+    let traced = crate::pipeline::Traced::from_tallies(
+        bench,
+        tallies,
+        crate::pipeline::CacheStatus::Off,
+    );
+    Ok((
+        traced,
+        BatchFrames {
+            deviations: lights,
+            factor,
+        },
+    ))
 }
 
 /// The misfit at one point, its nuisances profiled out.
@@ -153,6 +334,9 @@ pub struct Profiled {
     /// Residuals (V) and their σ (V) per sequence, frame and channel (NaN where flagged).
     pub residual_v: Vec<Vec<[f64; 3]>>,
     pub sigma_v: Vec<Vec<[f64; 3]>>,
+    /// Each channel's nuisance columns over the used frames, whitened (column·√weight): what
+    /// the profiling projects out ([`super::chi2::expected`]).
+    pub basis_w: [Vec<Vec<f64>>; 3],
 }
 
 /// Weighted least squares of y on the columns `x` (each a basis vector) with weights `w`:
@@ -278,12 +462,25 @@ pub fn profile(model: &ModelFrames, measured: &Measured) -> Result<Profiled> {
     let nuisances = [
         coef[0][0], coef[0][1], coef[0][2], coef[1][0], coef[1][1], coef[2][0], coef[2][1],
     ];
+    let basis_w = [0, 1, 2].map(|o| {
+        basis[o]
+            .0
+            .iter()
+            .map(|col| {
+                col.iter()
+                    .zip(&weights[o])
+                    .map(|(c, w)| c * w.sqrt())
+                    .collect()
+            })
+            .collect()
+    });
     Ok(Profiled {
         residuals,
         chi2,
         nuisances,
         residual_v,
         sigma_v,
+        basis_w,
     })
 }
 

@@ -75,6 +75,12 @@ pub struct FitSummary {
     pub chi2: f64,
     pub chi2_per_dof: f64,
     pub chi2_nominal: f64,
+    /// What a correct model's χ² should be: its mean from each noise and its standard deviation.
+    pub chi2_expected: crate::fit::chi2::Expected,
+    pub chi2_expected_per_dof: f64,
+    pub chi2_band_per_dof: [f64; 2],
+    /// The Monte Carlo variance scale [[calibration +, −], [patterns +, −]].
+    pub mc_variance_scale: [[f64; 2]; 2],
     pub noise_v: [f64; 3],
     pub variables: Vec<FittedVariable>,
     pub nuisances: Vec<Nuisance>,
@@ -148,6 +154,12 @@ pub fn summarize(f: &Fit, doc: &BenchDoc, measured: &Measured) -> FitSummary {
         chi2: f.best.profiled.chi2,
         chi2_per_dof: f.chi2_per_dof(),
         chi2_nominal: f.nominal_chi2,
+        chi2_expected: f.chi2_expected,
+        chi2_expected_per_dof: f.chi2_expected.mean() / f.dof.max(1) as f64,
+        chi2_band_per_dof: [-2.0, 2.0].map(|k| {
+            (f.chi2_expected.mean() + k * f.chi2_expected.sd) / f.dof.max(1) as f64
+        }),
+        mc_variance_scale: f.variance_scale.0,
         noise_v: measured.noise_v,
         variables,
         nuisances: f
