@@ -7,26 +7,6 @@ use std::path::{Path, PathBuf};
 
 use crate::common::*;
 
-fn small_scene(dir: &TempDir) -> PathBuf {
-    let t = std::fs::read_to_string(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/scenes/paper_bench.ron"
-    ))
-    .unwrap();
-    let t = t.replace(
-        "units_across: 48, units_down: 48, mirrors_per_unit: 12",
-        "units_across: 16, units_down: 16, mirrors_per_unit: 36",
-    );
-    let end = t.rfind(')').unwrap();
-    let t = format!(
-        "{}    run: (rays: 30000, sampling_ratios: [0.25, 1.0], signal_trace_frames: 3),\n)\n",
-        &t[..end]
-    );
-    let p = dir.join("small.ron");
-    std::fs::write(&p, t).unwrap();
-    p
-}
-
 fn bytes(p: &Path) -> Vec<u8> {
     std::fs::read(p).unwrap_or_else(|e| panic!("{}: {e}", p.display()))
 }
@@ -76,7 +56,7 @@ fn assert_same_as_run(run: &Path, taken: &Path) {
 #[test]
 fn intake_of_a_runs_scope_records_gives_the_run_bit_for_bit() {
     let dir = TempDir::new("intake-round-trip");
-    let scene = small_scene(&dir);
+    let scene = small_paper_scene(&dir);
     let run = dir.join("run");
     let o = spibench(
         &[
