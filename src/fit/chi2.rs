@@ -66,7 +66,11 @@ fn least_squares(cols: &[Vec<f64>], y: &[f64]) -> Option<Vec<f64>> {
     let k = cols.len();
     let norm: Vec<f64> = cols.iter().map(|c| dot(c, c).sqrt().max(1e-300)).collect();
     let a: Vec<Vec<f64>> = (0..k)
-        .map(|i| (0..k).map(|j| dot(&cols[i], &cols[j]) / (norm[i] * norm[j])).collect())
+        .map(|i| {
+            (0..k)
+                .map(|j| dot(&cols[i], &cols[j]) / (norm[i] * norm[j]))
+                .collect()
+        })
         .collect();
     let b: Vec<f64> = (0..k).map(|i| dot(&cols[i], y) / norm[i]).collect();
     linalg::solve(a, b).map(|c| c.iter().zip(&norm).map(|(c, s)| c / s).collect())
@@ -78,7 +82,8 @@ pub fn expected(p: &Problem, prof: &Profiled, jac: &[Vec<f64>], batches: &BatchF
     let scale = [[nu[0], -nu[1]], [nu[3], 0.0], [0.0, nu[5]]];
     let noise2 = p.measured.noise_v.map(|s| s * s);
     let mut share = Vec::with_capacity(prof.residuals.len());
-    let mut ds: Vec<Vec<f64>> = vec![Vec::with_capacity(prof.residuals.len()); batches.deviations.len()];
+    let mut ds: Vec<Vec<f64>> =
+        vec![Vec::with_capacity(prof.residuals.len()); batches.deviations.len()];
     let mut flat = 0;
     for (s, q) in p.measured.sequences.iter().enumerate() {
         for f in 0..q.values.len() {

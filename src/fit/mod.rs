@@ -179,7 +179,12 @@ impl Problem<'_> {
         };
         let (traced, batches) = model::batch_frames(&bench, rays, seed, &self.bits, self.measured)?;
         let t = &traced.transport;
-        let unit = model::model_frames(t, &self.bits, self.measured, &model::VarianceScale::default());
+        let unit = model::model_frames(
+            t,
+            &self.bits,
+            self.measured,
+            &model::VarianceScale::default(),
+        );
         let scale = batches.scale(&unit, self.measured);
         self.scale.set(scale);
         let frames = model::model_frames(t, &self.bits, self.measured, &scale);
@@ -310,14 +315,12 @@ pub fn fit(
         let n = evals.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
         progress(n);
     };
-    let (nominal, _) = p
-        .calibrate(&start, rays, req.seed)?
-        .ok_or_else(|| {
-            Error::input(
-                "the nominal bench does not build, or its frames do not separate the light from \
+    let (nominal, _) = p.calibrate(&start, rays, req.seed)?.ok_or_else(|| {
+        Error::input(
+            "the nominal bench does not build, or its frames do not separate the light from \
                  the offsets (an arm without light)",
-            )
-        })?;
+        )
+    })?;
     count();
     let mut history = Vec::new();
     let mut u = coarse_start(&p, p.to_unit(&start), stages[0], req.seed, &count)?;

@@ -22,6 +22,9 @@
 //! channel plus the model's Monte Carlo variance carried through the fitted scales, so that
 //! χ²/dof ≈ 1 means "explained within the noise".
 
+// Arm pairs [+, −] indexed as the formulas are written.
+#![allow(clippy::needless_range_loop)]
+
 use crate::acquisition::Sequence;
 use crate::acquisition::schemes::CALIBRATION_PAIRS;
 use crate::detector::Bap;
@@ -307,11 +310,8 @@ pub fn batch_frames(
         }
     }
     let factor = crate::transport::batch_factor(nb as u64).unwrap_or(f64::INFINITY);
-    let traced = crate::pipeline::Traced::from_tallies(
-        bench,
-        tallies,
-        crate::pipeline::CacheStatus::Off,
-    );
+    let traced =
+        crate::pipeline::Traced::from_tallies(bench, tallies, crate::pipeline::CacheStatus::Off);
     Ok((
         traced,
         BatchFrames {

@@ -156,9 +156,8 @@ pub fn summarize(f: &Fit, doc: &BenchDoc, measured: &Measured) -> FitSummary {
         chi2_nominal: f.nominal_chi2,
         chi2_expected: f.chi2_expected,
         chi2_expected_per_dof: f.chi2_expected.mean() / f.dof.max(1) as f64,
-        chi2_band_per_dof: [-2.0, 2.0].map(|k| {
-            (f.chi2_expected.mean() + k * f.chi2_expected.sd) / f.dof.max(1) as f64
-        }),
+        chi2_band_per_dof: [-2.0, 2.0]
+            .map(|k| (f.chi2_expected.mean() + k * f.chi2_expected.sd) / f.dof.max(1) as f64),
         mc_variance_scale: f.variance_scale.0,
         noise_v: measured.noise_v,
         variables,

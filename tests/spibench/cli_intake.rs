@@ -3,7 +3,7 @@
 //! for every scheme and ratio, from the CSV and from the `.npy`; damaged records and channel
 //! names that do not match are located input errors.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use crate::common::*;
 
