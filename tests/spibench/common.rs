@@ -95,8 +95,14 @@ pub fn small_paper_scene(dir: &TempDir) -> PathBuf {
             "units_across: 48, units_down: 48, mirrors_per_unit: 12",
             "units_across: 16, units_down: 16, mirrors_per_unit: 36",
         )
-        .replace("model: Diffractive(tail_bin_nm: 10.0),", "model: Geometric,");
-    assert!(t.contains("model: Geometric,"), "the shipped bench's DMD model line moved");
+        .replace(
+            "model: Diffractive(tail_bin_nm: 10.0),",
+            "model: Geometric,",
+        );
+    assert!(
+        t.contains("model: Geometric,"),
+        "the shipped bench's DMD model line moved"
+    );
     let end = t.rfind(')').unwrap();
     let t = format!(
         "{}    run: (rays: 30000, sampling_ratios: [0.25, 1.0], signal_trace_frames: 3),\n)\n",
