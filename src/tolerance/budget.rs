@@ -613,6 +613,7 @@ mod tests {
         let surface = Surface {
             metrics: vec![MetricSurface {
                 metric: BenchMetric::Imbalance.into(),
+                recorded: "imbalance".into(),
                 m0: 0.0,
                 lin: vec![0.04, 0.01],
                 quad: vec![0.0, 0.0],

@@ -135,7 +135,7 @@ pub fn passes(set: &ToleranceSet, quality: bool, r: &TrialRecord) -> bool {
         && set
             .limits
             .iter()
-            .all(|l| r.value(&l.metric.to_string()).is_some_and(|v| l.holds(v)))
+            .all(|l| l.value_in(r).is_some_and(|v| l.holds(v)))
         && (!quality || set.quality.is_none_or(|q| quality_holds(&q, r)))
 }
 

@@ -12,12 +12,31 @@
 //! every candidate budget.
 
 use crate::quantities::Quantity;
-use crate::scene::tolerance::{SensitivityRecord, ToleranceLimit, ToleranceSet, TrialRecord};
+use crate::scene::tolerance::{
+    IMBALANCE_ELECTRICAL, SensitivityRecord, ToleranceLimit, ToleranceSet, TrialRecord,
+};
+
+/// The name of the recorded value limit `l` judges ([`ToleranceLimit::value_in`]): the
+/// electrical imbalance for a limit on the imbalance where the nominal bench records a finite
+/// one, else the metric's own name.
+fn recorded_name(l: &ToleranceLimit, nominal: &[(String, f64)]) -> String {
+    if l.is_on_imbalance()
+        && crate::scene::tolerance::value_of(nominal, IMBALANCE_ELECTRICAL).is_finite()
+    {
+        IMBALANCE_ELECTRICAL.to_string()
+    } else {
+        l.metric.to_string()
+    }
+}
 
 /// One limited metric's surface.
 #[derive(Debug, Clone, PartialEq)]
 pub struct MetricSurface {
     pub metric: Quantity,
+    /// The recorded value the surface models: for a limit on the imbalance the electrical
+    /// imbalance ι′ where the records hold it (what `spibench tolerance` judges, so that the
+    /// budget and its read-back check judge one quantity), else the metric itself.
+    pub recorded: String,
     pub m0: f64,
     /// Per tolerance (file order): linear and quadratic coefficients in the deviation.
     pub lin: Vec<f64>,
@@ -103,7 +122,7 @@ impl Surface {
         let mut limits = Vec::new();
         let mut unmodelled = Vec::new();
         for l in &set.limits {
-            let name = l.metric.to_string();
+            let name = recorded_name(l, nominal);
             let diff = format!("{name}_diff");
             let recorded = sens
                 .iter()
@@ -127,6 +146,7 @@ impl Surface {
                     }
                     metrics.push(MetricSurface {
                         metric: l.metric.clone(),
+                        recorded: name.clone(),
                         m0,
                         lin,
                         quad,
@@ -177,7 +197,7 @@ impl Surface {
             .collect();
         let mut added = 0;
         for m in &mut self.metrics {
-            let name = m.metric.to_string();
+            let name = m.recorded.clone();
             let data: Vec<(Vec<f64>, f64)> = trials
                 .iter()
                 .filter(|r| r.error.is_none())

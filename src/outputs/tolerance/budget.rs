@@ -87,13 +87,15 @@ pub fn budget_ron(set: &ToleranceSet, b: &BudgetOutcome, run: &BudgetRun) -> Str
     for (tol, r) in set.tolerances.iter().zip(&b.rows) {
         t += &format!(
             "        // scale {} of {}; {:.1} % of the yield loss\n        (path: {:?}, range: \
-             {}{}),\n",
+             {}{}{}),\n",
             r.scale,
             range_ron(tol.min, tol.max),
             100.0 * r.loss_share,
             tol.path,
             range_ron(r.min, r.max),
-            distribution_ron(&tol.distribution)
+            distribution_ron(&tol.distribution),
+            // A device specification stays one in the budget (it kept scale 1).
+            if tol.is_fixed() { ", fixed: true" } else { "" }
         );
     }
     t += "    ],\n    compensators: [\n";
