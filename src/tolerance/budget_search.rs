@@ -439,6 +439,7 @@ mod tests {
             deviations: Vec::new(),
             compensators: Vec::new(),
             values: v.iter().map(|(k, x)| (k.to_string(), *x)).collect(),
+            needed_travel: Vec::new(),
             error: None,
         };
         let good = rec(&[
