@@ -14,8 +14,10 @@ use crate::trace::fan::DESIGN_WAVELENGTH_M;
 pub struct CheckArgs {
     #[command(flatten)]
     pub bench: super::args::BenchArgs,
-    /// Design wavelength of the paraxial numbers (nm); default 850 nm, near the centroid of the
-    /// detected photocurrent of a tungsten lamp on silicon.
+    /// Design wavelength of the paraxial numbers (nm); default 850 nm, the photocurrent's
+    /// spectral centroid for a tungsten lamp on silicon without ND filters. On the paper bench,
+    /// whose ND filters pass the near infrared, the centroid is about 947 nm (near the DMD's
+    /// 984 nm blaze; docs/dmd_diffraction.md): pass --wavelength-nm 947 for those numbers.
     #[arg(long, default_value_t = DESIGN_WAVELENGTH_M * 1e9)]
     pub wavelength_nm: f64,
     /// Write `check.json` into this directory (nothing is written without it).
