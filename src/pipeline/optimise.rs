@@ -289,6 +289,31 @@ pub fn terms(
     }
 }
 
+/// How many RMS radii of the light spot the centre margin keeps inside the active edge: for a
+/// round Gaussian spot, 2σ_r (σ_r the RMS radius, √2 of the per-axis σ) holds about 86 % of the
+/// power (1 − e⁻²), so a positive margin means the bulk of the spot clears the edge.
+pub const CENTRE_RMS_RADII: f64 = 2.0;
+
+/// The centre margin of one diode (m): active radius − (distance of the light's centroid from
+/// the diode's centre + k·RMS radius), from its irradiance map's summary. It is largest where
+/// the spot sits at the diode's centre, and it is negative when the spot's footprint crosses
+/// the active edge.
+pub fn centre_margin_m(
+    stats: &crate::trace::irradiance::MapStats,
+    active_radius_m: f64,
+    k_rms: f64,
+) -> f64 {
+    let [cx, cy] = stats.centroid_m;
+    active_radius_m - (cx.hypot(cy) + k_rms * stats.rms_radius_m)
+}
+
+/// The centre objective to minimise: minus the smaller of the two diodes' margins, in units of
+/// the smaller active radius (dimensionless like the other objectives). Maximising the smaller
+/// margin centres both diodes on their spots where the imbalance is flat.
+pub fn centre_value(margins_m: [f64; 2], radii_m: [f64; 2]) -> f64 {
+    -margins_m[0].min(margins_m[1]) / radii_m[0].min(radii_m[1])
+}
+
 /// Checks an objective's metric names.
 pub fn check_objective(obj: &Objective) -> Result<()> {
     match obj {
@@ -679,5 +704,35 @@ mod tests {
             (u[0] - 0.3).abs() < 2e-3 && (u[1] - 0.7).abs() < 2e-3,
             "{u:?}"
         );
+    }
+
+    /// A spot offset by d from the diode's centre: moving the diode by x leaves the centroid at
+    /// d − x, so the margin R − |d − x| − k·σ is largest at x = d. The search finds it within
+    /// its stopping size (1e-3 of the box) plus one step of the simplex's last shrink.
+    #[test]
+    fn the_centre_objective_moves_the_diode_onto_its_spot() {
+        let (r, sigma, d, range) = (1.5e-3, 0.2e-3, 1.15e-3, 4e-3);
+        let spot = |x: f64| crate::trace::irradiance::MapStats {
+            active_w: 1.0,
+            active_stderr_w: 0.0,
+            plate_w: 0.0,
+            centroid_m: [d - x, 0.0],
+            rms_radius_m: sigma,
+            spill: 0.0,
+        };
+        // The other diode's spot is centred: its margin is R − kσ, never the smaller one.
+        let other = centre_margin_m(&spot(d), r, CENTRE_RMS_RADII);
+        assert!((other - (r - 2.0 * sigma)).abs() < 1e-15);
+        let mut f = |u: &[f64]| -> Result<(f64, f64)> {
+            let x = -range / 2.0 + u[0] * range;
+            let m = centre_margin_m(&spot(x), r, CENTRE_RMS_RADII);
+            Ok((centre_value([m, other], [r, r]), 0.0))
+        };
+        let (u, _) = nelder_mead(&mut f, &[0.5], 0.25, 500).unwrap();
+        let x = -range / 2.0 + u[0] * range;
+        assert!((x - d).abs() < 2e-3 * range, "x = {x}, d = {d}");
+        // At the start (x = 0) the margin is R − d − kσ; at the optimum R − kσ.
+        let before = centre_margin_m(&spot(0.0), r, CENTRE_RMS_RADII);
+        assert!((before - (r - d - 2.0 * sigma)).abs() < 1e-15);
     }
 }
