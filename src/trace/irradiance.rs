@@ -94,19 +94,88 @@ pub fn windows(bench: &Bench) -> [Window; 2] {
     })
 }
 
+/// The map of a named surface (baffles, stray light): the power crossing the element's first
+/// surface, binned in that surface's plane (its frame's u, v; a curved surface is projected
+/// along its axis), over a square 10 % wider than the surface's outline.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SurfaceMap {
+    pub name: String,
+    /// The index of the mapped surface in `Bench::surfaces`.
+    pub surface: usize,
+    pub window: Window,
+}
+
+/// The map windows of the named elements, in the order given. An unknown name is an error
+/// naming it and listing the bench's element names.
+pub fn surface_maps(bench: &Bench, names: &[String]) -> Result<Vec<SurfaceMap>> {
+    use crate::optics::geometry::Geometry;
+    names
+        .iter()
+        .map(|name| {
+            let element = bench.elements().iter().position(|e| e == name);
+            let found = element.and_then(|id| {
+                bench
+                    .surfaces()
+                    .iter()
+                    .position(|s| s.element == id)
+                    .map(|i| (i, &bench.surfaces()[i]))
+            });
+            let Some((surface, s)) = found else {
+                return Err(crate::error::Error::field(
+                    "surface",
+                    format!(
+                        "no surface named `{name}` in the bench; its surfaces: {}",
+                        bench.elements().join(", ")
+                    ),
+                ));
+            };
+            let (frame, radius) = match &s.geometry {
+                Geometry::Plane { frame, shape } => (*frame, shape.bounding_radius()),
+                Geometry::SphereCap {
+                    vertex,
+                    axis,
+                    aperture,
+                    ..
+                } => (Frame::new(*vertex, *axis, None), *aperture),
+                Geometry::Asphere {
+                    frame, aperture, ..
+                } => (*frame, *aperture),
+                Geometry::Cylinder {
+                    base, axis, radius, ..
+                } => (Frame::new(*base, *axis, None), *radius),
+            };
+            Ok(SurfaceMap {
+                name: name.clone(),
+                surface,
+                window: Window {
+                    frame,
+                    radius_m: radius,
+                    half_width_m: 1.1 * radius,
+                    housing: None,
+                },
+            })
+        })
+        .collect()
+}
+
 /// One mapped hit of a batch: (diode, ledger world, layer, bin) and its power (W).
 type Hit = (u8, u8, u8, u32, f64);
 
 /// The recorder of a mapped trace: every hit on a diode's map, in the order traced.
 pub(super) struct MapRecorder<'a> {
     windows: &'a [Window; 2],
+    surfaces: &'a [SurfaceMap],
     bins: usize,
     hits: Vec<Hit>,
 }
 
 impl MapRecorder<'_> {
     fn add(&mut self, d: usize, world: usize, layer: u8, hit: DVec3, w: f64) {
-        if let Some(b) = self.windows[d].bin(self.bins, hit) {
+        let window = match d {
+            0 | 1 => &self.windows[d],
+            _ => &self.surfaces[d - 2].window,
+        };
+        if let Some(b) = window.bin(self.bins, hit) {
             self.hits.push((d as u8, world as u8, layer, b as u32, w));
         }
     }
@@ -127,6 +196,13 @@ impl Recorder for MapRecorder<'_> {
             }
         }
     }
+    fn met(&mut self, world: usize, surface: usize, hit: DVec3, w: f64) {
+        for k in 0..self.surfaces.len() {
+            if self.surfaces[k].surface == surface {
+                self.add(2 + k, world, 0, hit, w);
+            }
+        }
+    }
 }
 
 /// The maps of a trace: for diode d, state s and layer l, bin i (row-major, row 0 at +v) at
@@ -136,6 +212,8 @@ impl Recorder for MapRecorder<'_> {
 pub struct IrradianceMaps {
     pub bins: usize,
     pub windows: [Window; 2],
+    /// The named surfaces' maps: map 2 + k is `surfaces[k]` (one layer: the power crossing).
+    pub surfaces: Vec<SurfaceMap>,
     pub batches: u64,
     pub power_w: Vec<f64>,
     pub sum_sq: Vec<f64>,
@@ -151,11 +229,12 @@ pub fn index(bins: usize, d: usize, s: usize, l: usize, i: usize) -> usize {
 }
 
 impl IrradianceMaps {
-    pub fn new(windows: [Window; 2], bins: usize) -> IrradianceMaps {
-        let n = 2 * 3 * LAYERS * bins * bins;
+    pub fn new(windows: [Window; 2], surfaces: Vec<SurfaceMap>, bins: usize) -> IrradianceMaps {
+        let n = (2 + surfaces.len()) * 3 * LAYERS * bins * bins;
         IrradianceMaps {
             bins,
             windows,
+            surfaces,
             batches: 0,
             power_w: vec![0.0; n],
             sum_sq: vec![0.0; n],
@@ -209,9 +288,17 @@ impl IrradianceMaps {
         (n / (n - 1.0) * (q - s * s / n).max(0.0)).sqrt()
     }
 
+    /// Map d's window: the diodes (0, 1), then the named surfaces.
+    pub fn window(&self, d: usize) -> &Window {
+        match d {
+            0 | 1 => &self.windows[d],
+            _ => &self.surfaces[d - 2].window,
+        }
+    }
+
     /// The area of one bin (m²).
     pub fn bin_area_m2(&self, d: usize) -> f64 {
-        (2.0 * self.windows[d].half_width_m / self.bins as f64).powi(2)
+        (2.0 * self.window(d).half_width_m / self.bins as f64).powi(2)
     }
 
     /// Diode d's map in state s, both layers: irradiance (W/m²) and its standard error, row-major.
@@ -247,7 +334,7 @@ impl IrradianceMaps {
         };
         let total = active + plate;
         let (mut cx, mut cy) = (0.0, 0.0);
-        let w = &self.windows[d];
+        let w = self.window(d);
         let weight = |i: usize| {
             self.power_w[index(bins, d, s, 0, i)] + self.power_w[index(bins, d, s, 1, i)]
         };
@@ -304,7 +391,19 @@ pub fn trace_with_maps(
     options: &TraceOptions,
     bins: usize,
 ) -> Result<(Tallies, IrradianceMaps)> {
+    trace_with_surface_maps(bench, options, bins, &[])
+}
+
+/// [`trace_with_maps`] that also maps the power crossing each named element's first surface
+/// (maps 2, 3, … in the order named), from the same paths.
+pub fn trace_with_surface_maps(
+    bench: &Bench,
+    options: &TraceOptions,
+    bins: usize,
+    names: &[String],
+) -> Result<(Tallies, IrradianceMaps)> {
     super::check_options(bench, options)?;
+    let surfaces = surface_maps(bench, names)?;
     let (across, down) = bench.units_shape();
     let mut tallies = Tallies::new(
         across,
@@ -314,7 +413,7 @@ pub fn trace_with_maps(
         bench.lamp().power_outside_cone(),
     );
     let windows = windows(bench);
-    let mut maps = IrradianceMaps::new(windows, bins);
+    let mut maps = IrradianceMaps::new(windows, surfaces.clone(), bins);
     let n = options.rays;
     let inv = 1.0 / n as f64;
     batches_in_order(
@@ -323,6 +422,7 @@ pub fn trace_with_maps(
             let rays = RAYS_PER_BATCH.min(n - b * RAYS_PER_BATCH);
             let mut rec = MapRecorder {
                 windows: &windows,
+                surfaces: &surfaces,
                 bins,
                 hits: Vec::new(),
             };

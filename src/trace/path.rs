@@ -247,6 +247,11 @@ pub(super) trait Recorder {
     /// plates this way).
     #[inline(always)]
     fn absorbed(&mut self, _world: usize, _element: usize, _hit: DVec3, _w: f64) {}
+    /// A path of power `w` (W) in ledger world `world` meeting surface `surface` at `hit`,
+    /// before anything happens there (the irradiance maps at named surfaces see the power
+    /// crossing a surface this way).
+    #[inline(always)]
+    fn met(&mut self, _world: usize, _surface: usize, _hit: DVec3, _w: f64) {}
 }
 
 /// One photocurrent tallied by a path, for [`Recorder::detected`].
@@ -516,6 +521,7 @@ fn surface<R: Recorder>(
     let s = &bench.surfaces()[i];
     let hit = p.o + t * p.d;
     let cos_signed = -p.d.dot(n);
+    rec.met(p.world, i, hit, p.w);
     if s.clear.is_some_and(|c| c.blocks(hit)) {
         book(tally, p.world, s.element, p.w);
         return Flow::End;
