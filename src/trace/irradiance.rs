@@ -109,6 +109,26 @@ pub struct SurfaceMap {
 /// naming it and listing the bench's element names.
 pub fn surface_maps(bench: &Bench, names: &[String]) -> Result<Vec<SurfaceMap>> {
     use crate::optics::geometry::Geometry;
+    // A hit stores its map's index in a u8 (`Hit`), the diodes taking 0 and 1; a name given
+    // twice would only duplicate a map.
+    for (k, name) in names.iter().enumerate() {
+        if names[..k].contains(name) {
+            return Err(crate::error::Error::field(
+                "surface",
+                format!("`{name}` is named twice"),
+            ));
+        }
+    }
+    if names.len() > usize::from(u8::MAX) - 2 {
+        return Err(crate::error::Error::field(
+            "surface",
+            format!(
+                "{} surfaces named; at most {} can be mapped",
+                names.len(),
+                u8::MAX - 2
+            ),
+        ));
+    }
     names
         .iter()
         .map(|name| {
@@ -124,7 +144,7 @@ pub fn surface_maps(bench: &Bench, names: &[String]) -> Result<Vec<SurfaceMap>> 
                 return Err(crate::error::Error::field(
                     "surface",
                     format!(
-                        "no surface named `{name}` in the bench; its surfaces: {}",
+                        "no element named `{name}` in the bench; its elements: {}",
                         bench.elements().join(", ")
                     ),
                 ));
@@ -158,6 +178,14 @@ pub fn surface_maps(bench: &Bench, names: &[String]) -> Result<Vec<SurfaceMap>> 
         .collect()
 }
 
+/// Map d's window: the two diodes (0, 1), then the named surfaces (2 + k).
+fn map_window<'a>(windows: &'a [Window; 2], surfaces: &'a [SurfaceMap], d: usize) -> &'a Window {
+    match d {
+        0 | 1 => &windows[d],
+        _ => &surfaces[d - 2].window,
+    }
+}
+
 /// One mapped hit of a batch: (diode, ledger world, layer, bin) and its power (W).
 type Hit = (u8, u8, u8, u32, f64);
 
@@ -171,11 +199,7 @@ pub(super) struct MapRecorder<'a> {
 
 impl MapRecorder<'_> {
     fn add(&mut self, d: usize, world: usize, layer: u8, hit: DVec3, w: f64) {
-        let window = match d {
-            0 | 1 => &self.windows[d],
-            _ => &self.surfaces[d - 2].window,
-        };
-        if let Some(b) = window.bin(self.bins, hit) {
+        if let Some(b) = map_window(self.windows, self.surfaces, d).bin(self.bins, hit) {
             self.hits.push((d as u8, world as u8, layer, b as u32, w));
         }
     }
@@ -290,10 +314,7 @@ impl IrradianceMaps {
 
     /// Map d's window: the diodes (0, 1), then the named surfaces.
     pub fn window(&self, d: usize) -> &Window {
-        match d {
-            0 | 1 => &self.windows[d],
-            _ => &self.surfaces[d - 2].window,
-        }
+        map_window(&self.windows, &self.surfaces, d)
     }
 
     /// The area of one bin (m²).
@@ -456,6 +477,27 @@ mod tests {
     use super::*;
     use crate::optics::Arm;
     use crate::trace::tally::{EXTRA_SLOTS, slot_detected};
+
+    /// A named surface must exist and be named once; the error names the field, not a flag.
+    #[test]
+    fn unknown_or_repeated_surface_names_are_refused() {
+        let bench = crate::trace::testing::paper_bench_with_mask();
+        let first = bench.elements()[bench.surfaces()[0].element].clone();
+        assert_eq!(
+            surface_maps(&bench, std::slice::from_ref(&first))
+                .unwrap()
+                .len(),
+            1
+        );
+        let e = surface_maps(&bench, &["no_such".into()])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("no_such") && e.contains(&first), "{e}");
+        let e = surface_maps(&bench, &[first.clone(), first])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("twice"), "{e}");
+    }
 
     /// The map summed over each diode's active area is the ledger's detected power of each
     /// mirror state (the same paths: equal to rounding, far inside the standard error), the
