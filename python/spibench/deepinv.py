@@ -25,6 +25,9 @@ their usual parameters apply (a TV prior with λ = 1e-3, a step size of 1):
 :class:`TracedBenches` is the same physics over several benches as built (drawn from a
 tolerance file: one traced kernel each), the bench of each sample a parameter, and
 :class:`BenchGenerator` the deepinv ``PhysicsGenerator`` that draws it per sample.
+:class:`LinearisedBench` is the first-order expansion of the acquisition in chosen bench
+variables, from paired central differences of traced kernels (common random numbers), and
+:class:`DeviationGenerator` draws its deviations per sample.
 """
 
 from __future__ import annotations
@@ -40,7 +43,8 @@ from . import Acquisition, InputError, Kernel
 from .nn import TracedLinear
 from .noise import BenchGaussianNoise
 
-__all__ = ["TracedSinglePixel", "TracedBenches", "BenchGenerator", "BenchSimulation"]
+__all__ = ["TracedSinglePixel", "TracedBenches", "BenchGenerator", "BenchSimulation", "LinearisedBench",
+           "DeviationGenerator"]
 
 
 def _to_numpy(t: torch.Tensor, name: str) -> np.ndarray:
@@ -382,3 +386,215 @@ class BenchGenerator(PhysicsGenerator):
         self.rng_manual_seed(seed)
         b = torch.randint(0, self.benches, (batch_size,), generator=self.rng, device=self.device)
         return {"bench": b}
+
+
+class LinearisedBench(LinearPhysics):
+    """The traced acquisition of a bench whose chosen variables deviate by δ from the nominal,
+    to first order: each variable's derivative from a paired central difference of two traced
+    kernels, every kernel traced with the same rays and seed (common random numbers, so the
+    Monte Carlo noise of the two cancels in their difference where their paths agree),
+
+        A(δ) = A₀ + Σᵢ δᵢ (A(v₀ + hᵢeᵢ) − A(v₀ − hᵢeᵢ)) / (2hᵢ),   y₀(δ) likewise,
+
+    each A the acquisition's linear part folded as :class:`spibench.nn.TracedLinear` holds it
+    (A t = P (G t) + (r·t) 1), so the expansion is that of the kernel matrices G and r with the
+    scheme's coefficients of each traced bench. Sample b of a batch is measured through
+    A(δ_b), ``deviation`` a (B, V) parameter that ``physics.update(deviation=…)`` sets
+    (:class:`DeviationGenerator` draws it per sample); one row for the whole batch when it holds
+    one. The expansion is exact where the kernel is linear in a variable (a diode's
+    responsivity scale) and otherwise good to the variable's curvature over hᵢ and δ: 1 + 2V
+    kernels are traced instead of one per bench, and any δ within the steps costs nothing more.
+    Measurements are offset-removed and divided by ``scale`` (default ‖A₀‖); A is held dense
+    (V + 1 matrices of units × pixels), and its adjoint is autograd's of these products, exact.
+    The noise model is deepinv's (``None`` by default; the bench simulation needs a traced
+    bench, so ``"bench"`` is refused).
+
+    :param Bench bench: the nominal bench.
+    :param steps: ``{variable path: hᵢ}``, the half-step of each variable's central difference
+        (units as in the path's name).
+    :param grid: (H, W) object pixels; ``field_mm``, ``rays``, ``seed``: as
+        :meth:`spibench.Bench.kernel` (one seed for all 1 + 2V kernels).
+    :param str scheme: the acquisition scheme; ``ratio`` its sampling ratio.
+    """
+
+    def __init__(
+        self,
+        bench,
+        steps,
+        grid,
+        field_mm,
+        rays: int,
+        seed: int = 1,
+        scheme: str = "secondary_complementary_balancing",
+        ratio: float = 0.25,
+        threads: Optional[int] = None,
+        dtype: torch.dtype = torch.float32,
+        device=None,
+        normalise: bool = True,
+        scale: Optional[float] = None,
+        noise_model=None,
+        **kwargs,
+    ):
+        from . import Bench
+
+        if not isinstance(bench, Bench):
+            raise InputError("argument `bench`: a spibench.Bench is needed")
+        names, hs = _steps(bench, steps)
+        if isinstance(noise_model, str):
+            raise InputError("argument `noise_model`: a deepinv noise model or None (the bench "
+                             "simulation needs a traced bench: use TracedBenches)")
+
+        def acq(settings):
+            b = bench.set(settings) if settings else bench
+            k = b.kernel(grid, field_mm, rays, seed=seed, threads=threads)
+            return Acquisition(k, scheme, ratio), k
+
+        a0, k0 = acq({})
+        h, w = a0.grid
+        s = _scale(a0, normalise, scale)
+        super().__init__(img_size=(1, h, w), noise_model=noise_model, **kwargs)
+        g0, r0 = _folded_dense(a0, k0)
+        dg, dr, dy = [], [], []
+        for name, step in zip(names, hs):
+            v0 = bench.get(name)
+            (ap, kp), (am, km) = acq({name: v0 + step}), acq({name: v0 - step})
+            if not np.array_equal(ap.patterns, a0.patterns) or not np.array_equal(
+                    am.patterns, a0.patterns):
+                raise InputError(f"steps `{name}`: the bench's patterns change with it")
+            (gp, rp), (gm, rm) = _folded_dense(ap, kp), _folded_dense(am, km)
+            dg.append((gp - gm) / (2 * step))
+            dr.append((rp - rm) / (2 * step))
+            dy.append((np.asarray(ap.offset) - np.asarray(am.offset)) / (2 * step))
+        m = a0.measurements
+        units = g0.shape[0]
+        t = dict(dtype=torch.float64)
+        self.variables = names
+        self.steps = hs
+        self.acquisition = a0
+        self.kernel = k0
+        self.register_buffer("g0", torch.from_numpy(g0))
+        self.register_buffer("dg", torch.from_numpy(np.stack(dg)) if dg
+                             else torch.zeros(0, units, h * w, **t))
+        self.register_buffer("r0", torch.from_numpy(r0))
+        self.register_buffer("dr", torch.from_numpy(np.stack(dr)) if dr else torch.zeros(0, h * w, **t))
+        self.register_buffer("y0", torch.tensor(np.asarray(a0.offset), **t))
+        self.register_buffer("dy0", torch.from_numpy(np.stack(dy)) if dy else torch.zeros(0, m, **t))
+        p = np.ascontiguousarray(a0.patterns.reshape(m, -1), dtype=np.uint8)
+        self.register_buffer("patterns", torch.from_numpy(p))
+        self.register_buffer("scale", torch.tensor(s, **t))
+        self.register_buffer("deviation", torch.zeros(1, len(names), **t))
+        self.to(device=device, dtype=dtype)
+
+    def update_parameters(self, deviation=None, **kwargs):
+        """Sets δ of each sample: (V,) for the whole batch or (B, V), in the variables' units
+        (order of :attr:`variables`)."""
+        if deviation is not None:
+            # Numbers given as such keep the physics' precision (a float32 tensor stays float32).
+            d = (deviation if isinstance(deviation, torch.Tensor)
+                 else torch.as_tensor(deviation, dtype=self.g0.dtype))
+            if d.ndim == 1:
+                d = d.reshape(1, -1)
+            if d.ndim != 2 or d.shape[1] != len(self.variables):
+                raise InputError(f"argument `deviation`: shape {tuple(d.shape)}, expected (B, "
+                                 f"{len(self.variables)}) or ({len(self.variables)},)")
+            self.deviation = d.to(device=self.g0.device, dtype=self.g0.dtype)
+        super().update_parameters(**kwargs)
+
+    def _delta(self, n: int) -> torch.Tensor:
+        d = self.deviation
+        if d.shape[0] == 1:
+            return d.expand(n, -1)
+        if d.shape[0] != n:
+            raise InputError(f"parameter `deviation`: {d.shape[0]} rows for a batch of {n}")
+        return d
+
+    def A(self, x: torch.Tensor, deviation=None, **kwargs) -> torch.Tensor:
+        """A(δ_b) x_b: (B, 1, H, W) → (B, M)."""
+        self.update_parameters(deviation=deviation)
+        xf = x.reshape(x.shape[0], -1)
+        d = self._delta(xf.shape[0])
+        u = xf @ self.g0.T + torch.einsum("bv,vup,bp->bu", d, self.dg, xf)
+        r = self.r0 + d @ self.dr
+        y = u @ self.patterns.to(u.dtype).T + (xf * r).sum(dim=1, keepdim=True)
+        return y / self.scale
+
+    def A_adjoint(self, y: torch.Tensor, deviation=None, **kwargs) -> torch.Tensor:
+        """A(δ_b)ᵀ y_b: (B, M) → (B, 1, H, W)."""
+        self.update_parameters(deviation=deviation)
+        d = self._delta(y.shape[0])
+        v = y @ self.patterns.to(y.dtype)
+        t = v @ self.g0 + torch.einsum("bv,vup,bu->bp", d, self.dg, v)
+        t = t + y.sum(dim=1, keepdim=True) * (self.r0 + d @ self.dr)
+        h, w = self.acquisition.grid
+        return (t / self.scale).reshape(y.shape[0], 1, h, w)
+
+    def offsets(self, n: int) -> torch.Tensor:
+        """y₀(δ_b) (V) of each of n samples, (n, M)."""
+        return self.y0 + self._delta(n) @ self.dy0
+
+    def remove_offset(self, y_v: torch.Tensor, deviation=None) -> torch.Tensor:
+        """Volts of each sample's bench → the physics' measurement, (y_v − y₀(δ_b)) / scale."""
+        self.update_parameters(deviation=deviation)
+        off = self.offsets(y_v.shape[0]).to(device=y_v.device, dtype=y_v.dtype)
+        return (y_v - off) / self.scale.to(device=y_v.device, dtype=y_v.dtype)
+
+
+def _steps(bench, steps):
+    """The variable paths and half-steps of ``steps``, checked against the bench."""
+    if not hasattr(steps, "items"):
+        raise InputError("argument `steps`: a mapping of variable path to half-step is needed")
+    known = set(bench.variables())
+    names, hs = [], []
+    for name, h in steps.items():
+        if name not in known:
+            raise InputError(f"argument `steps`: `{name}` is not a variable of the bench")
+        try:
+            hv = float(h)
+        except (TypeError, ValueError):
+            raise InputError(f"steps `{name}`: {h!r} is not a number") from None
+        if not (np.isfinite(hv) and hv > 0):
+            raise InputError(f"steps `{name}`: the half-step must be positive, got {h!r}")
+        names.append(str(name))
+        hs.append(hv)
+    return names, hs
+
+
+def _folded_dense(acquisition: Acquisition, kernel: Kernel):
+    """G (units × pixels, dense) and r (pixels,) of ``acquisition`` on ``kernel``, float64."""
+    from .nn import _folded
+
+    g, r = _folded(acquisition, kernel)
+    return g.toarray(), np.ascontiguousarray(r, dtype=np.float64)
+
+
+class DeviationGenerator(PhysicsGenerator):
+    """deepinv ``PhysicsGenerator`` of :class:`LinearisedBench`: each sample's deviations δ
+    drawn independently per variable, uniform on ±``ranges[i]`` or, with ``sigmas``, normal
+    with those standard deviations (units of the variables' paths), with this generator's own
+    ``torch.Generator``: ``step(batch_size)`` returns ``{"deviation": (B, V)}``."""
+
+    def __init__(self, ranges=None, sigmas=None, rng: Optional[torch.Generator] = None,
+                 device="cpu", seed: Optional[int] = None, dtype: torch.dtype = torch.float32):
+        if (ranges is None) == (sigmas is None):
+            raise InputError("DeviationGenerator: give `ranges` (uniform) or `sigmas` (normal)")
+        v = np.asarray(ranges if sigmas is None else sigmas, dtype=np.float64).reshape(-1)
+        if v.size == 0 or not np.all(np.isfinite(v)) or np.any(v < 0):
+            which = "ranges" if sigmas is None else "sigmas"
+            raise InputError(f"argument `{which}`: non-negative finite numbers, got {v.tolist()}")
+        super().__init__(rng=rng, device=device)
+        self.normal = sigmas is not None
+        self.widths = torch.tensor(v, dtype=dtype, device=device)
+        if seed is not None:
+            self.rng.manual_seed(int(seed))
+            self.initial_random_state = self.rng.get_state()
+
+    def step(self, batch_size: int = 1, seed: Optional[int] = None, **kwargs) -> dict:
+        """``{"deviation": …}``: δ of each of ``batch_size`` samples, (B, V)."""
+        self.rng_manual_seed(seed)
+        shape = (batch_size, self.widths.numel())
+        w = self.widths
+        if self.normal:
+            d = torch.randn(shape, generator=self.rng, device=self.device, dtype=w.dtype)
+        else:
+            d = 2 * torch.rand(shape, generator=self.rng, device=self.device, dtype=w.dtype) - 1
+        return {"deviation": d * w}
