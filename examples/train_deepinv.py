@@ -155,9 +155,12 @@ def tensors(ds, scale):
     return x, y_v
 
 
-def run(size="small", seed=0, out=None, folder=None):
-    """Trains and tests the three networks; returns the results (also written to ``out``)."""
-    cfg = SIZES[size]
+def run(size="small", seed=0, out=None, folder=None, epochs=None):
+    """Trains and tests the three networks; returns the results (also written to ``out``).
+    ``epochs`` replaces the size's number of epochs."""
+    cfg = dict(SIZES[size])
+    if epochs is not None:
+        cfg["epochs"] = int(epochs)
     torch.manual_seed(seed)
     t0 = time.time()
     own = folder is None
@@ -194,7 +197,7 @@ def run(size="small", seed=0, out=None, folder=None):
         "traced": (traced, lambda idx: (x_nom[idx], y_nom[idx])),
         "drawn": (traced, lambda idx: (x_drawn[idx], y_drawn[idx])),
     }
-    results = {"size": size, "grid": g, "scheme": SCHEME, "ratio": RATIO, "train": n,
+    results = {"size": size, "seed": seed, "grid": g, "scheme": SCHEME, "ratio": RATIO, "train": n,
                "test": m, "epochs": cfg["epochs"], "noise_sigma": sigma,
                "datasets_s": round(made_s, 1), "psnr_db": {}, "losses": {}}
     for name, (phys, batch) in setups.items():
@@ -230,9 +233,12 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--size", choices=sorted(SIZES), default="small")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--epochs", type=int, help="epochs of each training (default: the size's)")
     ap.add_argument("--out", help="write the results as JSON here")
     args = ap.parse_args()
-    r = run(args.size, args.seed, args.out)
+    if args.epochs is not None and args.epochs < 1:
+        ap.error(f"--epochs: at least 1, got {args.epochs}")
+    r = run(args.size, args.seed, args.out, epochs=args.epochs)
     print(f"{r['size']}: {r['train']} training and {r['test']} test samples of {r['grid']}×"
           f"{r['grid']}, {SCHEME} at {RATIO:.0%}, {r['epochs']} epochs ({r['total_s']} s)")
     print(f"{'trained on':<16}{'paper bench':>14}{'drawn benches':>16}   (PSNR, dB)")

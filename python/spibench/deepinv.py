@@ -43,8 +43,8 @@ from . import Acquisition, InputError, Kernel
 from .nn import TracedLinear
 from .noise import BenchGaussianNoise
 
-__all__ = ["TracedSinglePixel", "TracedBenches", "BenchGenerator", "BenchSimulation", "LinearisedBench",
-           "DeviationGenerator"]
+__all__ = ["TracedSinglePixel", "TracedBenches", "BenchGenerator", "BenchSimulation",
+           "LinearisedBench", "DeviationGenerator"]
 
 
 def _to_numpy(t: torch.Tensor, name: str) -> np.ndarray:
@@ -476,9 +476,11 @@ class LinearisedBench(LinearPhysics):
         self.register_buffer("dg", torch.from_numpy(np.stack(dg)) if dg
                              else torch.zeros(0, units, h * w, **t))
         self.register_buffer("r0", torch.from_numpy(r0))
-        self.register_buffer("dr", torch.from_numpy(np.stack(dr)) if dr else torch.zeros(0, h * w, **t))
+        self.register_buffer("dr", torch.from_numpy(np.stack(dr)) if dr
+                             else torch.zeros(0, h * w, **t))
         self.register_buffer("y0", torch.tensor(np.asarray(a0.offset), **t))
-        self.register_buffer("dy0", torch.from_numpy(np.stack(dy)) if dy else torch.zeros(0, m, **t))
+        self.register_buffer("dy0", torch.from_numpy(np.stack(dy)) if dy
+                             else torch.zeros(0, m, **t))
         p = np.ascontiguousarray(a0.patterns.reshape(m, -1), dtype=np.uint8)
         self.register_buffer("patterns", torch.from_numpy(p))
         self.register_buffer("scale", torch.tensor(s, **t))
