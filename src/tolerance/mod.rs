@@ -28,7 +28,7 @@ use crate::pipeline::evaluate::{EvaluateOptions, Evaluation, evaluate};
 use crate::quantities::{BenchMetric, ImageScore, Quantity};
 use crate::scene::doc::BenchDoc;
 use crate::scene::tolerance::{
-    IMBALANCE_ELECTRICAL, SensitivityRecord, ToleranceSet, TrialRecord, value_of,
+    IMBALANCE_ELECTRICAL, SensitivityRecord, ToleranceLimit, ToleranceSet, TrialRecord, value_of,
 };
 
 pub use crate::pipeline::evaluate::{quality_key, values};
@@ -499,18 +499,41 @@ pub fn analyse(
     sensitivity: Option<&[SensitivityRecord]>,
 ) -> Analysis {
     let ok: Vec<&TrialRecord> = records.iter().filter(|r| r.error.is_none()).collect();
-    let column = |name: &str| -> Vec<f64> {
-        ok.iter()
-            .filter_map(|r| r.value(name))
-            .filter(|v| !v.is_nan())
-            .collect()
-    };
-    let mut percentiles = Vec::new();
     let names = reported(records);
     let tails = summaries::tails(&names, &ok, &set.limits);
+    let n = records.len();
+    Analysis {
+        percentiles: percentile_rows(names, &ok),
+        yields: limit_yields(&set.limits, &ok, n),
+        quality_yields: quality_yields(set, &ok, n),
+        rss: sensitivity.map_or_else(Vec::new, |sens| rss_rows(set, &ok, sens)),
+        tails,
+        compensators: summaries::compensators(&set.compensators, &ok),
+        failure_causes: sensitivity.map_or_else(Vec::new, |sens| {
+            summaries::failure_causes(&set.tolerances, &set.limits, &ok, sens)
+        }),
+        failing_trials: ok
+            .iter()
+            .filter(|r| !set.limits.iter().all(|l| judged(r, l)))
+            .count(),
+        failed_trials: records.len() - ok.len(),
+    }
+}
+
+/// The values of `name` over the good trials, in trial order, NaNs left out.
+fn column(ok: &[&TrialRecord], name: &str) -> Vec<f64> {
+    ok.iter()
+        .filter_map(|r| r.value(name))
+        .filter(|v| !v.is_nan())
+        .collect()
+}
+
+/// One percentile row per reported metric that some good trial recorded.
+fn percentile_rows(names: Vec<Quantity>, ok: &[&TrialRecord]) -> Vec<PercentileRow> {
+    let mut rows = Vec::new();
     for q in names {
         let name = q.to_string();
-        let mut v = column(&name);
+        let mut v = column(ok, &name);
         if v.is_empty() {
             continue;
         }
@@ -520,7 +543,7 @@ pub fn analyse(
         v.sort_by(f64::total_cmp);
         let mut a: Vec<f64> = v.iter().map(|x| x.abs()).collect();
         a.sort_by(f64::total_cmp);
-        percentiles.push(PercentileRow {
+        rows.push(PercentileRow {
             metric: name,
             trials: v.len(),
             mean,
@@ -533,15 +556,24 @@ pub fn analyse(
             abs_p97_7: percentile(&a, 97.7),
         });
     }
-    let n = records.len();
-    // A limit on the imbalance is judged on the electrical imbalance (ToleranceLimit::value_in),
-    // and again on the optical one beside it.
-    let optical = |r: &TrialRecord, l: &crate::scene::tolerance::ToleranceLimit| {
-        r.value(&l.metric.to_string()).is_some_and(|v| l.holds(v))
-    };
-    let judged = |r: &TrialRecord, l: &crate::scene::tolerance::ToleranceLimit| {
-        l.value_in(r).is_some_and(|v| l.holds(v))
-    };
+    rows
+}
+
+/// Whether trial `r` meets limit `l` as the yields judge it: a limit on the imbalance on the
+/// electrical imbalance (ToleranceLimit::value_in).
+fn judged(r: &TrialRecord, l: &ToleranceLimit) -> bool {
+    l.value_in(r).is_some_and(|v| l.holds(v))
+}
+
+/// Whether trial `r` meets limit `l` on the metric it names: for a limit on the imbalance, the
+/// optical imbalance reported beside the judged (electrical) one.
+fn optical(r: &TrialRecord, l: &ToleranceLimit) -> bool {
+    r.value(&l.metric.to_string()).is_some_and(|v| l.holds(v))
+}
+
+/// The yield of each limit over the `n` trials, then of all of them together when there are
+/// several; a row on the imbalance carries the optical imbalance's yield beside it.
+fn limit_yields(limits: &[ToleranceLimit], ok: &[&TrialRecord], n: usize) -> Vec<YieldRow> {
     let row = |label: String,
                holds: &dyn Fn(&TrialRecord) -> bool,
                opt: &dyn Fn(&TrialRecord) -> bool,
@@ -553,8 +585,7 @@ pub fn analyse(
         }
         y
     };
-    let mut yields: Vec<YieldRow> = set
-        .limits
+    let mut yields: Vec<YieldRow> = limits
         .iter()
         .map(|l| {
             row(
@@ -565,14 +596,20 @@ pub fn analyse(
             )
         })
         .collect();
-    if set.limits.len() > 1 {
+    if limits.len() > 1 {
         yields.push(row(
             "all limits".into(),
-            &|r| set.limits.iter().all(|l| judged(r, l)),
-            &|r| set.limits.iter().all(|l| optical(r, l)),
-            set.limits.iter().any(|l| l.is_on_imbalance()),
+            &|r| limits.iter().all(|l| judged(r, l)),
+            &|r| limits.iter().all(|l| optical(r, l)),
+            limits.iter().any(|l| l.is_on_imbalance()),
         ));
     }
+    yields
+}
+
+/// With a `quality` limit: per scheme in the first good trial's records, the fraction of the
+/// `n` trials whose MSSIM at the limit's ratio meets it.
+fn quality_yields(set: &ToleranceSet, ok: &[&TrialRecord], n: usize) -> Vec<(String, YieldRow)> {
     let mut quality_yields = Vec::new();
     if let (Some(q), Some(first)) = (set.quality, ok.first()) {
         let suffix = format!("_{}_mssim", q.ratio_percent);
@@ -593,60 +630,57 @@ pub fn analyse(
             }
         }
     }
-    let mut rss = Vec::new();
-    if let Some(sens) = sensitivity {
-        for m in SENSITIVITY_METRICS {
-            let mut total = 0.0;
-            let mut dominant = (String::new(), 0.0);
-            for r in sens {
-                let Some(t) = set.tolerances.iter().find(|t| t.path == r.path) else {
-                    continue;
-                };
-                let width = r.max - r.min;
-                if width <= 0.0 {
-                    continue;
-                }
-                let slope =
-                    (r.at(true, &format!("{m}_diff")) - r.at(false, &format!("{m}_diff"))) / width;
-                let c = (slope * t.distribution.std_dev(width)).powi(2);
-                if c.is_finite() {
-                    total += c;
-                    if c > dominant.1 {
-                        dominant = (r.path.clone(), c);
-                    }
-                }
-            }
-            let mc = column(&m.to_string());
+    quality_yields
+}
+
+/// The RSS spread of each sensitivity metric predicted from the table against the Monte Carlo
+/// spread over the good trials (the module's **Statistics**).
+fn rss_rows(set: &ToleranceSet, ok: &[&TrialRecord], sens: &[SensitivityRecord]) -> Vec<RssRow> {
+    SENSITIVITY_METRICS
+        .iter()
+        .map(|m| {
+            let (total, dominant) = rss_sum(set, m, sens);
+            let mc = column(ok, &m.to_string());
             let mean = mc.iter().sum::<f64>() / mc.len().max(1) as f64;
             let sd = (mc.iter().map(|x| (x - mean).powi(2)).sum::<f64>()
                 / (mc.len() as f64 - 1.0).max(1.0))
             .sqrt();
-            rss.push(RssRow {
+            RssRow {
                 metric: m.to_string(),
                 rss_std_dev: total.sqrt(),
                 monte_carlo_std_dev: if mc.len() >= 2 { sd } else { f64::NAN },
                 dominant: dominant.0,
                 dominant_share: if total > 0.0 { dominant.1 / total } else { 0.0 },
-                linearity_flags: summaries::linearity_flags(&m, sens),
-            });
+                linearity_flags: summaries::linearity_flags(m, sens),
+            }
+        })
+        .collect()
+}
+
+/// Σ_t (∂m/∂t)²·σ_t² over the tolerances of the sensitivity table (secant slopes between each
+/// tolerance's min and max; non-finite terms left out), with the tolerance whose term is the
+/// largest and that term.
+fn rss_sum(set: &ToleranceSet, m: &Quantity, sens: &[SensitivityRecord]) -> (f64, (String, f64)) {
+    let mut total = 0.0;
+    let mut dominant = (String::new(), 0.0);
+    for r in sens {
+        let Some(t) = set.tolerances.iter().find(|t| t.path == r.path) else {
+            continue;
+        };
+        let width = r.max - r.min;
+        if width <= 0.0 {
+            continue;
+        }
+        let slope = (r.at(true, &format!("{m}_diff")) - r.at(false, &format!("{m}_diff"))) / width;
+        let c = (slope * t.distribution.std_dev(width)).powi(2);
+        if c.is_finite() {
+            total += c;
+            if c > dominant.1 {
+                dominant = (r.path.clone(), c);
+            }
         }
     }
-    Analysis {
-        percentiles,
-        yields,
-        quality_yields,
-        rss,
-        tails,
-        compensators: summaries::compensators(&set.compensators, &ok),
-        failure_causes: sensitivity.map_or_else(Vec::new, |sens| {
-            summaries::failure_causes(&set.tolerances, &set.limits, &ok, sens)
-        }),
-        failing_trials: ok
-            .iter()
-            .filter(|r| !set.limits.iter().all(|l| judged(r, l)))
-            .count(),
-        failed_trials: records.len() - ok.len(),
-    }
+    (total, dominant)
 }
 
 /// Checks that shards of one run fit together and returns their records in index order:

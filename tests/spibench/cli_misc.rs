@@ -153,25 +153,26 @@ fn printed_tables_fit_100_columns() {
         // Align's summary card opens its output, its numbers summary.json's, each variable
         // as the bench file counts it with the move made.
         if args[0] == "align" {
-            let s: serde_json::Value = serde_json::from_str(
-                &std::fs::read_to_string(std::path::Path::new(&o4).join("summary.json")).unwrap(),
-            )
-            .unwrap();
-            let card = spibench::outputs::align::card(&s);
-            card.check_against(&s).unwrap();
-            assert!(text.starts_with(&card.printed().join("\n")), "{text}");
+            assert_card_opens(&text, &o4, spibench::outputs::align::card);
             assert!(text.contains(", moved "), "{text}");
         }
         // Tolerance's card too: its yields, causes and compensators are summary.json's.
         if args[0] == "tolerance" {
-            let s: serde_json::Value = serde_json::from_str(
-                &std::fs::read_to_string(std::path::Path::new(&o3).join("summary.json")).unwrap(),
-            )
-            .unwrap();
-            let card = spibench::outputs::tolerance::card(&s);
-            card.check_against(&s).unwrap();
-            assert!(text.starts_with(&card.printed().join("\n")), "{text}");
+            assert_card_opens(&text, &o3, spibench::outputs::tolerance::card);
             assert!(text.contains("95 % interval"), "{text}");
         }
     }
+}
+
+/// Asserts that `text`, a command's output, opens with the summary card `card` makes of the
+/// summary.json in folder `out`, and that every number of the card is that file's.
+fn assert_card_opens(
+    text: &str,
+    out: &str,
+    card: impl Fn(&serde_json::Value) -> spibench::outputs::card::Card,
+) {
+    let s = crate::common::read_json(&std::path::Path::new(out).join("summary.json"));
+    let card = card(&s);
+    card.check_against(&s).unwrap();
+    assert!(text.starts_with(&card.printed().join("\n")), "{text}");
 }

@@ -344,3 +344,46 @@ fn run_rejects_bad_input_with_file_line_and_field() {
     let o = run_to(&dir.join("missing.ron"), &out, "2");
     assert_input_error(&o, &["missing.ron"], &out);
 }
+
+/// With exactly matched diodes (the symmetric test bench's − diode at 1.0) the electronics'
+/// CMRR is unbounded: the terminal says so in words, never "inf", and summary.json writes null
+/// for it, while the bench's CMRR (the traced arms' imbalance is not exactly zero) stays a
+/// number.
+#[test]
+fn run_says_an_unbounded_cmrr_in_words() {
+    let dir = TempDir::new("run-cmrr");
+    let text = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/scenes/tests/symmetric_arms.ron"
+    ))
+    .unwrap();
+    let mismatched = "responsivity_scale_minus: 0.999";
+    assert_eq!(text.matches(mismatched).count(), 1, "{mismatched}");
+    let text = text.replace(mismatched, "responsivity_scale_minus: 1.0");
+    let end = text.rfind(')').unwrap();
+    let text = format!(
+        "{}    run: (rays: 30000, sampling_ratios: [0.5], schemes: \
+         [SecondaryComplementaryBalancing], signal_trace_frames: 3),\n)\n",
+        &text[..end]
+    );
+    let scene = dir.join("matched.ron");
+    std::fs::write(&scene, text).unwrap();
+    let out = dir.join("out");
+    let o = run_to(&scene, &out, "2");
+    assert!(o.status.success(), "{}", stderr(&o));
+    let printed = stdout(&o);
+    // No "inf", "-inf", "infinite" or "infinity" as a word (words such as "information" may
+    // appear in the findings).
+    let infinite = printed
+        .split(|c: char| !c.is_alphanumeric())
+        .any(|w| ["inf", "infinite", "infinity"].contains(&w.to_lowercase().as_str()));
+    assert!(!infinite, "{printed}");
+    assert!(
+        printed.contains("electronics alone unbounded")
+            && printed.contains("finite CMRR is not modelled"),
+        "{printed}"
+    );
+    let s = read_json(&out.join("summary.json"));
+    assert!(s["electronics"]["cmrr_electronics_db"].is_null(), "{}", s["electronics"]);
+    assert!(s["electronics"]["cmrr_db"].is_f64(), "{}", s["electronics"]);
+}

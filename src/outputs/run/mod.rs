@@ -220,6 +220,41 @@ fn table_blocks(title: &str, columns: &[String], rows: &[(String, Vec<String>)])
     lines
 }
 
+/// The printed CMRR: the bench's (with the arms' k±) and the electronics' alone, in dB. The
+/// model's RF output is G·(I₊ − I₋), an ideal subtraction (src/detector/bap.rs), so its only
+/// common-mode leak is the imbalance: with none (diodes' flat responsivity scales equal, or an
+/// electrical imbalance of exactly zero) the ratio is unbounded, which a line of its own says
+/// rather than "inf dB" (summary.json writes null).
+fn cmrr_lines(bench_db: f64, electronics_db: f64) -> Vec<String> {
+    let db = |v: f64| {
+        if v.is_finite() {
+            format!("{v:.1} dB")
+        } else if v == f64::INFINITY {
+            "unbounded".to_string()
+        } else {
+            "undefined".to_string()
+        }
+    };
+    let mut lines = vec![format!(
+        "  CMRR: bench {} (with the arms' k±), electronics alone {}",
+        db(bench_db),
+        db(electronics_db)
+    )];
+    let reason = match (bench_db == f64::INFINITY, electronics_db == f64::INFINITY) {
+        (true, true) => "the diodes' responsivity scales match exactly, and so do the arms' k±",
+        (false, true) => "the diodes' responsivity scales match exactly",
+        (true, false) => "the electrical imbalance is exactly zero",
+        (false, false) => return lines,
+    };
+    lines.push(format!("    unbounded: {reason};"));
+    lines.push(
+        "    the model's RF output subtracts the diodes' currents ideally: the amplifier's own"
+            .into(),
+    );
+    lines.push("    finite CMRR is not modelled".into());
+    lines
+}
+
 /// What `spibench run` prints (stdout): the findings first, then the stage times, the traced
 /// gains and offsets, the electronics and a table of the scores; saturation is warned about
 /// apart (`RunOutcome::saturation`).
@@ -262,11 +297,7 @@ pub fn printed(
         o.detector.monitors[0].gain_v_per_a,
         o.detector.monitors[1].gain_v_per_a,
     ));
-    out.push(format!(
-        "  CMRR: bench {:.1} dB (with the arms' k±), electronics alone {:.1} dB",
-        o.cmrr().value,
-        o.detector.cmrr_db(),
-    ));
+    out.extend(cmrr_lines(o.cmrr().value, o.detector.cmrr_db()));
     out.push(format!(
         "  scope: {:.3e} S/s, RF {:.0e} V/div, MON+ {:.0e} V/div, MON- {:.0e} V/div",
         o.scope.sample_rate_hz, ch[0].volts_per_div, ch[1].volts_per_div, ch[2].volts_per_div
@@ -377,5 +408,28 @@ mod tests {
         let mut original = doc.clone();
         original.file.run.rays = 12_345;
         assert_eq!(back.file, original.file);
+    }
+
+    /// A finite CMRR prints in dB on one line; an unbounded one says so and why, never "inf",
+    /// and every line fits the 100 columns of the terminal.
+    #[test]
+    fn cmrr_lines_say_unbounded_not_inf() {
+        assert_eq!(
+            cmrr_lines(41.04, 30.5),
+            ["  CMRR: bench 41.0 dB (with the arms' k±), electronics alone 30.5 dB"]
+        );
+        for (bench, electronics, why) in [
+            (41.0, f64::INFINITY, "responsivity scales match exactly;"),
+            (f64::INFINITY, 30.5, "electrical imbalance is exactly zero"),
+            (f64::INFINITY, f64::INFINITY, "and so do the arms' k±"),
+        ] {
+            let lines = cmrr_lines(bench, electronics);
+            let text = lines.join("\n");
+            assert!(text.contains("unbounded") && text.contains(why), "{text}");
+            assert!(text.contains("finite CMRR is not modelled"), "{text}");
+            assert!(!text.to_lowercase().contains("inf"), "{text}");
+            assert!(lines.iter().all(|l| l.chars().count() <= 100), "{text}");
+        }
+        assert!(cmrr_lines(f64::NAN, 30.5)[0].contains("bench undefined"));
     }
 }

@@ -68,7 +68,8 @@ pub struct ElectronicsSummary<'a> {
     /// Its Monte Carlo standard error (dB).
     pub cmrr_db_stderr: Option<f64>,
     /// The detector's CMRR from the diodes' flat responsivity mismatch alone (dB; null when
-    /// infinite): what the bench would reject with perfectly matched arms.
+    /// infinite, i.e. for exactly matched diodes: the model subtracts their currents ideally and
+    /// has no amplifier CMRR of its own): what the bench would reject with perfectly matched arms.
     pub cmrr_electronics_db: Option<f64>,
     /// The electrical imbalance (s₊k₊ − s₋k₋)/(s₊k₊ + s₋k₋): the traced (optical) imbalance as
     /// the difference output sees it through the diodes' responsivity factors
