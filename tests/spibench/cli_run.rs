@@ -359,7 +359,15 @@ fn run_says_an_unbounded_cmrr_in_words() {
     .unwrap();
     let mismatched = "responsivity_scale_minus: 0.999";
     assert_eq!(text.matches(mismatched).count(), 1, "{mismatched}");
-    let text = text.replace(mismatched, "responsivity_scale_minus: 1.0");
+    // 16 × 16 units of 2 × 2 mirrors: SSIM's window needs 11 × 11 pixels at the least.
+    let units = "units_across: 4, units_down: 4, mirrors_per_unit: 8";
+    assert_eq!(text.matches(units).count(), 1, "{units}");
+    let text = text
+        .replace(mismatched, "responsivity_scale_minus: 1.0")
+        .replace(
+            units,
+            "units_across: 16, units_down: 16, mirrors_per_unit: 2",
+        );
     let end = text.rfind(')').unwrap();
     let text = format!(
         "{}    run: (rays: 30000, sampling_ratios: [0.5], schemes: \
@@ -384,6 +392,10 @@ fn run_says_an_unbounded_cmrr_in_words() {
         "{printed}"
     );
     let s = read_json(&out.join("summary.json"));
-    assert!(s["electronics"]["cmrr_electronics_db"].is_null(), "{}", s["electronics"]);
+    assert!(
+        s["electronics"]["cmrr_electronics_db"].is_null(),
+        "{}",
+        s["electronics"]
+    );
     assert!(s["electronics"]["cmrr_db"].is_f64(), "{}", s["electronics"]);
 }
