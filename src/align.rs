@@ -17,11 +17,14 @@
 //!   model does not hold, so it gets no half-width and a warning naming the flat side;
 //! - the start and the result traced again at the search's highest ray count with the search's
 //!   seed, so their metric differences carry paired standard errors, and the objective's terms
-//!   at the result.
+//!   at the result (with the centre objective, from the diodes' irradiance maps of the same
+//!   traces: [`Evaluation::spots`]).
 
 use crate::error::Result;
-use crate::pipeline::evaluate::{EvaluateOptions, Evaluation, evaluate};
-use crate::pipeline::optimise::{Search, SearchStop, Term, objective, search, settings, terms};
+use crate::pipeline::evaluate::{EvaluateOptions, Evaluation};
+use crate::pipeline::optimise::{
+    Search, SearchStop, Term, evaluate_for, objective, search, settings, terms,
+};
 use crate::scene::doc::BenchDoc;
 
 pub use crate::pipeline::optimise::{
@@ -127,7 +130,7 @@ pub fn align(
         if d.build().is_err() {
             return Ok(None);
         }
-        evaluate(&d, settings(free, x), &compare).map(Some)
+        evaluate_for(obj, &d, settings(free, x), &compare).map(Some)
     };
     // The comparison: the search's best and the next best distinct points it evaluated.
     let mut points = vec![best_values.clone()];
@@ -156,17 +159,17 @@ pub fn align(
             "no point the search returned gives a valid bench".to_string(),
         ));
     };
-    let f_of = |e: &Evaluation| objective(obj, &e.metrics, k_ref, Some(&reference)).0;
+    let f_of = |e: &Evaluation| objective(obj, e, k_ref, Some(&reference)).0;
     let chosen = (0..traced.len())
         .min_by(|&a, &b| f_of(&traced[a].1).total_cmp(&f_of(&traced[b].1)))
         .unwrap_or(0);
     traced.swap(0, chosen);
     let (best_values, chosen_eval) = (traced[0].0.clone(), traced[0].1.clone());
-    let f0 = objective(obj, &chosen_eval.metrics, k_ref, None).0;
+    let f0 = objective(obj, &chosen_eval, k_ref, None).0;
     let candidates = traced
         .iter()
         .map(|(x, e)| {
-            let (f, se) = objective(obj, &e.metrics, k_ref, Some(&chosen_eval.metrics));
+            let (f, se) = objective(obj, e, k_ref, Some(&chosen_eval.metrics));
             Candidate {
                 values: x.clone(),
                 objective: f,
@@ -176,7 +179,7 @@ pub fn align(
         })
         .collect();
     let uncertainty = probe(free, &best_values, &at, |e| {
-        let (f, se) = objective(obj, &e.metrics, k_ref, Some(&chosen_eval.metrics));
+        let (f, se) = objective(obj, e, k_ref, Some(&chosen_eval.metrics));
         (f - f0, se)
     })?;
     let warnings = warnings(&uncertainty, &history);
@@ -186,13 +189,14 @@ pub fn align(
         seed: o.seed,
         quality: false,
     };
-    let start = evaluate(doc, Vec::new(), &so)?;
-    let best = evaluate(
+    let start = evaluate_for(obj, doc, Vec::new(), &so)?;
+    let best = evaluate_for(
+        obj,
         &doc.with(&settings(free, &best_values))?,
         settings(free, &best_values),
         &so,
     )?;
-    let terms = terms(obj, &best.metrics, k_ref, Some(&start.metrics));
+    let terms = terms(obj, &best, k_ref, Some(&start.metrics));
     Ok(Alignment {
         free: free.to_vec(),
         objective: obj.clone(),

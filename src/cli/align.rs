@@ -1,4 +1,4 @@
-//! `spibench align [SCENE] --free PATH=LO:HI [--free …] --objective balance|power|weighted
+//! `spibench align [SCENE] --free PATH=LO:HI [--free …] --objective balance|power|weighted|centre
 //! [--weight METRIC=W …] [--rays N] [--start-rays N] [--seed S] [--out DIR]`: the free bench
 //! variables that optimise an objective (crate::align: Nelder–Mead on common-random-number
 //! traces, the ray count raised as it converges).
@@ -23,6 +23,10 @@ pub enum ObjectiveArg {
     Power,
     /// Minimise Σ W·METRIC over the --weight flags.
     Weighted,
+    /// Centre each diode on its arm's spot: maximise the smaller of the two margins, active
+    /// radius − (centroid offset + 2 RMS radii), from the irradiance maps. The robust choice
+    /// where the imbalance is flat (the whole spot on the diode over a range of positions).
+    Centre,
 }
 
 /// Arguments of `spibench align`.
@@ -203,6 +207,7 @@ fn objective(args: &AlignArgs) -> crate::Result<Objective> {
             }
         }
         ObjectiveArg::Power => Objective::Power,
+        ObjectiveArg::Centre => Objective::Centre,
         ObjectiveArg::Weighted => {
             let w: Vec<(String, f64)> = args
                 .weight

@@ -42,12 +42,13 @@ pub struct AlignRun<'a> {
     pub seconds: f64,
 }
 
-/// The objective's kind as the report names it: `Balance`, `Power` or `Weighted`.
+/// The objective's kind as the report names it: `Balance`, `Power`, `Weighted` or `Centre`.
 fn kind(o: &Objective) -> &'static str {
     match o {
         Objective::Balance { .. } => "Balance",
         Objective::Power => "Power",
         Objective::Weighted(_) => "Weighted",
+        Objective::Centre => "Centre",
     }
 }
 
@@ -83,6 +84,7 @@ pub fn write(
         free: free_summaries(r.free, a, r.doc.edits()),
         start: Row::metrics(&a.start, &a.start),
         aligned: Row::metrics(&a.best, &a.start),
+        centre: centre_summary(a),
         files: &files,
     };
     let json = serde_json::to_value(&summary)
@@ -138,6 +140,32 @@ pub fn card(summary: &serde_json::Value) -> crate::outputs::card::Card {
                 pm(num(&v[0]), num(&v[1]), unit),
                 pm(num(&v[2]), num(&v[3]), unit),
                 pm(num(&v[4]), num(&v[5]), unit)
+            )
+        });
+    }
+    // With the centre objective: each spot's offset from its diode's centre and the margin
+    // (mm, the bench file's unit), before → after.
+    for (i, sign) in ["+", "−"].into_iter().enumerate() {
+        let d = format!("/centre/diodes/{i}");
+        if summary.pointer(&d).is_none() {
+            continue;
+        }
+        let keys = [
+            "start/centroid_offset_m",
+            "start/centroid_offset_stderr_m",
+            "aligned/centroid_offset_m",
+            "aligned/centroid_offset_stderr_m",
+            "aligned/centre_margin_m",
+            "aligned/centre_margin_stderr_m",
+        ]
+        .map(|k| format!("{d}/{k}"));
+        c.line(summary, format!("{sign} spot offset"), &keys, |v| {
+            let mm = |k: usize| num(&v[k]) * 1e3;
+            format!(
+                "{} → {} (margin {})",
+                pm(mm(0), mm(1), "mm"),
+                pm(mm(2), mm(3), "mm"),
+                pm(mm(4), mm(5), "mm")
             )
         });
     }
@@ -214,7 +242,80 @@ struct AlignSummary<'a> {
     /// The metrics of the aligned bench against the start: `M_diff` is the change, with its
     /// paired standard error `M_diff_stderr`.
     aligned: Row,
+    /// With the centre objective: where each diode's spot lands, at the start and aligned.
+    centre: Option<CentreSummary>,
     files: &'a [String],
+}
+
+/// The centre objective's numbers: each diode's spot at the start and at the aligned bench
+/// (the same traces as `start` and `aligned`).
+#[derive(Serialize)]
+struct CentreSummary {
+    /// k of the margin: active radius − (centroid offset + k·RMS radius).
+    rms_radii: f64,
+    diodes: Vec<CentreDiode>,
+}
+
+#[derive(Serialize)]
+struct CentreDiode {
+    diode: &'static str,
+    active_radius_m: f64,
+    start: SpotSummary,
+    aligned: SpotSummary,
+    /// aligned − start of the centroid's offset, and the standard error of that difference
+    /// from the two traces' own errors (unpaired: the maps keep no per-batch totals).
+    centroid_offset_change_m: Option<f64>,
+    centroid_offset_change_stderr_m: Option<f64>,
+}
+
+#[derive(Serialize)]
+struct SpotSummary {
+    /// Null where no light was mapped.
+    centre_margin_m: Option<f64>,
+    centre_margin_stderr_m: f64,
+    /// The centroid in the diode's (u, v) axes from the active area's centre, its error.
+    centroid_m: [f64; 2],
+    centroid_stderr_m: [f64; 2],
+    /// Its distance from the centre, and the error of that.
+    centroid_offset_m: f64,
+    centroid_offset_stderr_m: f64,
+    rms_radius_m: f64,
+    spill: f64,
+}
+
+/// The centre summary, when the start and the result carry their spots (the centre
+/// objective).
+fn centre_summary(a: &Alignment) -> Option<CentreSummary> {
+    let (s, b) = (a.start.spots?, a.best.spots?);
+    let finite = |v: f64| v.is_finite().then_some(v);
+    let spot = |p: &crate::pipeline::evaluate::Spot| SpotSummary {
+        centre_margin_m: finite(p.margin_m),
+        centre_margin_stderr_m: p.margin_stderr_m,
+        centroid_m: p.stats.centroid_m,
+        centroid_stderr_m: p.stats.centroid_stderr_m,
+        centroid_offset_m: p.offset_m,
+        centroid_offset_stderr_m: p.offset_stderr_m,
+        rms_radius_m: p.stats.rms_radius_m,
+        spill: p.stats.spill,
+    };
+    let mapped = |p: &crate::pipeline::evaluate::Spot| p.stats.active_w + p.stats.plate_w > 0.0;
+    Some(CentreSummary {
+        rms_radii: crate::pipeline::optimise::CENTRE_RMS_RADII,
+        diodes: (0..2)
+            .map(|d| {
+                let both = mapped(&s[d]) && mapped(&b[d]);
+                CentreDiode {
+                    diode: ["pd_plus", "pd_minus"][d],
+                    active_radius_m: s[d].active_radius_m,
+                    start: spot(&s[d]),
+                    aligned: spot(&b[d]),
+                    centroid_offset_change_m: both.then(|| b[d].offset_m - s[d].offset_m),
+                    centroid_offset_change_stderr_m: both
+                        .then(|| b[d].offset_stderr_m.hypot(s[d].offset_stderr_m)),
+                }
+            })
+            .collect(),
+    })
 }
 
 #[derive(Serialize)]

@@ -6,7 +6,8 @@
 //!
 //! - [`evaluate`]: a bench document → [`Evaluation`] (metrics with standard errors, the
 //!   bench's CMRR with the optics and the detector's alone, arrivals; with `quality`, every scheme × ratio of the bench's `run:`
-//!   settings recorded, solved and scored);
+//!   settings recorded, solved and scored); [`evaluate_mapped`] the same trace with the diodes'
+//!   irradiance maps, for where each arm's spot lands ([`Spot`], `align`'s centre objective);
 //! - [`evaluate_traced`]: a traced bench of a [`RunScene`] → [`RunOutcome`], everything a run
 //!   reports (records, solutions, scores, the USAF read-out);
 //! - [`acquire`] and [`solve_scored`]: a transport made any way (an object kernel's product for
@@ -65,6 +66,27 @@ pub struct Evaluation {
     pub arrivals: u64,
     /// With `quality`: every scheme × ratio of the bench's `run` settings.
     pub quality: Option<Vec<SchemeResult>>,
+    /// From [`evaluate_mapped`]: where the light lands on each diode (+, −), from the
+    /// irradiance maps of the same trace; None from [`evaluate`].
+    pub spots: Option<[Spot; 2]>,
+}
+
+/// Where the light of one diode's own arm lands on it (the diode's map with every unit in its
+/// state: + for the + diode, − for the − diode), and its centre margin
+/// ([`crate::pipeline::optimise::centre_margin`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Spot {
+    /// Centroid (with its standard error), RMS radius and spill, in the diode's (u, v) axes
+    /// from the active area's centre.
+    pub stats: crate::trace::irradiance::MapStats,
+    pub active_radius_m: f64,
+    /// The centroid's distance from the active area's centre (m) and its standard error.
+    pub offset_m: f64,
+    pub offset_stderr_m: f64,
+    /// Active radius − (offset + k·RMS radius) (m; −∞ when no light was mapped) and its
+    /// standard error.
+    pub margin_m: f64,
+    pub margin_stderr_m: f64,
 }
 
 /// Traces one bench (and with `quality` runs the whole pipeline on it). `settings` are only
@@ -87,6 +109,26 @@ pub fn evaluate(
         (pipeline::trace_stage(&bench, &req)?, None)
     };
     Ok(evaluation_of(doc, settings, &traced, quality))
+}
+
+/// [`evaluate`] without the quality stages, traced with the diodes' irradiance maps
+/// ([`crate::trace::irradiance::trace_with_maps`], the same paths and tallies as the plain
+/// trace): the evaluation carries each diode's [`Spot`].
+pub fn evaluate_mapped(
+    doc: &BenchDoc,
+    settings: Vec<(String, f64)>,
+    o: &EvaluateOptions,
+) -> Result<Evaluation> {
+    use crate::trace::irradiance::{DEFAULT_BINS, trace_with_maps};
+    let bench = doc.build()?;
+    let options = crate::trace::TraceOptions::new(o.rays, o.seed);
+    let (tallies, maps) = trace_with_maps(&bench, &options, DEFAULT_BINS)?;
+    let traced = Traced::from_tallies(&bench, tallies, CacheStatus::Off);
+    let mut e = evaluation_of(doc, settings, &traced, None);
+    e.spots = Some(std::array::from_fn(|d| {
+        crate::pipeline::optimise::spot(&maps, d, crate::pipeline::optimise::CENTRE_RMS_RADII)
+    }));
+    Ok(e)
 }
 
 /// The evaluation of a bench already traced (`traced` from `doc`): its metrics, the bench's
@@ -114,6 +156,7 @@ pub fn evaluation_of(
         arrivals: traced.arrivals(),
         metrics: traced.metrics.clone(),
         quality,
+        spots: None,
     }
 }
 

@@ -42,9 +42,19 @@
 //!   ray noise, not the imbalance, then decided which point won.
 //! - `Power`: maximise k₊ + k₋ (minimise −(k₊ + k₋)/(k₊ + k₋)_start).
 //! - `Weighted`: minimise Σ w_m·m over named metrics (values in their SI units).
+//! - `Centre`: maximise the diodes' centre margins ([`centre_margin_m`]: active radius −
+//!   centroid offset − 2 RMS radii of the arm's spot, from the irradiance maps of the same
+//!   trace), the smaller one weighted more ([`centre_value`]), in units of the smaller active
+//!   radius: each diode centred on its spot.
+//!   Where the imbalance is flat over a range of positions (the whole spot on the diode), this
+//!   is the point in the middle of that range, the one that keeps the spot on the diode for the
+//!   largest move either way. Its standard error is the margin's own (delta method over the
+//!   map's bins, [`spot`]), not paired: the maps keep no per-batch totals to pair.
+//!   Without a housing only the light on the active area is mapped, so a spot that crosses the
+//!   rim is seen by its part inside; the margin still falls toward 0 there.
 
 use crate::error::{Error, Result};
-use crate::pipeline::evaluate::{EvaluateOptions, Evaluation, evaluate};
+use crate::pipeline::evaluate::{EvaluateOptions, Evaluation, Spot, evaluate, evaluate_mapped};
 use crate::quantities::BenchMetric;
 use crate::scene::doc::BenchDoc;
 use crate::transport::metrics::BenchMetrics;
@@ -97,6 +107,8 @@ pub enum Objective {
     },
     Power,
     Weighted(Vec<(BenchMetric, f64)>),
+    /// −min(margin₊, margin₋)/min(R₊, R₋): each diode centred on its arm's spot.
+    Centre,
 }
 
 impl Objective {
@@ -105,6 +117,26 @@ impl Objective {
         min_fraction: 0.9,
         offset_weight: 0.0,
     };
+
+    /// Whether the objective needs the diodes' irradiance maps ([`Evaluation::spots`]).
+    pub fn needs_maps(&self) -> bool {
+        matches!(self, Objective::Centre)
+    }
+}
+
+/// Evaluates one bench for `obj`: with the diodes' irradiance maps when the objective needs
+/// them ([`evaluate_mapped`]), the plain trace otherwise.
+pub fn evaluate_for(
+    obj: &Objective,
+    doc: &BenchDoc,
+    settings: Vec<(String, f64)>,
+    o: &EvaluateOptions,
+) -> Result<Evaluation> {
+    if obj.needs_maps() && !o.quality {
+        evaluate_mapped(doc, settings, o)
+    } else {
+        evaluate(doc, settings, o)
+    }
 }
 
 /// One named term of an objective at a point: its value and its standard error (paired where
@@ -207,11 +239,11 @@ fn value(m: &BenchMetrics, metric: BenchMetric) -> (f64, f64) {
 /// matters when two nearby points are compared.
 pub fn objective(
     obj: &Objective,
-    m: &BenchMetrics,
+    e: &Evaluation,
     k_ref: f64,
     paired: Option<&BenchMetrics>,
 ) -> (f64, f64) {
-    let t = terms(obj, m, k_ref, paired);
+    let t = terms(obj, e, k_ref, paired);
     let f = t.iter().map(|t| t.value).sum::<f64>();
     // The terms come from the same traces; their errors are added in quadrature as before (the
     // penalty is exact).
@@ -219,13 +251,16 @@ pub fn objective(
     (f, se)
 }
 
-/// The objective's terms at a point (see [`objective`]).
+/// The objective's terms at a point (see [`objective`]). The centre objective reads the
+/// evaluation's spots; evaluated without them ([`evaluate`] rather than [`evaluate_for`]) its
+/// value is NaN.
 pub fn terms(
     obj: &Objective,
-    m: &BenchMetrics,
+    e: &Evaluation,
     k_ref: f64,
     paired: Option<&BenchMetrics>,
 ) -> Vec<Term> {
+    let m = &e.metrics;
     let value = |m: &BenchMetrics, metric: BenchMetric| -> (f64, f64) {
         let (v, se) = value(m, metric);
         match paired {
@@ -286,6 +321,23 @@ pub fn terms(
                 term(&format!("{wt}·{metric}"), wt * x, (wt * se).abs())
             })
             .collect(),
+        Objective::Centre => {
+            let name = "−[min(m₊, m₋) + (m₊ + m₋)/2]/(2·min(R₊, R₋)), m± the centre margins";
+            let Some(s) = &e.spots else {
+                return vec![term(name, f64::NAN, f64::NAN)];
+            };
+            let margins = [s[0].margin_m, s[1].margin_m];
+            let radii = [s[0].active_radius_m, s[1].active_radius_m];
+            vec![term(
+                name,
+                centre_value(margins, radii),
+                centre_value_stderr(
+                    margins,
+                    [s[0].margin_stderr_m, s[1].margin_stderr_m],
+                    radii,
+                ),
+            )]
+        }
     }
 }
 
@@ -297,21 +349,98 @@ pub const CENTRE_RMS_RADII: f64 = 2.0;
 /// The centre margin of one diode (m): active radius − (distance of the light's centroid from
 /// the diode's centre + k·RMS radius), from its irradiance map's summary. It is largest where
 /// the spot sits at the diode's centre, and it is negative when the spot's footprint crosses
-/// the active edge.
+/// the active edge. With no light mapped it is −∞: a diode the light misses is not centred.
 pub fn centre_margin_m(
     stats: &crate::trace::irradiance::MapStats,
     active_radius_m: f64,
     k_rms: f64,
 ) -> f64 {
+    if !(stats.active_w + stats.plate_w > 0.0) {
+        return f64::NEG_INFINITY;
+    }
     let [cx, cy] = stats.centroid_m;
     active_radius_m - (cx.hypot(cy) + k_rms * stats.rms_radius_m)
 }
 
-/// The centre objective to minimise: minus the smaller of the two diodes' margins, in units of
-/// the smaller active radius (dimensionless like the other objectives). Maximising the smaller
-/// margin centres both diodes on their spots where the imbalance is flat.
+/// Diode d's [`Spot`] in its own arm's state (map state d: every unit + for the + diode, − for
+/// the − diode), with the centre margin for `k_rms` RMS radii and its standard error.
+///
+/// The errors are the delta method over the map's bins, taken as independent (as the
+/// centroid's, [`crate::trace::irradiance::MapStats::centroid_stderr_m`]): with W the mapped
+/// power, c the centroid, ρ = |c|, e = c/ρ and r² = Σ wᵢ|pᵢ − c|²/W, a bin's power moves
+/// ρ by e·(pᵢ − c)/W and r by (|pᵢ − c|² − r²)/(2rW) (the centroid's own move changes r² only at
+/// second order), and the margin by minus the first plus k times the second. Near the centre
+/// (ρ within a few standard errors of 0) |c| is biased high by about its error, and the
+/// direction e is that of the noise: the error given is that along it.
+pub fn spot(maps: &crate::trace::irradiance::IrradianceMaps, d: usize, k_rms: f64) -> Spot {
+    let stats = maps.stats(d, d);
+    let window = maps.window(d);
+    let radius = window.radius_m;
+    let total = stats.active_w + stats.plate_w;
+    let [cx, cy] = stats.centroid_m;
+    let rho = cx.hypot(cy);
+    let (ex, ey) = if rho > 0.0 {
+        (cx / rho, cy / rho)
+    } else {
+        (1.0, 0.0)
+    };
+    let r = stats.rms_radius_m;
+    let bins = maps.bins;
+    let (mut v_rho, mut v_margin) = (0.0, 0.0);
+    if total > 0.0 {
+        for i in 0..bins * bins {
+            let se = maps.bin_stderr_w(d, d, i);
+            if se == 0.0 {
+                continue;
+            }
+            let (x, y) = window.bin_centre(bins, i / bins, i % bins);
+            let (dx, dy) = (x - cx, y - cy);
+            let g_rho = (ex * dx + ey * dy) / total;
+            let g_r = if r > 0.0 {
+                (dx * dx + dy * dy - r * r) / (2.0 * r * total)
+            } else {
+                0.0
+            };
+            v_rho += (g_rho * se).powi(2);
+            v_margin += ((g_rho + k_rms * g_r) * se).powi(2);
+        }
+    }
+    Spot {
+        stats,
+        active_radius_m: radius,
+        offset_m: rho,
+        offset_stderr_m: v_rho.sqrt(),
+        margin_m: centre_margin_m(&stats, radius, k_rms),
+        margin_stderr_m: v_margin.sqrt(),
+    }
+}
+
+/// The centre objective to minimise: minus the mean of the smaller of the two diodes' margins
+/// and their average, in units of the smaller active radius (dimensionless like the other
+/// objectives), −[min(m₊, m₋) + (m₊ + m₋)/2]/(2·min(R₊, R₋)).
+///
+/// The smaller margin alone (max-min) would stop pulling a diode toward its centre as soon as
+/// its margin passed the other's: with only the − diode free and the + spot 0.3 mm off its own
+/// centre, every − position within 0.3 mm of the − centre would score alike, and the search
+/// would stop anywhere on that plateau. The average keeps each diode's margin in the objective
+/// (where each diode's variables move only its own spot, the optimum centres both), and the
+/// smaller margin's extra weight keeps a variable that moves both spots from buying one
+/// diode's margin with the other's.
 pub fn centre_value(margins_m: [f64; 2], radii_m: [f64; 2]) -> f64 {
-    -margins_m[0].min(margins_m[1]) / radii_m[0].min(radii_m[1])
+    let [a, b] = margins_m;
+    -(a.min(b) + 0.5 * (a + b)) / (2.0 * radii_m[0].min(radii_m[1]))
+}
+
+/// The standard error of [`centre_value`] from the margins' own (the two diodes' light is
+/// mapped from different mirror states, taken as independent): the smaller margin enters with
+/// weight 3/4, the larger with 1/4, over the smaller radius.
+pub fn centre_value_stderr(margins_m: [f64; 2], stderr_m: [f64; 2], radii_m: [f64; 2]) -> f64 {
+    let (low, high) = if margins_m[0] <= margins_m[1] {
+        (0, 1)
+    } else {
+        (1, 0)
+    };
+    (0.75 * stderr_m[low]).hypot(0.25 * stderr_m[high]) / radii_m[0].min(radii_m[1])
 }
 
 /// Checks an objective's metric names.
@@ -398,7 +527,7 @@ pub fn search(
             seed: o.seed,
             quality: false,
         };
-        evaluate(&d, settings(free, x), &so).map(Some)
+        evaluate_for(obj, &d, settings(free, x), &so).map(Some)
     };
     let (start_rays, max_rays) = o.stage_rays();
     let first = trace(&start_values, start_rays)?
@@ -440,7 +569,7 @@ pub fn search(
         if r.as_ref().is_none_or(|(s, _)| *s != stage) {
             *r = Some((stage, p.metrics.clone()));
         }
-        let (f, se) = objective(obj, &p.metrics, k_ref, r.as_ref().map(|(_, m)| m));
+        let (f, se) = objective(obj, &p, k_ref, r.as_ref().map(|(_, m)| m));
         let (imb, imb_se) = value(&p.metrics, BenchMetric::Imbalance);
         history.borrow_mut().push(Step {
             stage,
@@ -650,6 +779,19 @@ fn nelder_mead(
 mod tests {
     use super::*;
 
+    /// An evaluation with the given metrics and nothing else.
+    fn evaluation(metrics: BenchMetrics) -> Evaluation {
+        Evaluation {
+            settings: Vec::new(),
+            metrics,
+            cmrr: None,
+            cmrr_electronics_db: None,
+            arrivals: 0,
+            quality: None,
+            spots: None,
+        }
+    }
+
     #[test]
     fn free_parses() {
         let f = Free::parse("a.b=-1:2.5").unwrap();
@@ -679,7 +821,7 @@ mod tests {
             metric(0.0),
             metric(1.0),
         ];
-        let m = BenchMetrics { values };
+        let m = evaluation(BenchMetrics { values });
         let t = terms(&Objective::BALANCE, &m, 1.0, None);
         assert_eq!(t.len(), 2, "{t:?}");
         let (f, _) = objective(&Objective::BALANCE, &m, 1.0, None);
@@ -717,20 +859,36 @@ mod tests {
             active_stderr_w: 0.0,
             plate_w: 0.0,
             centroid_m: [d - x, 0.0],
+            centroid_stderr_m: [0.0, 0.0],
             rms_radius_m: sigma,
             spill: 0.0,
         };
-        // The other diode's spot is centred: its margin is R − kσ, never the smaller one.
-        let other = centre_margin_m(&spot(d), r, CENTRE_RMS_RADII);
-        assert!((other - (r - 2.0 * sigma)).abs() < 1e-15);
-        let mut f = |u: &[f64]| -> Result<(f64, f64)> {
+        // The other diode's spot centred (its margin R − kσ, never the smaller one), or 0.3 mm
+        // off its centre: then the smaller margin alone would be flat wherever the moved
+        // diode's offset is below 0.3 mm, and the average still pulls it to the centre.
+        let centred = centre_margin_m(&spot(d), r, CENTRE_RMS_RADII);
+        assert!((centred - (r - 2.0 * sigma)).abs() < 1e-15);
+        for other in [centred, centred - 0.3e-3] {
+            let mut f = |u: &[f64]| -> Result<(f64, f64)> {
+                let x = -range / 2.0 + u[0] * range;
+                let m = centre_margin_m(&spot(x), r, CENTRE_RMS_RADII);
+                Ok((centre_value([m, other], [r, r]), 0.0))
+            };
+            let (u, _) = nelder_mead(&mut f, &[0.5], 0.25, 500).unwrap();
             let x = -range / 2.0 + u[0] * range;
-            let m = centre_margin_m(&spot(x), r, CENTRE_RMS_RADII);
-            Ok((centre_value([m, other], [r, r]), 0.0))
+            assert!((x - d).abs() < 2e-3 * range, "x = {x}, d = {d}, other {other}");
+        }
+        // The value in closed form: m = 1, 3 over R = 2: −(1 + 2)/4; its error weights the
+        // smaller margin's by 3/4 and the larger's by 1/4.
+        assert_eq!(centre_value([3.0, 1.0], [2.0, 5.0]), -0.75);
+        let se = centre_value_stderr([3.0, 1.0], [0.4, 0.2], [2.0, 5.0]);
+        assert!((se - (0.15f64).hypot(0.1) / 2.0).abs() < 1e-15, "{se}");
+        // No light mapped: −∞, the worst margin.
+        let dark = crate::trace::irradiance::MapStats {
+            active_w: 0.0,
+            ..spot(0.0)
         };
-        let (u, _) = nelder_mead(&mut f, &[0.5], 0.25, 500).unwrap();
-        let x = -range / 2.0 + u[0] * range;
-        assert!((x - d).abs() < 2e-3 * range, "x = {x}, d = {d}");
+        assert_eq!(centre_margin_m(&dark, r, CENTRE_RMS_RADII), f64::NEG_INFINITY);
         // At the start (x = 0) the margin is R − d − kσ; at the optimum R − kσ.
         let before = centre_margin_m(&spot(0.0), r, CENTRE_RMS_RADII);
         assert!((before - (r - d - 2.0 * sigma)).abs() < 1e-15);

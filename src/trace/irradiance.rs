@@ -337,6 +337,12 @@ impl IrradianceMaps {
         (e, se)
     }
 
+    /// The standard error (W) of bin i of map d in state s, both layers (as in `irradiance`).
+    pub fn bin_stderr_w(&self, d: usize, s: usize, i: usize) -> f64 {
+        let bins = self.bins;
+        self.stderr_w(index(bins, d, s, 0, i)) + self.stderr_w(index(bins, d, s, 1, i))
+    }
+
     /// The summary numbers of diode d in state s.
     pub fn stats(&self, d: usize, s: usize) -> MapStats {
         let bins = self.bins;
@@ -370,15 +376,27 @@ impl IrradianceMaps {
             (0.0, 0.0)
         };
         let mut r2 = 0.0;
+        // The centroid's variance by the delta method, bins independent: ∂c_x/∂w_i =
+        // (x_i − c_x)/W, so var c_x ≈ Σ (x_i − c_x)² se_i² / W² (se_i as in `irradiance`).
+        let (mut vx, mut vy) = (0.0, 0.0);
         for i in 0..n {
             let (x, y) = w.bin_centre(bins, i / bins, i % bins);
             r2 += weight(i) * ((x - cx).powi(2) + (y - cy).powi(2));
+            let se = self.bin_stderr_w(d, s, i);
+            vx += ((x - cx) * se).powi(2);
+            vy += ((y - cy) * se).powi(2);
         }
+        let centroid_stderr_m = if total > 0.0 {
+            [vx.sqrt() / total, vy.sqrt() / total]
+        } else {
+            [0.0, 0.0]
+        };
         MapStats {
             active_w: active,
             active_stderr_w: layer_se(0),
             plate_w: plate,
             centroid_m: [cx, cy],
+            centroid_stderr_m,
             rms_radius_m: if total > 0.0 {
                 (r2 / total).sqrt()
             } else {
@@ -399,6 +417,9 @@ pub struct MapStats {
     pub plate_w: f64,
     /// The centre of the light (m).
     pub centroid_m: [f64; 2],
+    /// Its standard error along each axis (m), from the bins' errors taken as independent (0
+    /// when nothing was mapped).
+    pub centroid_stderr_m: [f64; 2],
     /// The RMS radius about it (m).
     pub rms_radius_m: f64,
     /// The share of the mapped light outside the active area: plate ÷ (active + plate).
@@ -536,6 +557,44 @@ mod tests {
             );
         }
         assert_eq!(EXTRA_SLOTS, t.ledger[COMMON].len() - n_el);
+    }
+
+    /// The centroid's standard error in closed form: two bins of powers w₁, w₂ at x₁, x₂ with
+    /// errors s₁, s₂ put the centroid at (w₁x₁ + w₂x₂)/W, and ∂c/∂w₁ = w₂(x₁ − x₂)/W²,
+    /// ∂c/∂w₂ = w₁(x₂ − x₁)/W², so var c = (x₁ − x₂)²(w₂²s₁² + w₁²s₂²)/W⁴. Two batches of
+    /// totals a, b give a bin the error |a − b| (batch means, n/(n − 1) = 2).
+    #[test]
+    fn the_centroid_error_of_two_bins_is_the_closed_form() {
+        let window = Window {
+            frame: Frame::new(DVec3::ZERO, DVec3::Z, None),
+            radius_m: 1e-3,
+            half_width_m: 2e-3,
+            housing: None,
+        };
+        let bins = 4;
+        let mut maps = IrradianceMaps::new([window; 2], Vec::new(), bins);
+        maps.batches = 2;
+        // Bin (row 0, col 0) in the active layer with batch totals 3 and 1 (w₁ = 4, s₁ = 2);
+        // bin (row 2, col 3) on the plate with 0.5 and 1.5 (w₂ = 2, s₂ = 1); diode 1, state 1.
+        let (b1, b2) = (0, 2 * bins + 3);
+        for (l, i, a, b) in [(0, b1, 3.0, 1.0), (1, b2, 0.5, 1.5)] {
+            let k = index(bins, 1, 1, l, i);
+            maps.power_w[k] = a + b;
+            maps.sum_sq[k] = a * a + b * b;
+        }
+        let st = maps.stats(1, 1);
+        let (w1, s1, w2, s2, total) = (4.0, 2.0, 2.0, 1.0, 6.0);
+        let (x1, y1) = window.bin_centre(bins, 0, 0);
+        let (x2, y2) = window.bin_centre(bins, 2, 3);
+        let want = |p1: f64, p2: f64| {
+            ((p1 - p2).powi(2) * (w2 * w2 * s1 * s1 + w1 * w1 * s2 * s2)).sqrt() / (total * total)
+        };
+        assert!((st.centroid_m[0] - (w1 * x1 + w2 * x2) / total).abs() < 1e-18);
+        for (got, want) in st.centroid_stderr_m.iter().zip([want(x1, x2), want(y1, y2)]) {
+            assert!((got - want).abs() <= 1e-12 * want, "{got:e} vs {want:e}");
+        }
+        // Nothing mapped: no centroid and no error.
+        assert_eq!(maps.stats(0, 0).centroid_stderr_m, [0.0, 0.0]);
     }
 
     /// The maps are bit-identical on one and two threads.
