@@ -23,9 +23,10 @@ pub enum ObjectiveArg {
     Power,
     /// Minimise Σ W·METRIC over the --weight flags.
     Weighted,
-    /// Centre each diode on its arm's spot: maximise the smaller of the two margins, active
-    /// radius − (centroid offset + 2 RMS radii), from the irradiance maps. The robust choice
-    /// where the imbalance is flat (the whole spot on the diode over a range of positions).
+    /// Centre each diode on its arm's spot: maximise the two margins, active radius −
+    /// (centroid offset + 2 RMS radii), from the irradiance maps, the smaller weighted 3 times
+    /// the larger. The robust choice where the imbalance is flat (the whole spot on the diode
+    /// over a range of positions).
     Centre,
 }
 

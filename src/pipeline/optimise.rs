@@ -107,7 +107,8 @@ pub enum Objective {
     },
     Power,
     Weighted(Vec<(BenchMetric, f64)>),
-    /// −min(margin₊, margin₋)/min(R₊, R₋): each diode centred on its arm's spot.
+    /// −[min(m₊, m₋) + (m₊ + m₋)/2]/(2·min(R₊, R₋)) of the centre margins m±
+    /// ([`centre_value`]): each diode centred on its arm's spot.
     Centre,
 }
 
@@ -331,11 +332,7 @@ pub fn terms(
             vec![term(
                 name,
                 centre_value(margins, radii),
-                centre_value_stderr(
-                    margins,
-                    [s[0].margin_stderr_m, s[1].margin_stderr_m],
-                    radii,
-                ),
+                centre_value_stderr(margins, [s[0].margin_stderr_m, s[1].margin_stderr_m], radii),
             )]
         }
     }
@@ -355,7 +352,8 @@ pub fn centre_margin_m(
     active_radius_m: f64,
     k_rms: f64,
 ) -> f64 {
-    if !(stats.active_w + stats.plate_w > 0.0) {
+    let mapped = stats.active_w + stats.plate_w;
+    if mapped.is_nan() || mapped <= 0.0 {
         return f64::NEG_INFINITY;
     }
     let [cx, cy] = stats.centroid_m;
@@ -876,7 +874,10 @@ mod tests {
             };
             let (u, _) = nelder_mead(&mut f, &[0.5], 0.25, 500).unwrap();
             let x = -range / 2.0 + u[0] * range;
-            assert!((x - d).abs() < 2e-3 * range, "x = {x}, d = {d}, other {other}");
+            assert!(
+                (x - d).abs() < 2e-3 * range,
+                "x = {x}, d = {d}, other {other}"
+            );
         }
         // The value in closed form: m = 1, 3 over R = 2: −(1 + 2)/4; its error weights the
         // smaller margin's by 3/4 and the larger's by 1/4.
@@ -888,7 +889,10 @@ mod tests {
             active_w: 0.0,
             ..spot(0.0)
         };
-        assert_eq!(centre_margin_m(&dark, r, CENTRE_RMS_RADII), f64::NEG_INFINITY);
+        assert_eq!(
+            centre_margin_m(&dark, r, CENTRE_RMS_RADII),
+            f64::NEG_INFINITY
+        );
         // At the start (x = 0) the margin is R − d − kσ; at the optimum R − kσ.
         let before = centre_margin_m(&spot(0.0), r, CENTRE_RMS_RADII);
         assert!((before - (r - d - 2.0 * sigma)).abs() < 1e-15);

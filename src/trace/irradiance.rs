@@ -590,7 +590,11 @@ mod tests {
             ((p1 - p2).powi(2) * (w2 * w2 * s1 * s1 + w1 * w1 * s2 * s2)).sqrt() / (total * total)
         };
         assert!((st.centroid_m[0] - (w1 * x1 + w2 * x2) / total).abs() < 1e-18);
-        for (got, want) in st.centroid_stderr_m.iter().zip([want(x1, x2), want(y1, y2)]) {
+        for (got, want) in st
+            .centroid_stderr_m
+            .iter()
+            .zip([want(x1, x2), want(y1, y2)])
+        {
             assert!((got - want).abs() <= 1e-12 * want, "{got:e} vs {want:e}");
         }
         // Nothing mapped: no centroid and no error.

@@ -333,7 +333,10 @@ fn align_centre_brings_a_displaced_diode_under_its_spot() {
         "{plus}"
     );
     let text = crate::common::stdout(&o);
-    assert!(text.contains("− spot offset") && text.contains(" mm"), "{text}");
+    assert!(
+        text.contains("− spot offset") && text.contains(" mm"),
+        "{text}"
+    );
 }
 
 /// The paper's claim under tolerances: in a Monte Carlo of the paper bench built within the
