@@ -33,6 +33,14 @@
 //!    short tightened. The search stops when the next budget would save less than
 //!    `budget_search::MIN_SAVING` of the cheapest passing budget's cost, repeats a round, or the
 //!    rounds run out; the joint budget is the cheapest round that met the bound.
+//! 6. **Loosening pass** ([`budget_loosen`]). The cheapest budget need not be the
+//!    loosest (the cost weights differ by tolerance), and the one-at-a-time budget is over-tight
+//!    once scaled down to the target. From each (the cheapest passing round, and the
+//!    one-at-a-time budget scaled down uniformly until the surface holds it feasible), the
+//!    tolerance whose loosening step saves the most cost is loosened while the surface yield
+//!    holds; the result with the larger geometric-mean scale is confirmed on a fresh block of
+//!    trials ([`budget_loosen::LOOSEN_INDEX_BASE`]) and becomes the joint budget only if
+//!    its lower bound reaches Y. Its round is the last of `rounds` (`Rounds::loosened`).
 //!
 //! A round that passes after several were tried is the cheapest of the passing rounds: each
 //! bound is its own round's, from fresh trials, but choosing among passing rounds is a mild
@@ -52,6 +60,10 @@ use super::budget_search::{
     Aim, Job, Rounds, TracedConfirmation, baseline, calibrated, cheapest_pass, rounds,
 };
 use super::budget_surface::{Samples, Surface, fraction_needed, soft_widths, wilson_lower};
+
+// The loosening pass, in its own file beside this one (`src/tolerance/budget_loosen.rs`).
+#[path = "budget_loosen.rs"]
+pub mod budget_loosen;
 
 /// How the lower bound of a confirmation's yield is computed (named in `summary.json`).
 pub const LOWER_BOUND_METHOD: &str = "Wilson score, one-sided";
@@ -111,7 +123,8 @@ pub struct Confirmation {
     pub lower_bound: f64,
 }
 
-/// One round of the search.
+/// One round of the search (the last may be the loosening pass's, `chosen_round` then naming
+/// it when it was accepted).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Round {
     pub surface_target: f64,
@@ -172,7 +185,8 @@ pub struct BudgetOutcome {
     #[serde(skip)]
     pub incomplete: bool,
     pub rows: Vec<BudgetRow>,
-    /// The joint budget: the cheapest round that met the bound, or the best found.
+    /// The joint budget: the loosening pass's when it met the bound, else the cheapest round
+    /// that did, or the best found.
     pub joint: BudgetFigures,
     pub baseline: BudgetFigures,
     pub rounds: Vec<Round>,
@@ -214,7 +228,7 @@ fn decimal(v: f64) -> f64 {
 }
 
 /// `v` rounded down to 3 significant digits.
-fn round_down(v: f64) -> f64 {
+pub(super) fn round_down(v: f64) -> f64 {
     if !(v > 0.0 && v.is_finite()) {
         return v;
     }
@@ -395,7 +409,12 @@ pub fn budget(
         prior: run.prior,
         shard: run.shard,
     };
-    let nominal_values = super::values(inputs.nominal, inputs.nominal);
+    // Every value a trial records, the electrical imbalance ι′ included: the surface models ι′
+    // only where the nominal bench records it, and the confirmations judge ι′ (with `values`
+    // alone the surface modelled the optical imbalance and was blind to the diodes'
+    // responsivity mismatch, which moves ι′ only).
+    let nominal_values =
+        super::recorded((inputs.doc, inputs.nominal), (inputs.doc, inputs.nominal));
     let base = Surface::from_sensitivity(set, inputs.sens, &nominal_values);
     let samples = Samples::draw(set, run.o.seed, b.samples);
     let lo: Vec<f64> = costs.iter().map(|c| c.min_scale).collect();
@@ -415,7 +434,21 @@ pub fn budget(
                 needed,
                 margin: (needed * (1.0 - needed) / b.trials as f64).sqrt(),
             };
-            rounds(&job, &base, &samples, costs, (&lo, &hi), &aim, &mut traced)?
+            let mut search = rounds(&job, &base, &samples, costs, (&lo, &hi), &aim, &mut traced)?;
+            if !search.incomplete {
+                let base_fraction = base_c.as_ref().map(|c| c.fraction);
+                budget_loosen::after_rounds(
+                    &job,
+                    &samples,
+                    costs,
+                    (&lo, &hi),
+                    &aim,
+                    (&base_scales, base_fraction),
+                    &mut search,
+                    &mut traced,
+                )?;
+            }
+            search
         }
         _ => Rounds {
             rounds: Vec::new(),
@@ -423,6 +456,7 @@ pub fn budget(
             reason: fraction.is_none().then(|| too_few_trials(b)),
             stop: "no round ran".into(),
             incomplete: base_c.is_none(),
+            loosened: None,
         },
     };
     let baseline = BudgetFigures {
@@ -456,8 +490,8 @@ fn too_few_trials(b: &BudgetOptions) -> String {
     )
 }
 
-/// The outcome of a search: the joint budget (the cheapest round that met the bound, else the
-/// round with the best confirmed yield), its rows beside the baseline's, the common-scale
+/// The outcome of a search: the joint budget (the loosening pass's when it met the bound, else
+/// the cheapest round that did, else the round with the best confirmed yield), its rows beside the baseline's, the common-scale
 /// curve on the final surface.
 fn outcome(
     inputs: &BudgetInputs,
@@ -469,7 +503,10 @@ fn outcome(
     traced: Vec<TracedConfirmation>,
 ) -> BudgetOutcome {
     let (set, costs, surface) = (inputs.set, inputs.costs, &search.surface);
-    let passing = cheapest_pass(&search.rounds, b.target_yield);
+    let passing = search
+        .loosened
+        .filter(|k| search.rounds[*k].confirmation.lower_bound >= b.target_yield)
+        .or_else(|| cheapest_pass(&search.rounds, b.target_yield));
     let chosen = passing.or_else(|| {
         (0..search.rounds.len()).max_by(|x, y| {
             let f = |k: usize| search.rounds[k].confirmation.fraction;

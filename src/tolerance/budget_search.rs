@@ -267,6 +267,9 @@ pub struct Rounds {
     pub stop: String,
     /// A shard stopped at a confirmation the other shards must complete.
     pub incomplete: bool,
+    /// The index in `rounds` of the loosening pass's round (crate::tolerance::budget_loosen),
+    /// when it was confirmed.
+    pub loosened: Option<usize>,
 }
 
 /// What the rounds aim at: the pass fraction `needed` of a confirmation for its lower bound to
@@ -299,6 +302,7 @@ pub fn rounds(
         reason: None,
         stop: format!("{} rounds ran (`max_rounds`)", b.max_rounds),
         incomplete: false,
+        loosened: None,
     };
     let mut prev_fail: Option<f64> = None;
     for r in 0..b.max_rounds {
