@@ -362,6 +362,8 @@ mod tests {
 
     const LIMIT: f64 = 0.01;
 
+    type Confirmer = Box<dyn FnMut(&[f64]) -> Result<Option<Confirmation>>>;
+
     /// One tolerance drawn uniformly over ±1 and three drawn from a normal truncated at ±8σ,
     /// all acting linearly on the imbalance (0.02, 0.04, 0.04, 0.04 per unit), |imbalance| ≤
     /// 0.01. Each alone reaches the limit at the end of its range at scale 0.5 or 0.25, so the
@@ -502,18 +504,17 @@ mod tests {
             baseline_fraction: None,
             rounds: &rounds,
         };
-        let confirmer =
-            |truth: &Surface| -> Box<dyn FnMut(&[f64]) -> Result<Option<Confirmation>>> {
-                let (set, truth) = (set.clone(), truth.clone());
-                Box::new(move |s: &[f64]| {
-                    Ok(Some(synthetic_confirm(
-                        &set,
-                        &truth,
-                        (LOOSEN_INDEX_BASE, n, conf),
-                        s,
-                    )))
-                })
-            };
+        let confirmer = |truth: &Surface| -> Confirmer {
+            let (set, truth) = (set.clone(), truth.clone());
+            Box::new(move |s: &[f64]| {
+                Ok(Some(synthetic_confirm(
+                    &set,
+                    &truth,
+                    (LOOSEN_INDEX_BASE, n, conf),
+                    s,
+                )))
+            })
+        };
         let result = pass_with(&inputs, &mut *confirmer(&surface)).unwrap();
         let PassResult::Confirmed {
             round, accepted, ..
@@ -544,10 +545,12 @@ mod tests {
         assert!(round.surface_yield >= round.surface_target);
         // A fresh block: not the rounds' (0, n, 2n, …), the baseline's or the surface draws'.
         assert_eq!(round.confirmation.first_index, LOOSEN_INDEX_BASE);
-        assert!(LOOSEN_INDEX_BASE > crate::tolerance::budget::BASELINE_INDEX_BASE + 1_000_000);
-        assert!(
-            LOOSEN_INDEX_BASE + 1_000_000 < crate::tolerance::budget_surface::SAMPLE_INDEX_BASE
-        );
+        const {
+            assert!(LOOSEN_INDEX_BASE > crate::tolerance::budget::BASELINE_INDEX_BASE + 1_000_000);
+            assert!(
+                LOOSEN_INDEX_BASE + 1_000_000 < crate::tolerance::budget_surface::SAMPLE_INDEX_BASE
+            );
+        }
         // Deterministic.
         let again = pass_with(&inputs, &mut *confirmer(&surface)).unwrap();
         assert!(matches!(&again, PassResult::Confirmed { round: r, .. } if *r == round));
