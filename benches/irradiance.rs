@@ -2,22 +2,27 @@
 //! [-- SCENE …]`.
 //!
 //! Traces each bench (default: scenes/paper_bench.ron and scenes/paper_bench_condenser.ron)
-//! with the diodes' irradiance maps (`trace::irradiance::trace_with_maps`, 64 × 64 bins) and
-//! without them (`trace::trace`), same rays and seed, alternating five times on two threads so
-//! that the machine's drift falls on both, and prints the throughput of each and the maps'
-//! extra time, with the load average beside it. The maps are recorded from the same paths
-//! (a short list of hits per batch, binned in the merge), so the target is under 10 % more
-//! time; the tallies of the two traces are checked to be identical.
+//! with the diodes' irradiance maps (`trace::irradiance::trace_with_maps`, 64 × 64 bins),
+//! with those and the maps at three named surfaces as well (`trace_with_surface_maps`: the
+//! imaging iris and the two arm lenses, `trace --irradiance-at`), and without maps
+//! (`trace::trace`), same rays and seed, in rotation five times on two threads so that the
+//! machine's drift falls on all three, and prints the throughput of each and the maps' extra
+//! time, with the load average beside it. The maps are recorded from the same paths (a short
+//! list of hits per batch, binned in the merge), so the target is under 10 % more time; the
+//! tallies of the traces are checked to be identical.
 
 use std::path::PathBuf;
 use std::time::Instant;
 
 use spibench::scene::doc::BenchDoc;
-use spibench::trace::irradiance::{DEFAULT_BINS, trace_with_maps};
+use spibench::trace::irradiance::{DEFAULT_BINS, trace_with_maps, trace_with_surface_maps};
 use spibench::trace::{TraceOptions, trace};
 
 const RAYS: u64 = 200_000;
 const ROUNDS: usize = 5;
+
+/// The named surfaces mapped in the third case (those of them the bench has).
+const SURFACES: [&str; 3] = ["imaging_iris", "arm_plus_lens", "arm_minus_lens"];
 
 fn load() -> String {
     std::fs::read_to_string("/proc/loadavg")
@@ -50,7 +55,12 @@ fn main() {
             .and_then(|d| d.build())
             .expect("bench");
         let o = TraceOptions::new(RAYS, 1);
-        let (mut off, mut on) = (0.0, 0.0);
+        let names: Vec<String> = SURFACES
+            .iter()
+            .filter(|n| bench.elements().iter().any(|e| e == *n))
+            .map(|n| n.to_string())
+            .collect();
+        let (mut off, mut on, mut at) = (0.0, 0.0, 0.0);
         for _ in 0..ROUNDS {
             let t0 = Instant::now();
             let plain = pool.install(|| trace(&bench, &o)).expect("trace");
@@ -61,15 +71,26 @@ fn main() {
                 .expect("trace with maps");
             on += t1.elapsed().as_secs_f64();
             assert_eq!(plain, mapped, "the maps must not change the tallies");
+            let t2 = Instant::now();
+            let (surfaces, _) = pool
+                .install(|| trace_with_surface_maps(&bench, &o, DEFAULT_BINS, &names))
+                .expect("trace with surface maps");
+            at += t2.elapsed().as_secs_f64();
+            assert_eq!(plain, surfaces, "the maps must not change the tallies");
         }
         let n = (ROUNDS as u64 * RAYS) as f64;
         println!(
-            "{}: maps off {:.0} rays/s, on {:.0} rays/s on 2 threads ({:+.1} % time with the \
-             maps; {ROUNDS} alternating rounds of {RAYS} rays; {})",
+            "{}: maps off {:.0} rays/s, on {:.0} rays/s, with {} named surfaces ({}) {:.0} rays/s \
+             on 2 threads ({:+.1} % time with the diodes' maps, {:+.1} % with the surfaces' too; \
+             {ROUNDS} rounds of {RAYS} rays; {})",
             path.display(),
             n / off,
             n / on,
+            names.len(),
+            names.join(", "),
+            n / at,
             100.0 * (on / off - 1.0),
+            100.0 * (at / off - 1.0),
             load()
         );
     }

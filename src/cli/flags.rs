@@ -27,6 +27,7 @@ pub const FLAGS: &[(&str, &str)] = &[
     ("wavelength_nm", "--wavelength-nm"),
     ("target_yield", "--target-yield"),
     ("confidence", "--confidence"),
+    ("irradiance_at", "--irradiance-at"),
 ];
 
 /// Options named in messages only (`quality` is also a tolerance file's section, whose errors

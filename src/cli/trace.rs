@@ -1,6 +1,7 @@
-//! `spibench trace [SCENE] [--set PATH=VALUE …] [--rays N] [--seed S] [--out DIR]`: transport
-//! only — k±, b±, the per-unit maps and the flux ledger of a traced bench (outputs:
-//! crate::outputs::trace). Everything is computed in memory and written into a staging folder
+//! `spibench trace [SCENE] [--set PATH=VALUE …] [--rays N] [--seed S] [--out DIR]
+//! [--irradiance-at NAME …]`: transport only — k±, b±, the per-unit maps and the flux ledger of
+//! a traced bench, the irradiance maps on the diodes and at any named surface (outputs:
+//! crate::outputs::trace, crate::outputs::irradiance). Everything is computed in memory and written into a staging folder
 //! that is renamed into place at the end, so bad input or a failed write leaves no partial
 //! output.
 
@@ -11,7 +12,7 @@ use crate::pipeline::{CacheStatus, Traced};
 use crate::report::output::OutputDir;
 use crate::trace::TraceOptions;
 use crate::trace::collection::diffraction_pair;
-use crate::trace::irradiance::{DEFAULT_BINS, trace_with_maps};
+use crate::trace::irradiance::{DEFAULT_BINS, trace_with_maps, trace_with_surface_maps};
 
 /// Arguments of `spibench trace`.
 #[derive(Debug, Clone, clap::Args)]
@@ -27,6 +28,12 @@ pub struct TraceArgs {
     pub opts: super::args::RunOpts,
     #[command(flatten)]
     pub work: super::args::WorkArgs,
+    /// Also map the power meeting this element's first surface (a baffle's or an aperture's
+    /// plate, a filter's or a lens's front face): irradiance_at_NAME.npy, its
+    /// standard errors, a figure and summary.json's `irradiance_at`, from the same trace. A path
+    /// is booked each time it meets the surface, in either direction
+    #[arg(long = "irradiance-at", value_name = "NAME")]
+    pub irradiance_at: Vec<String>,
 }
 
 /// `trace`'s ray count when neither `--rays` nor the bench file's `run.rays` gives one.
@@ -42,17 +49,24 @@ pub fn run(args: &TraceArgs) -> anyhow::Result<()> {
             .into());
     }
     let rays = args.opts.rays(&doc, DEFAULT_RAYS)?;
+    // The file names of the named surfaces' maps, checked before the trace.
+    crate::outputs::irradiance::file_stems(&args.irradiance_at)?;
     let seed = args.opts.seed();
     let out = args.opts.out_or("out/trace");
     let start = std::time::Instant::now();
     let bar = super::progress::bar(rays, "rays");
     let report = |done: u64, _: u64| bar.set_position(done);
-    // The irradiance maps on the diodes come from the same paths (no second pass).
+    // The irradiance maps on the diodes and at the named surfaces come from the same paths
+    // (no second pass); an unknown name is refused before a ray is traced.
     let options = TraceOptions {
         progress: Some(&report),
         ..TraceOptions::new(rays, seed)
     };
-    let (tallies, irradiance) = trace_with_maps(&bench, &options, DEFAULT_BINS)?;
+    let (tallies, irradiance) = if args.irradiance_at.is_empty() {
+        trace_with_maps(&bench, &options, DEFAULT_BINS)?
+    } else {
+        trace_with_surface_maps(&bench, &options, DEFAULT_BINS, &args.irradiance_at)?
+    };
     let traced = Traced::from_tallies(&bench, tallies, CacheStatus::Off);
     bar.finish_and_clear();
     let seconds = start.elapsed().as_secs_f64();
@@ -61,6 +75,7 @@ pub fn run(args: &TraceArgs) -> anyhow::Result<()> {
     let t = &traced.transport;
     let mut summary = summarize(&doc.name(), &bench, t, &traced.metrics, traced.arrivals());
     summary.irradiance = Some(IrradianceSummary::of(&irradiance));
+    summary.irradiance_at = crate::outputs::irradiance::surfaces_of(&irradiance);
     let provenance = crate::provenance::Provenance::of_bench(&doc, &[seed])?;
     let collections = match bench.dmd().and_then(|s| s.dmd.diffraction()) {
         Some(_) => {

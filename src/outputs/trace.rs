@@ -78,6 +78,9 @@ pub struct TraceSummary {
     /// The irradiance maps on the diodes (`trace`; crate::outputs::irradiance).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub irradiance: Option<super::irradiance::IrradianceSummary>,
+    /// The maps at the named surfaces (`trace --irradiance-at`), in the order named.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub irradiance_at: Vec<super::irradiance::SurfaceIrradiance>,
     /// Output files (relative to the output directory).
     pub files: Vec<String>,
 }
@@ -233,6 +236,7 @@ pub fn summarize(
         },
         dmd_diffraction: None,
         irradiance: None,
+        irradiance_at: Vec::new(),
         files: Vec::new(),
     }
 }

@@ -105,8 +105,8 @@ pub struct SurfaceMap {
     pub window: Window,
 }
 
-/// The map windows of the named elements, in the order given. An unknown name is an error
-/// naming it and listing the bench's element names.
+/// The map windows of the named elements, in the order given. An unknown name is an error of
+/// the field `irradiance_at` naming it and listing the bench's element names.
 pub fn surface_maps(bench: &Bench, names: &[String]) -> Result<Vec<SurfaceMap>> {
     use crate::optics::geometry::Geometry;
     // A hit stores its map's index in a u8 (`Hit`), the diodes taking 0 and 1; a name given
@@ -114,14 +114,14 @@ pub fn surface_maps(bench: &Bench, names: &[String]) -> Result<Vec<SurfaceMap>> 
     for (k, name) in names.iter().enumerate() {
         if names[..k].contains(name) {
             return Err(crate::error::Error::field(
-                "surface",
+                "irradiance_at",
                 format!("`{name}` is named twice"),
             ));
         }
     }
     if names.len() > usize::from(u8::MAX) - 2 {
         return Err(crate::error::Error::field(
-            "surface",
+            "irradiance_at",
             format!(
                 "{} surfaces named; at most {} can be mapped",
                 names.len(),
@@ -142,7 +142,7 @@ pub fn surface_maps(bench: &Bench, names: &[String]) -> Result<Vec<SurfaceMap>> 
             });
             let Some((surface, s)) = found else {
                 return Err(crate::error::Error::field(
-                    "surface",
+                    "irradiance_at",
                     format!(
                         "no element named `{name}` in the bench; its elements: {}",
                         bench.elements().join(", ")

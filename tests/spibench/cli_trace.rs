@@ -265,3 +265,200 @@ fn the_ray_count_is_the_flag_else_the_bench_file_s() {
         );
     }
 }
+
+/// The symmetric-arms bench with a clear, unreflecting glass plate (`arm_plus_window`: index
+/// 1.5, zero reflectance, no absorption) across the + arm 0.3 mm before its diode, as large
+/// as the diode (Ø 5 mm), written as `window.ron` in `dir`. The + arm's light reaches the diode
+/// through it once and nothing comes back (the diode ends every path it stops), so the plate's
+/// map and the diode's map hold the same paths, bar a ray that crosses the plate's rim within
+/// 0.3 mm·tan θ of the diode's edge.
+fn windowed_arms(dir: &TempDir) -> PathBuf {
+    // The + arm's axis (the lens's, θ 24°, φ −45°) and its diode's centre (mm).
+    let (t, p) = (24f64.to_radians(), (-45f64).to_radians());
+    let axis = [t.sin() * p.cos(), t.sin() * p.sin(), t.cos()];
+    let diode = [39.0011, -39.0011, 123.8823];
+    let at = |s: f64| -> Vec<f64> { (0..3).map(|i| diode[i] - s * axis[i]).collect() };
+    let front = at(0.3);
+    let window = format!(
+        r#"elements: [
+        Filter(
+            name: "arm_plus_window",
+            position_mm: ({}, {}, {}),
+            axis: Polar(theta_deg: 24.0, phi_deg: -45.0),
+            outline: Round(diameter_mm: 5.0),
+            thickness_mm: 0.1,
+            glass: "1.5",
+            od: Constant(0.0),
+            coating: Reflectance(Constant(0.0)),
+        ),"#,
+        front[0], front[1], front[2]
+    );
+    let text = std::fs::read_to_string(symmetric_arms()).unwrap();
+    assert!(text.contains("elements: ["));
+    let scene = dir.join("window.ron");
+    std::fs::write(&scene, text.replacen("elements: [", &window, 1)).unwrap();
+    scene
+}
+
+/// `--irradiance-at NAME` maps the power crossing a named surface: a plate that the + arm's
+/// light crosses once on its way to the diode holds the diode's detected power (the same
+/// paths: equal to rounding, and in any case within 4 combined standard errors), in every
+/// mirror state, with the files and summary keys of docs/outputs.md.
+#[test]
+fn a_surface_the_light_crosses_once_holds_the_diode_s_power() {
+    let tmp = TempDir::new("cli-trace-irradiance-at");
+    let scene = windowed_arms(&tmp);
+    let out = tmp.join("out");
+    let o = spibench(
+        &[
+            "trace",
+            scene.to_str().unwrap(),
+            "--rays",
+            "20000",
+            "--seed",
+            "4",
+            "--irradiance-at",
+            "arm_plus_window",
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        &[],
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    crate::outputs_schema::check_file(&out.join("summary.json"), "TraceSummary");
+    let v = read_json(&out.join("summary.json"));
+    let at = &v["irradiance_at"][0];
+    assert_eq!(at["name"], "arm_plus_window");
+    assert_eq!(v["irradiance_at"].as_array().unwrap().len(), 1);
+    // The window: 10 % wider than the plate's 2.5 mm radius.
+    let hw = at["half_width_m"].as_f64().unwrap();
+    assert!((hw - 1.1 * 2.5e-3).abs() < 1e-12, "{hw}");
+    for state in ["all_plus", "all_minus", "pattern_independent"] {
+        let (a, b) = (&at[state], &v["irradiance"]["plus"][state]);
+        let (pa, pb) = (
+            a["power_w"].as_f64().unwrap(),
+            b["active_w"].as_f64().unwrap(),
+        );
+        let (sa, sb) = (
+            a["power_w_stderr"].as_f64().unwrap(),
+            b["active_w_stderr"].as_f64().unwrap(),
+        );
+        assert!(
+            (pa - pb).abs() <= 4.0 * sa.hypot(sb),
+            "{state}: {pa} ± {sa} W at the plate, {pb} ± {sb} W on the diode"
+        );
+        // The same paths with the same weights: the sums differ by rounding only.
+        assert!(
+            (pa - pb).abs() <= 1e-9 * pb.abs(),
+            "{state}: {pa} W at the plate, {pb} W on the diode"
+        );
+    }
+    assert!(at["all_plus"]["power_w"].as_f64().unwrap() > 0.0);
+    let listed: Vec<&str> = v["files"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|f| f.as_str().unwrap())
+        .collect();
+    for f in [
+        "irradiance_at_arm_plus_window.npy",
+        "irradiance_at_arm_plus_window_stderr.npy",
+        "irradiance_at_arm_plus_window.svg",
+        "irradiance_at_arm_plus_window.png",
+        "irradiance_at_arm_plus_window.pdf",
+    ] {
+        assert!(out.join(f).is_file(), "{f}");
+        assert!(listed.contains(&f), "{f} not listed");
+    }
+    // The arrays have the diodes' layout: float64, (3, 64, 64).
+    let npy = std::fs::read(out.join("irradiance_at_arm_plus_window.npy")).unwrap();
+    let header = String::from_utf8_lossy(&npy[..128.min(npy.len())]).into_owned();
+    assert!(
+        header.contains("'<f8'") && header.contains("(3, 64, 64)"),
+        "{header}"
+    );
+    assert_eq!(
+        npy.len(),
+        std::fs::read(out.join("irradiance_plus.npy"))
+            .unwrap()
+            .len()
+    );
+}
+
+/// The named surfaces' maps are bit-identical on one and two threads.
+#[test]
+fn surface_maps_are_identical_on_one_and_two_threads() {
+    let tmp = TempDir::new("cli-trace-irradiance-at-threads");
+    let scene = symmetric_arms();
+    let run = |threads: &str| {
+        let out = tmp.join(&format!("t{threads}"));
+        let o = spibench(
+            &[
+                "--threads",
+                threads,
+                "trace",
+                scene.to_str().unwrap(),
+                "--rays",
+                "8192",
+                "--seed",
+                "5",
+                "--irradiance-at",
+                "arm_plus_lens",
+                "--irradiance-at",
+                "arm_minus_lens",
+                "--out",
+                out.to_str().unwrap(),
+            ],
+            &[],
+        );
+        assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+        out
+    };
+    let (one, two) = (run("1"), run("2"));
+    for stem in ["arm_plus_lens", "arm_minus_lens"] {
+        for f in [
+            format!("irradiance_at_{stem}.npy"),
+            format!("irradiance_at_{stem}_stderr.npy"),
+        ] {
+            let a = std::fs::read(one.join(&f)).unwrap();
+            assert!(a.len() > 128, "{f}");
+            assert_eq!(a, std::fs::read(two.join(&f)).unwrap(), "{f}");
+        }
+    }
+}
+
+/// An unknown name, or two names written to one file, is refused before a ray is traced:
+/// exit status 2, the flag and the bench's element names in the message, nothing written.
+#[test]
+fn an_unknown_surface_is_refused_naming_the_flag() {
+    let tmp = TempDir::new("cli-trace-irradiance-at-bad");
+    let scene = symmetric_arms();
+    let out = tmp.join("out");
+    let run = |names: &[&str]| {
+        let mut a = vec!["trace", scene.to_str().unwrap(), "--rays", "4096"];
+        for n in names {
+            a.extend(["--irradiance-at", n]);
+        }
+        a.extend(["--out", out.to_str().unwrap()]);
+        spibench(&a, &[])
+    };
+    let o = run(&["no_such_baffle"]);
+    crate::common::assert_input_error(
+        &o,
+        &[
+            "--irradiance-at",
+            "no_such_baffle",
+            "arm_plus_lens",
+            "arm_minus_lens",
+        ],
+        &out,
+    );
+    let o = run(&["arm_plus_lens", "arm_plus lens"]);
+    crate::common::assert_input_error(
+        &o,
+        &["--irradiance-at", "irradiance_at_arm_plus_lens.npy"],
+        &out,
+    );
+    let o = run(&["arm_plus_lens", "arm_plus_lens"]);
+    crate::common::assert_input_error(&o, &["--irradiance-at", "twice"], &out);
+}
