@@ -25,6 +25,7 @@ pub const FLAGS: &[(&str, &str)] = &[
     ("out", "--out"),
     ("data_range", "--data-range"),
     ("wavelength_nm", "--wavelength-nm"),
+    ("footprint_rays", "--footprint-rays"),
     ("target_yield", "--target-yield"),
     ("confidence", "--confidence"),
     ("irradiance_at", "--irradiance-at"),

@@ -73,7 +73,8 @@ enum Command {
     /// Draw a bench (top view, side view, the plane of the arms) with a fan of traced rays, as
     /// SVG and PNG.
     Layout(layout::LayoutArgs),
-    /// Read and validate a bench without tracing it; print its paraxial design numbers.
+    /// Read and validate a bench; print its paraxial design numbers and a short traced footprint
+    /// on each diode beside them.
     Check(check::CheckArgs),
     /// Print a shell completion script (bash, zsh, fish, elvish, powershell) to stdout.
     Completions(completions::CompletionsArgs),

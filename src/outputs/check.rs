@@ -1,11 +1,41 @@
-//! The outputs of `spibench check` (docs/outputs.md, "check"): `check.json`, the paraxial
-//! numbers of crate::trace::paraxial in SI with unit-suffixed keys, each element with its
-//! position as the bench file gives it, and the report `check` prints.
+//! The outputs of `spibench check` (docs/outputs.md, "check"): `check.json` ([`CheckJson`]),
+//! the paraxial numbers of crate::trace::paraxial in SI with unit-suffixed keys, each element
+//! with its position as the bench file gives it, the DMD model they were computed for and, beside
+//! the paraxial beam on each diode, the short traced footprint of [`footprint`]; and the report
+//! `check` prints.
+
+use serde::Serialize;
 
 use crate::error::{Error, Result};
 use crate::report::output::OutputDir;
-use crate::scene::doc::BenchDoc;
+use crate::scene::doc::{BenchDoc, DmdModel};
+use crate::trace::TraceOptions;
+use crate::trace::irradiance::{IrradianceMaps, MapStats, STATES, trace_with_maps};
 use crate::trace::paraxial::{ParaxialReport, paraxial_report};
+
+/// `check.json`: the paraxial report with its keys unchanged (flattened), the DMD model and the
+/// traced footprint.
+#[derive(Debug, Clone, Serialize)]
+pub struct CheckJson {
+    #[serde(flatten)]
+    pub paraxial: ParaxialReport,
+    /// The model of the bench's DMD as built, `geometric` or `diffractive` (the bench's
+    /// `dmd.model` or the model chosen over it); null for a bench without a DMD.
+    pub dmd_model: Option<String>,
+    /// The traced footprint on each diode; null when none was traced (no rays asked, or no DMD).
+    pub footprint: Option<Footprint>,
+}
+
+impl CheckJson {
+    /// The report of `doc` with its paraxial numbers and footprint.
+    pub fn new(doc: &BenchDoc, paraxial: ParaxialReport, footprint: Option<Footprint>) -> Self {
+        CheckJson {
+            paraxial,
+            dmd_model: doc.dmd_model().map(|m: DmdModel| m.name().to_string()),
+            footprint,
+        }
+    }
+}
 
 /// The paraxial report of the bench `doc` at `wl` (m), each element with its position from
 /// the file.
@@ -20,11 +50,209 @@ pub fn report(doc: &BenchDoc, bench: &crate::optics::Bench, wl: f64) -> Result<P
 }
 
 /// Writes `check.json` into `dir` (a staging folder).
-pub fn write(dir: &OutputDir, report: &ParaxialReport) -> Result<()> {
+pub fn write(dir: &OutputDir, report: &CheckJson) -> Result<()> {
     let json = serde_json::to_string_pretty(report)
         .map_err(|e| Error::Numerical(format!("cannot encode check.json: {e}")))?;
     let path = dir.path("check.json");
     std::fs::write(&path, json + "\n").map_err(|e| Error::write(&path, e))
+}
+
+/// `check`'s traced rays when none are asked for: a fraction of a second on two cores for the
+/// paper bench, enough for its centroids to a few per cent of the spot's RMS radius.
+pub const DEFAULT_FOOTPRINT_RAYS: u64 = 20_480;
+
+/// The independent traces the footprint's rays are split into: each number is that of their
+/// pooled maps, its standard error the replicas' spread / √K (K − 1 = 7 degrees of freedom, so
+/// a standard error is itself uncertain by about a quarter: 1/√(2·7)).
+pub const FOOTPRINT_REPLICAS: u64 = 8;
+
+/// Bins across each diode's map: twice `trace`'s, so that the centroid's and RMS radius's
+/// binning (at most half a bin; the RMS radius's square grows by bin²/6, Sheppard's
+/// correction) stays small beside a millimetre spot on a diode's map.
+pub const FOOTPRINT_BINS: usize = 128;
+
+/// The fewest footprint rays (other than none): two batches, as every traced number with a
+/// standard error (`trace::RAYS_PER_BATCH`).
+pub const MIN_FOOTPRINT_RAYS: u64 = 2 * crate::trace::RAYS_PER_BATCH;
+
+/// The traced footprint of `check`: where the light of each arm lands on its diode's plane
+/// (`trace::irradiance`'s maps of the arm's own state: every pattern unit in the arm's mirror
+/// state), beside the paraxial estimate.
+#[derive(Debug, Clone, Serialize)]
+pub struct Footprint {
+    /// Lamp rays traced in all ([`FOOTPRINT_REPLICAS`] × the rays of one replica).
+    pub rays: u64,
+    pub seed: u64,
+    pub replicas: u64,
+    pub bins: usize,
+    /// `pd_plus`, then `pd_minus`.
+    pub diodes: Vec<DiodeFootprint>,
+}
+
+/// One diode's traced footprint: the numbers of its map (positions in the map's (u, v) axes
+/// from the active area's centre, those of `chief_ray_on_diode_m`), each with its standard
+/// error; null where a replica mapped no light on it.
+#[derive(Debug, Clone, Serialize)]
+pub struct DiodeFootprint {
+    pub name: String,
+    /// The mirror state of the map (`all_plus` for `pd_plus`, `all_minus` for `pd_minus`).
+    pub state: String,
+    /// The width of a map bin (m).
+    pub bin_m: f64,
+    /// Whether the diode has a housing: its front plate is what catches, and so measures, the
+    /// light beside the active area. Without one only the active area is mapped (the spill is
+    /// null, and a beam the diode clips looks smaller and more central than it is).
+    pub housing: bool,
+    /// Centroid of the mapped light (active area and plate).
+    pub centroid_m: Option<[f64; 2]>,
+    pub centroid_stderr_m: Option<[f64; 2]>,
+    /// RMS radius about the centroid.
+    pub rms_radius_m: Option<f64>,
+    pub rms_radius_stderr_m: Option<f64>,
+    /// 2√2 × the RMS radius: the diameter of the uniformly lit disk with this RMS radius, the
+    /// measure comparable with the paraxial beam diameter (a spot brighter at its centre than
+    /// at its edge has a smaller one than its edge-to-edge diameter).
+    pub rms_diameter_m: Option<f64>,
+    pub rms_diameter_stderr_m: Option<f64>,
+    /// The share of the mapped light on the housing's plate rather than the active area.
+    pub spill: Option<f64>,
+    pub spill_stderr: Option<f64>,
+    /// The paraxial numbers beside them (copies): where the arm's chief ray meets the diode,
+    /// and the estimated beam diameter of the arm lens that sends its light there.
+    pub chief_ray_on_diode_m: Option<[f64; 2]>,
+    pub paraxial_spot_diameter_m: Option<f64>,
+}
+
+/// Replica k's seed: the trace streams hash it again (`rng::stream`), so neighbouring values
+/// are unrelated; xor with k on the hashed seed keeps the replicas of one seed distinct.
+fn replica_seed(seed: u64, k: u64) -> u64 {
+    crate::rng::mix64(seed) ^ k
+}
+
+/// The mean of the replica values' spread: their standard deviation / √K (null unless every
+/// replica has a value).
+fn spread_se(values: &[Option<f64>]) -> Option<f64> {
+    let v: Vec<f64> = values.iter().copied().collect::<Option<Vec<f64>>>()?;
+    let n = v.len() as f64;
+    if v.len() < 2 {
+        return None;
+    }
+    let mean = v.iter().sum::<f64>() / n;
+    let var = v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1.0);
+    Some((var / n).sqrt())
+}
+
+/// Traces the footprint of `bench` ([`Footprint`]) with `rays` lamp rays in
+/// [`FOOTPRINT_REPLICAS`] replicas from `seed`: None for `rays` = 0 or a bench without a DMD
+/// (nothing to trace). `rays` must be 0 or lie between [`MIN_FOOTPRINT_RAYS`] and the one
+/// trace cap (field `footprint_rays`). Identical on any number of threads (each replica is).
+pub fn footprint(
+    bench: &crate::optics::Bench,
+    paraxial: &ParaxialReport,
+    rays: u64,
+    seed: u64,
+) -> Result<Option<Footprint>> {
+    let max = crate::scene::run::MAX_RAYS;
+    if rays != 0 && !(MIN_FOOTPRINT_RAYS..=max).contains(&rays) {
+        return Err(Error::field(
+            "footprint_rays",
+            format!(
+                "must be 0 (no footprint) or lie between {MIN_FOOTPRINT_RAYS} (two batches) \
+                 and {max}, got {rays}"
+            ),
+        ));
+    }
+    if rays == 0 || bench.dmd().is_none() {
+        return Ok(None);
+    }
+    let per = rays.div_ceil(FOOTPRINT_REPLICAS);
+    // Per diode and replica: the map's numbers, None when it mapped no light.
+    let mut each: [Vec<Option<MapStats>>; 2] = [Vec::new(), Vec::new()];
+    let replica = |k: u64| -> Result<IrradianceMaps> {
+        let options = TraceOptions::new(per, replica_seed(seed, k));
+        Ok(trace_with_maps(bench, &options, FOOTPRINT_BINS)?.1)
+    };
+    let record = |maps: &IrradianceMaps, each: &mut [Vec<Option<MapStats>>; 2]| {
+        for (d, e) in each.iter_mut().enumerate() {
+            let st = maps.stats(d, d);
+            e.push((st.active_w + st.plate_w > 0.0).then_some(st));
+        }
+    };
+    // The pooled map: the sum of the replicas' (only ratios of it are read).
+    let mut pooled = replica(0)?;
+    record(&pooled, &mut each);
+    for k in 1..FOOTPRINT_REPLICAS {
+        let maps = replica(k)?;
+        record(&maps, &mut each);
+        for (a, b) in pooled.power_w.iter_mut().zip(&maps.power_w) {
+            *a += b;
+        }
+        pooled.batches += maps.batches;
+    }
+    let diodes = (0..2)
+        .map(|d| diode_footprint(&pooled, d, &each[d], paraxial))
+        .collect();
+    Ok(Some(Footprint {
+        rays: per * FOOTPRINT_REPLICAS,
+        seed,
+        replicas: FOOTPRINT_REPLICAS,
+        bins: FOOTPRINT_BINS,
+        diodes,
+    }))
+}
+
+/// Diode d's footprint: the pooled map's numbers, the replicas' spread for their errors.
+fn diode_footprint(
+    pooled: &IrradianceMaps,
+    d: usize,
+    each: &[Option<MapStats>],
+    paraxial: &ParaxialReport,
+) -> DiodeFootprint {
+    let name = ["pd_plus", "pd_minus"][d].to_string();
+    let window = &pooled.windows[d];
+    let housing = window.housing.is_some();
+    let lit = each.iter().all(Option::is_some);
+    let st = pooled.stats(d, d);
+    let of = |f: &dyn Fn(&MapStats) -> f64| -> (Option<f64>, Option<f64>) {
+        if !lit {
+            return (None, None);
+        }
+        let values: Vec<Option<f64>> = each.iter().map(|s| s.as_ref().map(f)).collect();
+        (Some(f(&st)), spread_se(&values))
+    };
+    let (cx, cx_se) = of(&|s| s.centroid_m[0]);
+    let (cy, cy_se) = of(&|s| s.centroid_m[1]);
+    let (r, r_se) = of(&|s| s.rms_radius_m);
+    let (spill, spill_se) = if housing {
+        of(&|s| s.spill)
+    } else {
+        (None, None)
+    };
+    let both = |a: Option<f64>, b: Option<f64>| a.zip(b).map(|(a, b)| [a, b]);
+    let diameter = 2.0 * std::f64::consts::SQRT_2;
+    let diode = paraxial.diodes.iter().find(|e| e.name == name);
+    let spot = paraxial.lenses.iter().find_map(|l| {
+        l.arm
+            .as_ref()
+            .filter(|a| a.diode.as_deref() == Some(name.as_str()))
+            .and_then(|a| a.spot_diameter_m)
+    });
+    DiodeFootprint {
+        state: STATES[d].to_string(),
+        bin_m: 2.0 * window.half_width_m / pooled.bins as f64,
+        housing,
+        centroid_m: both(cx, cy),
+        centroid_stderr_m: both(cx_se, cy_se),
+        rms_radius_m: r,
+        rms_radius_stderr_m: r_se,
+        rms_diameter_m: r.map(|r| diameter * r),
+        rms_diameter_stderr_m: r_se.map(|s| diameter * s),
+        spill,
+        spill_stderr: spill_se,
+        chief_ray_on_diode_m: diode.and_then(|e| e.chief_ray_on_diode_m),
+        paraxial_spot_diameter_m: spot,
+        name,
+    }
 }
 
 fn mm(x: f64) -> String {
@@ -67,12 +295,18 @@ fn file_positions(file: &crate::scene::bench::BenchFile) -> Vec<(String, [f64; 3
 }
 
 /// The report `check` prints, line by line.
-pub fn printed(r: &ParaxialReport) -> Vec<String> {
+pub fn printed(c: &CheckJson) -> Vec<String> {
+    let r = &c.paraxial;
     let mut out = Vec::new();
     out.push(format!(
         "{}: valid bench; paraxial numbers at {:.1} nm",
         r.scene,
         r.design_wavelength_m * 1e9
+    ));
+    // Its own line: the first names the scene, whose path may be long.
+    out.push(format!(
+        "DMD model: {}",
+        c.dmd_model.as_deref().unwrap_or("— (no DMD)")
     ));
     out.push("elements:".to_string());
     for e in &r.elements {
@@ -181,7 +415,70 @@ pub fn printed(r: &ParaxialReport) -> Vec<String> {
             out.push("  docs/guide/12-designing-for-diffraction.md)".to_string());
         }
     }
+    footprint_lines(c, &mut out);
     out
+}
+
+/// The traced footprint's lines, each diode's beside its paraxial estimate.
+fn footprint_lines(c: &CheckJson, out: &mut Vec<String>) {
+    let Some(f) = &c.footprint else {
+        let why = if c.dmd_model.is_some() {
+            "not traced (0 rays asked)"
+        } else {
+            "not traced (no DMD)"
+        };
+        out.push(format!("traced footprint: {why}"));
+        return;
+    };
+    out.push(format!(
+        "traced footprint ({} rays, seed {}; ± one standard error, from {} replicas),",
+        f.rays, f.seed, f.replicas
+    ));
+    out.push(
+        "  the arm's own state on its diode's plane (u, v from the active area's centre):"
+            .to_string(),
+    );
+    let pm = |x: Option<f64>, se: Option<f64>| match (x, se) {
+        (Some(x), Some(se)) => format!("{} ± {}", mm(x), mm(se)),
+        (Some(x), None) => mm(x),
+        _ => "—".to_string(),
+    };
+    for d in &f.diodes {
+        let (c0, c1) = (d.centroid_m.map(|v| v[0]), d.centroid_m.map(|v| v[1]));
+        let (s0, s1) = (
+            d.centroid_stderr_m.map(|v| v[0]),
+            d.centroid_stderr_m.map(|v| v[1]),
+        );
+        out.push(format!(
+            "  {:<9} centroid ({}, {}) mm",
+            d.name,
+            pm(c0, s0),
+            pm(c1, s1)
+        ));
+        if let Some([u, v]) = d.chief_ray_on_diode_m {
+            out.push(format!(
+                "            paraxial chief ray ({}, {}) mm",
+                mm(u),
+                mm(v)
+            ));
+        }
+        out.push(format!(
+            "            2√2·RMS radius Ø {} mm; paraxial beam Ø ≈ {} mm",
+            pm(d.rms_diameter_m, d.rms_diameter_stderr_m),
+            opt_mm(d.paraxial_spot_diameter_m)
+        ));
+        match (d.spill, d.spill_stderr) {
+            (Some(s), se) => out.push(format!(
+                "            spill: {:.2} ± {:.2} % of it on the housing, off the active area",
+                100.0 * s,
+                100.0 * se.unwrap_or(0.0)
+            )),
+            (None, _) if !d.housing => out.push(
+                "            spill: — (no housing: only the active area is mapped)".to_string(),
+            ),
+            (None, _) => out.push("            spill: — (no light mapped)".to_string()),
+        }
+    }
 }
 
 /// The lines of an arm lens: where it images the pupil and the DMD, the lit pupil and the beam
@@ -254,5 +551,92 @@ fn arm_lines(a: &crate::trace::paraxial::ArmLensEntry, out: &mut Vec<String>) {
             }
         }
         _ => out.push(format!("  {:<22} the arm's chief ray reaches no diode", "")),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn symmetric() -> BenchDoc {
+        let p = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("scenes/tests/symmetric_arms.ron");
+        BenchDoc::open(Some(&p)).unwrap()
+    }
+
+    /// `check.json` keeps every key of the paraxial report as it was (flattened, the same
+    /// values) and adds only `dmd_model` and `footprint`.
+    #[test]
+    fn the_wrapper_keeps_the_paraxial_keys_and_adds_the_dmd_model() {
+        let doc = symmetric();
+        let bench = doc.build().unwrap();
+        let paraxial = report(&doc, &bench, 850e-9).unwrap();
+        let plain = serde_json::to_value(&paraxial).unwrap();
+        let wrapped = serde_json::to_value(CheckJson::new(&doc, paraxial, None)).unwrap();
+        let (plain, wrapped) = (plain.as_object().unwrap(), wrapped.as_object().unwrap());
+        for (k, v) in plain {
+            assert_eq!(wrapped.get(k), Some(v), "key `{k}`");
+        }
+        let mut extra: Vec<&str> = wrapped
+            .keys()
+            .filter(|k| !plain.contains_key(*k))
+            .map(String::as_str)
+            .collect();
+        extra.sort_unstable();
+        assert_eq!(extra, ["dmd_model", "footprint"]);
+        assert_eq!(wrapped["dmd_model"], "geometric");
+        assert!(wrapped["footprint"].is_null());
+        // The model chosen over the file's is the one named.
+        let mut d = symmetric();
+        d.set_dmd_model(DmdModel::Diffractive).unwrap();
+        let b = d.build().unwrap();
+        let c = CheckJson::new(&d, report(&d, &b, 850e-9).unwrap(), None);
+        assert_eq!(c.dmd_model.as_deref(), Some("diffractive"));
+        assert_eq!(printed(&c)[1], "DMD model: diffractive");
+    }
+
+    /// The footprint is bit-identical on one and two threads, names its replicas' rays, and
+    /// refuses a ray count below two batches by its field (no flag).
+    #[test]
+    fn the_footprint_is_identical_on_one_and_two_threads() {
+        let doc = symmetric();
+        let bench = doc.build().unwrap();
+        let paraxial = report(&doc, &bench, 850e-9).unwrap();
+        let run = |threads| {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap()
+                .install(|| footprint(&bench, &paraxial, 4096, 7).unwrap().unwrap())
+        };
+        let (a, b) = (run(1), run(2));
+        let (a, b) = (
+            serde_json::to_string(&a).unwrap(),
+            serde_json::to_string(&b).unwrap(),
+        );
+        assert_eq!(a, b);
+        let f = run(1);
+        assert_eq!(f.rays, 4096);
+        assert!(
+            f.diodes
+                .iter()
+                .all(|d| d.centroid_m.is_some() && !d.housing)
+        );
+        assert!(footprint(&bench, &paraxial, 0, 7).unwrap().is_none());
+        let e = footprint(&bench, &paraxial, 100, 7)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("footprint_rays") && e.contains("2048"), "{e}");
+    }
+
+    /// The standard error from the replicas: the spread / √K, none unless every replica has a
+    /// value.
+    #[test]
+    fn the_spread_gives_the_standard_error() {
+        let v = [Some(1.0), Some(3.0)];
+        // sd = √2, /√2 = 1.
+        assert!((spread_se(&v).unwrap() - 1.0).abs() < 1e-15);
+        assert!(spread_se(&[Some(1.0), None]).is_none());
+        assert_ne!(replica_seed(1, 0), replica_seed(1, 1));
     }
 }

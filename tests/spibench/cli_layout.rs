@@ -221,3 +221,121 @@ fn check_and_layout_of_a_broken_bench() {
         );
     }
 }
+
+/// The + diode of scenes/tests/check_footprint.ron moved 0.8 mm along its own x, so that its
+/// chief ray and its light land off the active area's centre.
+const MOVED: &str = "detectors.plus.decenter_mm.x=0.8";
+
+/// Standard errors a centroid may lie from the chief ray: the replicas' standard error has 7
+/// degrees of freedom, and |t₇| > 5 has probability 0.0016 per coordinate.
+const CENTROID_SE: f64 = 5.0;
+
+/// What the paraxial chief ray leaves out (m): the arm lens's aberrations with the DMD's
+/// keystoned aperture (the DMD lies tilted to the arm). They widen the 2√2·RMS diameter of
+/// the image from the paraxial 0.922 mm (m = −0.461 of the 2 mm disk) to 0.931 mm, 4 µm of it
+/// the binning's bin²/6; at 819 200 rays the centroids sit 1.4 ± 0.2 µm from the chief ray, in
+/// the plane of the arm. 10 µm holds that blur's scale with margin, a hundredth of the 0.8 mm
+/// move.
+const ABERRATION_M: f64 = 10e-6;
+
+/// `check`'s traced footprint on scenes/tests/check_footprint.ron (each LA1131 images the
+/// lamp's 2 mm disk onto its diode; 12 mm housings), with the + diode moved off the beam:
+/// `check.json` names the DMD model, is the same on one and two threads, and each diode's
+/// traced centroid lies inside the active area and on the paraxial chief ray, within
+/// `CENTROID_SE` of its standard errors plus half a map bin (the binning) plus `ABERRATION_M`
+/// (see there). The moved diode's footprint moves with it. `--footprint-rays 0` traces
+/// nothing; too few rays are refused by the flag.
+#[test]
+fn check_traces_the_footprint_beside_the_paraxial_beam() {
+    let tmp = TempDir::new("cli-check-footprint");
+    let scene = scenes().join("tests/check_footprint.ron");
+    let scene = scene.to_str().unwrap();
+    let run = |threads: &str, out: &Path, rays: &str| {
+        spibench(
+            &[
+                "--threads",
+                threads,
+                "check",
+                scene,
+                "--set",
+                MOVED,
+                "--footprint-rays",
+                rays,
+                "--seed",
+                "3",
+                "--out",
+                out.to_str().unwrap(),
+            ],
+            &[],
+        )
+    };
+    let (one, two) = (tmp.join("one"), tmp.join("two"));
+    let o = run("1", &one, "16384");
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let o2 = run("2", &two, "16384");
+    assert_eq!(o2.status.code(), Some(0), "{}", stderr(&o2));
+    let text = std::fs::read_to_string(one.join("check.json")).unwrap();
+    assert_eq!(
+        text,
+        std::fs::read_to_string(two.join("check.json")).unwrap()
+    );
+    assert_eq!(stdout(&o), stdout(&o2));
+    crate::outputs_schema::check_file(&one.join("check.json"), "CheckJson");
+    let v = read_json(&one.join("check.json"));
+    assert_eq!(v["dmd_model"], "geometric");
+    assert_eq!(stdout(&o).lines().nth(1), Some("DMD model: geometric"));
+    let f = &v["footprint"];
+    assert_eq!(f["rays"], 16384);
+    assert_eq!(f["seed"], 3);
+    let radius = v["diodes"][0]["diameter_m"].as_f64().unwrap() / 2.0;
+    for (k, d) in f["diodes"].as_array().unwrap().iter().enumerate() {
+        let num = |key: &str, i: usize| d[key][i].as_f64().unwrap();
+        let (c, chief) = (
+            [num("centroid_m", 0), num("centroid_m", 1)],
+            [
+                num("chief_ray_on_diode_m", 0),
+                num("chief_ray_on_diode_m", 1),
+            ],
+        );
+        assert!(c[0].hypot(c[1]) < radius, "{d}");
+        let bin = d["bin_m"].as_f64().unwrap();
+        for i in 0..2 {
+            let se = num("centroid_stderr_m", i);
+            assert!(se > 0.0, "{d}");
+            let tol = CENTROID_SE * se + 0.5 * bin + ABERRATION_M;
+            assert!(
+                (c[i] - chief[i]).abs() < tol,
+                "{}: centroid {} against the chief ray {} ± {tol} m",
+                d["name"],
+                c[i],
+                chief[i]
+            );
+        }
+        // The moved diode: its chief ray (and so the light) 0.8 mm off the centre.
+        let off = chief[0].hypot(chief[1]);
+        if k == 0 {
+            assert!((off - 0.8e-3).abs() < 1e-5, "{d}");
+        } else {
+            assert!(off < 1e-5, "{d}");
+        }
+        // The image lies 1.6 mm inside the active edge: what reaches the plate is stray light
+        // (lens ghosts; 1e-4 at 819 200 rays).
+        let spill = d["spill"].as_f64().unwrap();
+        assert!((0.0..0.01).contains(&spill), "{d}");
+    }
+    assert!(stdout(&o).contains("paraxial chief ray"), "{}", stdout(&o));
+    // No footprint: nothing traced, said so.
+    let none = tmp.join("none");
+    let o = run("1", &none, "0");
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(read_json(&none.join("check.json"))["footprint"].is_null());
+    assert!(
+        stdout(&o).contains("traced footprint: not traced"),
+        "{}",
+        stdout(&o)
+    );
+    // Too few rays: refused by the flag, nothing written.
+    let bad = tmp.join("bad");
+    let o = run("1", &bad, "100");
+    assert_input_error(&o, &["--footprint-rays", "2048"], &bad);
+}
