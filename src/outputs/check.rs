@@ -129,8 +129,8 @@ fn replica_seed(seed: u64, k: u64) -> u64 {
     crate::rng::mix64(seed) ^ k
 }
 
-/// The mean of the replica values' spread: their standard deviation / √K (null unless every
-/// replica has a value).
+/// The standard error of a pooled value from its K replicas' values: their standard deviation
+/// / √K (None unless every replica has a value).
 fn spread_se(values: &[Option<f64>]) -> Option<f64> {
     let v: Vec<f64> = values.iter().copied().collect::<Option<Vec<f64>>>()?;
     let n = v.len() as f64;
