@@ -29,6 +29,7 @@ pub const FLAGS: &[(&str, &str)] = &[
     ("target_yield", "--target-yield"),
     ("confidence", "--confidence"),
     ("irradiance_at", "--irradiance-at"),
+    ("irradiance_rays", "--irradiance-rays"),
 ];
 
 /// Options named in messages only (`quality` is also a tolerance file's section, whose errors

@@ -35,6 +35,7 @@ const DESC_SIZE: f64 = 22.0;
 const BAR_AREA: i32 = 150;
 const MARGIN: i32 = 14;
 const X_LABEL_AREA: i32 = 48;
+const Y_LABEL_AREA: i32 = 76;
 
 /// The viridis colour map (van der Walt and Smith, matplotlib 2015), sampled at nine stops and
 /// interpolated linearly: perceptually uniform and readable in grayscale.
@@ -118,14 +119,14 @@ fn draw<DB: DrawingBackend>(
         return Err(font::unavailable().to_string());
     }
     root.fill(&WHITE).map_err(|e| e.to_string())?;
-    let (main, bar) = root.split_horizontally(WIDTH as i32 - BAR_AREA);
+    let (main, bar) = root.split_horizontally(root.dim_in_pixel().0 as i32 - BAR_AREA);
     let (ex, ey) = (edges(&h.xs), edges(&h.ys));
     let xr = ex[0].min(ex[ex.len() - 1])..ex[0].max(ex[ex.len() - 1]);
     let yr = ey[0].min(ey[ey.len() - 1])..ey[0].max(ey[ey.len() - 1]);
     let mut chart = ChartBuilder::on(&main)
         .margin(MARGIN)
         .x_label_area_size(X_LABEL_AREA)
-        .y_label_area_size(76)
+        .y_label_area_size(Y_LABEL_AREA)
         .build_cartesian_2d(xr.clone(), yr.clone())
         .map_err(|e| e.to_string())?;
     chart
@@ -237,12 +238,39 @@ pub fn heatmap_svg(h: &Heatmap) -> Result<String> {
 /// The SVG text of a heatmap with circles drawn over it.
 pub fn heatmap_svg_with(h: &Heatmap, circles: &[Circle]) -> Result<String> {
     let range = check(h)?;
+    super::svg::at_print_size(&drawn(h, range, circles, (WIDTH, HEIGHT))?)
+}
+
+/// The size of an inset heatmap in SVG units (half points): [`heatmap_inset_svg`]'s viewBox,
+/// for a figure that scales it into place. As wide as a heatmap figure, and as high as makes
+/// the plotting area square, so that a square map has square cells and a circle stays round.
+pub const INSET_SIZE: (u32, u32) = (
+    WIDTH,
+    WIDTH - (BAR_AREA + Y_LABEL_AREA - X_LABEL_AREA) as u32,
+);
+
+/// A heatmap with circles drawn over it as an inset of a larger figure: its colours spread
+/// over `range` (a scale shared with the figure's other maps, so that equal colours are equal
+/// values) instead of its own values' range, at [`INSET_SIZE`] (its own `<svg>` element with
+/// that viewBox, not at print size), text as glyph outlines.
+pub fn heatmap_inset_svg(h: &Heatmap, circles: &[Circle], range: (f64, f64)) -> Result<String> {
+    check(h)?;
+    if !(range.0.is_finite() && range.1.is_finite() && range.1 > range.0) {
+        return Err(Error::Numerical(format!(
+            "a heatmap's colour range must be an interval, got {range:?}"
+        )));
+    }
+    drawn(h, range, circles, INSET_SIZE)
+}
+
+/// The heatmap drawn by plotters over `range` at `size`, text as glyph outlines.
+fn drawn(h: &Heatmap, range: (f64, f64), circles: &[Circle], size: (u32, u32)) -> Result<String> {
     let mut svg = String::new();
     {
-        let root = SVGBackend::with_string(&mut svg, (WIDTH, HEIGHT)).into_drawing_area();
+        let root = SVGBackend::with_string(&mut svg, size).into_drawing_area();
         draw(&root, h, range, circles).map_err(Error::Numerical)?;
     }
-    super::svg::at_print_size(&super::outline::outline_text(&svg)?)
+    super::outline::outline_text(&svg)
 }
 
 /// The SVG text and the PNG bytes (the SVG rendered, `report::svg::PNG_DPI`) of a heatmap.

@@ -338,4 +338,79 @@ fn check_traces_the_footprint_beside_the_paraxial_beam() {
     let bad = tmp.join("bad");
     let o = run("1", &bad, "100");
     assert_input_error(&o, &["--footprint-rays", "2048"], &bad);
+/// `layout --irradiance-rays N` draws the two diodes' maps as insets under the views (one
+/// group each, a heatmap inside, a caption naming the spill and centroid with their errors),
+/// bit-identically on one and two threads; without the flag the drawing has none. The printed
+/// lines give each diode's spill and centroid.
+#[test]
+fn layout_with_irradiance_insets() {
+    let tmp = TempDir::new("cli-layout-insets");
+    let draw = |threads: &str, extra: &[&str], name: &str| {
+        let out = tmp.join(name);
+        let mut args = vec!["layout", "--rays", "40", "--seed", "5"];
+        args.extend(extra);
+        args.extend(["--out", out.to_str().unwrap()]);
+        let o = spibench(&args, &[("RAYON_NUM_THREADS", threads)]);
+        assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+        (
+            std::fs::read_to_string(out.join("layout.svg")).unwrap(),
+            stdout(&o),
+        )
+    };
+    let flag = ["--irradiance-rays", "8192"];
+    let (one, printed) = draw("1", &flag, "one");
+    let (two, _) = draw("2", &flag, "two");
+    assert!(one == two, "the insets differ between one and two threads");
+    let doc = roxmltree::Document::parse(&one).expect("well-formed SVG");
+    let insets: Vec<_> = doc
+        .descendants()
+        .filter(|n| n.attribute("class") == Some("irradiance-inset"))
+        .collect();
+    let ids: Vec<&str> = insets.iter().filter_map(|n| n.attribute("id")).collect();
+    assert_eq!(ids, ["inset-minus", "inset-plus"]);
+    for g in &insets {
+        // The heatmap is embedded as its own <svg>; the caption's text is kept as aria-label.
+        assert!(g.descendants().any(|n| n.has_tag_name("svg")));
+        let text: Vec<&str> = g
+            .descendants()
+            .filter_map(|n| n.attribute("aria-label"))
+            .collect();
+        let all = text.join("\n");
+        for f in [
+            "W/m²",
+            "spill (front plate ÷ map)",
+            "centroid (u, v)",
+            " ± ",
+            "mm",
+        ] {
+            assert!(all.contains(f), "{f:?} missing from {all}");
+        }
+    }
+    // The three views are still the only views.
+    let views = doc
+        .descendants()
+        .filter(|n| n.attribute("class") == Some("view"))
+        .count();
+    assert_eq!(views, 3);
+    for d in [
+        "pd_plus, all units +: spill",
+        "pd_minus, all units −: spill",
+    ] {
+        assert!(printed.contains(d), "{printed}");
+    }
+    let (plain, _) = draw("2", &[], "plain");
+    assert!(!plain.contains("irradiance-inset"));
+}
+
+/// A ray count below two batches or above the trace's limit is refused with exit status 2,
+/// naming the flag, and nothing is written.
+#[test]
+fn layout_refuses_absurd_irradiance_rays() {
+    let tmp = TempDir::new("cli-layout-insets-bad");
+    for n in ["5", "100000000000"] {
+        let out = tmp.join("out");
+        let o = out.to_str().unwrap();
+        let args = ["layout", "--irradiance-rays", n, "--out", o];
+        assert_input_error(&spibench(&args, &[]), &["--irradiance-rays", n], &out);
+    }
 }
