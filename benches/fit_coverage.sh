@@ -12,10 +12,12 @@
 # its range of equally good values does; χ²/dof against the expected value and its band from
 # the fit's own noise model (summary.json's chi2_expected, chi2_band_per_dof) with the measured
 # bench's own trace noise added (it adds FIT_RAYS/MEAS_RAYS of the trace part: a real bench
-# has none); the wall time. Then the coverage over all identified variables, the count of
+# has none); the wall time. Then the coverage over all identified variables, the RMS and
+# median of |fitted − true|/stderr over them, the count of
 # χ²/dof inside their bands, and the machine load (other builds may share the cores).
 # Environment: FIT_RAYS (30000), MEAS_RAYS (300000), THREADS (2), OUT (work folder, default
-# /tmp/spibench-fit-coverage, emptied first), ONLY (a space-separated list of bench numbers).
+# /tmp/spibench-fit-coverage, emptied first), ONLY (a space-separated list of bench numbers),
+# SEED (0: added to the measured run's seed 100 + k and the fit's 200 + k, for repeats).
 # Needs python3 (JSON).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -25,6 +27,7 @@ bin=$(realpath "$bin")
 fit_rays=${FIT_RAYS:-30000}
 meas_rays=${MEAS_RAYS:-300000}
 threads=${THREADS:-2}
+seed=${SEED:-0}
 out=${OUT:-/tmp/spibench-fit-coverage}
 rm -rf "$out" && mkdir -p "$out"
 export RAYON_NUM_THREADS=$threads
@@ -51,7 +54,7 @@ benches=(
 )
 read -r -a only <<<"${ONLY:-$(seq -s ' ' 1 ${#benches[@]})}"
 start=$(date +%s)
-echo "fit coverage: $bin, fit $fit_rays rays, measured $meas_rays rays, $threads threads"
+echo "fit coverage: $bin, fit $fit_rays rays, measured $meas_rays rays, $threads threads, seed +$seed"
 echo "load before: $(cut -d' ' -f1-3 /proc/loadavg)"
 for k in "${only[@]}"; do
     spec=${benches[$((k - 1))]}
@@ -66,13 +69,13 @@ for k in "${only[@]}"; do
         frees+=(--free "$path=${rest#*@}")
     done
     t0=$(date +%s.%N)
-    "$bin" run "$out/small.ron" "${sets[@]}" --rays "$meas_rays" --seed $((100 + k)) \
+    "$bin" run "$out/small.ron" "${sets[@]}" --rays "$meas_rays" --seed $((100 + k + seed)) \
         --scope-record --out "$dir/run" -q >"$dir/run.log" 2>&1
     "$bin" intake "$dir/run/scope" --bench "$dir/run/bench.ron" --out "$dir/intake" -q \
         >"$dir/intake.log" 2>&1
     rm -rf "$dir/run/scope"
     "$bin" fit "$out/small.ron" --measured "$dir/intake" "${frees[@]}" --rays "$fit_rays" \
-        --seed $((200 + k)) --out "$dir/fit" -q >"$dir/fit.log" 2>&1 ||
+        --seed $((200 + k + seed)) --out "$dir/fit" -q >"$dir/fit.log" 2>&1 ||
         { echo "bench $k: fit failed: $(tail -1 "$dir/fit.log")"; continue; }
     t1=$(date +%s.%N)
     python3 - "$dir/fit/summary.json" "$spec" "$k" "$(echo "$t1 - $t0" | bc)" \
@@ -113,6 +116,13 @@ ben = [r for r in rows if r.startswith("BENCH")]
 cov = sum(r.endswith("covered") for r in var)
 print(f"coverage of the 95 % intervals: {cov} of {len(var)} identified variables "
       f"({100 * cov / max(1, len(var)):.0f} %)")
+# The actual error over the reported one: |z| = |fitted − true|/stderr; RMS 1 when the
+# standard errors are honest (a median |z| of 0.67 for Gaussian errors).
+zs = sorted(abs(float(r.split(" z ")[1].split()[0])) for r in var)
+if zs:
+    rms = (sum(z * z for z in zs) / len(zs)) ** 0.5
+    print(f"|error|/stderr over the identified variables: RMS {rms:.2f}, median "
+          f"{zs[len(zs) // 2]:.2f} (1.00 and 0.67 for honest Gaussian errors)")
 print(f"unidentified: {sum(r.endswith('inside') for r in unid)} of {len(unid)} with the truth "
       "inside their range")
 print(f"chi2/dof inside its band: {sum(' in ' in r for r in ben)} of {len(ben)} benches")

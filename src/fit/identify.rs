@@ -12,7 +12,9 @@
 //! optimum where χ² stays within Δχ² = 4·max(1, χ²/dof) of the optimum (≈ 95 % for one
 //! parameter), extended to the first point beyond it on each side (or the bound).
 //!
-//! The covariance of the variables is the sandwich C = max(1, χ²/dof)·A⁺·M·A⁺ with A = JᵀJ,
+//! A is JᵀJ less the differences' own noise on its diagonal (Σ var Ĵ of each column, from the
+//! trace's batches: [`super::step`]), so that a column no larger than its noise adds no
+//! curvature. The covariance of the variables is the sandwich C = max(1, χ²/dof)·A⁺·M·A⁺ with A,
 //! A⁺ its pseudo-inverse over the identified directions and M the covariance of Jᵀ·δr
 //! ([`noise_moment`]: the measurement noise, independent from frame to frame, and the model
 //! trace's, which every frame shares), in the variables' units; a variable with a share above
@@ -84,7 +86,7 @@ impl Identification {
 pub fn identify(
     p: &Problem,
     u: &[f64],
-    jac: &[Vec<f64>],
+    jacobian: &super::Jacobian,
     prof: &super::Profiled,
     batches: &super::model::BatchFrames,
     chi2: f64,
@@ -94,8 +96,23 @@ pub fn identify(
     count: &(dyn Fn() + Sync),
 ) -> Result<Identification> {
     let n = u.len();
+    let jac = &jacobian.cols;
+    // A = JᵀJ less the differences' own noise on its diagonal (E[ŝ²] = s² + var ŝ, module
+    // notes): a column whose slopes are no larger than their noise then has no curvature and
+    // is reported unidentified rather than pinned by its noise.
     let a: Vec<Vec<f64>> = (0..n)
-        .map(|i| (0..n).map(|j| dot(&jac[i], &jac[j])).collect())
+        .map(|i| {
+            (0..n)
+                .map(|j| {
+                    let noise: f64 = if i == j {
+                        jacobian.variance[i].iter().sum()
+                    } else {
+                        0.0
+                    };
+                    dot(&jac[i], &jac[j]) - noise
+                })
+                .collect()
+        })
         .collect();
     let (eig, vecs) = linalg::symmetric_eigen(&a);
     let s: Vec<f64> = eig.iter().map(|e| e.max(0.0).sqrt()).collect();

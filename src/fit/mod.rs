@@ -12,15 +12,21 @@
 //! *J. SIAM* 11, 431–441, 1963) on the whitened residuals, in the free variables scaled to the
 //! unit box (a step is projected onto it, so the bounds hold). Every evaluation of one stage
 //! traces with the same rays and seed (common random numbers): the misfit is one fixed sample
-//! path, and the forward differences of the Jacobian (step 1 % of each range, toward the
-//! interior at a bound) are paired, their trace noise cancelling ray by ray. The first stage
-//! traces a quarter of the rays; the second, from the first's optimum, all of them.
+//! path, and the differences of the Jacobian are paired, their trace noise cancelling ray by
+//! ray, except for the rays that cross an edge (a diode's, a pupil's) between the two points.
+//! Those make a small step's slope mostly noise, and that noise inflates JᵀJ and shrinks the
+//! standard errors; the differences are therefore central, one-sided at a bound, with a step
+//! per variable chosen from the trace's own batches so that noise is a small share of each
+//! column ([`step`]). The first stage traces a quarter of the rays; the second, from the
+//! first's optimum, all of them.
 
 pub mod chi2;
 pub mod identify;
 pub mod linalg;
 pub mod measured;
 pub mod model;
+pub mod start;
+pub mod step;
 
 use crate::acquisition::{Sequence, patterns_for_ratio};
 use crate::error::{Error, Result};
@@ -35,8 +41,6 @@ pub use identify::{Identification, Unidentified};
 pub use measured::{Measured, read_measured};
 pub use model::{NUISANCES, Profiled};
 
-/// The relative forward-difference step in the unit box.
-pub const STEP: f64 = 0.01;
 /// The most Levenberg–Marquardt iterations per stage.
 pub const MAX_ITERATIONS: usize = 12;
 
@@ -139,6 +143,8 @@ pub struct Problem<'a> {
     pub bits: BitMatrix,
     /// The Monte Carlo variance scale the evaluations use ([`Problem::calibrate`] sets it).
     pub scale: std::cell::Cell<model::VarianceScale>,
+    /// Each variable's difference step to try next (unit box, [`step::Rule`]).
+    pub steps: std::cell::RefCell<Vec<f64>>,
 }
 
 impl Problem<'_> {
@@ -209,32 +215,120 @@ impl Problem<'_> {
             .collect()
     }
 
-    /// The Jacobian of the whitened residuals in the unit box at `u` (rows: residuals), by
-    /// paired forward differences.
-    pub fn jacobian(&self, u: &[f64], r0: &[f64], rays: u64, seed: u64) -> Result<Vec<Vec<f64>>> {
-        let mut cols = Vec::with_capacity(u.len());
-        for i in 0..u.len() {
-            let mut v = u.to_vec();
-            let h = if u[i] + STEP <= 1.0 { STEP } else { -STEP };
-            v[i] += h;
-            let p = self.at(&self.to_values(&v), rays, seed)?.ok_or_else(|| {
-                Error::input(format!(
-                    "the bench does not build at {} = {} (a difference step of the fit): \
-                     narrow its bounds",
-                    self.free[i].path,
-                    self.to_values(&v)[i]
-                ))
-            })?;
-            cols.push(
-                p.residuals
-                    .iter()
-                    .zip(r0)
-                    .map(|(a, b)| (a - b) / h)
-                    .collect::<Vec<f64>>(),
-            );
-        }
-        Ok(cols)
+    /// The misfit at `x` traced with (rays, seed) keeping each batch's frames, and its
+    /// residuals' batch deviations ([`step::Sampled`]); None when the bench at `x` does not
+    /// build or cannot be profiled.
+    pub fn sampled(&self, x: &[f64], rays: u64, seed: u64) -> Result<Option<step::Sampled>> {
+        let Some(bench) = self.bench_at(x) else {
+            return Ok(None);
+        };
+        let (traced, batches) = model::batch_frames(&bench, rays, seed, &self.bits, self.measured)?;
+        let frames = model::model_frames(
+            &traced.transport,
+            &self.bits,
+            self.measured,
+            &self.scale.get(),
+        );
+        let Ok(prof) = model::profile(&frames, self.measured) else {
+            return Ok(None);
+        };
+        Ok(Some(step::Sampled {
+            deviations: residual_deviations(self.measured, &prof, &batches),
+            values: prof.residuals,
+            factor: batches.factor,
+        }))
     }
+
+    /// The Jacobian of the whitened residuals in the unit box at `u` (columns: one per free
+    /// variable, rows: residuals), by paired central differences whose step each variable's
+    /// rule chooses from the trace's own batches ([`step`]; one-sided at a bound). The steps
+    /// carry over to the next call. `count` after each trace.
+    pub fn jacobian(
+        &self,
+        u: &[f64],
+        rays: u64,
+        seed: u64,
+        count: &(dyn Fn() + Sync),
+    ) -> Result<Jacobian> {
+        let mut cols = Vec::with_capacity(u.len());
+        let mut variance = Vec::with_capacity(u.len());
+        let mut steps = Vec::with_capacity(u.len());
+        let mut shares = Vec::with_capacity(u.len());
+        for i in 0..u.len() {
+            let mut f = |t: f64| -> Result<step::Sampled> {
+                let mut v = u.to_vec();
+                v[i] = t;
+                let x = self.to_values(&v);
+                let s = self.sampled(&x, rays, seed)?;
+                count();
+                s.ok_or_else(|| {
+                    Error::input(format!(
+                        "the bench does not build at {} = {} (a difference step of the fit): \
+                         narrow its bounds",
+                        self.free[i].path, x[i]
+                    ))
+                })
+            };
+            let h = self.steps.borrow()[i];
+            let (c, next) = step::column(&mut f, u[i], h, &step::RULE)?;
+            self.steps.borrow_mut()[i] = next;
+            steps.push(c.step);
+            shares.push(c.noise_share);
+            variance.push(c.variance);
+            cols.push(c.slope);
+        }
+        Ok(Jacobian {
+            cols,
+            variance,
+            steps,
+            noise_share: shares,
+        })
+    }
+}
+
+/// The Jacobian of the whitened residuals (unit box) and what its differences measured.
+#[derive(Debug, Clone)]
+pub struct Jacobian {
+    /// One column per free variable.
+    pub cols: Vec<Vec<f64>>,
+    /// Each entry's variance from the trace's batches.
+    pub variance: Vec<Vec<f64>>,
+    /// Each column's step (unit box) and the noise's share of its squared norm.
+    pub steps: Vec<f64>,
+    pub noise_share: Vec<f64>,
+}
+
+/// Each batch's deviation of the whitened residuals: the batch's frame light less its share,
+/// through the channel's fitted scales, over the residual's σ (the sign of −model dropped: only
+/// differences and squares of these are used), in the residuals' order.
+pub fn residual_deviations(
+    measured: &Measured,
+    prof: &Profiled,
+    batches: &model::BatchFrames,
+) -> Vec<Vec<f64>> {
+    let nu = &prof.nuisances;
+    // Scales per channel [RF, MON+, MON−] on [u₊, u₋].
+    let scale = [[nu[0], -nu[1]], [nu[3], 0.0], [0.0, nu[5]]];
+    batches
+        .deviations
+        .iter()
+        .map(|dev| {
+            let mut out = Vec::with_capacity(prof.residuals.len());
+            let mut flat = 0;
+            for (s, q) in measured.sequences.iter().enumerate() {
+                for f in 0..q.values.len() {
+                    if !q.flagged[f] {
+                        for o in 0..3 {
+                            let d = scale[o][0] * dev[flat][0] + scale[o][1] * dev[flat][1];
+                            out.push(d / prof.sigma_v[s][f][o]);
+                        }
+                    }
+                    flat += 1;
+                }
+            }
+            out
+        })
+        .collect()
 }
 
 /// The measured folder against the bench: units, base patterns and each sequence's frames
@@ -307,6 +401,7 @@ pub fn fit(
         measured,
         bits,
         scale: std::cell::Cell::new(model::VarianceScale::default()),
+        steps: std::cell::RefCell::new(vec![step::RULE.first; req.free.len()]),
     };
     let rays = req.rays.max(2 * crate::trace::RAYS_PER_BATCH);
     let stages = [(rays / 4).max(2 * crate::trace::RAYS_PER_BATCH), rays];
@@ -340,13 +435,11 @@ pub fn fit(
             .residuals
             .len()
             .saturating_sub(req.free.len() + NUISANCES.len());
-        let jac = p.jacobian(&u, &prof.residuals, rays, req.seed)?;
-        for _ in 0..req.free.len() {
-            count();
-        }
+        let jacobian = p.jacobian(&u, rays, req.seed, &count)?;
+        let jac = &jacobian.cols;
         let chi2_dof = prof.chi2 / dof.max(1) as f64;
         let id = identify::identify(
-            &p, &u, &jac, &prof, &batches, prof.chi2, chi2_dof, rays, req.seed, &count,
+            &p, &u, &jacobian, &prof, &batches, prof.chi2, chi2_dof, rays, req.seed, &count,
         )?;
         // A scan that found a clearly better point: the optimum was local; go on from there.
         match id.better_point() {
@@ -364,7 +457,7 @@ pub fn fit(
                 )?;
             }
             _ => {
-                let expected = chi2::expected(&p, &prof, &jac, &batches);
+                let expected = chi2::expected(&p, &prof, jac, &batches);
                 break (u, prof, id, expected);
             }
         }
@@ -400,43 +493,24 @@ pub fn fit(
     })
 }
 
-/// Points per variable of the coarse start.
-pub const COARSE_POINTS: usize = 9;
+pub use start::COARSE_POINTS;
 
-/// The coarse start: each variable in turn set to the best of [`COARSE_POINTS`] evenly spaced
-/// values across its bounds, the others held, twice over. A misalignment often leaves the light
-/// unchanged near the nominal bench (a spot inside its diode, a lens whose pupil is not yet
-/// clipped), where the gradient is zero and Levenberg–Marquardt would not move.
+/// The coarse start from `u` ([`start`]) at (rays, seed).
 fn coarse_start(
     p: &Problem,
-    mut u: Vec<f64>,
+    u: Vec<f64>,
     rays: u64,
     seed: u64,
     count: &(dyn Fn() + Sync),
 ) -> Result<Vec<f64>> {
-    let mut best = p
-        .at(&p.to_values(&u), rays, seed)?
-        .map_or(f64::INFINITY, |q| q.chi2);
-    count();
-    for _sweep in 0..2 {
-        for i in 0..u.len() {
-            for k in 0..COARSE_POINTS {
-                let mut v = u.clone();
-                v[i] = k as f64 / (COARSE_POINTS - 1) as f64;
-                if v == u {
-                    continue;
-                }
-                let c = p
-                    .at(&p.to_values(&v), rays, seed)?
-                    .map_or(f64::INFINITY, |q| q.chi2);
-                count();
-                if c < best {
-                    (best, u) = (c, v);
-                }
-            }
-        }
-    }
-    Ok(u)
+    let mut chi2 = |v: &[f64]| -> Result<f64> {
+        let c = p
+            .at(&p.to_values(v), rays, seed)?
+            .map_or(f64::INFINITY, |q| q.chi2);
+        count();
+        Ok(c)
+    };
+    start::coarse_search(&mut chi2, u)
 }
 
 /// One stage of Levenberg–Marquardt from `u` (module notes); returns the stage's optimum.
@@ -456,10 +530,7 @@ fn levenberg_marquardt(
     count();
     let mut lambda = 1e-3;
     for _ in 0..MAX_ITERATIONS {
-        let jac = p.jacobian(&u, &cur.residuals, rays, seed)?;
-        for _ in 0..n {
-            count();
-        }
+        let jac = p.jacobian(&u, rays, seed, count)?.cols;
         let a: Vec<Vec<f64>> = (0..n)
             .map(|i| (0..n).map(|j| dot(&jac[i], &jac[j])).collect())
             .collect();
