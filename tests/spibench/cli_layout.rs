@@ -338,6 +338,8 @@ fn check_traces_the_footprint_beside_the_paraxial_beam() {
     let bad = tmp.join("bad");
     let o = run("1", &bad, "100");
     assert_input_error(&o, &["--footprint-rays", "2048"], &bad);
+}
+
 /// `layout --irradiance-rays N` draws the two diodes' maps as insets under the views (one
 /// group each, a heatmap inside, a caption naming the spill and centroid with their errors),
 /// bit-identically on one and two threads; without the flag the drawing has none. The printed
