@@ -318,8 +318,8 @@ pub fn residual_deviations(
             for (s, q) in measured.sequences.iter().enumerate() {
                 for f in 0..q.values.len() {
                     if !q.flagged[f] {
-                        for o in 0..3 {
-                            let d = scale[o][0] * dev[flat][0] + scale[o][1] * dev[flat][1];
+                        for (o, sc) in scale.iter().enumerate() {
+                            let d = sc[0] * dev[flat][0] + sc[1] * dev[flat][1];
                             out.push(d / prof.sigma_v[s][f][o]);
                         }
                     }
