@@ -643,6 +643,7 @@ const DIODES: [&str; 2] = ["pd_plus", "pd_minus"];
 pub struct Insets {
     maps: IrradianceMaps,
     rays: u64,
+    #[cfg_attr(not(feature = "figures"), allow(dead_code))] // drawn only with the figures
     seed: u64,
 }
 
@@ -656,6 +657,7 @@ pub struct InsetStats {
 }
 
 /// A positive number to three significant digits.
+#[cfg_attr(not(feature = "figures"), allow(dead_code))] // drawn only with the figures
 fn sig3(x: f64) -> String {
     let digits = 2 - x.log10().floor() as i32;
     if x > 0.0 && (-2..=6).contains(&digits) {
@@ -741,6 +743,7 @@ impl Insets {
     }
 
     /// The common colour scale (W/m²): from 0 to the higher peak of the two maps drawn.
+    #[cfg_attr(not(feature = "figures"), allow(dead_code))] // drawn only with the figures
     fn range(&self) -> (f64, f64) {
         let peak = (0..2)
             .flat_map(|d| self.maps.irradiance(d, d).0)
@@ -752,8 +755,11 @@ impl Insets {
 
 /// The inset band's parts (SVG units): a note over both maps, three caption lines over each,
 /// and the two heatmaps side by side, scaled to the page's width.
+#[cfg_attr(not(feature = "figures"), allow(dead_code))] // drawn only with the figures
 const INSET_NOTE: f64 = 24.0;
+#[cfg_attr(not(feature = "figures"), allow(dead_code))] // drawn only with the figures
 const INSET_LINE: f64 = 20.0;
+#[cfg_attr(not(feature = "figures"), allow(dead_code))] // drawn only with the figures
 const INSET_CAPTION_LINES: f64 = 4.0;
 
 /// The heatmaps' scale in the band: two side by side between the margins.
