@@ -16,8 +16,9 @@ use crate::report::output::OutputDir;
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum ObjectiveArg {
-    /// Minimise |imbalance| (plus --offset-weight × |b₋ − b₊|/(b₊ + b₋) when given) with k±
-    /// held at --min-fraction of their best.
+    /// Minimise the detector's |imbalance| (electrical: the diodes' responsivity scales
+    /// included; plus --offset-weight × |b₋ − b₊|/(b₊ + b₋) when given) with k± held at
+    /// --min-fraction of their best.
     Balance,
     /// Maximise k₊ + k₋.
     Power,

@@ -50,7 +50,8 @@ pub struct FitRequest {
     pub free: Vec<Free>,
     /// Compensators for the adjustment (empty: none).
     pub adjust: Vec<Free>,
-    /// The imbalance the adjustment must bring |imbalance| under.
+    /// The limit the adjustment must bring |imbalance| under (the electrical imbalance, the
+    /// detector's, as the adjustment balances it and as tolerance limits are judged).
     pub imbalance_limit: f64,
     pub rays: u64,
     pub seed: u64,
@@ -78,11 +79,15 @@ pub struct FitStep {
 pub struct Adjustment {
     pub adjust: Vec<Free>,
     pub values: Vec<f64>,
-    /// [before, after]: k₊, k₋ (A/W), imbalance, each with its standard error.
+    /// [before, after]: k₊, k₋ (A/W), the optical imbalance (k₊ − k₋)/(k₊ + k₋) and the
+    /// electrical one (s₊k₊ − s₋k₋)/(s₊k₊ + s₋k₋) (NaN for invalid electronics), each with its
+    /// standard error.
     pub k_plus: [(f64, f64); 2],
     pub k_minus: [(f64, f64); 2],
     pub imbalance: [(f64, f64); 2],
+    pub imbalance_electrical: [(f64, f64); 2],
     pub limit: f64,
+    /// |electrical imbalance| after the adjustment is under `limit`.
     pub under_limit: bool,
 }
 
@@ -586,8 +591,9 @@ pub fn dot(a: &[f64], b: &[f64]) -> f64 {
     a.iter().zip(b).map(|(x, y)| x * y).sum()
 }
 
-/// The compensators that rebalance the fitted bench (the optimiser's balance objective), and
-/// its k±, imbalance before and after on one seed.
+/// The compensators that rebalance the fitted bench (the optimiser's balance objective: the
+/// detector's electrical imbalance, the diodes' responsivity scales included), and its k±,
+/// optical and electrical imbalance before and after on one seed.
 fn adjust(fitted: &BenchDoc, req: &FitRequest, count: &(dyn Fn() + Sync)) -> Result<Adjustment> {
     let o = AlignOptions {
         start_rays: (req.rays / 4).max(2 * crate::trace::RAYS_PER_BATCH),
@@ -606,15 +612,19 @@ fn adjust(fitted: &BenchDoc, req: &FitRequest, count: &(dyn Fn() + Sync)) -> Res
     let after = evaluate(&fitted.with(&set)?, set, &eo)?;
     let pick =
         |m: BenchMetric| [&before, &after].map(|e| (e.metrics[m].value, e.metrics[m].stderr()));
-    let imbalance = pick(BenchMetric::Imbalance);
+    let electrical = [&before, &after].map(|e| {
+        e.electrical_imbalance()
+            .map_or((f64::NAN, f64::NAN), |i| (i.value, i.stderr()))
+    });
     Ok(Adjustment {
         adjust: req.adjust.clone(),
         values: s.best_values,
         k_plus: pick(BenchMetric::KPlus),
         k_minus: pick(BenchMetric::KMinus),
-        imbalance,
+        imbalance: pick(BenchMetric::Imbalance),
+        imbalance_electrical: electrical,
         limit: req.imbalance_limit,
-        under_limit: imbalance[1].0.abs() < req.imbalance_limit,
+        under_limit: electrical[1].0.abs() < req.imbalance_limit,
     })
 }
 

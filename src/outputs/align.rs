@@ -82,8 +82,8 @@ pub fn write(
         seed: o.seed,
         evaluations: a.history.len(),
         free: free_summaries(r.free, a, r.doc.edits()),
-        start: Row::metrics(&a.start, &a.start),
-        aligned: Row::metrics(&a.best, &a.start),
+        start: row(&a.start, &a.start),
+        aligned: row(&a.best, &a.start),
         centre: centre_summary(a),
         files: &files,
     };
@@ -96,9 +96,43 @@ pub fn write(
     Ok((files, card))
 }
 
+/// The metric row of `p` against `reference` ([`Row::metrics`]), ending, as a tolerance row
+/// does, with the electrical imbalance ι′ (`imbalance_electrical`, the balance objective's),
+/// its standard error, its change and that change's paired and independent standard errors
+/// (NaN, written null, where the electronics are not valid).
+fn row(
+    p: &crate::pipeline::evaluate::Evaluation,
+    reference: &crate::pipeline::evaluate::Evaluation,
+) -> Row {
+    let electrical = |e: &crate::pipeline::evaluate::Evaluation| {
+        let mut v = crate::tolerance::values(e, reference);
+        let (i, i0) = (e.electrical_imbalance(), reference.electrical_imbalance());
+        let d = i.as_ref().zip(i0.as_ref()).map(|(a, b)| {
+            let mut d = a.diff(b);
+            if a.value == b.value {
+                // The same bench: no change (and no standard error of one).
+                d.stderr = 0.0;
+            }
+            d
+        });
+        let name = crate::scene::tolerance::IMBALANCE_ELECTRICAL;
+        let nan = f64::NAN;
+        v.push((name.to_string(), i.as_ref().map_or(nan, |i| i.value)));
+        v.push((
+            format!("{name}_stderr"),
+            i.as_ref().map_or(nan, |i| i.stderr()),
+        ));
+        v.push((format!("{name}_diff"), d.map_or(nan, |d| d.value)));
+        v.push((format!("{name}_diff_stderr"), d.map_or(nan, |d| d.stderr)));
+        v
+    };
+    Row::from_values(&electrical(p), &electrical(reference))
+}
+
 /// The summary card of `align` (from its summary.json as a value): why the search stopped,
-/// each free variable as the bench file counts it with the move made, and the imbalance and
-/// k′ at the start and after.
+/// each free variable as the bench file counts it with the move made, and the electrical
+/// imbalance (the detector's, which the balance objective minimises), the optical one and k′
+/// at the start and after.
 pub fn card(summary: &serde_json::Value) -> crate::outputs::card::Card {
     use crate::outputs::card::{Card, num, pm};
     let mut c = Card::new("summary");
@@ -125,7 +159,11 @@ pub fn card(summary: &serde_json::Value) -> crate::outputs::card::Card {
             )
         });
     }
-    for (label, key, unit) in [("imbalance", "imbalance", ""), ("k′", "k_prime", "A/W")] {
+    for (label, key, unit) in [
+        ("electrical imbalance", "imbalance_electrical", ""),
+        ("optical imbalance", "imbalance", ""),
+        ("k′", "k_prime", "A/W"),
+    ] {
         let keys = [
             format!("/start/{key}"),
             format!("/start/{key}_stderr"),
@@ -173,11 +211,17 @@ pub fn card(summary: &serde_json::Value) -> crate::outputs::card::Card {
 }
 
 /// What `spibench align` prints: why the search stopped, each free variable (counted from the
-/// bench file) with its ± or why it has none, and the imbalance reached; warnings are printed
+/// bench file) with its ± or why it has none, and the imbalance reached (electrical and
+/// optical); warnings are printed
 /// apart (`Alignment::warnings`).
 pub fn printed(r: &AlignRun<'_>, dir: &std::path::Path) -> Vec<String> {
     let a = r.alignment;
     let imb = a.best.metrics[BenchMetric::Imbalance].estimate();
+    let electrical = a.best.electrical_imbalance().map_or(f64::NAN, |e| e.value);
+    let electrical_se = a
+        .best
+        .electrical_imbalance()
+        .map_or(f64::NAN, |e| e.stderr());
     // One line per variable, so that the output fits a terminal whatever the paths.
     let mut out = vec![format!(
         "aligned; the search stopped because {}",
@@ -195,7 +239,8 @@ pub fn printed(r: &AlignRun<'_>, dir: &std::path::Path) -> Vec<String> {
         ));
     }
     out.push(format!(
-        "imbalance {:.3e} ± {:.1e}; wrote {}",
+        "imbalance {electrical:.3e} ± {electrical_se:.1e} electrical (the detector's), \
+         {:.3e} ± {:.1e} optical; wrote {}",
         imb.value,
         imb.stderr,
         dir.display()
@@ -469,7 +514,8 @@ fn free_summaries<'a>(
 }
 
 /// `history.csv` and the convergence plot `history.svg`/`.png`: every evaluation's stage,
-/// rays, free values, objective with its standard error, imbalance and k±.
+/// rays, free values, objective with its standard error, the optical and the electrical
+/// imbalance with theirs, and k±.
 fn write_history(a: &Alignment, free: &[Free], out: &OutputDir) -> crate::Result<()> {
     let mut header: Vec<String> = vec!["evaluation".into(), "stage".into(), "rays".into()];
     header.extend(free.iter().map(|f| f.path.clone()));
@@ -479,6 +525,8 @@ fn write_history(a: &Alignment, free: &[Free], out: &OutputDir) -> crate::Result
             "objective_stderr",
             "imbalance",
             "imbalance_stderr",
+            "imbalance_electrical",
+            "imbalance_electrical_stderr",
             "k_plus",
             "k_minus",
         ]
@@ -497,6 +545,8 @@ fn write_history(a: &Alignment, free: &[Free], out: &OutputDir) -> crate::Result
                     e.objective_stderr,
                     e.imbalance,
                     e.imbalance_stderr,
+                    e.imbalance_electrical,
+                    e.imbalance_electrical_stderr,
                     e.k_plus,
                     e.k_minus,
                 ]
@@ -628,6 +678,18 @@ fn tables(free: &[FreeSummary<'_>], a: &Alignment) -> Vec<Block> {
         let r = MetricRow::new(b, s);
         mrows.push(vec![
             format!("{m} ({})", m.unit()),
+            format!("{:.4e} ± {:.1e}", s.value, s.stderr()),
+            format!("{:.4e} ± {:.1e}", r.value, r.stderr),
+            format!("{:+.4e} ± {:.1e}", r.diff, r.diff_stderr),
+        ]);
+    }
+    if let (Some(s), Some(b)) = (
+        a.start.electrical_imbalance(),
+        a.best.electrical_imbalance(),
+    ) {
+        let r = MetricRow::new(&b, &s);
+        mrows.push(vec![
+            format!("{} (–)", crate::scene::tolerance::IMBALANCE_ELECTRICAL),
             format!("{:.4e} ± {:.1e}", s.value, s.stderr()),
             format!("{:.4e} ± {:.1e}", r.value, r.stderr),
             format!("{:+.4e} ± {:.1e}", r.diff, r.diff_stderr),

@@ -58,6 +58,10 @@ pub struct AdjustmentSummary {
     pub imbalance_before_stderr: f64,
     pub imbalance_after: f64,
     pub imbalance_after_stderr: f64,
+    pub imbalance_electrical_before: f64,
+    pub imbalance_electrical_before_stderr: f64,
+    pub imbalance_electrical_after: f64,
+    pub imbalance_electrical_after_stderr: f64,
 }
 
 /// `summary.json` of `fit`.
@@ -140,6 +144,10 @@ pub fn summarize(f: &Fit, doc: &BenchDoc, measured: &Measured) -> FitSummary {
         imbalance_before_stderr: a.imbalance[0].1,
         imbalance_after: a.imbalance[1].0,
         imbalance_after_stderr: a.imbalance[1].1,
+        imbalance_electrical_before: a.imbalance_electrical[0].0,
+        imbalance_electrical_before_stderr: a.imbalance_electrical[0].1,
+        imbalance_electrical_after: a.imbalance_electrical[1].0,
+        imbalance_electrical_after_stderr: a.imbalance_electrical[1].1,
     });
     FitSummary {
         command: "fit",
@@ -306,16 +314,21 @@ fn report_html(summary: &FitSummary, svg: &str) -> String {
     if let Some(a) = &summary.adjustment {
         let _ = write!(
             h,
-            "<h2>Adjustment</h2><p>{} = {:?}: imbalance {:.5} ± {:.5} → {:.5} ± {:.5} (limit \
-             {}: {}); k₊ {:.4e} → {:.4e} A/W, k₋ {:.4e} → {:.4e} A/W.</p>",
+            "<h2>Adjustment</h2><p>{} = {:?}: electrical imbalance {:.5} ± {:.5} → {:.5} ± \
+             {:.5} (limit {}: {}); optical imbalance {:.5} ± {:.5} → {:.5} ± {:.5}; k₊ {:.4e} → \
+             {:.4e} A/W, k₋ {:.4e} → {:.4e} A/W.</p>",
             a.paths.join(", "),
             a.values,
+            a.imbalance_electrical_before,
+            a.imbalance_electrical_before_stderr,
+            a.imbalance_electrical_after,
+            a.imbalance_electrical_after_stderr,
+            a.imbalance_limit,
+            if a.under_limit { "under" } else { "not under" },
             a.imbalance_before,
             a.imbalance_before_stderr,
             a.imbalance_after,
             a.imbalance_after_stderr,
-            a.imbalance_limit,
-            if a.under_limit { "under" } else { "not under" },
             a.k_plus_before,
             a.k_plus_after,
             a.k_minus_before,
@@ -378,17 +391,20 @@ pub fn printed(f: &Fit, doc: &BenchDoc, measured: &Measured) -> Vec<String> {
     }
     if let Some(a) = &s.adjustment {
         lines.push(format!(
-            "adjustment {}: imbalance {:.5} → {:.5} ({} the limit {})",
+            "adjustment {}: electrical imbalance {:.5} → {:.5} ({} the limit {}), optical \
+             {:.5} → {:.5}",
             a.paths
                 .iter()
                 .zip(&a.values)
                 .map(|(p, v)| format!("{p} = {v:.4}"))
                 .collect::<Vec<_>>()
                 .join(", "),
-            a.imbalance_before,
-            a.imbalance_after,
+            a.imbalance_electrical_before,
+            a.imbalance_electrical_after,
             if a.under_limit { "under" } else { "not under" },
-            a.imbalance_limit
+            a.imbalance_limit,
+            a.imbalance_before,
+            a.imbalance_after
         ));
     }
     lines

@@ -63,12 +63,30 @@ pub struct Evaluation {
     /// The detector's common-mode rejection from its electronics alone (dB, not traced;
     /// infinite for matched diodes); None when the electronics are invalid.
     pub cmrr_electronics_db: Option<f64>,
+    /// The diodes' responsivity scales s± of the bench's electronics [+, −]; None when the
+    /// electronics are invalid.
+    pub responsivity_scale: Option<[f64; 2]>,
     pub arrivals: u64,
     /// With `quality`: every scheme × ratio of the bench's `run` settings.
     pub quality: Option<Vec<SchemeResult>>,
     /// From [`evaluate_mapped`]: where the light lands on each diode (+, −), from the
     /// irradiance maps of the same trace; None from [`evaluate`].
     pub spots: Option<[Spot; 2]>,
+}
+
+impl Evaluation {
+    /// The electrical imbalance ι′ = (s₊k₊ − s₋k₋)/(s₊k₊ + s₋k₋), the optical imbalance as the
+    /// balanced detector's difference output sees it through the bench's own responsivity
+    /// scales ([`crate::transport::metrics::electrical_imbalance`], its influence carried by
+    /// the delta method); None when the electronics are invalid.
+    pub fn electrical_imbalance(&self) -> Option<TracedValue> {
+        self.responsivity_scale.map(|s| {
+            crate::transport::metrics::electrical_imbalance(
+                &self.metrics[BenchMetric::Imbalance],
+                s,
+            )
+        })
+    }
 }
 
 /// Where the light of one diode's own arm lands on it (the diode's map with every unit in its
@@ -152,6 +170,7 @@ pub fn evaluation_of(
     Evaluation {
         settings,
         cmrr,
+        responsivity_scale: detector.as_ref().map(|d| d.responsivity_scale),
         cmrr_electronics_db: detector.map(|d| d.cmrr_db()),
         arrivals: traced.arrivals(),
         metrics: traced.metrics.clone(),

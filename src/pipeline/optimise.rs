@@ -33,9 +33,14 @@
 //!
 //! Each objective is a sum of named terms ([`terms`]), reported one by one:
 //!
-//! - `Balance { min_fraction, offset_weight }`: minimise |imbalance|, plus
-//!   offset_weight·|b₋ − b₊|/(b₊ + b₋) only when the user gives the offset a weight, plus a
-//!   penalty 10·Σ max(0, f·k_ref − k±)/k_ref that holds each arm's k± at a fraction f of its
+//! - `Balance { min_fraction, offset_weight }`: minimise |ι′|, the electrical imbalance
+//!   ι′ = (s₊k₊ − s₋k₋)/(s₊k₊ + s₋k₋) that the balanced detector's difference output sees
+//!   ([`crate::transport::metrics::electrical_imbalance`], the evaluated bench's own diode
+//!   responsivity scales s±, [`Evaluation::responsivity_scale`]), not the optical
+//!   ι = (k₊ − k₋)/(k₊ + k₋): with r = s₊/s₋ ≠ 1 the arms balance the detector at
+//!   ι = (1 − r)/(1 + r) (about −0.015 for the default 3 % mismatch), and the tolerance limits
+//!   on the imbalance are judged on ι′ too. To it are added offset_weight·|b₋ − b₊|/(b₊ + b₋),
+//!   only when the user gives the offset a weight, and a penalty 10·Σ max(0, f·k_ref − k±)/k_ref that holds each arm's k± at a fraction f of its
 //!   best. The best is taken as the better arm of the starting bench (k_ref = max(k₊, k₋) at
 //!   the start): balancing must not be bought by dimming the good arm. The offset term is off
 //!   by default: on the paper bench it is about 0.84, out of reach of the arm knobs, and its
@@ -100,7 +105,8 @@ impl Free {
 /// What to optimise.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Objective {
-    /// |imbalance| + offset_weight·|b₋ − b₊|/(b₊ + b₋), k± held at min_fraction of the best.
+    /// |electrical imbalance| + offset_weight·|b₋ − b₊|/(b₊ + b₋), k± held at min_fraction of
+    /// the best (module notes).
     Balance {
         min_fraction: f64,
         offset_weight: f64,
@@ -139,6 +145,9 @@ pub fn evaluate_for(
         evaluate(doc, settings, o)
     }
 }
+
+/// The balance objective's first term: the electrical imbalance's magnitude.
+pub const BALANCE_TERM: &str = "|electrical imbalance| |s₊k₊ − s₋k₋|/(s₊k₊ + s₋k₋)";
 
 /// One named term of an objective at a point: its value and its standard error (paired where
 /// the objective was evaluated against a reference bench).
@@ -200,8 +209,12 @@ pub struct Step {
     pub values: Vec<f64>,
     pub objective: f64,
     pub objective_stderr: f64,
+    /// The optical imbalance (k₊ − k₋)/(k₊ + k₋) and the electrical one (the balance
+    /// objective's), each with its standard error.
     pub imbalance: f64,
     pub imbalance_stderr: f64,
+    pub imbalance_electrical: f64,
+    pub imbalance_electrical_stderr: f64,
     pub k_plus: f64,
     pub k_minus: f64,
 }
@@ -242,7 +255,7 @@ pub fn objective(
     obj: &Objective,
     e: &Evaluation,
     k_ref: f64,
-    paired: Option<&BenchMetrics>,
+    paired: Option<&Evaluation>,
 ) -> (f64, f64) {
     let t = terms(obj, e, k_ref, paired);
     let f = t.iter().map(|t| t.value).sum::<f64>();
@@ -259,13 +272,13 @@ pub fn terms(
     obj: &Objective,
     e: &Evaluation,
     k_ref: f64,
-    paired: Option<&BenchMetrics>,
+    paired: Option<&Evaluation>,
 ) -> Vec<Term> {
     let m = &e.metrics;
     let value = |m: &BenchMetrics, metric: BenchMetric| -> (f64, f64) {
         let (v, se) = value(m, metric);
         match paired {
-            Some(p) => (v, m[metric].diff(&p[metric]).stderr),
+            Some(p) => (v, m[metric].diff(&p.metrics[metric]).stderr),
             None => (v, se),
         }
     };
@@ -279,12 +292,24 @@ pub fn terms(
             min_fraction,
             offset_weight,
         } => {
-            let (imb, imb_se) = value(m, BenchMetric::Imbalance);
+            // The electrical imbalance, each bench through its own responsivity scales, paired
+            // like the metrics (its influence is the optical one's times dι′/dι). Invalid
+            // electronics give NaN: no balance to reach.
+            let (imb, imb_se) = match (e.electrical_imbalance(), paired) {
+                (Some(i), Some(p)) => {
+                    let se = p
+                        .electrical_imbalance()
+                        .map_or(f64::NAN, |p| i.diff(&p).stderr);
+                    (i.value, se)
+                }
+                (Some(i), None) => (i.value, i.stderr()),
+                (None, _) => (f64::NAN, f64::NAN),
+            };
             let (kp, _) = value(m, BenchMetric::KPlus);
             let (km, _) = value(m, BenchMetric::KMinus);
             let short = |k: f64| (min_fraction * k_ref - k).max(0.0) / k_ref;
             let mut t = vec![term(
-                "|imbalance|",
+                BALANCE_TERM,
                 if imb.is_nan() { 1.0 } else { imb.abs() },
                 imb_se,
             )];
@@ -501,6 +526,17 @@ pub fn search(
             return Err(Error::field("free", format!("`{}` is free twice", f.path)));
         }
     }
+    if matches!(obj, Objective::Balance { .. }) {
+        // The balance is the detector's (the electrical imbalance): it needs valid electronics.
+        crate::scene::run::electronics_si(&doc.file.electronics, doc.text(), doc.path()).map_err(
+            |e| {
+                e.with_note(
+                    "the balance objective balances the detector's output through its diodes' \
+                     responsivity scales",
+                )
+            },
+        )?;
+    }
     let n = free.len();
     let start_values = check_start(doc, free, false)?;
     let to_x = |u: &[f64]| -> Vec<f64> {
@@ -544,7 +580,7 @@ pub fn search(
         ));
     }
     let history: std::cell::RefCell<Vec<Step>> = std::cell::RefCell::new(Vec::new());
-    let reference: std::cell::RefCell<Option<(usize, BenchMetrics)>> = Default::default();
+    let reference: std::cell::RefCell<Option<(usize, Evaluation)>> = Default::default();
     let evaluate = |u: &[f64], stage: usize, rays: u64| -> Result<(f64, f64)> {
         let x = to_x(u);
         let Some(p) = trace(&x, rays)? else {
@@ -556,6 +592,8 @@ pub fn search(
                 objective_stderr: f64::NAN,
                 imbalance: f64::NAN,
                 imbalance_stderr: f64::NAN,
+                imbalance_electrical: f64::NAN,
+                imbalance_electrical_stderr: f64::NAN,
                 k_plus: f64::NAN,
                 k_minus: f64::NAN,
             });
@@ -565,10 +603,11 @@ pub fn search(
         // The stage's first point is the reference of its paired standard errors.
         let mut r = reference.borrow_mut();
         if r.as_ref().is_none_or(|(s, _)| *s != stage) {
-            *r = Some((stage, p.metrics.clone()));
+            *r = Some((stage, p.clone()));
         }
-        let (f, se) = objective(obj, &p, k_ref, r.as_ref().map(|(_, m)| m));
+        let (f, se) = objective(obj, &p, k_ref, r.as_ref().map(|(_, e)| e));
         let (imb, imb_se) = value(&p.metrics, BenchMetric::Imbalance);
+        let electrical = p.electrical_imbalance();
         history.borrow_mut().push(Step {
             stage,
             rays,
@@ -577,6 +616,8 @@ pub fn search(
             objective_stderr: se,
             imbalance: imb,
             imbalance_stderr: imb_se,
+            imbalance_electrical: electrical.as_ref().map_or(f64::NAN, |e| e.value),
+            imbalance_electrical_stderr: electrical.as_ref().map_or(f64::NAN, |e| e.stderr()),
             k_plus: value(&p.metrics, BenchMetric::KPlus).0,
             k_minus: value(&p.metrics, BenchMetric::KMinus).0,
         });
@@ -777,13 +818,14 @@ fn nelder_mead(
 mod tests {
     use super::*;
 
-    /// An evaluation with the given metrics and nothing else.
+    /// An evaluation with the given metrics and matched diodes.
     fn evaluation(metrics: BenchMetrics) -> Evaluation {
         Evaluation {
             settings: Vec::new(),
             metrics,
             cmrr: None,
             cmrr_electronics_db: None,
+            responsivity_scale: Some([1.0, 1.0]),
             arrivals: 0,
             quality: None,
             spots: None,
@@ -831,6 +873,91 @@ mod tests {
         let t = terms(&with_offset, &m, 1.0, None);
         assert_eq!(t.len(), 3);
         assert!((t[1].value - 0.5 * 9.0 / 11.0).abs() < 1e-12, "{t:?}");
+    }
+
+    /// A bench whose k₊ = 1 and k₋ = 0.9 + 0.2·u (A/W) over the unit box, traced in four
+    /// batches with a small per-batch spread (so the imbalance has a standard error), with
+    /// diode responsivity scales `scale`.
+    fn closed_form(u: f64, scale: [f64; 2]) -> Evaluation {
+        use crate::transport::metrics::TracedValue;
+        let n = [10u64; 4];
+        let spread = [1.0 + 1e-5, 1.0 - 1e-5, 1.0 + 2e-5, 1.0 - 2e-5];
+        let kp: Vec<f64> = spread.iter().map(|s| 0.25 * s).collect();
+        let km: Vec<f64> = spread
+            .iter()
+            .rev()
+            .map(|s| (0.9 + 0.2 * u) / 4.0 * s)
+            .collect();
+        let diff: Vec<f64> = kp.iter().zip(&km).map(|(a, b)| a - b).collect();
+        let sum: Vec<f64> = kp.iter().zip(&km).map(|(a, b)| a + b).collect();
+        let flat = |v: f64| TracedValue::total(&n, &[v / 4.0; 4]);
+        let mut values = std::array::from_fn(|_| flat(1.0));
+        values[BenchMetric::KPlus as usize] = TracedValue::total(&n, &kp);
+        values[BenchMetric::KMinus as usize] = TracedValue::total(&n, &km);
+        values[BenchMetric::KPrime as usize] = TracedValue::total(&n, &sum);
+        values[BenchMetric::Imbalance as usize] = TracedValue::ratio(&diff, &sum);
+        Evaluation {
+            responsivity_scale: Some(scale),
+            ..evaluation(BenchMetrics { values })
+        }
+    }
+
+    /// With diodes of responsivity ratio r = s₊/s₋ ≠ 1, the detector's output balances where
+    /// s₊k₊ = s₋k₋, at the optical imbalance ι = (1 − r)/(1 + r), not at ι = 0. On the closed-form
+    /// bench (k₊ = 1, k₋ = 0.9 + 0.2u, s = [1, 0.97]) that is k₋ = 1/0.97, u* = (1/0.97 − 0.9)/0.2
+    /// = 0.6546, while the optical balance is at u = 0.5. The search finds u* within its
+    /// stopping size (1e-3 of the box) plus one last shrink step (2e-3 in all), i.e. ι within
+    /// 2e-3·|dι/du| (|dι/du| = 0.4·k₊/(k₊ + k₋)² < 0.11 here). The electrical term's standard
+    /// error is the optical one's times dι′/dι = 4r/(r(1 + ι) + (1 − ι))² (delta method).
+    #[test]
+    fn balance_balances_the_detector_not_the_optics() {
+        let s = [1.0, 0.97];
+        let r = s[0] / s[1];
+        let mut f = |u: &[f64]| -> Result<(f64, f64)> {
+            Ok(objective(
+                &Objective::BALANCE,
+                &closed_form(u[0], s),
+                1.0,
+                None,
+            ))
+        };
+        let (u, _) = nelder_mead(&mut f, &[0.3], 0.25, 500).unwrap();
+        let u_star = (1.0 / 0.97 - 0.9) / 0.2;
+        assert!((u[0] - u_star).abs() < 2e-3, "u = {}, u* = {u_star}", u[0]);
+        let at = closed_form(u[0], s);
+        let iota = at.metrics[BenchMetric::Imbalance].value;
+        let target = (1.0 - r) / (1.0 + r);
+        assert!(
+            (iota - target).abs() < 2e-3 * 0.11,
+            "ι = {iota}, (1 − r)/(1 + r) = {target}"
+        );
+        let e = at.electrical_imbalance().unwrap();
+        // dι′/dι = 4r/(r(1 + ι) + (1 − ι))² is 1.00 at ι = (1 − r)/(1 + r).
+        assert!(e.value.abs() < 2e-3 * 0.11 * 1.01, "ι′ = {}", e.value);
+        // The term is the electrical imbalance with its propagated standard error.
+        let start = closed_form(0.3, s);
+        let t = terms(&Objective::BALANCE, &start, 1.0, None);
+        let i0 = &start.metrics[BenchMetric::Imbalance];
+        let slope = 4.0 * r / (r * (1.0 + i0.value) + (1.0 - i0.value)).powi(2);
+        let e0 = start.electrical_imbalance().unwrap();
+        assert_eq!(t[0].name, BALANCE_TERM);
+        assert!((t[0].value - e0.value.abs()).abs() < 1e-15, "{t:?}");
+        assert!(i0.stderr() > 0.0);
+        assert!(
+            (t[0].stderr / (slope * i0.stderr()) - 1.0).abs() < 1e-9,
+            "{t:?}"
+        );
+        // Matched diodes: the optical balance, u = 0.5.
+        let mut g = |u: &[f64]| -> Result<(f64, f64)> {
+            Ok(objective(
+                &Objective::BALANCE,
+                &closed_form(u[0], [1.0, 1.0]),
+                1.0,
+                None,
+            ))
+        };
+        let (u, _) = nelder_mead(&mut g, &[0.3], 0.25, 500).unwrap();
+        assert!((u[0] - 0.5).abs() < 2e-3, "u = {}", u[0]);
     }
 
     #[test]
