@@ -8,9 +8,12 @@
 //! allows). A direction
 //! whose σ_k exceeds [`UNIDENTIFIED_SIGMA`] of the box is *unidentified*: the frames do not pin
 //! it, and it is scanned instead (the misfit traced at [`SCAN_POINTS`] points across the box
-//! along it, common random numbers); its range of equally good values is the stretch around the
-//! optimum where χ² stays within Δχ² = 4·max(1, χ²/dof) of the optimum (≈ 95 % for one
-//! parameter), extended to the first point beyond it on each side (or the bound).
+//! along it, common random numbers); its range of equally good values holds every scanned point
+//! whose χ² is within Δχ² = 4·max(1, χ²/dof) (≈ 95 % for one parameter) of the lowest χ² seen
+//! (the optimum's, or a scan point's where that is lower), across the whole box and not only
+//! around the optimum, so that another valley as good (a lens decentre's mirror image) is
+//! inside it; it runs from the first such point to the last, extended one point beyond each
+//! (or to the bound). A valley narrower than the scan's spacing can still fall between points.
 //!
 //! A is JᵀJ less the differences' own noise on its diagonal (Σ var Ĵ of each column, from the
 //! trace's batches: [`super::step`]), so that a column no larger than its noise adds no
@@ -232,20 +235,7 @@ fn scan(
         d.push(c - chi2);
         values.push(x);
     }
-    // The contiguous stretch around t = 0 within the limit, one point further each way.
-    let zero = ts
-        .iter()
-        .enumerate()
-        .min_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))
-        .map_or(0, |(k, _)| k);
-    let (mut lo, mut hi) = (zero, zero);
-    while lo > 0 && d[lo - 1] <= limit {
-        lo -= 1;
-    }
-    while hi + 1 < ts.len() && d[hi + 1] <= limit {
-        hi += 1;
-    }
-    let (lo, hi) = (lo.saturating_sub(1), (hi + 1).min(ts.len() - 1));
+    let (lo, hi) = equally_good(&ts, &d, limit);
     let (tl, th) = (ts[lo].min(0.0), ts[hi].max(0.0));
     let ends = |t: f64| p.to_values(&u.iter().zip(v).map(|(a, b)| a + t * b).collect::<Vec<_>>());
     let (xa, xb) = (ends(tl), ends(th));
@@ -258,6 +248,26 @@ fn scan(
         scan_delta_chi2: d,
         delta_chi2_limit: limit,
     })
+}
+
+/// The scan points' stretch of equally good values (module notes): from the first to the last
+/// point whose χ² is within `limit` of the lowest seen (the optimum's, `d` = 0, or a scan
+/// point's below it), the point nearest the optimum included, one point further each way
+/// (within the scan). Across the whole scan, not only the stretch around the optimum: a second
+/// valley as good within Δχ² (the mirror of a lens decentre) widens the range to hold it.
+pub fn equally_good(ts: &[f64], d: &[f64], limit: f64) -> (usize, usize) {
+    let zero = ts
+        .iter()
+        .enumerate()
+        .min_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))
+        .map_or(0, |(k, _)| k);
+    let floor = d.iter().copied().fold(0.0, f64::min);
+    let within = (0..d.len()).filter(|&k| d[k] - floor <= limit);
+    let (lo, hi) = within.fold((zero, zero), |(a, b), k| (a.min(k), b.max(k)));
+    (
+        lo.saturating_sub(1),
+        (hi + 1).min(ts.len().saturating_sub(1)),
+    )
 }
 
 /// M = Cov(Jᵀ·δr), the noise moment of the whitened residuals' projection on the Jacobian

@@ -17,8 +17,9 @@
 //! Those make a small step's slope mostly noise, and that noise inflates JᵀJ and shrinks the
 //! standard errors; the differences are therefore central, one-sided at a bound, with a step
 //! per variable chosen from the trace's own batches so that noise is a small share of each
-//! column ([`step`]). The first stage traces a quarter of the rays; the second, from the
-//! first's optimum, all of them.
+//! column ([`step`]). The first stage traces a quarter of the rays, from each of up to three
+//! coarse starts in distinct valleys ([`start`]); the second, from the lowest first-stage
+//! optimum, all of them.
 
 pub mod chi2;
 pub mod identify;
@@ -112,6 +113,22 @@ pub struct Fit {
     pub chi2_expected: chi2::Expected,
     /// The Monte Carlo variance scale at the optimum ([`model::VarianceScale`]).
     pub variance_scale: model::VarianceScale,
+    /// The starts Levenberg–Marquardt ran from ([`start`]), in the order run.
+    pub starts: Vec<StartRun>,
+}
+
+/// One start of the fit ([`start::coarse_starts`]) and where its first stage ended.
+#[derive(Debug, Clone)]
+pub struct StartRun {
+    /// The start (the variables' values) and its χ² at the first stage's rays.
+    pub from: Vec<f64>,
+    pub coarse_chi2: f64,
+    /// The first stage's optimum from it and its χ² there (the variance scale calibrated at
+    /// that point, as every start's is: they compare on one footing).
+    pub values: Vec<f64>,
+    pub chi2: f64,
+    /// Whether the second stage and the fit went on from it (the lowest χ²).
+    pub chosen: bool,
 }
 
 impl Fit {
@@ -422,13 +439,8 @@ pub fn fit(
         )
     })?;
     count();
-    let mut history = Vec::new();
-    let mut u = coarse_start(&p, p.to_unit(&start), stages[0], req.seed, &count)?;
-    for (stage, &r) in stages.iter().enumerate() {
-        p.calibrate(&p.to_values(&u), r, req.seed)?;
-        count();
-        u = levenberg_marquardt(&p, u, r, req.seed, stage, &mut history, &count)?;
-    }
+    let (mut u, mut history, starts) =
+        multi_start(&p, p.to_unit(&start), stages, req.seed, &count)?;
     let mut restarts = 0;
     let (u, best_prof, identification, chi2_expected) = loop {
         let x = p.to_values(&u);
@@ -495,19 +507,20 @@ pub fn fit(
         evaluations: evals.load(std::sync::atomic::Ordering::Relaxed),
         chi2_expected,
         variance_scale: p.scale.get(),
+        starts,
     })
 }
 
 pub use start::COARSE_POINTS;
 
-/// The coarse start from `u` ([`start`]) at (rays, seed).
+/// The coarse starts from `u` ([`start`]) at (rays, seed), best first.
 fn coarse_start(
     p: &Problem,
     u: Vec<f64>,
     rays: u64,
     seed: u64,
     count: &(dyn Fn() + Sync),
-) -> Result<Vec<f64>> {
+) -> Result<Vec<start::Scored>> {
     let mut chi2 = |v: &[f64]| -> Result<f64> {
         let c = p
             .at(&p.to_values(v), rays, seed)?
@@ -515,7 +528,55 @@ fn coarse_start(
         count();
         Ok(c)
     };
-    start::coarse_search(&mut chi2, u)
+    start::coarse_starts(&mut chi2, u, start::MAX_STARTS)
+}
+
+/// The first stage of Levenberg–Marquardt (`stages[0]` rays) from each coarse start
+/// ([`start::best_of_starts`]), each with its own difference steps from the rule's first; the
+/// second stage (all the rays) from the lowest first-stage optimum. Returns that optimum, the
+/// chosen start's accepted steps and every start's record.
+fn multi_start(
+    p: &Problem,
+    u0: Vec<f64>,
+    stages: [u64; 2],
+    seed: u64,
+    count: &(dyn Fn() + Sync),
+) -> Result<(Vec<f64>, Vec<FitStep>, Vec<StartRun>)> {
+    let starts = coarse_start(p, u0, stages[0], seed, count)?;
+    let mut runs: Vec<(Vec<FitStep>, Vec<f64>)> = Vec::with_capacity(starts.len());
+    let mut local = |u: Vec<f64>| -> Result<start::Scored> {
+        *p.steps.borrow_mut() = vec![step::RULE.first; u.len()];
+        let mut history = Vec::new();
+        p.calibrate(&p.to_values(&u), stages[0], seed)?;
+        count();
+        let u = levenberg_marquardt(p, u, stages[0], seed, 0, &mut history, count)?;
+        let c = p
+            .calibrate(&p.to_values(&u), stages[0], seed)?
+            .map_or(f64::INFINITY, |q| q.0.chi2);
+        count();
+        runs.push((history, p.steps.borrow().clone()));
+        Ok((u, c))
+    };
+    let (best, ends) = start::best_of_starts(&starts, &mut local)?;
+    let (mut history, steps) = runs.swap_remove(best);
+    *p.steps.borrow_mut() = steps;
+    let mut u = ends[best].0.clone();
+    p.calibrate(&p.to_values(&u), stages[1], seed)?;
+    count();
+    u = levenberg_marquardt(p, u, stages[1], seed, 1, &mut history, count)?;
+    let record = starts
+        .iter()
+        .zip(&ends)
+        .enumerate()
+        .map(|(k, (s, e))| StartRun {
+            from: p.to_values(&s.0),
+            coarse_chi2: s.1,
+            values: p.to_values(&e.0),
+            chi2: e.1,
+            chosen: k == best,
+        })
+        .collect();
+    Ok((u, history, record))
 }
 
 /// One stage of Levenberg–Marquardt from `u` (module notes); returns the stage's optimum.

@@ -71,3 +71,32 @@ fn profiled_nuisances_are_recovered_and_chi2_follows_the_noise() {
     let r = p.chi2 / dof;
     assert!((0.7..1.3).contains(&r), "χ²/dof {r}");
 }
+
+/// The equally good range along a scan spans every point within the limit, a second valley
+/// across a ridge included, not only the stretch around the optimum.
+#[test]
+fn the_equally_good_range_reaches_a_second_valley_across_a_ridge() {
+    use super::identify::equally_good;
+    let ts: Vec<f64> = (0..13).map(|k| -0.3 + 0.1 * k as f64).collect();
+    // The optimum at t = 0 (index 3), a ridge, the mirror valley at indices 9 and 10.
+    let d = [
+        30.0, 12.0, 2.0, 0.0, 3.0, 40.0, 90.0, 60.0, 9.0, 1.0, 2.5, 20.0, 50.0,
+    ];
+    // Around the optimum alone, indices 2..=4 (1..=5 with one point beyond): the old range.
+    assert_eq!(equally_good(&ts, &d, 4.0), (1, 11));
+    // A scan point below the optimum lowers the floor: the optimum's neighbours (2 and 3 above
+    // it) now count against −3 and fall out, the optimum's own index is always held: 3..=9.
+    let d2 = [
+        30.0, 12.0, 2.0, 0.0, 3.0, 40.0, 90.0, 60.0, 9.0, -3.0, 2.5, 20.0, 50.0,
+    ];
+    assert_eq!(equally_good(&ts, &d2, 4.0), (2, 10));
+    // Nothing else within the limit: the optimum and one point each way.
+    let mut d3 = vec![30.0; 13];
+    d3[3] = 0.0;
+    assert_eq!(equally_good(&ts, &d3, 4.0), (2, 4));
+    // The optimum at the scan's end: the range stops at the bound.
+    let mut d4 = vec![30.0; 13];
+    d4[12] = 0.0;
+    let ts4: Vec<f64> = (0..13).map(|k| -1.2 + 0.1 * k as f64).collect();
+    assert_eq!(equally_good(&ts4, &d4, 4.0), (11, 12));
+}

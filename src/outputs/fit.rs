@@ -92,7 +92,20 @@ pub struct FitSummary {
     pub correlation: Vec<Vec<Option<f64>>>,
     pub unidentified: Vec<Unidentified>,
     pub history: Vec<FitStep>,
+    /// How many starts Levenberg–Marquardt ran from, and each.
+    pub starts_run: usize,
+    pub starts: Vec<StartSummary>,
     pub adjustment: Option<AdjustmentSummary>,
+}
+
+/// One start of the fit in `summary.json`.
+#[derive(Debug, Serialize)]
+pub struct StartSummary {
+    pub from: Vec<f64>,
+    pub coarse_chi2: Option<f64>,
+    pub values: Vec<f64>,
+    pub chi2: Option<f64>,
+    pub chosen: bool,
 }
 
 /// The summary of a fit.
@@ -182,6 +195,18 @@ pub fn summarize(f: &Fit, doc: &BenchDoc, measured: &Measured) -> FitSummary {
             .collect(),
         unidentified: id.unidentified.clone(),
         history: f.history.clone(),
+        starts_run: f.starts.len(),
+        starts: f
+            .starts
+            .iter()
+            .map(|r| StartSummary {
+                from: r.from.clone(),
+                coarse_chi2: finite_or_null(r.coarse_chi2),
+                values: r.values.clone(),
+                chi2: finite_or_null(r.chi2),
+                chosen: r.chosen,
+            })
+            .collect(),
         adjustment,
     }
 }
