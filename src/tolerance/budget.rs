@@ -33,13 +33,13 @@
 //!    short tightened. The search stops when the next budget would save less than
 //!    `budget_search::MIN_SAVING` of the cheapest passing budget's cost, repeats a round, or the
 //!    rounds run out; the joint budget is the cheapest round that met the bound.
-//! 6. **Loosening pass** ([`budget_loosen`]). The cheapest budget need not be the
+//! 6. **Loosening pass** ([`super::budget_loosen`]). The cheapest budget need not be the
 //!    loosest (the cost weights differ by tolerance), and the one-at-a-time budget is over-tight
 //!    once scaled down to the target. From each (the cheapest passing round, and the
 //!    one-at-a-time budget scaled down uniformly until the surface holds it feasible), the
 //!    tolerance whose loosening step saves the most cost is loosened while the surface yield
 //!    holds; the result with the larger geometric-mean scale is confirmed on a fresh block of
-//!    trials ([`budget_loosen::LOOSEN_INDEX_BASE`]) and becomes the joint budget only if
+//!    trials ([`super::budget_loosen::LOOSEN_INDEX_BASE`]) and becomes the joint budget only if
 //!    its lower bound reaches Y. Its round is the last of `rounds` (`Rounds::loosened`).
 //!
 //! A round that passes after several were tried is the cheapest of the passing rounds: each
@@ -61,9 +61,7 @@ use super::budget_search::{
 };
 use super::budget_surface::{Samples, Surface, fraction_needed, soft_widths, wilson_lower};
 
-// The loosening pass, in its own file beside this one (`src/tolerance/budget_loosen.rs`).
-#[path = "budget_loosen.rs"]
-pub mod budget_loosen;
+use super::budget_loosen;
 
 /// How the lower bound of a confirmation's yield is computed (named in `summary.json`).
 pub const LOWER_BOUND_METHOD: &str = "Wilson score, one-sided";

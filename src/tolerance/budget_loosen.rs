@@ -1,5 +1,5 @@
 //! The loosening pass after the rounds of a tolerance budget (crate::tolerance::budget, step 6; a
-//! child of `budget`, in its own file).
+//! sibling of `budget`, declared in `tolerance`).
 //!
 //! The rounds' allocation ([`crate::tolerance::budget::allocate`]) minimises the total cost on the surface,
 //! and the joint budget is the cheapest round that passed. Cost and looseness are not the same

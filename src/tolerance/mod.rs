@@ -34,6 +34,7 @@ use crate::scene::tolerance::{
 pub use crate::pipeline::evaluate::{quality_key, values};
 
 pub mod budget;
+pub mod budget_loosen;
 pub mod budget_search;
 pub mod budget_surface;
 pub mod summaries;
