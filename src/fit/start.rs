@@ -58,6 +58,38 @@ fn coordinate_scan(
     Ok((u, best))
 }
 
+/// A descent from `u` (χ² there `best`) that stays in its basin: each variable in turn moves
+/// one coordinate-scan step ([`DISTINCT`]) either way while that lowers χ², until no move does
+/// (at most `COARSE_POINTS` passes). [`coordinate_scan`] looks along each whole axis and can
+/// leave a narrow valley for a broad one that its axis crosses; a pair grid's local minimum is
+/// refined by this instead, so that its valley is kept for Levenberg–Marquardt.
+fn local_scan(
+    chi2: &mut dyn FnMut(&[f64]) -> Result<f64>,
+    mut u: Vec<f64>,
+    mut best: f64,
+) -> Result<Scored> {
+    for _pass in 0..COARSE_POINTS {
+        let mut moved = false;
+        for i in 0..u.len() {
+            for dir in [-1.0, 1.0] {
+                let mut v = u.clone();
+                v[i] = (v[i] + dir * DISTINCT).clamp(0.0, 1.0);
+                if v == u {
+                    continue;
+                }
+                let c = chi2(&v)?;
+                if c < best {
+                    (best, u, moved) = (c, v, true);
+                }
+            }
+        }
+        if !moved {
+            break;
+        }
+    }
+    Ok((u, best))
+}
+
 /// The local minima of every pair's grid around `u` (the others held): the grid points whose
 /// χ² is finite and below that of each neighbour along a level, in the order found.
 fn pair_minima(chi2: &mut dyn FnMut(&[f64]) -> Result<f64>, u: &[f64]) -> Result<Vec<Scored>> {
@@ -127,7 +159,7 @@ pub fn coarse_starts(
     let minima = distinct_best(pair_minima(chi2, &u)?, max.max(1));
     let mut candidates = vec![coordinate_scan(chi2, u, c0)?];
     for (g, cg) in minima {
-        candidates.push(coordinate_scan(chi2, g, cg)?);
+        candidates.push(local_scan(chi2, g, cg)?);
     }
     Ok(distinct_best(candidates, max.max(1)))
 }
@@ -258,19 +290,22 @@ mod tests {
         let (k, ends) = best_of_starts(&one, &mut local).unwrap();
         assert!((ends[k].1 - 1.0).abs() < 1e-6, "{ends:?}");
         // Several: the start's own scan ends at (1/4, 1/2), within a grid step of the shallow
-        // valley's grid point, so it is dropped; the deep valley's local minimum is the second
-        // start, and its descent reaches the true floor, χ² 0 at (0.8, 0.7).
+        // valley's grid point, so it is dropped; the deep valley's local minimum, refined in its
+        // basin, is the first start, the shallow one the second, and the deep one's descent
+        // reaches the true floor, χ² 0 at (0.8, 0.7).
         let starts = coarse_starts(&mut f, vec![0.5, 0.5], MAX_STARTS).unwrap();
         assert_eq!(starts.len(), 2, "{starts:?}");
         assert!(starts[0].1 <= starts[1].1);
+        assert!((starts[0].0[0] - 5.0 / 6.0).abs() < 1e-12, "{starts:?}");
+        assert!((starts[1].0[0] - 1.0 / 6.0).abs() < 1e-12, "{starts:?}");
         let (k, ends) = best_of_starts(&starts, &mut local).unwrap();
-        assert_eq!(k, 1, "{ends:?}");
+        assert_eq!(k, 0, "{ends:?}");
         assert!(ends[k].1 < 1e-6, "{ends:?}");
         assert!(
             (ends[k].0[0] - 0.8).abs() < 1e-3 && (ends[k].0[1] - 0.7).abs() < 1e-3,
             "{ends:?}"
         );
-        assert!((ends[0].1 - 1.0).abs() < 1e-6, "{ends:?}");
+        assert!((ends[1].1 - 1.0).abs() < 1e-6, "{ends:?}");
     }
 
     #[test]
