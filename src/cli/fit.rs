@@ -39,7 +39,8 @@ pub struct FitArgs {
     /// A compensator the user can turn, PATH=LO:HI: the fitted bench is rebalanced with these.
     #[arg(long, value_name = "PATH=LO:HI")]
     pub adjust: Vec<String>,
-    /// The |imbalance| the adjustment must bring the fitted bench under.
+    /// The |electrical imbalance| ι′ (the diodes' responsivity scales included, as the tolerance
+    /// yield judges it) the adjustment must bring the fitted bench under.
     #[arg(long, default_value_t = 0.01, value_name = "L")]
     pub imbalance_limit: f64,
     #[command(flatten)]

@@ -2,7 +2,7 @@
 
 use std::path::{Path, PathBuf};
 
-use crate::common::{TempDir, assert_input_error, read_json, spibench, stderr};
+use crate::common::{TempDir, assert_input_error, read_json, spibench, stderr, stdout};
 
 fn scene(name: &str) -> String {
     Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -271,6 +271,64 @@ fn align_writes_its_outputs() {
     assert_eq!(s["objective_terms"][0]["name"], "−k'/k'_start");
     let o = spibench(&["check", out.join("aligned.ron").to_str().unwrap()], &[]);
     assert!(o.status.success(), "{}", stderr(&o));
+}
+
+/// `align --objective balance` balances the detector, not the optics: on the symmetric bench
+/// (optically balanced) with the − diode's responsivity 0.95 of the + one's, the electrical
+/// imbalance starts at (1 − 0.95)/(1 + 0.95) = 0.0256, where an optical balance would leave
+/// it. The + diode starts 2 mm off, its spot still inside; decentring it further clips the spot
+/// and lowers k₊ towards 0.95 k₋ (measured: ι′ 0.0258 → 0.0010 at 2.126 mm): |ι′| must fall by
+/// more than 4 standard errors of the change and end below 0.0256, while the optical imbalance
+/// moves away from zero (towards the balance point −0.0256).
+#[test]
+fn align_balance_balances_the_detector_not_the_optics() {
+    let dir = TempDir::new("align-electrical");
+    let bench = scene("tests/symmetric_arms.ron");
+    let out = dir.join("a");
+    let o = spibench(
+        &[
+            "align",
+            &bench,
+            "--set",
+            "electronics.detector.responsivity_scale_minus=0.95",
+            "--set",
+            "detectors.plus.decenter_mm.x=2.0",
+            "--free",
+            "detectors.plus.decenter_mm.x=-0.5:1",
+            "--objective",
+            "balance",
+            "--min-fraction",
+            "0.5",
+            "--rays",
+            "16384",
+            "--max-evaluations",
+            "40",
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        &[],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let s = read_json(&out.join("summary.json"));
+    let (start, end) = (&s["start"], &s["aligned"]);
+    let i0 = start["imbalance_electrical"].as_f64().unwrap();
+    let i1 = end["imbalance_electrical"].as_f64().unwrap();
+    let se = end["imbalance_electrical_diff_stderr"].as_f64().unwrap();
+    assert!(
+        (i0 - 0.05 / 1.95).abs()
+            < 4.0 * start["imbalance_electrical_stderr"].as_f64().unwrap() + 1e-3,
+        "{i0}"
+    );
+    assert!(
+        i0.abs() - i1.abs() > 4.0 * se,
+        "|ι′| {i0} → {i1}, SE of the change {se}"
+    );
+    assert!(i1.abs() < 0.05 / 1.95, "{i1}");
+    assert!(end["imbalance"].as_f64().unwrap() < 0.0, "{end}");
+    let term = s["objective_terms"][0]["name"].as_str().unwrap();
+    assert!(term.starts_with("|electrical imbalance|"), "{term}");
+    let card = stdout(&o);
+    assert!(card.contains("electrical"), "{card}");
 }
 
 /// `align --objective centre` on the symmetric bench with the − diode moved 1.15 mm off its
