@@ -613,51 +613,73 @@ fn loss_shares(surface: &Surface, samples: &Samples, scales: &[f64]) -> Vec<f64>
         .collect()
 }
 
+/// A test fixture shared by this module's and `budget_loosen`'s tests: tolerances over ±1
+/// (nominal 0, none fixed, no compensators) acting linearly on the imbalance with slopes
+/// `lin`, and the one limit |imbalance| ≤ `abs_max`.
+#[cfg(test)]
+pub(crate) fn linear_model(
+    tolerances: &[(&str, crate::scene::tolerance::Distribution)],
+    lin: &[f64],
+    abs_max: f64,
+) -> (ToleranceSet, Surface) {
+    use crate::quantities::BenchMetric;
+    use crate::scene::tolerance::{Tolerance, ToleranceLimit};
+    use crate::tolerance::budget_surface::MetricSurface;
+    let limit = ToleranceLimit {
+        metric: BenchMetric::Imbalance.into(),
+        min: None,
+        max: None,
+        abs_max: Some(abs_max),
+    };
+    let set = ToleranceSet {
+        path: "t.ron".into(),
+        tolerances: tolerances
+            .iter()
+            .map(|(p, distribution)| Tolerance {
+                path: (*p).into(),
+                min: -1.0,
+                max: 1.0,
+                distribution: *distribution,
+                nominal: 0.0,
+                fixed: false,
+            })
+            .collect(),
+        compensators: Vec::new(),
+        limits: vec![limit.clone()],
+        quality: None,
+    };
+    let surface = Surface {
+        metrics: vec![MetricSurface {
+            metric: BenchMetric::Imbalance.into(),
+            recorded: "imbalance".into(),
+            m0: 0.0,
+            lin: lin.to_vec(),
+            quad: vec![0.0; lin.len()],
+            cross: Vec::new(),
+        }],
+        limits: vec![(0, limit)],
+        unmodelled: Vec::new(),
+    };
+    (set, surface)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::quantities::BenchMetric;
-    use crate::scene::tolerance::{Distribution, Tolerance, ToleranceLimit};
-    use crate::tolerance::budget_surface::MetricSurface;
+    use crate::scene::tolerance::Distribution;
 
     /// Two tolerances on a linear imbalance, one 4× as sensitive: the surface yield is met,
     /// the dear-to-tighten one stays looser, and the inverse limits put each alone at the
     /// limit.
     fn toy() -> (ToleranceSet, Surface) {
-        let t = |p: &str| Tolerance {
-            path: p.into(),
-            min: -1.0,
-            max: 1.0,
-            distribution: Distribution::Uniform,
-            nominal: 0.0,
-            fixed: false,
-        };
-        let limit = ToleranceLimit {
-            metric: BenchMetric::Imbalance.into(),
-            min: None,
-            max: None,
-            abs_max: Some(0.01),
-        };
-        let set = ToleranceSet {
-            path: "t.ron".into(),
-            tolerances: vec![t("a.despace_mm"), t("b.despace_mm")],
-            compensators: Vec::new(),
-            limits: vec![limit.clone()],
-            quality: None,
-        };
-        let surface = Surface {
-            metrics: vec![MetricSurface {
-                metric: BenchMetric::Imbalance.into(),
-                recorded: "imbalance".into(),
-                m0: 0.0,
-                lin: vec![0.04, 0.01],
-                quad: vec![0.0, 0.0],
-                cross: Vec::new(),
-            }],
-            limits: vec![(0, limit)],
-            unmodelled: Vec::new(),
-        };
-        (set, surface)
+        linear_model(
+            &[
+                ("a.despace_mm", Distribution::Uniform),
+                ("b.despace_mm", Distribution::Uniform),
+            ],
+            &[0.04, 0.01],
+            0.01,
+        )
     }
 
     #[test]

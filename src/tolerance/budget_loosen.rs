@@ -355,10 +355,9 @@ pub fn after_rounds(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::quantities::BenchMetric;
-    use crate::scene::tolerance::{Distribution, Tolerance, ToleranceLimit, ToleranceSet};
+    use crate::scene::tolerance::{Distribution, ToleranceSet};
     use crate::tolerance::budget::{allocate, inverse_limit};
-    use crate::tolerance::budget_surface::{MetricSurface, fraction_needed, wilson_lower};
+    use crate::tolerance::budget_surface::{fraction_needed, wilson_lower};
 
     const LIMIT: f64 = 0.01;
 
@@ -371,46 +370,17 @@ mod tests {
     /// normals almost never draw (σ = 1/8 of the range), so those limits are tight for what
     /// they cost, while together at their limits the four add up and miss a 93 % surface yield.
     fn model(lin: [f64; 4]) -> (ToleranceSet, Surface) {
-        let t = |p: &str, distribution| Tolerance {
-            path: p.into(),
-            min: -1.0,
-            max: 1.0,
-            distribution,
-            nominal: 0.0,
-            fixed: false,
-        };
         let narrow = Distribution::TruncatedNormal { sigmas: 8.0 };
-        let limit = ToleranceLimit {
-            metric: BenchMetric::Imbalance.into(),
-            min: None,
-            max: None,
-            abs_max: Some(LIMIT),
-        };
-        let set = ToleranceSet {
-            path: "t.ron".into(),
-            tolerances: vec![
-                t("a.despace_mm", Distribution::Uniform),
-                t("b.despace_mm", narrow),
-                t("c.despace_mm", narrow),
-                t("d.despace_mm", narrow),
+        crate::tolerance::budget::linear_model(
+            &[
+                ("a.despace_mm", Distribution::Uniform),
+                ("b.despace_mm", narrow),
+                ("c.despace_mm", narrow),
+                ("d.despace_mm", narrow),
             ],
-            compensators: Vec::new(),
-            limits: vec![limit.clone()],
-            quality: None,
-        };
-        let surface = Surface {
-            metrics: vec![MetricSurface {
-                metric: BenchMetric::Imbalance.into(),
-                recorded: "imbalance".into(),
-                m0: 0.0,
-                lin: lin.to_vec(),
-                quad: vec![0.0; 4],
-                cross: Vec::new(),
-            }],
-            limits: vec![(0, limit)],
-            unmodelled: Vec::new(),
-        };
-        (set, surface)
+            &lin,
+            LIMIT,
+        )
     }
 
     /// A synthetic confirmation: `n` trials drawn as traced trials are (`perturb::draw` at the
