@@ -419,9 +419,9 @@ fn run_budget(
         confirmations: Vec::new(),
     };
     let prior = read_resumed(&args.resume, &trials_file, set)?;
-    // The rounds and the baseline's confirmation, each `--trials` trials (a resume's traced
-    // ones not counted apart: an estimate errs high).
-    let all_trials = args.trials.saturating_mul(b.max_rounds as u64 + 1);
+    // The rounds, the baseline's confirmation and the loosening pass's, each `--trials`
+    // trials (a resume's traced ones not counted apart: an estimate errs high).
+    let all_trials = args.trials.saturating_mul(b.max_rounds as u64 + 2);
     args.work
         .check(&work(set, all_trials, shard, o.rays, resolve.as_ref()))?;
     let out = OutputDir::create(&args.opts.out_or("out/tolerance"))?;
@@ -525,15 +525,22 @@ fn finish_budget(
 ) -> Result<()> {
     use crate::outputs::tolerance::budget::{BudgetRun, write_budget};
     let name = doc.name();
+    // The DMD's model is written out whether or not it was chosen on the command line, so
+    // that the command repeats the budget whatever the bench file's default.
     let command = format!(
         "spibench tolerance {name} --tolerances {} --budget --target-yield {} --confidence {} \
-         --trials {} --rays {} --seed {}{}",
+         --trials {} --rays {} --seed {}{}{}{}",
         tol_path.display(),
         b.target_yield,
         b.confidence,
         b.trials,
         o.rays,
         o.seed,
+        doc.dmd_model()
+            .map_or(String::new(), |m| format!(" --dmd-model {}", m.name())),
+        args.costs
+            .as_ref()
+            .map_or(String::new(), |p| format!(" --costs {}", p.display())),
         if o.quality { " --quality" } else { "" }
     );
     let costs_name = args.costs.as_ref().map(|p| p.display().to_string());

@@ -70,6 +70,9 @@ fn a_budget_reads_back_and_holds_its_yield_under_another_seed() {
         text.contains("// scale ") && text.contains("% of the yield loss"),
         "{text}"
     );
+    // The command that made it names the DMD's model, whatever the file's default.
+    let made_by = text.lines().find(|l| l.starts_with("// Made by")).unwrap();
+    assert!(made_by.contains("--dmd-model geometric"), "{made_by}");
     // Independently verified: the budget file, another seed, 300 trials.
     let check = dir.join("check");
     let b = out.join("budget.ron");
