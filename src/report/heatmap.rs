@@ -136,6 +136,9 @@ fn draw<DB: DrawingBackend>(
         .y_desc(h.y_label.as_str())
         .axis_desc_style((FAMILY, DESC_SIZE))
         .label_style((FAMILY, TICK_SIZE))
+        // Five x ticks: labels of a few characters at tick size fill the map's width at ten
+        // (plotters' default), which overlap on a 64-bin map's range.
+        .x_labels(5)
         .x_label_formatter(&|v| super::plot::format_tick(*v).replace('-', "−"))
         .y_label_formatter(&|v| super::plot::format_tick(*v).replace('-', "−"))
         .draw()
@@ -193,7 +196,16 @@ fn draw<DB: DrawingBackend>(
             ))
             .map_err(|e| e.to_string())?;
     }
-    // The colour bar: a column of 100 steps from lo to hi, with its own value axis.
+    // The colour bar: a column of 100 steps from lo to hi, with its own value axis, its ticks
+    // in units of 10ᵉ (named in its label) where the values need an exponent, so that a tick
+    // is a few characters wide and fits the bar's column.
+    let e = common_exponent(lo, hi);
+    let scale = 10f64.powi(e);
+    let bar_label = if e == 0 {
+        h.value_label.clone()
+    } else {
+        format!("{} ×10{}", h.value_label, crate::report::superscript(e))
+    };
     let mut cb = ChartBuilder::on(&bar)
         .margin_top(MARGIN)
         .margin_bottom(MARGIN + X_LABEL_AREA)
@@ -204,17 +216,10 @@ fn draw<DB: DrawingBackend>(
     cb.configure_mesh()
         .disable_mesh()
         .disable_x_axis()
-        .y_desc(h.value_label.as_str())
+        .y_desc(bar_label.as_str())
         .axis_desc_style((FAMILY, DESC_SIZE))
         .label_style((FAMILY, TICK_SIZE))
-        .y_label_formatter(&|v| {
-            let s = if v.abs() >= 1e4 || (v.abs() < 1e-2 && *v != 0.0) {
-                format!("{v:.2e}")
-            } else {
-                super::plot::format_tick(*v)
-            };
-            s.replace('-', "−")
-        })
+        .y_label_formatter(&|v| super::plot::format_tick(v / scale).replace('-', "−"))
         .draw()
         .map_err(|e| e.to_string())?;
     let steps = 100;
@@ -230,15 +235,34 @@ fn draw<DB: DrawingBackend>(
     root.present().map_err(|e| e.to_string())
 }
 
+/// The power of ten the colour bar's ticks are written in: 0 where the larger magnitude of the
+/// range lies in [10⁻², 10⁴) (plain decimals of a few characters), else its decade, so that
+/// 2.5e-7 … 1.5e-6 W/m² reads 0.25 … 1.5 under "×10⁻⁶".
+fn common_exponent(lo: f64, hi: f64) -> i32 {
+    let m = lo.abs().max(hi.abs());
+    if m == 0.0 || !m.is_finite() || (1e-2..1e4).contains(&m) {
+        0
+    } else {
+        m.log10().floor() as i32
+    }
+}
+
 /// The SVG text (print size, text as outlines) of a heatmap.
 pub fn heatmap_svg(h: &Heatmap) -> Result<String> {
     heatmap_svg_with(h, &[])
 }
 
 /// The SVG text of a heatmap with circles drawn over it.
+/// With circles (a diode's outline on a map in metres) the plotting area is square
+/// ([`INSET_SIZE`]), so that a circle on a square map is drawn round.
 pub fn heatmap_svg_with(h: &Heatmap, circles: &[Circle]) -> Result<String> {
     let range = check(h)?;
-    super::svg::at_print_size(&drawn(h, range, circles, (WIDTH, HEIGHT))?)
+    let size = if circles.is_empty() {
+        (WIDTH, HEIGHT)
+    } else {
+        INSET_SIZE
+    };
+    super::svg::at_print_size(&drawn(h, range, circles, size)?)
 }
 
 /// The size of an inset heatmap in SVG units (half points): [`heatmap_inset_svg`]'s viewBox,
@@ -654,6 +678,48 @@ mod tests {
         assert!(render(&bad).is_err());
         assert_eq!(colour(0.0), RGBColor(68, 1, 84));
         assert_eq!(colour(1.0), RGBColor(253, 231, 37));
+    }
+
+    /// The colour bar's ticks take a common power of ten outside [10⁻², 10⁴), and a map with
+    /// circles (a diode's outline) is drawn with a square plotting area: its viewBox is
+    /// [`INSET_SIZE`], not the sweep heatmap's.
+    #[test]
+    fn colour_bars_share_an_exponent_and_outlined_maps_are_square() {
+        assert_eq!(common_exponent(0.0, 0.5), 0);
+        assert_eq!(common_exponent(-3.0, 9999.0), 0);
+        assert_eq!(common_exponent(2.5e-7, 1.5e-6), -6);
+        assert_eq!(common_exponent(-4.2e-3, 1e-3), -3);
+        assert_eq!(common_exponent(0.0, 3.2e5), 5);
+        let n = 8;
+        let c: Vec<f64> = (0..n).map(|i| (i as f64 - 3.5) * 1e-3).collect();
+        let h = Heatmap {
+            x_label: "x (mm)".into(),
+            y_label: "y (mm)".into(),
+            value_label: "irradiance (W/m²)".into(),
+            xs: c.clone(),
+            ys: c.clone(),
+            values: (0..n * n).map(|k| 1e-6 * k as f64).collect(),
+            mark: None,
+        };
+        let view_box = |svg: &str| {
+            let v = svg.split("viewBox=\"").nth(1).unwrap();
+            let v: Vec<f64> = v
+                .split('"')
+                .next()
+                .unwrap()
+                .split_whitespace()
+                .map(|x| x.parse().unwrap())
+                .collect();
+            (v[2], v[3])
+        };
+        let plain = heatmap_svg(&h).unwrap();
+        assert_eq!(view_box(&plain), (WIDTH as f64, HEIGHT as f64));
+        let ring = Circle {
+            centre: (0.0, 0.0),
+            radius: 2e-3,
+        };
+        let round = heatmap_svg_with(&h, &[ring]).unwrap();
+        assert_eq!(view_box(&round), (INSET_SIZE.0 as f64, INSET_SIZE.1 as f64));
     }
 
     /// A few dark units with a huge ratio (stray light over 2e-12 W) do not set the colour

@@ -33,23 +33,8 @@ pub(super) fn pm(v: f64, se: f64) -> String {
     if e3 == 0 {
         body
     } else {
-        format!("({body})×10{}", superscript(e3))
+        format!("({body})×10{}", crate::report::superscript(e3))
     }
-}
-
-/// An exponent in superscript digits ("⁻³").
-fn superscript(e: i32) -> String {
-    let digits = ['⁰', '¹', '²', '³', '⁴', '⁵', '⁶', '⁷', '⁸', '⁹'];
-    let mut s: String = e
-        .unsigned_abs()
-        .to_string()
-        .chars()
-        .map(|c| digits[c.to_digit(10).unwrap_or(0) as usize])
-        .collect();
-    if e < 0 {
-        s.insert(0, '⁻');
-    }
-    s
 }
 
 /// A tolerance's name in the report: its path, and "(fixed: cannot be tightened)" for a
