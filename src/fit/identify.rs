@@ -9,8 +9,16 @@
 //! whose σ_k exceeds [`UNIDENTIFIED_SIGMA`] of the box is *unidentified*: the frames do not pin
 //! it, and it is scanned instead (the misfit traced at [`SCAN_POINTS`] points across the box
 //! along it, common random numbers); its range of equally good values holds every scanned point
-//! whose χ² is within Δχ² = 4·max(1, χ²/dof) (≈ 95 % for one parameter) of the lowest χ² seen
-//! (the optimum's, or a scan point's where that is lower), across the whole box and not only
+//! whose χ² is within Δχ² = 4·max(1, χ²/dof) + 2√2·sd(χ²) of the lowest χ² seen (the optimum's,
+//! or a scan point's where that is lower). The first term is the ≈ 95 % limit for one parameter
+//! where the noise is the same at both points; the second is the noise of a χ² difference
+//! between points whose traces do not share it (sd(χ²) is [`super::chi2::Expected::sd`], √2 for
+//! two independent draws, 2 of them for ≈ 95 %): common random numbers cancel the trace's noise
+//! between neighbouring benches, not between a lens decentred by +d and by −d, whose rays take
+//! other paths, and where the model's rays are few that noise (hundreds on a few thousand frame
+//! values) swamps the first term, so a valley found at one trace's noise is not a valley the
+//! data prefer. The limit is conservative for near points (their noise is partly shared). The
+//! range spans the whole box and not only
 //! around the optimum, so that another valley as good (a lens decentre's mirror image) is
 //! inside it; it runs from the first such point to the last, extended one point beyond each
 //! (or to the bound). A valley narrower than the scan's spacing can still fall between points.
@@ -84,6 +92,22 @@ impl Identification {
     }
 }
 
+/// The misfit at the optimum: χ², χ²/dof and the standard deviation of χ² a correct model
+/// gives ([`super::chi2::Expected::sd`]).
+#[derive(Debug, Clone, Copy)]
+pub struct At {
+    pub chi2: f64,
+    pub chi2_dof: f64,
+    pub chi2_sd: f64,
+}
+
+impl At {
+    /// The Δχ² within which a scanned point is as good as the optimum (module notes).
+    pub fn limit(&self) -> f64 {
+        4.0 * self.chi2_dof.max(1.0) + 2.0 * std::f64::consts::SQRT_2 * self.chi2_sd
+    }
+}
+
 /// Identifies the fit at `u` (unit box) from its Jacobian's columns (module notes).
 #[allow(clippy::too_many_arguments)]
 pub fn identify(
@@ -92,12 +116,12 @@ pub fn identify(
     jacobian: &super::Jacobian,
     prof: &super::Profiled,
     batches: &super::model::BatchFrames,
-    chi2: f64,
-    chi2_dof: f64,
+    at: At,
     rays: u64,
     seed: u64,
     count: &(dyn Fn() + Sync),
 ) -> Result<Identification> {
+    let chi2_dof = at.chi2_dof;
     let n = u.len();
     let jac = &jacobian.cols;
     // A = JᵀJ less the differences' own noise on its diagonal (E[ŝ²] = s² + var ŝ, module
@@ -149,7 +173,7 @@ pub fn identify(
                 identified[i] = false;
             }
         }
-        unidentified.push(scan(p, u, &v, s[k], chi2, chi2_dof, rays, seed, count)?);
+        unidentified.push(scan(p, u, &v, s[k], at, rays, seed, count)?);
     }
     // C = A⁺·M·A⁺ over the identified directions, in the variables' units.
     let mut cov = vec![vec![0.0; n]; n];
@@ -205,8 +229,7 @@ fn scan(
     u: &[f64],
     v: &[f64],
     singular_value: f64,
-    chi2: f64,
-    chi2_dof: f64,
+    at: At,
     rays: u64,
     seed: u64,
     count: &(dyn Fn() + Sync),
@@ -224,7 +247,7 @@ fn scan(
     let ts: Vec<f64> = (0..SCAN_POINTS)
         .map(|k| t_lo + (t_hi - t_lo) * k as f64 / (SCAN_POINTS - 1) as f64)
         .collect();
-    let limit = 4.0 * chi2_dof.max(1.0);
+    let (chi2, limit) = (at.chi2, at.limit());
     let mut d = Vec::with_capacity(ts.len());
     let mut values = Vec::with_capacity(ts.len());
     for &t in &ts {

@@ -455,8 +455,14 @@ pub fn fit(
         let jacobian = p.jacobian(&u, rays, req.seed, &count)?;
         let jac = &jacobian.cols;
         let chi2_dof = prof.chi2 / dof.max(1) as f64;
+        let expected = chi2::expected(&p, &prof, jac, &batches);
+        let at = identify::At {
+            chi2: prof.chi2,
+            chi2_dof,
+            chi2_sd: expected.sd,
+        };
         let id = identify::identify(
-            &p, &u, &jacobian, &prof, &batches, prof.chi2, chi2_dof, rays, req.seed, &count,
+            &p, &u, &jacobian, &prof, &batches, at, rays, req.seed, &count,
         )?;
         // A scan that found a clearly better point: the optimum was local; go on from there.
         match id.better_point() {
@@ -473,10 +479,7 @@ pub fn fit(
                     &count,
                 )?;
             }
-            _ => {
-                let expected = chi2::expected(&p, &prof, jac, &batches);
-                break (u, prof, id, expected);
-            }
+            _ => break (u, prof, id, expected),
         }
     };
     let x = p.to_values(&u);
@@ -542,6 +545,9 @@ fn multi_start(
     seed: u64,
     count: &(dyn Fn() + Sync),
 ) -> Result<(Vec<f64>, Vec<FitStep>, Vec<StartRun>)> {
+    // The variance scale of the nominal bench's calibration (the caller's): the starts' ends
+    // are compared under it, not each under its own, whose batch estimate differs by noise.
+    let scale = p.scale.get();
     let starts = coarse_start(p, u0, stages[0], seed, count)?;
     let mut runs: Vec<(Vec<FitStep>, Vec<f64>)> = Vec::with_capacity(starts.len());
     let mut local = |u: Vec<f64>| -> Result<start::Scored> {
@@ -550,10 +556,8 @@ fn multi_start(
         p.calibrate(&p.to_values(&u), stages[0], seed)?;
         count();
         let u = levenberg_marquardt(p, u, stages[0], seed, 0, &mut history, count)?;
-        let c = p
-            .calibrate(&p.to_values(&u), stages[0], seed)?
-            .map_or(f64::INFINITY, |q| q.0.chi2);
-        count();
+        p.scale.set(scale);
+        let c = selection_chi2(p, &u, stages[0], seed, count)?;
         runs.push((history, p.steps.borrow().clone()));
         Ok((u, c))
     };
@@ -578,6 +582,35 @@ fn multi_start(
         .collect();
     Ok((u, history, record))
 }
+
+/// Independent traces a start's end is judged by ([`selection_chi2`]).
+pub const SELECTION_SEEDS: u64 = 3;
+
+/// The mean χ² at `u` over [`SELECTION_SEEDS`] traces on seeds of their own (infinite where
+/// the bench does not build). Each start's optimum was found on the fit's common random
+/// numbers, whose noise has one realisation at each point: a valley whose realisation happens
+/// to lie low would win against a deeper one by the noise of one trace (the χ² of one trace
+/// scatters by hundreds on a frame set of a few thousand values where the rays are few), so
+/// the valleys are compared on fresh traces, their mean's scatter smaller by √3.
+fn selection_chi2(
+    p: &Problem,
+    u: &[f64],
+    rays: u64,
+    seed: u64,
+    count: &(dyn Fn() + Sync),
+) -> Result<f64> {
+    let x = p.to_values(u);
+    let mut sum = 0.0;
+    for k in 0..SELECTION_SEEDS {
+        let s = seed.wrapping_add(SELECTION_SEED_BASE + k);
+        sum += p.at(&x, rays, s)?.map_or(f64::INFINITY, |q| q.chi2);
+        count();
+    }
+    Ok(sum / SELECTION_SEEDS as f64)
+}
+
+/// Added to the fit's seed for the selection traces: far from any seed a user counts through.
+const SELECTION_SEED_BASE: u64 = 0x5e1e_c700_0000;
 
 /// One stage of Levenberg–Marquardt from `u` (module notes); returns the stage's optimum.
 fn levenberg_marquardt(
