@@ -178,16 +178,14 @@ pub fn footprint(
             e.push((st.active_w + st.plate_w > 0.0).then_some(st));
         }
     };
-    // The pooled map: the sum of the replicas' (only ratios of it are read).
+    // The pooled map: the sum of the replicas', batches pooled (their errors are the pooled
+    // batches').
     let mut pooled = replica(0)?;
     record(&pooled, &mut each);
     for k in 1..FOOTPRINT_REPLICAS {
         let maps = replica(k)?;
         record(&maps, &mut each);
-        for (a, b) in pooled.power_w.iter_mut().zip(&maps.power_w) {
-            *a += b;
-        }
-        pooled.batches += maps.batches;
+        pooled.merge(&maps)?;
     }
     let diodes = (0..2)
         .map(|d| diode_footprint(&pooled, d, &each[d], paraxial))

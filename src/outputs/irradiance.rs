@@ -88,6 +88,11 @@ pub struct StateIrradiance {
     pub centroid_m: [f64; 2],
     pub rms_radius_m: f64,
     pub spill: f64,
+    /// The spill of the pattern light alone (the state less the pattern-independent part;
+    /// `IrradianceMaps::signal_spill`) and its standard error; None for the
+    /// pattern-independent state itself.
+    pub signal_spill: Option<f64>,
+    pub signal_spill_stderr: Option<f64>,
 }
 
 impl IrradianceSummary {
@@ -96,6 +101,7 @@ impl IrradianceSummary {
             let w = &maps.windows[d];
             let st = |s: usize| {
                 let x = maps.stats(d, s);
+                let signal = (s < 2).then(|| maps.signal_spill(d, s));
                 StateIrradiance {
                     active_w: x.active_w,
                     active_w_stderr: x.active_stderr_w,
@@ -103,6 +109,8 @@ impl IrradianceSummary {
                     centroid_m: x.centroid_m,
                     rms_radius_m: x.rms_radius_m,
                     spill: x.spill,
+                    signal_spill: signal.map(|v| v.0),
+                    signal_spill_stderr: signal.map(|v| v.1),
                 }
             };
             let (own, other) = (st(d).active_w, st(1 - d).active_w);
