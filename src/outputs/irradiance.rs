@@ -27,18 +27,38 @@ pub struct IrradianceSummary {
     pub minus: DiodeIrradiance,
 }
 
-/// One diode's map window and its numbers per state.
+/// Where a map lies, written flat into its diode's or surface's entry.
 #[derive(Debug, Clone, Serialize)]
-pub struct DiodeIrradiance {
+pub struct MapWindow {
     /// The map's half-width (m): the square spans ±half_width_m along u and v.
     pub half_width_m: f64,
     pub bin_m: f64,
-    /// The active area's outline: a disk of this radius at the map's centre (m).
-    pub active_radius_m: f64,
-    /// The map's axes in the bench frame (unit vectors) and its centre (m).
+    /// The map's centre (m; a diode's active-area centre, a surface's vertex or centre) and
+    /// axes in the bench frame (unit vectors).
     pub centre_m: [f64; 3],
     pub u_axis: [f64; 3],
     pub v_axis: [f64; 3],
+}
+
+impl MapWindow {
+    fn of(w: &crate::trace::irradiance::Window, bins: usize) -> MapWindow {
+        MapWindow {
+            half_width_m: w.half_width_m,
+            bin_m: 2.0 * w.half_width_m / bins as f64,
+            centre_m: w.frame.origin.to_array(),
+            u_axis: w.frame.u.to_array(),
+            v_axis: w.frame.v.to_array(),
+        }
+    }
+}
+
+/// One diode's map window and its numbers per state.
+#[derive(Debug, Clone, Serialize)]
+pub struct DiodeIrradiance {
+    #[serde(flatten)]
+    pub window: MapWindow,
+    /// The active area's outline: a disk of this radius at the map's centre (m).
+    pub active_radius_m: f64,
     pub all_plus: StateIrradiance,
     pub all_minus: StateIrradiance,
     pub pattern_independent: StateIrradiance,
@@ -55,15 +75,10 @@ pub struct SurfaceIrradiance {
     pub name: String,
     /// The files' names: `irradiance_at_<file_stem>.npy`, ….
     pub file_stem: String,
-    /// The map spans ±half_width_m along u and v from the surface's centre (m).
-    pub half_width_m: f64,
-    pub bin_m: f64,
+    #[serde(flatten)]
+    pub window: MapWindow,
     /// The surface's outline: the radius of the disk that holds it (m).
     pub outline_radius_m: f64,
-    /// The map's centre (the surface's vertex or centre) and axes in the bench frame.
-    pub centre_m: [f64; 3],
-    pub u_axis: [f64; 3],
-    pub v_axis: [f64; 3],
     pub all_plus: SurfacePower,
     pub all_minus: SurfacePower,
     pub pattern_independent: SurfacePower,
@@ -115,12 +130,8 @@ impl IrradianceSummary {
             };
             let (own, other) = (st(d).active_w, st(1 - d).active_w);
             DiodeIrradiance {
-                half_width_m: w.half_width_m,
-                bin_m: 2.0 * w.half_width_m / maps.bins as f64,
+                window: MapWindow::of(w, maps.bins),
                 active_radius_m: w.radius_m,
-                centre_m: w.frame.origin.to_array(),
-                u_axis: w.frame.u.to_array(),
-                v_axis: w.frame.v.to_array(),
                 all_plus: st(0),
                 all_minus: st(1),
                 pattern_independent: st(2),
@@ -192,12 +203,8 @@ pub fn surfaces_of(maps: &IrradianceMaps) -> Vec<SurfaceIrradiance> {
             SurfaceIrradiance {
                 name: s.name.clone(),
                 file_stem: file_stem(&s.name),
-                half_width_m: w.half_width_m,
-                bin_m: 2.0 * w.half_width_m / maps.bins as f64,
+                window: MapWindow::of(w, maps.bins),
                 outline_radius_m: w.radius_m,
-                centre_m: w.frame.origin.to_array(),
-                u_axis: w.frame.u.to_array(),
-                v_axis: w.frame.v.to_array(),
                 all_plus: st(0),
                 all_minus: st(1),
                 pattern_independent: st(2),
