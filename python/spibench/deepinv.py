@@ -40,7 +40,7 @@ from deepinv.physics import LinearPhysics, NoiseModel
 from deepinv.physics.generator import PhysicsGenerator
 
 from . import Acquisition, InputError, Kernel
-from .nn import TracedLinear
+from .nn import TracedLinear, _pack_patterns, _patterns_adjoint, _patterns_apply
 from .noise import BenchGaussianNoise
 
 __all__ = ["TracedSinglePixel", "TracedBenches", "BenchGenerator", "BenchSimulation",
@@ -404,8 +404,11 @@ class LinearisedBench(LinearPhysics):
     one. The expansion is exact where the kernel is linear in a variable (a diode's
     responsivity scale) and otherwise good to the variable's curvature over hᵢ and δ: 1 + 2V
     kernels are traced instead of one per bench, and any δ within the steps costs nothing more.
-    Measurements are offset-removed and divided by ``scale`` (default ‖A₀‖); A is held dense
-    (V + 1 matrices of units × pixels), and its adjoint is autograd's of these products, exact.
+    Measurements are offset-removed and divided by ``scale`` (default ‖A₀‖); G is held dense
+    (V + 1 matrices of units × pixels) and the patterns bit-packed as in
+    :class:`spibench.nn.TracedLinear` (the buffer ``patterns``, uint8 (M, ⌈units/8⌉), unpacked
+    in blocks of rows on the device at each call), and the adjoint is autograd's of these
+    products, exact.
     The noise model is deepinv's (``None`` by default; the bench simulation needs a traced
     bench, so ``"bench"`` is refused).
 
@@ -481,8 +484,8 @@ class LinearisedBench(LinearPhysics):
         self.register_buffer("y0", torch.tensor(np.asarray(a0.offset), **t))
         self.register_buffer("dy0", torch.from_numpy(np.stack(dy)) if dy
                              else torch.zeros(0, m, **t))
-        p = np.ascontiguousarray(a0.patterns.reshape(m, -1), dtype=np.uint8)
-        self.register_buffer("patterns", torch.from_numpy(p))
+        self.units = int(units)
+        self.register_buffer("patterns", _pack_patterns(a0))
         self.register_buffer("scale", torch.tensor(s, **t))
         self.register_buffer("deviation", torch.zeros(1, len(names), **t))
         self.to(device=device, dtype=dtype)
@@ -517,14 +520,14 @@ class LinearisedBench(LinearPhysics):
         d = self._delta(xf.shape[0])
         u = xf @ self.g0.T + torch.einsum("bv,vup,bp->bu", d, self.dg, xf)
         r = self.r0 + d @ self.dr
-        y = u @ self.patterns.to(u.dtype).T + (xf * r).sum(dim=1, keepdim=True)
+        y = _patterns_apply(self.patterns, self.units, u) + (xf * r).sum(dim=1, keepdim=True)
         return y / self.scale
 
     def A_adjoint(self, y: torch.Tensor, deviation=None, **kwargs) -> torch.Tensor:
         """A(δ_b)ᵀ y_b: (B, M) → (B, 1, H, W)."""
         self.update_parameters(deviation=deviation)
         d = self._delta(y.shape[0])
-        v = y @ self.patterns.to(y.dtype)
+        v = _patterns_adjoint(self.patterns, self.units, y)
         t = v @ self.g0 + torch.einsum("bv,vup,bu->bp", d, self.dg, v)
         t = t + y.sum(dim=1, keepdim=True) * (self.r0 + d @ self.dr)
         h, w = self.acquisition.grid

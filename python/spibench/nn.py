@@ -13,8 +13,11 @@ is folded once, in float64, into one sparse kernel matrix and one row:
 
 with P the M base patterns (0/1) on the DMD units. G is held as a CSR matrix (its three
 arrays, and those of Gᵀ, as buffers) or, with ``kernel_format="dense"``, as a dense matrix;
-P as uint8 0/1 (one byte per entry), turned into the module's dtype in blocks of rows at each
-call; the offset y₀ as a buffer. So ``.to(device)``, ``.double()`` and ``state_dict`` carry
+P bit-packed, one bit per entry: the buffer ``patterns`` is uint8 (M, ⌈units/8⌉), each row
+most significant bit first and padded with zero bits to whole bytes (``numpy.packbits(P,
+axis=1)``, as :attr:`spibench.Acquisition.patterns_packed` and a dataset's ``patterns.npy``),
+unpacked on the module's device into its dtype in blocks of rows at each call (a bit table
+looked up by byte; exact); the offset y₀ as a buffer. So ``.to(device)``, ``.double()`` and ``state_dict`` carry
 everything, and autograd goes through the exact adjoint (a ``torch.autograd.Function`` whose
 backward is the other direction).
 
@@ -40,8 +43,66 @@ from ._spibench import InputError
 
 __all__ = ["TracedLinear"]
 
-#: Pattern entries turned into floats at a time (rows of P per block × units).
+#: Pattern entries unpacked into floats at a time (rows of P per block × units).
 _BLOCK_ENTRIES = 1 << 22
+
+
+def _pack_patterns(acquisition: Acquisition) -> torch.Tensor:
+    """The M base patterns bit-packed, (M, ⌈units/8⌉) uint8: ``numpy.packbits(P, axis=1)``,
+    most significant bit first, each row padded with zero bits to whole bytes."""
+    return torch.from_numpy(np.ascontiguousarray(acquisition.patterns_packed, dtype=np.uint8))
+
+
+_BIT_TABLES: dict = {}
+
+
+def _bit_table(dtype: torch.dtype, device: torch.device) -> torch.Tensor:
+    """(256, 8): row b the bits of byte b, most significant first, as 0/1 in ``dtype`` on
+    ``device`` (shift and mask; kept per dtype and device)."""
+    key = (dtype, device)
+    table = _BIT_TABLES.get(key)
+    if table is None:
+        shifts = torch.arange(7, -1, -1, device=device)
+        table = ((torch.arange(256, device=device).unsqueeze(1) >> shifts) & 1).to(dtype)
+        _BIT_TABLES[key] = table
+    return table
+
+
+def _unpack(packed: torch.Tensor, units: int, dtype: torch.dtype) -> torch.Tensor:
+    """Rows of packed patterns (rows, ⌈units/8⌉) as 0/1 (rows, units) in ``dtype``, on their
+    device: each byte looked up in the bit table, the padding bits dropped."""
+    bits = torch.nn.functional.embedding(packed.int(), _bit_table(dtype, packed.device))
+    return bits.reshape(packed.shape[0], -1)[:, :units]
+
+
+def _block_rows(units: int) -> int:
+    """Rows of P unpacked at a time."""
+    return max(1, _BLOCK_ENTRIES // max(1, units))
+
+
+def _patterns_apply(packed: torch.Tensor, units: int, v: torch.Tensor) -> torch.Tensor:
+    """v Pᵀ for v (N, units) and P packed (M, ⌈units/8⌉): (N, M), P unpacked in blocks of
+    rows (plain torch operations: autograd goes through v, its backward the products of
+    :func:`_patterns_adjoint`)."""
+    rows = _block_rows(units)
+    m = packed.shape[0]
+    if rows >= m:
+        return v @ _unpack(packed, units, v.dtype).T
+    return torch.cat([v @ _unpack(packed[i:i + rows], units, v.dtype).T
+                      for i in range(0, m, rows)], dim=1)
+
+
+def _patterns_adjoint(packed: torch.Tensor, units: int, y: torch.Tensor) -> torch.Tensor:
+    """y P for y (N, M) and P packed (M, ⌈units/8⌉): (N, units), P unpacked in blocks of
+    rows."""
+    rows = _block_rows(units)
+    out = None
+    for i in range(0, packed.shape[0], rows):
+        part = y[:, i:i + rows] @ _unpack(packed[i:i + rows], units, y.dtype)
+        out = part if out is None else out + part
+    if out is None:
+        return y.new_zeros((y.shape[0], units))
+    return out
 
 
 class _Linear(torch.autograd.Function):
@@ -86,7 +147,10 @@ class TracedLinear(torch.nn.Module):
     """The linear part A of a traced acquisition as a ``torch.nn.Module`` (module
     documentation): ``op(x)`` maps objects (*, H, W) to measurements (*, M), ``op.adjoint(y)``
     maps (*, M) to (*, H, W); ``op.offset`` is y₀ (M,), so that ``op(x) + op.offset`` is the
-    noise-free measurement in volts (the calibrated scheme: dimensionless).
+    noise-free measurement in volts (the calibrated scheme: dimensionless). With a kernel, the
+    patterns are held bit-packed: the buffer ``patterns`` is uint8 (M, ⌈units/8⌉) as
+    :attr:`spibench.Acquisition.patterns_packed` gives it (an eighth of one byte per entry),
+    unpacked in blocks on the module's device at each call.
 
     :param Acquisition acquisition: the scheme, ratio and patterns.
     :param Kernel kernel: the object kernel the acquisition was built from (its matrices G± and
@@ -144,8 +208,7 @@ class TracedLinear(torch.nn.Module):
                 self.register_buffer(name + "_col", torch.from_numpy(m.indices.astype(np.int64)))
                 self.register_buffer(name + "_values", torch.from_numpy(m.data.astype(np.float64)))
         self.register_buffer("r", torch.from_numpy(np.ascontiguousarray(r, dtype=np.float64)))
-        p = np.ascontiguousarray(acquisition.patterns.reshape(self.measurements, -1), dtype=np.uint8)
-        self.register_buffer("patterns", torch.from_numpy(p))
+        self.register_buffer("patterns", _pack_patterns(acquisition))
         self._check_against(acquisition)
 
     def _check_against(self, acquisition: Acquisition) -> None:
@@ -168,22 +231,13 @@ class TracedLinear(torch.nn.Module):
                 getattr(self, name + "_crow"), getattr(self, name + "_col"),
                 getattr(self, name + "_values"), (rows, cols), check_invariants=False)
 
-    def _patterns_apply(self, u: torch.Tensor) -> torch.Tensor:
-        """P u for u (units, N): (M, N), P unpacked in blocks of rows."""
-        rows = max(1, _BLOCK_ENTRIES // max(1, self.units))
-        if rows >= self.measurements:
-            return self.patterns.to(u.dtype) @ u
-        return torch.cat([self.patterns[i:i + rows].to(u.dtype) @ u
-                          for i in range(0, self.measurements, rows)])
+    def _patterns_apply(self, v: torch.Tensor) -> torch.Tensor:
+        """v Pᵀ for v (N, units): (N, M)."""
+        return _patterns_apply(self.patterns, self.units, v)
 
     def _patterns_adjoint(self, y: torch.Tensor) -> torch.Tensor:
-        """y P for y (N, M): (N, units), P unpacked in blocks of rows."""
-        rows = max(1, _BLOCK_ENTRIES // max(1, self.units))
-        out = None
-        for i in range(0, self.measurements, rows):
-            part = y[:, i:i + rows] @ self.patterns[i:i + rows].to(y.dtype)
-            out = part if out is None else out + part
-        return out
+        """y P for y (N, M): (N, units)."""
+        return _patterns_adjoint(self.patterns, self.units, y)
 
     def _a(self, x: torch.Tensor) -> torch.Tensor:
         """A x for x (N, pixels) → (N, M), no autograd."""
@@ -193,7 +247,7 @@ class TracedLinear(torch.nn.Module):
             u = self.g @ x.T
         else:
             u = self._csr("g", self.units, self.pixels) @ x.T.contiguous()
-        return self._patterns_apply(u).T + (x @ self.r)[:, None]
+        return self._patterns_apply(u.T) + (x @ self.r)[:, None]
 
     def _at(self, y: torch.Tensor) -> torch.Tensor:
         """Aᵀ y for y (N, M) → (N, pixels), no autograd."""

@@ -10,6 +10,7 @@ import pytest
 torch = pytest.importorskip("torch")
 
 import spibench  # noqa: E402
+import spibench.nn as nn  # noqa: E402
 from spibench.nn import TracedLinear, _folded  # noqa: E402
 
 SCHEMES = ["secondary_complementary_balancing", "double_arm", "double_arm_calibrated",
@@ -121,6 +122,54 @@ def test_buffers_move_and_load(kernel):
     assert torch.equal(other(x), op(x))
     op.to("meta")
     assert all(b.device.type == "meta" for b in op.buffers())
+
+
+def unpacked_reference(acq, kernel, x, y):
+    """A x and Aᵀ y in float64 with P as a plain 0/1 matrix (the unpacked layout)."""
+    g, r = _folded(acq, kernel)
+    p = acq.patterns.reshape(acq.measurements, -1).astype(np.float64)
+    xf = x.reshape(len(x), -1)
+    fwd = (p @ (g @ xf.T)).T + (xf @ r)[:, None]
+    adj = (g.T @ (p.T @ y.T)).T + y.sum(axis=1)[:, None] * r
+    return fwd, adj.reshape((len(y),) + acq.grid)
+
+
+@pytest.mark.parametrize("side,mirrors", [(12, 48), (10, 57)])
+@pytest.mark.parametrize("form", ["csr", "dense"])
+def test_patterns_are_held_packed(paper, side, mirrors, form, monkeypatch):
+    """The buffer is numpy.packbits of P (rows × ⌈units/8⌉ bytes): 12 × 12 units pack into
+    whole bytes, 10 × 10 leave 4 padding bits a row; A and Aᵀ equal the unpacked reference, in
+    one block and in blocks of a few rows."""
+    bench = paper.set({"dmd.pattern.units_across": side, "dmd.pattern.units_down": side,
+                       "dmd.pattern.mirrors_per_unit": mirrors})
+    kern = bench.kernel(grid=(side, side), field_mm=7.88, rays=4096, seed=3)
+    acq = spibench.Acquisition(kern, "secondary_complementary_balancing", 0.25)
+    units = int(np.prod(acq.units))
+    assert units == side * side
+    rng = np.random.default_rng(4)
+    x = rng.random((3,) + acq.grid)
+    y = rng.standard_normal((3, acq.measurements))
+    fwd, adj = unpacked_reference(acq, kern, x, y)
+    for block in (nn._BLOCK_ENTRIES, 3 * units + 1):
+        # 3 * units + 1: blocks of 3 rows, the last one shorter (M = 36 or 25).
+        monkeypatch.setattr(nn, "_BLOCK_ENTRIES", block)
+        op = TracedLinear(acq, kern, dtype=torch.float64, kernel_format=form)
+        assert op.patterns.dtype == torch.uint8
+        assert tuple(op.patterns.shape) == (acq.measurements, -(-units // 8))
+        assert op.patterns.numel() == acq.measurements * -(-units // 8)
+        assert np.array_equal(op.patterns.numpy(), acq.patterns_packed)
+        assert np.array_equal(op.patterns.numpy(), np.packbits(
+            acq.patterns.reshape(acq.measurements, -1), axis=1))
+        unpacked = nn._unpack(op.patterns, units, torch.float64).numpy()
+        assert np.array_equal(unpacked, acq.patterns.reshape(acq.measurements, -1))
+        assert rel(op(torch.from_numpy(x)), fwd) < 1e-13
+        assert rel(op.adjoint(torch.from_numpy(y)), adj) < 1e-13
+        assert rel(op(torch.from_numpy(x)), acq.apply(x)) < 1e-12
+        assert rel(op.adjoint(torch.from_numpy(y)), acq.adjoint(y)) < 1e-12
+        op32 = TracedLinear(acq, kern, kernel_format=form)
+        assert torch.equal(op32.patterns, op.patterns)
+        assert op32(torch.from_numpy(x).float()).dtype == torch.float32
+        assert rel(op32(torch.from_numpy(x).float()).double(), fwd) < 1e-3
 
 
 @pytest.mark.skipif(not torch.cuda.is_available(), reason="no CUDA device")
