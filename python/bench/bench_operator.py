@@ -104,6 +104,7 @@ def main():
                 op = TracedLinear(acq, kernel, dtype=dtype, kernel_format=fmt)
                 name = f"torch_{fmt}_{str(dtype)[6:]}"
                 res[name + "_build_s"] = time.perf_counter() - t0
+                res[name + "_patterns_bytes"] = op.patterns.numel() * op.patterns.element_size()
                 xt = torch.from_numpy(x).to(dtype)
                 yt = torch.from_numpy(y).to(dtype)
                 with torch.no_grad():

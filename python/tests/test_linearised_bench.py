@@ -112,3 +112,41 @@ def test_refusals(paper):
         DeviationGenerator()
     with pytest.raises(spibench.InputError, match="sigmas"):
         DeviationGenerator(sigmas=[-1.0])
+
+
+def test_patterns_are_held_packed_with_padding_bits(paper, monkeypatch):
+    """10 × 10 DMD units: the buffer is numpy.packbits of P, 13 bytes a row (4 padding bits);
+    A and Aᵀ equal the expansion with P unpacked, in one block and in blocks of 2 rows; the
+    buffer survives a state_dict round trip."""
+    import spibench.nn as nn
+
+    small = paper.set({"dmd.pattern.units_across": 10, "dmd.pattern.units_down": 10,
+                       "dmd.pattern.mirrors_per_unit": 57})
+    lin = LinearisedBench(small, {SCALE: 0.02}, (10, 10), FIELD_MM, 4096, seed=SEED, scheme=SCB,
+                          ratio=0.25, dtype=torch.float64)
+    acq = lin.acquisition
+    assert lin.patterns.dtype == torch.uint8 and tuple(lin.patterns.shape) == (25, 13)
+    assert np.array_equal(lin.patterns.numpy(), np.packbits(
+        acq.patterns.reshape(acq.measurements, -1), axis=1))
+    x = torch.from_numpy(np.random.default_rng(6).random((3, 1, 10, 10)))
+    y = torch.from_numpy(np.random.default_rng(7).standard_normal((3, acq.measurements)))
+    d = torch.tensor([[0.01], [-0.02], [0.0]], dtype=torch.float64)
+    p = torch.from_numpy(acq.patterns.reshape(acq.measurements, -1).astype(np.float64))
+    xf = x.reshape(3, -1)
+    u = xf @ lin.g0.T + torch.einsum("bv,vup,bp->bu", d, lin.dg, xf)
+    want = (u @ p.T + (xf * (lin.r0 + d @ lin.dr)).sum(dim=1, keepdim=True)) / lin.scale
+    v = y @ p
+    back = v @ lin.g0 + torch.einsum("bv,vup,bu->bp", d, lin.dg, v)
+    back = (back + y.sum(dim=1, keepdim=True) * (lin.r0 + d @ lin.dr)) / lin.scale
+    for block in (nn._BLOCK_ENTRIES, 2 * 100 + 7):
+        monkeypatch.setattr(nn, "_BLOCK_ENTRIES", block)
+        got = lin.A(x, deviation=d)
+        assert float((got - want).abs().max()) <= 1e-13 * float(want.abs().max())
+        adj = lin.A_adjoint(y, deviation=d).reshape(3, -1)
+        assert float((adj - back).abs().max()) <= 1e-13 * float(back.abs().max())
+    state = lin.state_dict()
+    assert state["patterns"].dtype == torch.uint8 and tuple(state["patterns"].shape) == (25, 13)
+    lin32 = LinearisedBench(small, {SCALE: 0.02}, (10, 10), FIELD_MM, 4096, seed=SEED,
+                            scheme=SCB, ratio=0.25)
+    assert torch.equal(lin32.patterns, lin.patterns)
+    assert lin32.A(x.float(), deviation=d.float()).dtype == torch.float32
