@@ -17,9 +17,9 @@ P bit-packed, one bit per entry: the buffer ``patterns`` is uint8 (M, ⌈units/8
 most significant bit first and padded with zero bits to whole bytes (``numpy.packbits(P,
 axis=1)``, as :attr:`spibench.Acquisition.patterns_packed` and a dataset's ``patterns.npy``),
 unpacked on the module's device into its dtype in blocks of rows at each call (a bit table
-looked up by byte; exact); the offset y₀ as a buffer. So ``.to(device)``, ``.double()`` and ``state_dict`` carry
-everything, and autograd goes through the exact adjoint (a ``torch.autograd.Function`` whose
-backward is the other direction).
+looked up by byte; exact); the offset y₀ as a buffer. So ``.to(device)``, ``.double()`` and
+``state_dict`` carry everything, and autograd goes through the exact adjoint (a
+``torch.autograd.Function`` whose backward is the other direction).
 
 Without the kernel (``kernel=None``) the module holds A as a dense (M, pixels) matrix, read
 from the acquisition's own adjoint (``Acquisition.matrix``; small sizes only).
@@ -53,19 +53,11 @@ def _pack_patterns(acquisition: Acquisition) -> torch.Tensor:
     return torch.from_numpy(np.ascontiguousarray(acquisition.patterns_packed, dtype=np.uint8))
 
 
-_BIT_TABLES: dict = {}
-
-
 def _bit_table(dtype: torch.dtype, device: torch.device) -> torch.Tensor:
     """(256, 8): row b the bits of byte b, most significant first, as 0/1 in ``dtype`` on
-    ``device`` (shift and mask; kept per dtype and device)."""
-    key = (dtype, device)
-    table = _BIT_TABLES.get(key)
-    if table is None:
-        shifts = torch.arange(7, -1, -1, device=device)
-        table = ((torch.arange(256, device=device).unsqueeze(1) >> shifts) & 1).to(dtype)
-        _BIT_TABLES[key] = table
-    return table
+    ``device`` (shift and mask; 8 KiB at most, made at each call)."""
+    shifts = torch.arange(7, -1, -1, device=device)
+    return ((torch.arange(256, device=device).unsqueeze(1) >> shifts) & 1).to(dtype)
 
 
 def _unpack(packed: torch.Tensor, units: int, dtype: torch.dtype) -> torch.Tensor:
