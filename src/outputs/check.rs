@@ -9,8 +9,7 @@ use serde::Serialize;
 use crate::error::{Error, Result};
 use crate::report::output::OutputDir;
 use crate::scene::doc::{BenchDoc, DmdModel};
-use crate::trace::TraceOptions;
-use crate::trace::irradiance::{IrradianceMaps, MapStats, STATES, trace_with_maps};
+use crate::trace::irradiance::{IrradianceMaps, MapStats, STATES};
 use crate::trace::paraxial::{ParaxialReport, paraxial_report};
 
 /// `check.json`: the paraxial report with its keys unchanged (flattened), the DMD model and the
@@ -123,12 +122,6 @@ pub struct DiodeFootprint {
     pub paraxial_spot_diameter_m: Option<f64>,
 }
 
-/// Replica k's seed: the trace streams hash it again (`rng::stream`), so neighbouring values
-/// are unrelated; xor with k on the hashed seed keeps the replicas of one seed distinct.
-fn replica_seed(seed: u64, k: u64) -> u64 {
-    crate::rng::mix64(seed) ^ k
-}
-
 /// The standard error of a pooled value from its K replicas' values: their standard deviation
 /// / √K (None unless every replica has a value).
 fn spread_se(values: &[Option<f64>]) -> Option<f64> {
@@ -166,29 +159,15 @@ pub fn footprint(
         return Ok(None);
     }
     let per = rays.div_ceil(FOOTPRINT_REPLICAS);
-    // Per diode and replica: the map's numbers, None when it mapped no light.
-    let mut each: [Vec<Option<MapStats>>; 2] = [Vec::new(), Vec::new()];
-    let replica = |k: u64| -> Result<IrradianceMaps> {
-        let options = TraceOptions::new(per, replica_seed(seed, k));
-        Ok(trace_with_maps(bench, &options, FOOTPRINT_BINS)?.1)
-    };
-    let record = |maps: &IrradianceMaps, each: &mut [Vec<Option<MapStats>>; 2]| {
-        for (d, e) in each.iter_mut().enumerate() {
-            let st = maps.stats(d, d);
-            e.push((st.active_w + st.plate_w > 0.0).then_some(st));
-        }
-    };
-    // The pooled map: the sum of the replicas', batches pooled (their errors are the pooled
-    // batches').
-    let mut pooled = replica(0)?;
-    record(&pooled, &mut each);
-    for k in 1..FOOTPRINT_REPLICAS {
-        let maps = replica(k)?;
-        record(&maps, &mut each);
-        pooled.merge(&maps)?;
-    }
+    let r = crate::trace::irradiance::trace_replicas(
+        bench,
+        per,
+        seed,
+        FOOTPRINT_REPLICAS,
+        FOOTPRINT_BINS,
+    )?;
     let diodes = (0..2)
-        .map(|d| diode_footprint(&pooled, d, &each[d], paraxial))
+        .map(|d| diode_footprint(&r.pooled, d, &r.each[d], paraxial))
         .collect();
     Ok(Some(Footprint {
         rays: per * FOOTPRINT_REPLICAS,
@@ -635,6 +614,7 @@ mod tests {
         // sd = √2, /√2 = 1.
         assert!((spread_se(&v).unwrap() - 1.0).abs() < 1e-15);
         assert!(spread_se(&[Some(1.0), None]).is_none());
+        use crate::trace::irradiance::replica_seed;
         assert_ne!(replica_seed(1, 0), replica_seed(1, 1));
     }
 }

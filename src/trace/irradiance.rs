@@ -485,6 +485,51 @@ impl IrradianceMaps {
     }
 }
 
+/// Replica k's seed: the trace streams hash it again (`rng::stream`), so neighbouring values
+/// are unrelated; xor with k on the hashed seed keeps the replicas of one seed distinct.
+pub fn replica_seed(seed: u64, k: u64) -> u64 {
+    crate::rng::mix64(seed) ^ k
+}
+
+/// The maps of independent replicas of one trace ([`trace_replicas`]).
+pub struct Replicas {
+    /// Their sum, the batches pooled (each bin's error is the pooled batches').
+    pub pooled: IrradianceMaps,
+    /// Per diode and replica, the diode's numbers in its own state; None where it mapped no
+    /// light.
+    pub each: [Vec<Option<MapStats>>; 2],
+}
+
+/// `replicas` traces of `bench` with `rays` lamp rays each on the seeds [`replica_seed`] of
+/// `seed`, mapped with `bins` bins, so that a ratio's error can be read from the replicas'
+/// spread as well as from the bins (each replica is identical on any number of threads, and
+/// so is the whole).
+pub fn trace_replicas(
+    bench: &Bench,
+    rays: u64,
+    seed: u64,
+    replicas: u64,
+    bins: usize,
+) -> Result<Replicas> {
+    let mut each: [Vec<Option<MapStats>>; 2] = [Vec::new(), Vec::new()];
+    let mut pooled: Option<IrradianceMaps> = None;
+    for k in 0..replicas {
+        let options = TraceOptions::new(rays, replica_seed(seed, k));
+        let (_, maps) = trace_with_maps(bench, &options, bins)?;
+        for (d, e) in each.iter_mut().enumerate() {
+            let st = maps.stats(d, d);
+            e.push((st.active_w + st.plate_w > 0.0).then_some(st));
+        }
+        match &mut pooled {
+            None => pooled = Some(maps),
+            Some(p) => p.merge(&maps)?,
+        }
+    }
+    let pooled = pooled
+        .ok_or_else(|| crate::Error::field("replicas", "at least one replica must be traced"))?;
+    Ok(Replicas { pooled, each })
+}
+
 /// The standard error of a sum of `batches` independent batch totals whose sum is `s` and sum
 /// of squares `q` (batch means).
 fn batch_stderr(batches: u64, s: f64, q: f64) -> f64 {
