@@ -30,7 +30,9 @@
 //! ([`noise_moment`]: the measurement noise, independent from frame to frame, and the model
 //! trace's, which every frame shares), in the variables' units; a variable with a share above
 //! [`LOADING`] in an unidentified direction is reported unidentified (no standard error) with
-//! its range from the scan.
+//! its range from the scan. Where two or three variables are unidentified, they are also
+//! scanned jointly on a grid across their bounds ([`GridScan`]), and each one's range is the
+//! union of the line scans' and the grid's.
 
 // Dense matrices indexed both ways: index loops read as the formulas do.
 #![allow(clippy::needless_range_loop)]
@@ -63,6 +65,37 @@ pub struct Unidentified {
     pub delta_chi2_limit: f64,
 }
 
+/// Grid points per variable of the joint scan of k unidentified variables ([`grid_scan`]):
+/// 7² = 49 traces for two, 5³ = 125 for three; none beyond three (the line scans alone).
+pub fn grid_points(k: usize) -> Option<usize> {
+    match k {
+        2 => Some(7),
+        3 => Some(5),
+        _ => None,
+    }
+}
+
+/// The joint scan of the unidentified variables, where there are two or three: a line scan
+/// follows one direction through the optimum, and where two directions are both free the
+/// equally good region is a patch of their plane that a true bench can lie in off both lines
+/// (a lens decentred in x and in y). Each unidentified variable takes [`grid_points`] values
+/// across its bounds, the others held at the optimum, every combination traced (common random
+/// numbers, the fit's rays); a variable's range holds every grid point within the same Δχ² as
+/// the line scans', one grid step beyond each end.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct GridScan {
+    /// The unidentified variables scanned (indices into the free variables).
+    pub variables: Vec<usize>,
+    /// Each grid point: the free variables' values, and χ² − χ²_best (null where the bench
+    /// does not build).
+    pub scan_values: Vec<Vec<f64>>,
+    pub scan_delta_chi2: Vec<f64>,
+    pub delta_chi2_limit: f64,
+    /// Per scanned variable (in `variables`' order), its range of equally good values.
+    pub range_lo: Vec<f64>,
+    pub range_hi: Vec<f64>,
+}
+
 /// The uncertainty of a fit.
 #[derive(Debug, Clone)]
 pub struct Identification {
@@ -73,22 +106,53 @@ pub struct Identification {
     pub singular_values: Vec<f64>,
     pub identified: Vec<bool>,
     pub unidentified: Vec<Unidentified>,
+    /// The joint scan of the unidentified variables, where there are two or three.
+    pub grid: Option<GridScan>,
 }
 
 impl Identification {
     /// A scanned point clearly better than the optimum (by more than a scan's Δχ² limit): the
     /// optimum was a local one.
     pub fn better_point(&self) -> Option<Vec<f64>> {
-        self.unidentified
-            .iter()
-            .flat_map(|u| {
-                u.scan_values
-                    .iter()
-                    .zip(&u.scan_delta_chi2)
-                    .filter(|(_, d)| **d < -u.delta_chi2_limit)
-            })
+        let lines = self.unidentified.iter().flat_map(|u| {
+            u.scan_values
+                .iter()
+                .zip(&u.scan_delta_chi2)
+                .filter(|(_, d)| **d < -u.delta_chi2_limit)
+        });
+        let grid = self.grid.iter().flat_map(|g| {
+            g.scan_values
+                .iter()
+                .zip(&g.scan_delta_chi2)
+                .filter(|(_, d)| **d < -g.delta_chi2_limit)
+        });
+        lines
+            .chain(grid)
             .min_by(|a, b| a.1.total_cmp(b.1))
             .map(|(x, _)| x.clone())
+    }
+
+    /// Variable i's range of equally good values (its units) about the fitted value `x`: the
+    /// union of the line scans along the directions it loads and of the joint scan; None for
+    /// an identified variable.
+    pub fn range(&self, i: usize, x: f64) -> Option<(f64, f64)> {
+        if self.identified[i] {
+            return None;
+        }
+        let lines = self
+            .unidentified
+            .iter()
+            .filter(|u| u.direction[i].abs() > LOADING)
+            .map(|u| (u.range_lo[i], u.range_hi[i]));
+        let grid = self.grid.iter().filter_map(|g| {
+            let k = g.variables.iter().position(|&v| v == i)?;
+            Some((g.range_lo[k], g.range_hi[k]))
+        });
+        Some(
+            lines
+                .chain(grid)
+                .fold((x, x), |(a, b), (lo, hi)| (a.min(lo), b.max(hi))),
+        )
     }
 }
 
@@ -213,12 +277,84 @@ pub fn identify(
                 .collect()
         })
         .collect();
+    let free: Vec<usize> = (0..n).filter(|&i| !identified[i]).collect();
+    let grid = match grid_points(free.len()) {
+        Some(g) => Some(grid_scan(p, u, &free, g, at, rays, seed, count)?),
+        None => None,
+    };
     Ok(Identification {
         stderr,
         correlation,
         singular_values: s,
         identified,
         unidentified,
+        grid,
+    })
+}
+
+/// The joint scan of the variables `free` at `points` values each ([`GridScan`]).
+#[allow(clippy::too_many_arguments)]
+fn grid_scan(
+    p: &Problem,
+    u: &[f64],
+    free: &[usize],
+    points: usize,
+    at: At,
+    rays: u64,
+    seed: u64,
+    count: &(dyn Fn() + Sync),
+) -> Result<GridScan> {
+    let level = |k: usize| k as f64 / (points - 1) as f64;
+    let total = points.pow(free.len() as u32);
+    let (mut values, mut d, mut levels) = (Vec::new(), Vec::new(), Vec::new());
+    for flat in 0..total {
+        let mut w = u.to_vec();
+        let mut rest = flat;
+        let mut ks = Vec::with_capacity(free.len());
+        for &i in free {
+            ks.push(rest % points);
+            w[i] = level(rest % points);
+            rest /= points;
+        }
+        let x = p.to_values(&w);
+        let c = p.at(&x, rays, seed)?.map_or(f64::INFINITY, |q| q.chi2);
+        count();
+        d.push(c - at.chi2);
+        values.push(x);
+        levels.push(ks);
+    }
+    let limit = at.limit();
+    let floor = d.iter().copied().fold(0.0, f64::min);
+    let (mut range_lo, mut range_hi) = (Vec::new(), Vec::new());
+    for (k, &i) in free.iter().enumerate() {
+        let f = &p.free[i];
+        // The optimum's own value is in the range, as for the line scans.
+        let here = f.lo + u[i] * (f.hi - f.lo);
+        let good = levels
+            .iter()
+            .zip(&d)
+            .filter(|(_, dd)| **dd - floor <= limit)
+            .map(|(ks, _)| ks[k]);
+        let (lo, hi) = good.fold((usize::MAX, 0), |(a, b), l| (a.min(l), b.max(l)));
+        let to_value = |l: usize| f.lo + level(l) * (f.hi - f.lo);
+        let (lo, hi) = if lo == usize::MAX {
+            (here, here)
+        } else {
+            (
+                to_value(lo.saturating_sub(1)).min(here),
+                to_value((hi + 1).min(points - 1)).max(here),
+            )
+        };
+        range_lo.push(lo);
+        range_hi.push(hi);
+    }
+    Ok(GridScan {
+        variables: free.to_vec(),
+        scan_values: values,
+        scan_delta_chi2: d,
+        delta_chi2_limit: limit,
+        range_lo,
+        range_hi,
     })
 }
 

@@ -91,6 +91,8 @@ pub struct FitSummary {
     pub singular_values: Vec<f64>,
     pub correlation: Vec<Vec<Option<f64>>>,
     pub unidentified: Vec<Unidentified>,
+    /// The joint scan of two or three unidentified variables.
+    pub unidentified_grid: Option<crate::fit::identify::GridScan>,
     pub history: Vec<FitStep>,
     /// How many starts Levenberg–Marquardt ran from, and each.
     pub starts_run: usize,
@@ -117,17 +119,8 @@ pub fn summarize(f: &Fit, doc: &BenchDoc, measured: &Measured) -> FitSummary {
         .enumerate()
         .map(|(i, v)| {
             let x = f.best.values[i];
-            let (lo, hi) = if id.identified[i] {
-                let h = 1.96 * id.stderr[i];
-                (x - h, x + h)
-            } else {
-                id.unidentified
-                    .iter()
-                    .filter(|u| u.direction[i].abs() > crate::fit::identify::LOADING)
-                    .fold((x, x), |(a, b), u| {
-                        (a.min(u.range_lo[i]), b.max(u.range_hi[i]))
-                    })
-            };
+            let h = 1.96 * id.stderr[i];
+            let (lo, hi) = id.range(i, x).unwrap_or((x - h, x + h));
             FittedVariable {
                 path: v.path.clone(),
                 lo: v.lo,
@@ -194,6 +187,7 @@ pub fn summarize(f: &Fit, doc: &BenchDoc, measured: &Measured) -> FitSummary {
             .map(|r| r.iter().map(|&c| finite_or_null(c)).collect())
             .collect(),
         unidentified: id.unidentified.clone(),
+        unidentified_grid: id.grid.clone(),
         history: f.history.clone(),
         starts_run: f.starts.len(),
         starts: f
