@@ -292,6 +292,33 @@ pub fn identify(
     })
 }
 
+/// Per scanned variable, the levels (0 … `points` − 1) its equally good grid points span: the
+/// points whose Δχ² (`d`, each point's levels in `levels`) is within `limit` of the lowest
+/// seen (0, the optimum's, or a grid point's below it), from the lowest level among them to
+/// the highest, one level further each way within the grid; None where no point is.
+pub fn grid_ranges(
+    levels: &[Vec<usize>],
+    d: &[f64],
+    points: usize,
+    limit: f64,
+) -> Vec<Option<(usize, usize)>> {
+    let floor = d.iter().copied().fold(0.0, f64::min);
+    let vars = levels.first().map_or(0, Vec::len);
+    (0..vars)
+        .map(|k| {
+            levels
+                .iter()
+                .zip(d)
+                .filter(|(_, dd)| **dd - floor <= limit)
+                .map(|(ks, _)| ks[k])
+                .fold(None, |r: Option<(usize, usize)>, l| {
+                    Some(r.map_or((l, l), |(a, b)| (a.min(l), b.max(l))))
+                })
+                .map(|(a, b)| (a.saturating_sub(1), (b + 1).min(points - 1)))
+        })
+        .collect()
+}
+
 /// The joint scan of the variables `free` at `points` values each ([`GridScan`]).
 #[allow(clippy::too_many_arguments)]
 fn grid_scan(
@@ -324,27 +351,15 @@ fn grid_scan(
         levels.push(ks);
     }
     let limit = at.limit();
-    let floor = d.iter().copied().fold(0.0, f64::min);
     let (mut range_lo, mut range_hi) = (Vec::new(), Vec::new());
-    for (k, &i) in free.iter().enumerate() {
+    for (&i, span) in free.iter().zip(grid_ranges(&levels, &d, points, limit)) {
         let f = &p.free[i];
         // The optimum's own value is in the range, as for the line scans.
         let here = f.lo + u[i] * (f.hi - f.lo);
-        let good = levels
-            .iter()
-            .zip(&d)
-            .filter(|(_, dd)| **dd - floor <= limit)
-            .map(|(ks, _)| ks[k]);
-        let (lo, hi) = good.fold((usize::MAX, 0), |(a, b), l| (a.min(l), b.max(l)));
         let to_value = |l: usize| f.lo + level(l) * (f.hi - f.lo);
-        let (lo, hi) = if lo == usize::MAX {
-            (here, here)
-        } else {
-            (
-                to_value(lo.saturating_sub(1)).min(here),
-                to_value((hi + 1).min(points - 1)).max(here),
-            )
-        };
+        let (lo, hi) = span.map_or((here, here), |(a, b)| {
+            (to_value(a).min(here), to_value(b).max(here))
+        });
         range_lo.push(lo);
         range_hi.push(hi);
     }

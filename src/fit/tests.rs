@@ -100,3 +100,34 @@ fn the_equally_good_range_reaches_a_second_valley_across_a_ridge() {
     let ts4: Vec<f64> = (0..13).map(|k| -1.2 + 0.1 * k as f64).collect();
     assert_eq!(equally_good(&ts4, &d4, 4.0), (11, 12));
 }
+
+/// The joint scan's ranges: on a 7 × 7 grid two separate patches within the limit (one around
+/// levels (1, 5), one at (5, 2)) give each variable the span of both, one level further each
+/// way; a grid point below the optimum lowers the floor; nothing within the limit gives None.
+#[test]
+fn the_grid_ranges_span_every_equally_good_patch() {
+    use super::identify::grid_ranges;
+    let points = 7;
+    let levels: Vec<Vec<usize>> = (0..points * points)
+        .map(|f| vec![f % points, f / points])
+        .collect();
+    let mut d = vec![100.0; points * points];
+    let at = |a: usize, b: usize| a + points * b;
+    d[at(1, 5)] = 3.0;
+    d[at(2, 5)] = 5.0;
+    d[at(5, 2)] = 1.0;
+    assert_eq!(
+        grid_ranges(&levels, &d, points, 4.0),
+        vec![Some((0, 6)), Some((1, 6))]
+    );
+    // A point 10 below the optimum: the others (3, 1 above 0) are now 13 and 11 above it.
+    d[at(6, 0)] = -10.0;
+    assert_eq!(
+        grid_ranges(&levels, &d, points, 4.0),
+        vec![Some((5, 6)), Some((0, 1))]
+    );
+    assert_eq!(
+        grid_ranges(&levels, &[100.0; 49], points, 4.0),
+        vec![None, None]
+    );
+}
