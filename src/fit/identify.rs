@@ -344,8 +344,7 @@ fn grid_scan(
             rest /= points;
         }
         let x = p.to_values(&w);
-        let c = p.at(&x, rays, seed)?.map_or(f64::INFINITY, |q| q.chi2);
-        count();
+        let c = p.chi2_at(&x, rays, seed, count)?;
         d.push(c - at.chi2);
         values.push(x);
         levels.push(ks);
@@ -404,8 +403,7 @@ fn scan(
     for &t in &ts {
         let w: Vec<f64> = u.iter().zip(v).map(|(a, b)| a + t * b).collect();
         let x = p.to_values(&w);
-        let c = p.at(&x, rays, seed)?.map_or(f64::INFINITY, |q| q.chi2);
-        count();
+        let c = p.chi2_at(&x, rays, seed, count)?;
         d.push(c - chi2);
         values.push(x);
     }

@@ -188,6 +188,21 @@ impl Problem<'_> {
         Ok(model::profile(&frames, self.measured).ok())
     }
 
+    /// The χ² at `x` traced with (rays, seed), infinite where the bench does not build or
+    /// cannot be profiled (a scan or a start's comparison then passes over it); `count` after
+    /// the trace.
+    pub fn chi2_at(
+        &self,
+        x: &[f64],
+        rays: u64,
+        seed: u64,
+        count: &(dyn Fn() + Sync),
+    ) -> Result<f64> {
+        let c = self.at(x, rays, seed)?.map_or(f64::INFINITY, |q| q.chi2);
+        count();
+        Ok(c)
+    }
+
     /// The bench at `x` built, or None.
     fn bench_at(&self, x: &[f64]) -> Option<crate::optics::bench::Bench> {
         self.doc.with(&settings(self.free, x)).ok()?.build().ok()
@@ -524,13 +539,7 @@ fn coarse_start(
     seed: u64,
     count: &(dyn Fn() + Sync),
 ) -> Result<Vec<start::Scored>> {
-    let mut chi2 = |v: &[f64]| -> Result<f64> {
-        let c = p
-            .at(&p.to_values(v), rays, seed)?
-            .map_or(f64::INFINITY, |q| q.chi2);
-        count();
-        Ok(c)
-    };
+    let mut chi2 = |v: &[f64]| p.chi2_at(&p.to_values(v), rays, seed, count);
     start::coarse_starts(&mut chi2, u, start::MAX_STARTS)
 }
 
@@ -603,8 +612,7 @@ fn selection_chi2(
     let mut sum = 0.0;
     for k in 0..SELECTION_SEEDS {
         let s = seed.wrapping_add(SELECTION_SEED_BASE + k);
-        sum += p.at(&x, rays, s)?.map_or(f64::INFINITY, |q| q.chi2);
-        count();
+        sum += p.chi2_at(&x, rays, s, count)?;
     }
     Ok(sum / SELECTION_SEEDS as f64)
 }
