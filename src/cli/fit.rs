@@ -1,5 +1,5 @@
 //! `spibench fit [BENCH] --measured DIR --free PATH=LO:HI [--free …] [--adjust PATH=LO:HI …]
-//! [--imbalance-limit L] [--rays N] [--seed S] [--out DIR]`: the bench as built, the free
+//! [--imbalance-limit L] [--gain-tolerance T|free] [--rays N] [--seed S] [--out DIR]`: the bench as built, the free
 //! variables fitted to an `intake` folder's frames (crate::fit: Levenberg–Marquardt on
 //! common-random-number traces, the nuisances profiled out), their uncertainty and
 //! identifiability, and the compensators that rebalance it. The files are
@@ -43,6 +43,12 @@ pub struct FitArgs {
     /// yield judges it) the adjustment must bring the fitted bench under.
     #[arg(long, default_value_t = 0.01, value_name = "L")]
     pub imbalance_limit: f64,
+    /// How well the detector's four channel gains (RF on each diode, each monitor) are known
+    /// about the lamp's unknown power: a relative standard deviation, or `free` to fit each
+    /// channel's scale without a prior (the frames then fix only the shape of each arm's
+    /// collection, not the arms' ratio).
+    #[arg(long, default_value = "0.05", value_name = "FRACTION|free")]
+    pub gain_tolerance: String,
     #[command(flatten)]
     pub work: super::args::WorkArgs,
 }
@@ -72,6 +78,20 @@ fn parse_free(v: &[String], flag: &str) -> crate::Result<Vec<Free>> {
         .collect()
 }
 
+/// `--gain-tolerance`: a relative standard deviation in (0, 1], or `free`.
+fn parse_gain_tolerance(v: &str) -> crate::Result<Option<f64>> {
+    if v.trim() == "free" {
+        return Ok(None);
+    }
+    match v.trim().parse::<f64>() {
+        Ok(t) if t.is_finite() && t > 0.0 && t <= 1.0 => Ok(Some(t)),
+        _ => Err(crate::Error::field(
+            "--gain-tolerance",
+            format!("must be a relative standard deviation in (0, 1] or `free`, got `{v}`"),
+        )),
+    }
+}
+
 /// Runs `spibench fit`.
 pub fn run(args: &FitArgs) -> Result<()> {
     let doc = args.bench.load()?;
@@ -88,6 +108,7 @@ pub fn run(args: &FitArgs) -> Result<()> {
         )
         .into());
     }
+    let gain_tolerance = parse_gain_tolerance(&args.gain_tolerance)?;
     let rays = args.opts.rays(&doc, DEFAULT_RAYS)?;
     crate::pipeline::optimise::check_start(&doc, &free, true)?;
     if !adjust.is_empty() {
@@ -100,6 +121,7 @@ pub fn run(args: &FitArgs) -> Result<()> {
         free,
         adjust,
         imbalance_limit: limit,
+        gain_tolerance,
         rays,
         seed: args.opts.seed(),
     };

@@ -8,7 +8,8 @@
 //!
 //! E[χ²] = Σ_i s_i·(1 − h_i) + B/(B − 1)·Σ_b ‖Q·d_b‖²,
 //!
-//! with h_i ≈ (nuisances + variables)/values the hat matrix's diagonal taken as flat. Because
+//! with h_i ≈ (nuisances + variables)/rows the hat matrix's diagonal taken as flat (a gain
+//! prior's rows, [`super::gains`], count with s_i = 1). Because
 //! the trace's share is correlated over the frames, the nuisances remove more than one unit of
 //! it each (a trace error common to all units is one arm's scale): E[χ²] falls below the
 //! degrees of freedom, and the spread of χ² exceeds √(2·dof). For Gaussian noise
@@ -38,24 +39,15 @@ impl Expected {
     }
 }
 
-/// Projects each channel's part of `d` (residual order: frame-major, channels within) off that
-/// channel's whitened nuisance columns, then the whole off the Jacobian's columns.
+/// Projects `d` (the residuals' rows) off the linear model's whitened columns, then off the
+/// Jacobian's.
 fn project(d: &mut [f64], prof: &Profiled, jac: &[Vec<f64>]) {
-    let n = d.len() / 3;
-    for o in 0..3 {
-        let cols = &prof.basis_w[o];
-        let part: Vec<f64> = (0..n).map(|i| d[3 * i + o]).collect();
-        if let Some(c) = least_squares(cols, &part) {
-            for i in 0..n {
-                let fit: f64 = cols.iter().zip(&c).map(|(col, ci)| ci * col[i]).sum();
-                d[3 * i + o] -= fit;
-            }
-        }
-    }
-    if let Some(c) = least_squares(jac, d) {
-        for (k, col) in jac.iter().enumerate() {
-            for (di, ji) in d.iter_mut().zip(col) {
-                *di -= c[k] * ji;
+    for cols in [&prof.basis_w[..], jac] {
+        if let Some(c) = least_squares(cols, d) {
+            for (k, col) in cols.iter().enumerate() {
+                for (di, ji) in d.iter_mut().zip(col) {
+                    *di -= c[k] * ji;
+                }
             }
         }
     }
@@ -99,8 +91,14 @@ pub fn expected(p: &Problem, prof: &Profiled, jac: &[Vec<f64>], batches: &BatchF
             flat += 1;
         }
     }
+    // The gain prior's rows: unit variance, the lab's detector off its nominal by its
+    // tolerance ([`super::gains`]); no trace noise before the profiling.
+    share.extend(std::iter::repeat_n(1.0, prof.prior_rows));
+    for d in &mut ds {
+        d.extend(std::iter::repeat_n(0.0, prof.prior_rows));
+    }
     let n = share.len().max(1) as f64;
-    let fitted = (jac.len() + super::NUISANCES.len()) as f64;
+    let fitted = (jac.len() + prof.linear_parameters()) as f64;
     let total_share: f64 = share.iter().sum();
     let measurement = total_share * (1.0 - fitted / n).max(0.0);
     for d in &mut ds {

@@ -5,7 +5,12 @@
 //! standard deviation is σ_k = √(max(1, χ²/dof)·v_kᵀ·M·v_k) / s_k² (box units, M below; with
 //! noise independent from frame to frame and of the weights' size M = A and σ_k = 1/s_k; the
 //! factor inflates the errors when the model explains the frames less well than the noise
-//! allows). A direction
+//! allows). The curvature sees the noise the optimum's neighbours share; a trace noise they do
+//! not share (below: rays that take other paths) moves χ² by up to the equally good Δχ²
+//! between them, so the optimum is known only to where the curvature alone adds that much:
+//! σ_k is raised to at least √Δχ² / (2·s_k) ([`unshared_sigma`]; the factor 2 makes that
+//! half-width the 95 % one), the same rule as the equally good ranges, and the covariance
+//! gains the difference along each identified direction. A direction
 //! whose σ_k exceeds [`UNIDENTIFIED_SIGMA`] of the box is *unidentified*: the frames do not pin
 //! it, and it is scanned instead (the misfit traced at [`SCAN_POINTS`] points across the box
 //! along it, common random numbers); its range of equally good values holds every scanned point
@@ -172,6 +177,19 @@ impl At {
     }
 }
 
+/// One standard deviation along a direction of singular value `s` (unit box) from the trace
+/// noise the optimum's neighbours do not share (module notes): the half-width √limit / s at
+/// which the curvature alone raises χ² by the equally good Δχ², over 2 (the 95 % half-width
+/// of one standard deviation). Where sd(χ²) is negligible it is √max(1, χ²/dof) / s, the
+/// inflated σ of independent noise.
+pub fn unshared_sigma(at: At, s: f64) -> f64 {
+    if s > 0.0 {
+        at.limit().sqrt() / (2.0 * s)
+    } else {
+        f64::INFINITY
+    }
+}
+
 /// Identifies the fit at `u` (unit box) from its Jacobian's columns (module notes).
 #[allow(clippy::too_many_arguments)]
 pub fn identify(
@@ -211,6 +229,9 @@ pub fn identify(
     let range: Vec<f64> = p.free.iter().map(|f| f.hi - f.lo).collect();
     let m = noise_moment(p, jac, prof, batches);
     let mut pinv = vec![vec![0.0; n]; n];
+    // The unshared trace noise's variance along each identified direction, beyond the
+    // sandwich's (module notes), added to the covariance below.
+    let mut unshared = vec![vec![0.0; n]; n];
     let mut identified = vec![true; n];
     let mut unidentified = Vec::new();
     for k in 0..n {
@@ -224,10 +245,13 @@ pub fn identify(
         } else {
             f64::INFINITY
         };
-        if sigma <= UNIDENTIFIED_SIGMA {
+        let sigma_eff = sigma.max(unshared_sigma(at, s[k]));
+        if sigma_eff <= UNIDENTIFIED_SIGMA {
+            let extra = sigma_eff * sigma_eff - sigma * sigma;
             for i in 0..n {
                 for j in 0..n {
                     pinv[i][j] += v[i] * v[j] / (s[k] * s[k]);
+                    unshared[i][j] += v[i] * v[j] * extra;
                 }
             }
             continue;
@@ -249,7 +273,7 @@ pub fn identify(
                     c += pinv[i][k] * m[k][l] * pinv[l][j];
                 }
             }
-            cov[i][j] = inflate2 * c * range[i] * range[j];
+            cov[i][j] = (inflate2 * c + unshared[i][j]) * range[i] * range[j];
         }
     }
     let stderr: Vec<f64> = (0..n)
@@ -492,6 +516,14 @@ pub fn noise_moment(
                 idx += 1;
             }
             flat += 1;
+        }
+    }
+    // The gain prior's rows at the end: unit variance ([`super::gains`]).
+    for r in idx..idx + prof.prior_rows {
+        for i in 0..n {
+            for j in 0..n {
+                m[i][j] += jac[i][r] * jac[j][r];
+            }
         }
     }
     for v in &jd {

@@ -22,6 +22,7 @@
 //! optimum, all of them.
 
 pub mod chi2;
+pub mod gains;
 pub mod identify;
 pub mod linalg;
 pub mod measured;
@@ -54,6 +55,9 @@ pub struct FitRequest {
     /// The limit the adjustment must bring |imbalance| under (the electrical imbalance, the
     /// detector's, as the adjustment balances it and as tolerance limits are judged).
     pub imbalance_limit: f64,
+    /// The relative tolerance (one standard deviation) to which the lab knows its detector's
+    /// channel gains about the common lamp power ([`gains`]); None: the gains are free.
+    pub gain_tolerance: Option<f64>,
     pub rays: u64,
     pub seed: u64,
 }
@@ -100,13 +104,16 @@ pub struct Fit {
     pub seed: u64,
     pub best: Point,
     pub nominal_chi2: f64,
-    /// Used frame values minus free variables minus nuisances.
+    /// Rows (the used frame values and the gain prior's) minus free variables minus the linear
+    /// parameters.
     pub dof: usize,
     pub values_used: usize,
     pub history: Vec<FitStep>,
     pub identification: Identification,
     /// The nominal scales (V/A) the nuisance scales are relative to.
     pub nominal_scales: [f64; 4],
+    /// The gains' prior tolerance ([`FitRequest::gain_tolerance`]).
+    pub gain_tolerance: Option<f64>,
     pub adjustment: Option<Adjustment>,
     pub evaluations: usize,
     /// What a correct model's χ² should be at these rays ([`chi2`]).
@@ -167,6 +174,8 @@ pub struct Problem<'a> {
     pub scale: std::cell::Cell<model::VarianceScale>,
     /// Each variable's difference step to try next (unit box, [`step::Rule`]).
     pub steps: std::cell::RefCell<Vec<f64>>,
+    /// The detector gains' prior ([`gains`]), or None where they are free.
+    pub prior: Option<gains::GainPrior>,
 }
 
 impl Problem<'_> {
@@ -185,7 +194,7 @@ impl Problem<'_> {
         );
         // A bench whose arm sees no light at all cannot be profiled: no better than a bench
         // that does not build.
-        Ok(model::profile(&frames, self.measured).ok())
+        Ok(model::profile(&frames, self.measured, self.prior.as_ref()).ok())
     }
 
     /// The χ² at `x` traced with (rays, seed), infinite where the bench does not build or
@@ -231,7 +240,7 @@ impl Problem<'_> {
         let scale = batches.scale(&unit, self.measured);
         self.scale.set(scale);
         let frames = model::model_frames(t, &self.bits, self.measured, &scale);
-        Ok(model::profile(&frames, self.measured)
+        Ok(model::profile(&frames, self.measured, self.prior.as_ref())
             .ok()
             .map(|p| (p, batches)))
     }
@@ -266,7 +275,7 @@ impl Problem<'_> {
             self.measured,
             &self.scale.get(),
         );
-        let Ok(prof) = model::profile(&frames, self.measured) else {
+        let Ok(prof) = model::profile(&frames, self.measured, self.prior.as_ref()) else {
             return Ok(None);
         };
         Ok(Some(step::Sampled {
@@ -363,6 +372,8 @@ pub fn residual_deviations(
                     flat += 1;
                 }
             }
+            // The prior's rows carry no trace noise before the profiling.
+            out.extend(std::iter::repeat_n(0.0, prof.prior_rows));
             out
         })
         .collect()
@@ -432,6 +443,7 @@ pub fn fit(
     }
     let bits = check_measured(doc, measured)?;
     let scene = doc.run_scene()?;
+    let nominal_scales = model::nominal_scales(&scene.detector);
     let p = Problem {
         doc,
         free: &req.free,
@@ -439,6 +451,10 @@ pub fn fit(
         bits,
         scale: std::cell::Cell::new(model::VarianceScale::default()),
         steps: std::cell::RefCell::new(vec![step::RULE.first; req.free.len()]),
+        prior: req.gain_tolerance.map(|tolerance| gains::GainPrior {
+            nominal: nominal_scales,
+            tolerance,
+        }),
     };
     let rays = req.rays.max(2 * crate::trace::RAYS_PER_BATCH);
     let stages = [(rays / 4).max(2 * crate::trace::RAYS_PER_BATCH), rays];
@@ -463,10 +479,7 @@ pub fn fit(
             .calibrate(&x, rays, req.seed)?
             .ok_or_else(|| Error::input("the fitted bench does not build"))?;
         count();
-        let dof = prof
-            .residuals
-            .len()
-            .saturating_sub(req.free.len() + NUISANCES.len());
+        let dof = prof.dof(req.free.len());
         let jacobian = p.jacobian(&u, rays, req.seed, &count)?;
         let jac = &jacobian.cols;
         let chi2_dof = prof.chi2 / dof.max(1) as f64;
@@ -498,8 +511,8 @@ pub fn fit(
         }
     };
     let x = p.to_values(&u);
-    let n_used = best_prof.residuals.len();
-    let dof = n_used.saturating_sub(req.free.len() + NUISANCES.len());
+    let n_used = best_prof.residuals.len() - best_prof.prior_rows;
+    let dof = best_prof.dof(req.free.len());
     let best = Point {
         values: x,
         profiled: best_prof,
@@ -519,7 +532,8 @@ pub fn fit(
         values_used: n_used,
         history,
         identification,
-        nominal_scales: model::nominal_scales(&scene.detector),
+        nominal_scales,
+        gain_tolerance: req.gain_tolerance,
         adjustment,
         best,
         evaluations: evals.load(std::sync::atomic::Ordering::Relaxed),

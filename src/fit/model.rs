@@ -13,10 +13,11 @@
 //! - RF = r₊·u₊ − r₋·u₋ + b_RF: the RF transimpedance times each diode's responsivity.
 //!
 //! Seven nuisances in all, reported as scales relative to the bench's nominal electronics and
-//! offsets in volts. A change that only scales one arm's light (a uniform loss of collection)
-//! is therefore indistinguishable from that arm's gain: what the frames constrain is the shape
-//! of each arm's per-unit collection map over the chart, and the fit reports directions the
-//! shapes do not fix as unidentified.
+//! offsets in volts. Left free, a change that only scales one arm's light (a uniform loss of
+//! collection) is indistinguishable from that arm's gain, and the frames constrain only the
+//! shape of each arm's per-unit collection map over the chart; a prior on the four scales
+//! about the lamp's common unknown power ([`super::gains`], the default) lets the arms' ratio
+//! speak too. The fit reports directions the frames do not fix as unidentified.
 //!
 //! Each frame value is weighted by 1 / (σ_c² + Σ_k a_k²·var u_k(f)): the measured noise of its
 //! channel plus the model's Monte Carlo variance carried through the fitted scales, so that
@@ -325,7 +326,7 @@ pub fn batch_frames(
 #[derive(Debug, Clone)]
 pub struct Profiled {
     /// Whitened residuals (measured − model) / σ of every used frame value, channel-major within
-    /// each frame, sequences in order.
+    /// each frame, sequences in order; then, with a gain prior, its rows ([`super::gains`]).
     pub residuals: Vec<f64>,
     pub chi2: f64,
     /// The linear nuisances in their fitted units (A → V scales, V offsets), [`NUISANCES`] order
@@ -334,14 +335,34 @@ pub struct Profiled {
     /// Residuals (V) and their σ (V) per sequence, frame and channel (NaN where flagged).
     pub residual_v: Vec<Vec<[f64; 3]>>,
     pub sigma_v: Vec<Vec<[f64; 3]>>,
-    /// Each channel's nuisance columns over the used frames, whitened (column·√weight): what
-    /// the profiling projects out ([`super::chi2::expected`]).
-    pub basis_w: [Vec<Vec<f64>>; 3],
+    /// The linear model's columns over all the rows of `residuals`, whitened (column·√weight):
+    /// what the profiling projects out ([`super::chi2::expected`]).
+    pub basis_w: Vec<Vec<f64>>,
+    /// The gain prior's rows at the end of `residuals` (0 without a prior).
+    pub prior_rows: usize,
+    /// With a gain prior, the common scale of the four channel gains relative to the nominal
+    /// electronics (the lamp's absolute power, which the lab does not know).
+    pub lamp_scale: Option<f64>,
+}
+
+impl Profiled {
+    /// The linear parameters fitted: the seven channel nuisances.
+    pub fn linear_parameters(&self) -> usize {
+        self.basis_w.len()
+    }
+
+    /// Degrees of freedom with `free` variables: rows (the prior's included) less the linear
+    /// parameters and the variables.
+    pub fn dof(&self, free: usize) -> usize {
+        self.residuals
+            .len()
+            .saturating_sub(free + self.linear_parameters())
+    }
 }
 
 /// Weighted least squares of y on the columns `x` (each a basis vector) with weights `w`:
-/// the coefficients, through the normal equations (at most three columns).
-fn wls(cols: &[Vec<f64>], y: &[f64], w: &[f64]) -> Result<Vec<f64>> {
+/// the coefficients, through the normal equations (columns scaled to unit weighted norm).
+pub(super) fn wls(cols: &[Vec<f64>], y: &[f64], w: &[f64]) -> Result<Vec<f64>> {
     let k = cols.len();
     // Columns scaled to unit weighted norm: the light (A) and the offsets' ones differ by 10¹².
     let norm: Vec<f64> = cols
@@ -354,10 +375,18 @@ fn wls(cols: &[Vec<f64>], y: &[f64], w: &[f64]) -> Result<Vec<f64>> {
     let mut a = vec![vec![0.0; k]; k];
     let mut b = vec![0.0; k];
     for n in 0..y.len() {
+        let wn = w[n];
+        if wn == 0.0 {
+            continue;
+        }
+        let x: Vec<f64> = (0..k).map(|i| cols[i][n] / norm[i]).collect();
         for i in 0..k {
-            b[i] += w[n] * cols[i][n] / norm[i] * y[n];
+            if x[i] == 0.0 {
+                continue;
+            }
+            b[i] += wn * x[i] * y[n];
             for j in 0..k {
-                a[i][j] += w[n] * cols[i][n] / norm[i] * cols[j][n] / norm[j];
+                a[i][j] += wn * x[i] * x[j];
             }
         }
     }
@@ -372,10 +401,15 @@ fn wls(cols: &[Vec<f64>], y: &[f64], w: &[f64]) -> Result<Vec<f64>> {
         })
 }
 
-/// The misfit of the model's frames to the measured ones, the nuisances profiled out (module
-/// notes), in two passes: the weights of the second carry the first's fitted scales.
-pub fn profile(model: &ModelFrames, measured: &Measured) -> Result<Profiled> {
-    // Flatten the used frames.
+/// The used frames flattened: the model's light and its variance per arm, the measured values
+/// per channel.
+pub(super) struct Flat {
+    pub u: [Vec<f64>; 2],
+    pub var: [Vec<f64>; 2],
+    pub y: [Vec<f64>; 3],
+}
+
+fn flatten(model: &ModelFrames, measured: &Measured) -> Flat {
     let mut u = [Vec::new(), Vec::new()];
     let mut var = [Vec::new(), Vec::new()];
     let mut y = [Vec::new(), Vec::new(), Vec::new()];
@@ -393,44 +427,94 @@ pub fn profile(model: &ModelFrames, measured: &Measured) -> Result<Profiled> {
             }
         }
     }
-    let n = y[0].len();
-    let ones = vec![1.0; n];
-    let neg_minus: Vec<f64> = u[1].iter().map(|v| -v).collect();
-    let sigma2 = measured.noise_v.map(|s| s * s);
-    // Channel o's basis (columns), and which model variance each scale carries.
-    let basis: [(Vec<Vec<f64>>, Vec<usize>); 3] = [
-        (vec![u[0].clone(), neg_minus, ones.clone()], vec![0, 1]),
-        (vec![u[0].clone(), ones.clone()], vec![0]),
-        (vec![u[1].clone(), ones], vec![1]),
-    ];
-    let mut coef: [Vec<f64>; 3] = Default::default();
-    let mut weights: [Vec<f64>; 3] = Default::default();
-    for (o, (cols, arms)) in basis.iter().enumerate() {
-        let floor = sigma2[o].max(1e-30);
-        let mut w = vec![1.0 / floor; n];
-        let mut c = wls(cols, &y[o], &w)?;
-        for (i, wi) in w.iter_mut().enumerate() {
-            let mc: f64 = arms
-                .iter()
-                .enumerate()
-                .map(|(k, &a)| c[k] * c[k] * var[a][i])
-                .sum();
-            *wi = 1.0 / (floor + mc);
-        }
-        c = wls(cols, &y[o], &w)?;
-        coef[o] = c;
-        weights[o] = w;
+    Flat { u, var, y }
+}
+
+impl Flat {
+    pub fn frames(&self) -> usize {
+        self.y[0].len()
     }
-    let mut residuals = Vec::with_capacity(3 * n);
+
+    /// The rows' weights 1 / (σ_c² + Σ_arm c²·var u_arm) from the channel gains
+    /// `scales` = [RF on u₊, RF on u₋, MONITOR+, MONITOR−] (V/A), rows frame-major.
+    pub fn weights(&self, floor: [f64; 3], scales: [f64; 4]) -> Vec<f64> {
+        let n = self.frames();
+        let mut w = Vec::with_capacity(3 * n);
+        for i in 0..n {
+            let mc = [
+                scales[0] * scales[0] * self.var[0][i] + scales[1] * scales[1] * self.var[1][i],
+                scales[2] * scales[2] * self.var[0][i],
+                scales[3] * scales[3] * self.var[1][i],
+            ];
+            for o in 0..3 {
+                w.push(1.0 / (floor[o] + mc[o]));
+            }
+        }
+        w
+    }
+
+    /// The measured values, rows frame-major (channels within).
+    pub fn rows(&self) -> Vec<f64> {
+        (0..self.frames())
+            .flat_map(|i| [self.y[0][i], self.y[1][i], self.y[2][i]])
+            .collect()
+    }
+}
+
+/// The seven free nuisances' columns over the rows (frame-major, channels within), in
+/// [`NUISANCES`] order: each channel's scale(s) on the light and its offset.
+pub(super) fn free_columns(flat: &Flat) -> Vec<Vec<f64>> {
+    let n = flat.frames();
+    let mut cols = vec![vec![0.0; 3 * n]; 7];
+    for i in 0..n {
+        let (up, um) = (flat.u[0][i], flat.u[1][i]);
+        cols[0][3 * i] = up;
+        cols[1][3 * i] = -um;
+        cols[2][3 * i] = 1.0;
+        cols[3][3 * i + 1] = up;
+        cols[4][3 * i + 1] = 1.0;
+        cols[5][3 * i + 2] = um;
+        cols[6][3 * i + 2] = 1.0;
+    }
+    cols
+}
+
+/// The misfit of the model's frames to the measured ones, the nuisances profiled out (module
+/// notes), in two passes: the weights of the second carry the first's fitted scales. With a
+/// gain prior ([`super::gains`]) the scales are then fitted again under it.
+pub fn profile(
+    model: &ModelFrames,
+    measured: &Measured,
+    prior: Option<&super::gains::GainPrior>,
+) -> Result<Profiled> {
+    let flat = flatten(model, measured);
+    let n = flat.frames();
+    let floor = measured.noise_v.map(|s| (s * s).max(1e-30));
+    let scales_of = |c: &[f64]| [c[0], c[1], c[3], c[5]];
+    let mut cols = free_columns(&flat);
+    let mut y = flat.rows();
+    let mut w = flat.weights(floor, [0.0; 4]);
+    let mut c = wls(&cols, &y, &w)?;
+    w = flat.weights(floor, scales_of(&c));
+    c = wls(&cols, &y, &w)?;
+    let mut nuisances: [f64; 7] = c[..7].try_into().expect("seven nuisances");
+    let mut lamp_scale = None;
+    let mut prior_rows = 0;
+    if let Some(pr) = prior {
+        let fit = super::gains::fit_under_prior(&flat, floor, &c, pr)?;
+        (cols, y, w, c) = (fit.cols, fit.y, fit.w, fit.coef);
+        nuisances = c[..7].try_into().expect("seven nuisances");
+        lamp_scale = Some(fit.lamp_scale);
+        prior_rows = fit.prior_rows;
+    }
+    let mut residuals = Vec::with_capacity(y.len());
     let mut chi2 = 0.0;
-    let pred = |o: usize, i: usize| -> f64 {
-        basis[o]
-            .0
-            .iter()
-            .zip(&coef[o])
-            .map(|(col, c)| c * col[i])
-            .sum()
-    };
+    for (r, yr) in y.iter().enumerate() {
+        let pred: f64 = cols.iter().zip(&c).map(|(col, ci)| ci * col[r]).sum();
+        let z = (yr - pred) * w[r].sqrt();
+        residuals.push(z);
+        chi2 += z * z;
+    }
     let mut residual_v = Vec::new();
     let mut sigma_v = Vec::new();
     let mut i = 0;
@@ -442,38 +526,19 @@ pub fn profile(model: &ModelFrames, measured: &Measured) -> Result<Profiled> {
                 sv.push([f64::NAN; 3]);
                 continue;
             }
-            let mut r3 = [0.0; 3];
-            let mut s3 = [0.0; 3];
-            for o in 0..3 {
-                let r = y[o][i] - pred(o, i);
-                let z = r * weights[o][i].sqrt();
-                residuals.push(z);
-                chi2 += z * z;
-                r3[o] = r;
-                s3[o] = 1.0 / weights[o][i].sqrt();
-            }
-            rv.push(r3);
+            let s3 = [0, 1, 2].map(|o| 1.0 / w[3 * i + o].sqrt());
+            rv.push([0, 1, 2].map(|o| residuals[3 * i + o] * s3[o]));
             sv.push(s3);
             i += 1;
         }
         residual_v.push(rv);
         sigma_v.push(sv);
     }
-    let nuisances = [
-        coef[0][0], coef[0][1], coef[0][2], coef[1][0], coef[1][1], coef[2][0], coef[2][1],
-    ];
-    let basis_w = [0, 1, 2].map(|o| {
-        basis[o]
-            .0
-            .iter()
-            .map(|col| {
-                col.iter()
-                    .zip(&weights[o])
-                    .map(|(c, w)| c * w.sqrt())
-                    .collect()
-            })
-            .collect()
-    });
+    debug_assert_eq!(i, n);
+    let basis_w = cols
+        .iter()
+        .map(|col| col.iter().zip(&w).map(|(c, w)| c * w.sqrt()).collect())
+        .collect();
     Ok(Profiled {
         residuals,
         chi2,
@@ -481,6 +546,8 @@ pub fn profile(model: &ModelFrames, measured: &Measured) -> Result<Profiled> {
         residual_v,
         sigma_v,
         basis_w,
+        prior_rows,
+        lamp_scale,
     })
 }
 

@@ -59,17 +59,76 @@ fn synthetic(noise: f64) -> (ModelFrames, Measured) {
 #[test]
 fn profiled_nuisances_are_recovered_and_chi2_follows_the_noise() {
     let (model, measured) = synthetic(0.0);
-    let p = profile(&model, &measured).unwrap();
+    let p = profile(&model, &measured, None).unwrap();
     let want = [3e3, 2.9e3, 0.01, 1e4, 0.02, 1.1e4, -0.03];
     for (a, b) in p.nuisances.iter().zip(want) {
         assert!((a - b).abs() <= 1e-6 * b.abs().max(1.0), "{a} vs {b}");
     }
     assert!(p.chi2 < 1e-6, "{}", p.chi2);
     let (model, measured) = synthetic(1e-3);
-    let p = profile(&model, &measured).unwrap();
+    let p = profile(&model, &measured, None).unwrap();
     let dof = (3 * 64 - 7) as f64;
     let r = p.chi2 / dof;
     assert!((0.7..1.3).contains(&r), "χ²/dof {r}");
+}
+
+/// Under a gain prior consistent with the synthetic frames' scales (nominal × a lamp scale of
+/// 1.7) the same nuisances come back with the lamp scale, the prior's four rows count in the
+/// degrees of freedom, and noise gives χ²/dof near 1.
+#[test]
+fn a_consistent_gain_prior_recovers_the_scales_and_the_lamp_power() {
+    use super::gains::{GainPrior, PRIOR_ROWS};
+    let want = [3e3, 2.9e3, 0.01, 1e4, 0.02, 1.1e4, -0.03];
+    let prior = GainPrior {
+        nominal: [want[0], want[1], want[3], want[5]].map(|s| s / 1.7),
+        tolerance: 0.05,
+    };
+    let (model, measured) = synthetic(0.0);
+    let p = profile(&model, &measured, Some(&prior)).unwrap();
+    for (a, b) in p.nuisances.iter().zip(want) {
+        assert!((a - b).abs() <= 1e-6 * b.abs().max(1.0), "{a} vs {b}");
+    }
+    let lamp = p.lamp_scale.unwrap();
+    assert!((lamp - 1.7).abs() < 1e-6, "lamp scale {lamp}");
+    assert!(p.chi2 < 1e-6, "{}", p.chi2);
+    assert_eq!(p.prior_rows, PRIOR_ROWS);
+    assert_eq!(p.residuals.len(), 3 * 64 + PRIOR_ROWS);
+    assert_eq!(p.linear_parameters(), 7);
+    assert_eq!(p.dof(2), 3 * 64 + PRIOR_ROWS - 7 - 2);
+    let (model, measured) = synthetic(1e-3);
+    let p = profile(&model, &measured, Some(&prior)).unwrap();
+    let r = p.chi2 / p.dof(0) as f64;
+    assert!((0.7..1.3).contains(&r), "χ²/dof {r}");
+}
+
+/// What the prior is for: a model whose − arm collects 20 % less light than the bench's is
+/// explained exactly by free channel scales (the − scales take the loss), but not under a 1 %
+/// prior on the gains, where the arms' ratio must come from the light: the misfit is of the
+/// order of (0.2/0.01)²·(contrasts' share of the − arm's deviation).
+#[test]
+fn a_gain_prior_keeps_an_arm_s_loss_out_of_its_gains() {
+    use super::gains::GainPrior;
+    let want = [3e3, 2.9e3, 0.01, 1e4, 0.02, 1.1e4, -0.03];
+    let prior = GainPrior {
+        nominal: [want[0], want[1], want[3], want[5]],
+        tolerance: 0.01,
+    };
+    let (mut model, measured) = synthetic(1e-3);
+    for l in &mut model.light_a[0] {
+        l[1] *= 0.8;
+    }
+    let free = profile(&model, &measured, None).unwrap();
+    let r = free.chi2 / free.dof(0) as f64;
+    assert!(
+        (0.7..1.3).contains(&r),
+        "free scales absorb the loss: χ²/dof {r}"
+    );
+    let held = profile(&model, &measured, Some(&prior)).unwrap();
+    assert!(
+        held.chi2 > 200.0,
+        "the prior holds the gains: χ² {}",
+        held.chi2
+    );
 }
 
 /// The equally good range along a scan spans every point within the limit, a second valley
@@ -130,4 +189,21 @@ fn the_grid_ranges_span_every_equally_good_patch() {
         grid_ranges(&levels, &[100.0; 49], points, 4.0),
         vec![None, None]
     );
+}
+
+/// The unshared trace noise's σ: with no such noise and χ²/dof ≤ 1 it is 1/s, the standard
+/// deviation of independent noise of the weights' size; it grows as √(4 + 2√2·sd)/(2s).
+#[test]
+fn the_unshared_sigma_reduces_to_independent_noise() {
+    use super::identify::{At, unshared_sigma};
+    let at = |chi2_dof: f64, chi2_sd: f64| At {
+        chi2: 0.0,
+        chi2_dof,
+        chi2_sd,
+    };
+    assert!((unshared_sigma(at(0.8, 0.0), 40.0) - 1.0 / 40.0).abs() < 1e-15);
+    assert!((unshared_sigma(at(2.25, 0.0), 40.0) - 1.5 / 40.0).abs() < 1e-15);
+    let want = (4.0 + 2.0 * 2f64.sqrt() * 200.0).sqrt() / 80.0;
+    assert!((unshared_sigma(at(0.8, 200.0), 40.0) - want).abs() < 1e-15);
+    assert!(unshared_sigma(at(0.8, 0.0), 0.0).is_infinite());
 }

@@ -86,6 +86,12 @@ pub struct FitSummary {
     /// The Monte Carlo variance scale [[calibration +, −], [patterns +, −]].
     pub mc_variance_scale: [[f64; 2]; 2],
     pub noise_v: [f64; 3],
+    /// The gains' prior tolerance (null: free gains).
+    pub gain_tolerance: Option<f64>,
+    /// Under a gain prior, the four gains' mean scale relative to the nominal electronics.
+    pub lamp_scale: Option<f64>,
+    /// The gain prior's rows among the residuals (0 without a prior).
+    pub prior_rows: usize,
     pub variables: Vec<FittedVariable>,
     pub nuisances: Vec<Nuisance>,
     pub singular_values: Vec<f64>,
@@ -174,6 +180,9 @@ pub fn summarize(f: &Fit, doc: &BenchDoc, measured: &Measured) -> FitSummary {
             .map(|k| (f.chi2_expected.mean() + k * f.chi2_expected.sd) / f.dof.max(1) as f64),
         mc_variance_scale: f.variance_scale.0,
         noise_v: measured.noise_v,
+        gain_tolerance: f.gain_tolerance,
+        lamp_scale: f.best.profiled.lamp_scale,
+        prior_rows: f.best.profiled.prior_rows,
         variables,
         nuisances: f
             .nuisances()

@@ -94,6 +94,12 @@ fn fit_recovers_an_arm_lens_decentre_and_refuses_bad_input() {
     );
     let chi2 = sm["chi2_per_dof"].as_f64().unwrap();
     assert!(chi2 < 2.0, "χ²/dof {chi2}");
+    // The default gain prior: three contrast rows, the lamp's scale near the nominal bench's
+    // (the measured bench has its electronics; its light differs by the decentre's loss).
+    assert_eq!(sm["gain_tolerance"], 0.05, "{sm}");
+    assert_eq!(sm["prior_rows"], 3, "{sm}");
+    let lamp = sm["lamp_scale"].as_f64().unwrap();
+    assert!((0.8..1.2).contains(&lamp), "lamp scale {lamp}");
     assert!(sm["chi2_nominal"].as_f64().unwrap() > 5.0 * sm["chi2"].as_f64().unwrap());
     for f in [
         "fitted.ron",
@@ -130,6 +136,11 @@ fn fit_recovers_an_arm_lens_decentre_and_refuses_bad_input() {
         &["--free", "arm_plus_lens.decenter_mm.x=0.5:3"],
         &measured,
         "outside the bounds",
+    );
+    refused(
+        &[&free[..], &["--gain-tolerance", "2"]].concat(),
+        &measured,
+        "--gain-tolerance",
     );
     // Another sequence's patterns: the recorded hash differs from the bench's frames.
     let other = dir.join("other");
