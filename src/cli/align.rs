@@ -25,8 +25,9 @@ pub enum ObjectiveArg {
     /// Minimise Σ W·METRIC over the --weight flags.
     Weighted,
     /// Centre each diode on its arm's spot: maximise the two margins, active radius −
-    /// (centroid offset + 2 RMS radii), from the irradiance maps, the smaller weighted 3 times
-    /// the larger. The robust choice where the imbalance is flat (the whole spot on the diode
+    /// (centroid offset + 2 RMS radii) of the pattern light on the active area (the light
+    /// collected; not the housing plate's, where the diffractive DMD's other orders land), from
+    /// the irradiance maps, the smaller weighted 3 times the larger. The robust choice where the imbalance is flat (the whole spot on the diode
     /// over a range of positions).
     Centre,
 }

@@ -343,7 +343,7 @@ fn centre_summary(a: &Alignment) -> Option<CentreSummary> {
         rms_radius_m: p.stats.rms_radius_m,
         spill: p.stats.spill,
     };
-    let mapped = |p: &crate::pipeline::evaluate::Spot| p.stats.active_w + p.stats.plate_w > 0.0;
+    let mapped = |p: &crate::pipeline::evaluate::Spot| p.stats.active_w > 0.0;
     Some(CentreSummary {
         rms_radii: crate::pipeline::optimise::CENTRE_RMS_RADII,
         diodes: (0..2)

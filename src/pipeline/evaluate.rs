@@ -89,13 +89,15 @@ impl Evaluation {
     }
 }
 
-/// Where the light of one diode's own arm lands on it (the diode's map with every unit in its
-/// state: + for the + diode, − for the − diode), and its centre margin
-/// ([`crate::pipeline::optimise::centre_margin`]).
+/// Where the light of one diode's own arm lands on it: its collected spot, the pattern light
+/// on its active area with every unit in its state (+ for the + diode, − for the − diode;
+/// [`crate::pipeline::optimise::spot`]), and its centre margin
+/// ([`crate::pipeline::optimise::centre_margin_m`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Spot {
-    /// Centroid (with its standard error), RMS radius and spill, in the diode's (u, v) axes
-    /// from the active area's centre.
+    /// Centroid (with its standard error) and RMS radius of the light on the active area, and
+    /// the share of the state's pattern light on the housing's plate, in the diode's (u, v)
+    /// axes from the active area's centre.
     pub stats: crate::trace::irradiance::MapStats,
     pub active_radius_m: f64,
     /// The centroid's distance from the active area's centre (m) and its standard error.

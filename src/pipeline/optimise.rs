@@ -48,15 +48,17 @@
 //! - `Power`: maximise k₊ + k₋ (minimise −(k₊ + k₋)/(k₊ + k₋)_start).
 //! - `Weighted`: minimise Σ w_m·m over named metrics (values in their SI units).
 //! - `Centre`: maximise the diodes' centre margins ([`centre_margin_m`]: active radius −
-//!   centroid offset − 2 RMS radii of the arm's spot, from the irradiance maps of the same
-//!   trace), the smaller one weighted more ([`centre_value`]), in units of the smaller active
-//!   radius: each diode centred on its spot.
+//!   centroid offset − 2 RMS radii of the arm's collected spot, the pattern light of its state
+//!   on its active area, from the irradiance maps of the same trace, [`spot`]), the smaller
+//!   one weighted more ([`centre_value`]), in units of the smaller active radius: each diode
+//!   centred on its spot.
 //!   Where the imbalance is flat over a range of positions (the whole spot on the diode), this
 //!   is the point in the middle of that range, the one that keeps the spot on the diode for the
 //!   largest move either way. Its standard error is the margin's own (delta method over the
 //!   map's bins, [`spot`]), not paired: the maps keep no per-batch totals to pair.
-//!   Without a housing only the light on the active area is mapped, so a spot that crosses the
-//!   rim is seen by its part inside; the margin still falls toward 0 there.
+//!   The light on the housing's plate is not the spot (with the diffractive DMD it is chiefly
+//!   the orders the diode does not collect), so a spot that crosses the rim is seen by its
+//!   part inside; the margin still falls toward 0 there.
 
 use crate::error::{Error, Result};
 use crate::pipeline::evaluate::{EvaluateOptions, Evaluation, Spot, evaluate, evaluate_mapped};
@@ -368,25 +370,34 @@ pub fn terms(
 /// power (1 − e⁻²), so a positive margin means the bulk of the spot clears the edge.
 pub const CENTRE_RMS_RADII: f64 = 2.0;
 
-/// The centre margin of one diode (m): active radius − (distance of the light's centroid from
-/// the diode's centre + k·RMS radius), from its irradiance map's summary. It is largest where
-/// the spot sits at the diode's centre, and it is negative when the spot's footprint crosses
-/// the active edge. With no light mapped it is −∞: a diode the light misses is not centred.
+/// The centre margin of one diode (m): active radius − (distance of the spot's centroid from
+/// the diode's centre + k·RMS radius), from its collected spot's summary ([`spot`]). It is
+/// largest where the spot sits at the diode's centre, and it falls toward 0 as the spot's
+/// footprint reaches the active edge. With no light on the active area it is −∞: a diode the
+/// light misses is not centred.
 pub fn centre_margin_m(
     stats: &crate::trace::irradiance::MapStats,
     active_radius_m: f64,
     k_rms: f64,
 ) -> f64 {
-    let mapped = stats.active_w + stats.plate_w;
-    if mapped.is_nan() || mapped <= 0.0 {
+    if stats.active_w.is_nan() || stats.active_w <= 0.0 {
         return f64::NEG_INFINITY;
     }
     let [cx, cy] = stats.centroid_m;
     active_radius_m - (cx.hypot(cy) + k_rms * stats.rms_radius_m)
 }
 
-/// Diode d's [`Spot`] in its own arm's state (map state d: every unit + for the + diode, − for
+/// Diode d's [`Spot`] in its own arm's state (branch d: every unit + for the + diode, − for
 /// the − diode), with the centre margin for `k_rms` RMS radii and its standard error.
+///
+/// The spot is the light the diode collects: the pattern light of its state on its active
+/// area ([`crate::trace::irradiance::IrradianceMaps::collected`]). The housing's plate is left
+/// out because with the diffractive DMD it holds chiefly the diffraction orders the diode does
+/// not collect (filament images one order spacing, 2.6–8.5 mm on the paper bench, from the
+/// collected one; docs/dmd_diffraction.md), whose centroid says nothing about where the
+/// collected order sits; the pattern-independent light is left out because no pattern moves
+/// it. The price: a spot crossing the rim is seen by its part inside, so its margin falls to
+/// about 0 rather than below as it leaves, and the margin still peaks with the spot centred.
 ///
 /// The errors are the delta method over the map's bins, taken as independent (as the
 /// centroid's, [`crate::trace::irradiance::MapStats::centroid_stderr_m`]): with W the mapped
@@ -396,10 +407,11 @@ pub fn centre_margin_m(
 /// (ρ within a few standard errors of 0) |c| is biased high by about its error, and the
 /// direction e is that of the noise: the error given is that along it.
 pub fn spot(maps: &crate::trace::irradiance::IrradianceMaps, d: usize, k_rms: f64) -> Spot {
-    let stats = maps.stats(d, d);
+    use crate::trace::irradiance::branch_index;
+    let stats = maps.collected(d, d);
     let window = maps.window(d);
     let radius = window.radius_m;
-    let total = stats.active_w + stats.plate_w;
+    let total = stats.active_w;
     let [cx, cy] = stats.centroid_m;
     let rho = cx.hypot(cy);
     let (ex, ey) = if rho > 0.0 {
@@ -412,7 +424,7 @@ pub fn spot(maps: &crate::trace::irradiance::IrradianceMaps, d: usize, k_rms: f6
     let (mut v_rho, mut v_margin) = (0.0, 0.0);
     if total > 0.0 {
         for i in 0..bins * bins {
-            let se = maps.bin_stderr_w(d, d, i);
+            let se = maps.branch_stderr_w(branch_index(bins, d, d, 0, i));
             if se == 0.0 {
                 continue;
             }

@@ -284,3 +284,55 @@ fn a_set_dmd_tilt_rebuilds_the_diffraction_and_moves_the_blaze() {
         assert!(off_blaze < 0.6, "state {state}: {off_blaze}");
     }
 }
+
+/// The centre objective on the shipped bench, the DMD as built: each diode's housing plate
+/// takes a large share of its own state's pattern light (the diffraction orders the diode
+/// does not collect, one order spacing or more off: docs/dmd_diffraction.md), and all of the
+/// light around the diode has a centroid and an RMS radius that put its margin below −1 mm.
+/// The objective's spot is the collected light (the pattern light on the active area): its
+/// RMS radius is that of a filament image (2.0 × 1.2 mm, so under 1 mm), its centroid lies on
+/// the active area, its margin is at least 2 mm above the one of all the light, and the
+/// evaluation `align` scores is that spot, from the same trace.
+#[test]
+fn the_centre_objective_reads_the_collected_order_on_the_shipped_bench() {
+    use spibench::pipeline::evaluate::{EvaluateOptions, evaluate_mapped};
+    use spibench::pipeline::optimise::{CENTRE_RMS_RADII, centre_margin_m, spot};
+    use spibench::trace::TraceOptions;
+    use spibench::trace::irradiance::{DEFAULT_BINS, trace_with_maps};
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/paper_bench.ron");
+    let doc = BenchDoc::read(&path).unwrap();
+    assert_eq!(doc.dmd_model(), Some(DmdModel::Diffractive));
+    let (rays, seed) = (RAYS, 7);
+    let bench = doc.build().unwrap();
+    let (_, maps) = trace_with_maps(&bench, &TraceOptions::new(rays, seed), DEFAULT_BINS).unwrap();
+    let o = EvaluateOptions {
+        rays,
+        seed,
+        quality: false,
+    };
+    let scored = evaluate_mapped(&doc, Vec::new(), &o).unwrap().spots.unwrap();
+    for d in 0..2 {
+        let s = spot(&maps, d, CENTRE_RMS_RADII);
+        assert_eq!(s, scored[d]);
+        let all = maps.stats(d, d);
+        let r = s.active_radius_m;
+        let old = centre_margin_m(&all, r, CENTRE_RMS_RADII);
+        eprintln!(
+            "diode {d}: spill {:.3}, collected offset {:.3} mm, RMS {:.3} mm, margin {:.3} ± \
+             {:.3} mm; all light: offset {:.3} mm, RMS {:.3} mm, margin {:.3} mm",
+            s.stats.spill,
+            s.offset_m * 1e3,
+            s.stats.rms_radius_m * 1e3,
+            s.margin_m * 1e3,
+            s.margin_stderr_m * 1e3,
+            all.centroid_m[0].hypot(all.centroid_m[1]) * 1e3,
+            all.rms_radius_m * 1e3,
+            old * 1e3
+        );
+        assert!(s.stats.spill > 0.3, "diode {d}: {}", s.stats.spill);
+        assert!(old < -1e-3, "diode {d}: {old}");
+        assert!(s.stats.rms_radius_m < 1e-3, "diode {d}: {}", s.stats.rms_radius_m);
+        assert!(s.offset_m < r, "diode {d}: {}", s.offset_m);
+        assert!(s.margin_m > old + 2e-3, "diode {d}: {} vs {old}", s.margin_m);
+    }
+}

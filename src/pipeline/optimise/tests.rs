@@ -208,3 +208,78 @@ fn the_centre_objective_moves_the_diode_onto_its_spot() {
     let before = centre_margin_m(&spot(0.0), r, CENTRE_RMS_RADII);
     assert!((before - (r - d - 2.0 * sigma)).abs() < 1e-15);
 }
+
+/// The spot is the collected light: on a map of the − diode (active radius 2 mm, 1 mm bins)
+/// whose − branch puts 1 W on each of two active bins at (0.5, ±0.5) mm and 3 W of another
+/// diffraction order on the housing's plate at (−3.5, 0.5) mm, with 1 W of pattern-independent
+/// light on the active area at (−0.5, −0.5) mm, the spot's centroid is (0.5, 0) mm and its RMS
+/// radius 0.5 mm, so the margin is 2 − 0.5 − 2·0.5 = 0.5 mm, and neither the plate's nor the
+/// pattern-independent light's power or noise moves it; the share of the branch on the plate
+/// is 3/5. All of the state's light on both layers (the definition before the collected spot)
+/// puts the centroid at (−5/3, 1/6) mm and the RMS radius at 1.92 mm, so the margin at −3.5 mm:
+/// the plate light swamps the spot.
+#[test]
+fn the_spot_is_the_collected_light_not_the_plate_or_the_pattern_independent_light() {
+    use crate::trace::irradiance::{IrradianceMaps, Window, branch_index, index};
+    let window = Window {
+        frame: crate::optics::geometry::Frame::new(glam::DVec3::ZERO, glam::DVec3::Z, None),
+        radius_m: 2e-3,
+        half_width_m: 4e-3,
+        housing: Some(0),
+    };
+    let bins = 8;
+    // Row 0 at +v, column 0 at −u: centres at ±0.5, ±1.5, … mm.
+    let bin = |x_mm: f64, y_mm: f64| {
+        let col = (x_mm + 4.0).floor() as usize;
+        let row = bins - 1 - (y_mm + 4.0).floor() as usize;
+        row * bins + col
+    };
+    let build = |plate_totals: (f64, f64), common_totals: (f64, f64)| {
+        let mut maps = IrradianceMaps::new([window; 2], Vec::new(), bins);
+        maps.batches = 2;
+        let (d, b) = (1, 1);
+        let mut put = |world: usize, l: usize, i: usize, (a, c): (f64, f64)| {
+            // The state's map (state 1: every unit −) holds the branch and the common light,
+            // the branch sums the branch alone.
+            for s in if world == 2 { vec![0, 1, 2] } else { vec![b] } {
+                let k = index(bins, d, s, l, i);
+                maps.power_w[k] += a + c;
+                maps.sum_sq[k] += a * a + c * c;
+            }
+            if world != 2 {
+                let k = branch_index(bins, d, b, l, i);
+                maps.branch_w[k] += a + c;
+                maps.branch_sum_sq[k] += a * a + c * c;
+            }
+        };
+        put(1, 0, bin(0.5, 0.5), (0.6, 0.4));
+        put(1, 0, bin(0.5, -0.5), (0.3, 0.7));
+        put(1, 1, bin(-3.5, 0.5), plate_totals);
+        put(2, 0, bin(-0.5, -0.5), common_totals);
+        maps
+    };
+    let maps = build((1.0, 2.0), (0.5, 0.5));
+    let s = spot(&maps, 1, CENTRE_RMS_RADII);
+    let close = |a: f64, b: f64| (a - b).abs() < 1e-15;
+    assert!(close(s.stats.centroid_m[0], 0.5e-3) && close(s.stats.centroid_m[1], 0.0));
+    assert!(close(s.stats.rms_radius_m, 0.5e-3), "{}", s.stats.rms_radius_m);
+    assert!(close(s.margin_m, 0.5e-3), "{}", s.margin_m);
+    assert!(close(s.offset_m, 0.5e-3) && s.margin_stderr_m > 0.0);
+    assert_eq!((s.stats.active_w, s.stats.plate_w), (2.0, 3.0));
+    assert!((s.stats.spill - 0.6).abs() < 1e-12, "{}", s.stats.spill);
+    // Other plate and pattern-independent light, other noise: the same spot and errors.
+    let other = spot(&build((2.9, 0.1), (0.0, 4.0)), 1, CENTRE_RMS_RADII);
+    assert_eq!(
+        (other.margin_m, other.margin_stderr_m, other.offset_stderr_m),
+        (s.margin_m, s.margin_stderr_m, s.offset_stderr_m)
+    );
+    // The state's light on both layers: pulled 2.2 mm toward the plate's order.
+    let all = maps.stats(1, 1);
+    assert!(close(all.centroid_m[0], -5e-3 / 3.0) && close(all.centroid_m[1], 1e-3 / 6.0));
+    assert!(centre_margin_m(&all, 2e-3, CENTRE_RMS_RADII) < -3e-3);
+    // No pattern light on the active area (only on the plate): no spot, −∞.
+    let mut dark = IrradianceMaps::new([window; 2], Vec::new(), bins);
+    dark.batches = 2;
+    dark.branch_w[branch_index(bins, 1, 1, 1, bin(-3.5, 0.5))] = 3.0;
+    assert_eq!(spot(&dark, 1, CENTRE_RMS_RADII).margin_m, f64::NEG_INFINITY);
+}
