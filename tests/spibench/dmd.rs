@@ -289,10 +289,12 @@ fn a_set_dmd_tilt_rebuilds_the_diffraction_and_moves_the_blaze() {
 /// takes a large share of its own state's pattern light (the diffraction orders the diode
 /// does not collect, one order spacing or more off: docs/dmd_diffraction.md), and all of the
 /// light around the diode has a centroid and an RMS radius that put its margin below −1 mm.
-/// The objective's spot is the collected light (the pattern light on the active area): its
-/// RMS radius is that of a filament image (2.0 × 1.2 mm, so under 1 mm), its centroid lies on
-/// the active area, its margin is at least 2 mm above the one of all the light, and the
-/// evaluation `align` scores is that spot, from the same trace.
+/// The objective's spot is the collected light (the pattern light on the active area): the
+/// collected order's filament image (2.0 × 1.2 mm) with the parts of its neighbours (one order
+/// spacing, 2.6 mm and more, away) that reach the 5 mm diode, so its RMS radius lies below the
+/// R/√2 of a uniformly lit active area and its centroid within R/2 of the centre, its margin is
+/// at least 2 mm above the one of all the light, and the evaluation `align` scores is that
+/// spot, from the same trace.
 #[test]
 fn the_centre_objective_reads_the_collected_order_on_the_shipped_bench() {
     use spibench::pipeline::evaluate::{EvaluateOptions, evaluate_mapped};
@@ -331,8 +333,13 @@ fn the_centre_objective_reads_the_collected_order_on_the_shipped_bench() {
         );
         assert!(s.stats.spill > 0.3, "diode {d}: {}", s.stats.spill);
         assert!(old < -1e-3, "diode {d}: {old}");
-        assert!(s.stats.rms_radius_m < 1e-3, "diode {d}: {}", s.stats.rms_radius_m);
-        assert!(s.offset_m < r, "diode {d}: {}", s.offset_m);
+        assert!(all.rms_radius_m > r, "diode {d}: {}", all.rms_radius_m);
+        assert!(
+            s.stats.rms_radius_m < r / 2f64.sqrt(),
+            "diode {d}: {}",
+            s.stats.rms_radius_m
+        );
+        assert!(s.offset_m < r / 2.0, "diode {d}: {}", s.offset_m);
         assert!(s.margin_m > old + 2e-3, "diode {d}: {} vs {old}", s.margin_m);
     }
 }
