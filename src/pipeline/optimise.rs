@@ -58,7 +58,7 @@
 //!   map's bins, [`spot`]), not paired: the maps keep no per-batch totals to pair.
 //!   The light on the housing's plate is not the spot (with the diffractive DMD it is chiefly
 //!   the orders the diode does not collect), so a spot that crosses the rim is seen by its
-//!   part inside; the margin still falls toward 0 there.
+//!   part inside: its margin bottoms out once the spot's centre reaches the rim ([`spot`]).
 
 use crate::error::{Error, Result};
 use crate::pipeline::evaluate::{EvaluateOptions, Evaluation, Spot, evaluate, evaluate_mapped};
@@ -372,7 +372,7 @@ pub const CENTRE_RMS_RADII: f64 = 2.0;
 
 /// The centre margin of one diode (m): active radius − (distance of the spot's centroid from
 /// the diode's centre + k·RMS radius), from its collected spot's summary ([`spot`]). It is
-/// largest where the spot sits at the diode's centre, and it falls toward 0 as the spot's
+/// largest where the spot sits at the diode's centre, and it falls through 0 as the spot's
 /// footprint reaches the active edge. With no light on the active area it is −∞: a diode the
 /// light misses is not centred.
 pub fn centre_margin_m(
@@ -396,8 +396,10 @@ pub fn centre_margin_m(
 /// not collect (filament images one order spacing, 2.6–8.5 mm on the paper bench, from the
 /// collected one; docs/dmd_diffraction.md), whose centroid says nothing about where the
 /// collected order sits; the pattern-independent light is left out because no pattern moves
-/// it. The price: a spot crossing the rim is seen by its part inside, so its margin falls to
-/// about 0 rather than below as it leaves, and the margin still peaks with the spot centred.
+/// it. The price: a spot crossing the rim is seen by its part inside, so its margin stops
+/// falling once the spot's centre reaches the rim (about −0.6 spot radii for a uniform round
+/// spot) and climbs back toward 0 as the last of it leaves: the margin pulls a diode toward its
+/// spot from wherever the spot's centre lies on the active area, and peaks with it centred.
 ///
 /// The errors are the delta method over the map's bins, taken as independent (as the
 /// centroid's, [`crate::trace::irradiance::MapStats::centroid_stderr_m`]): with W the mapped
