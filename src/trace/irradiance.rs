@@ -437,8 +437,9 @@ impl IrradianceMaps {
             .map(|i| self.stderr_w(index(bins, d, s, 0, i)).powi(2))
             .sum::<f64>()
             .sqrt();
-        let weight =
-            |i: usize| self.power_w[index(bins, d, s, 0, i)] + self.power_w[index(bins, d, s, 1, i)];
+        let weight = |i: usize| {
+            self.power_w[index(bins, d, s, 0, i)] + self.power_w[index(bins, d, s, 1, i)]
+        };
         let layers = [layer(0), active_se, layer(1)];
         self.summarise(d, layers, weight, |i| self.bin_stderr_w(d, s, i))
     }

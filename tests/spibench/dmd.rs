@@ -312,7 +312,10 @@ fn the_centre_objective_reads_the_collected_order_on_the_shipped_bench() {
         seed,
         quality: false,
     };
-    let scored = evaluate_mapped(&doc, Vec::new(), &o).unwrap().spots.unwrap();
+    let scored = evaluate_mapped(&doc, Vec::new(), &o)
+        .unwrap()
+        .spots
+        .unwrap();
     for d in 0..2 {
         let s = spot(&maps, d, CENTRE_RMS_RADII);
         assert_eq!(s, scored[d]);
@@ -340,6 +343,10 @@ fn the_centre_objective_reads_the_collected_order_on_the_shipped_bench() {
             s.stats.rms_radius_m
         );
         assert!(s.offset_m < r / 2.0, "diode {d}: {}", s.offset_m);
-        assert!(s.margin_m > old + 2e-3, "diode {d}: {} vs {old}", s.margin_m);
+        assert!(
+            s.margin_m > old + 2e-3,
+            "diode {d}: {} vs {old}",
+            s.margin_m
+        );
     }
 }

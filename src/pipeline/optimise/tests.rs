@@ -262,7 +262,11 @@ fn the_spot_is_the_collected_light_not_the_plate_or_the_pattern_independent_ligh
     let s = spot(&maps, 1, CENTRE_RMS_RADII);
     let close = |a: f64, b: f64| (a - b).abs() < 1e-15;
     assert!(close(s.stats.centroid_m[0], 0.5e-3) && close(s.stats.centroid_m[1], 0.0));
-    assert!(close(s.stats.rms_radius_m, 0.5e-3), "{}", s.stats.rms_radius_m);
+    assert!(
+        close(s.stats.rms_radius_m, 0.5e-3),
+        "{}",
+        s.stats.rms_radius_m
+    );
     assert!(close(s.margin_m, 0.5e-3), "{}", s.margin_m);
     assert!(close(s.offset_m, 0.5e-3) && s.margin_stderr_m > 0.0);
     assert_eq!((s.stats.active_w, s.stats.plate_w), (2.0, 3.0));

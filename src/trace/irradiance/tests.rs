@@ -78,8 +78,7 @@ fn the_signal_spill_and_its_error_match_the_scatter_of_seeds() {
     let mut errors = [Vec::new(), Vec::new()];
     let mut pooled: Option<IrradianceMaps> = None;
     for seed in 0..8 {
-        let (t, maps) =
-            trace_with_maps(&bench, &TraceOptions::new(8192, 40 + seed), 32).unwrap();
+        let (t, maps) = trace_with_maps(&bench, &TraceOptions::new(8192, 40 + seed), 32).unwrap();
         for arm in Arm::ALL {
             let (d, b) = (arm.index(), arm.index());
             let slot = n_el + slot_detected(arm);
@@ -232,8 +231,7 @@ detectors: (
 ),
 )"#
     );
-    let bench =
-        crate::scene::bench::parse_bench(&text, std::path::Path::new("disk.ron")).unwrap();
+    let bench = crate::scene::bench::parse_bench(&text, std::path::Path::new("disk.ron")).unwrap();
     // The power through the stop: the view factor of a disk of radius a at distance s from
     // a point at ρ on a parallel plane (F = ½[1 − (s² + ρ² − a²)/√((s² + ρ² + a²)² −
     // 4a²ρ²)]), averaged over the uniformly emitting source disk (radius 1 mm).
