@@ -316,9 +316,9 @@ fn the_centre_objective_reads_the_collected_order_on_the_shipped_bench() {
         .unwrap()
         .spots
         .unwrap();
-    for d in 0..2 {
+    for (d, scored) in scored.iter().enumerate() {
         let s = spot(&maps, d, CENTRE_RMS_RADII);
-        assert_eq!(s, scored[d]);
+        assert_eq!(&s, scored);
         let all = maps.stats(d, d);
         let r = s.active_radius_m;
         let old = centre_margin_m(&all, r, CENTRE_RMS_RADII);
