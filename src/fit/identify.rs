@@ -35,7 +35,11 @@
 //! ([`noise_moment`]: the measurement noise, independent from frame to frame, and the model
 //! trace's, which every frame shares), in the variables' units; a variable with a share above
 //! [`LOADING`] in an unidentified direction is reported unidentified (no standard error) with
-//! its range from the scan. Where two or three variables are unidentified, they are also
+//! its range from the scan. Each identified variable's axis is scanned too (the same
+//! [`SCAN_POINTS`] across its bounds, the others held): a scanned point within Δχ² of the
+//! optimum but beyond the 95 % half-width its curvature gives is another valley as good (the
+//! mirror image −d of a lens decentre d), which the local curvature cannot see, and the
+//! variable is then reported unidentified with the scan's range. Where two or three variables are unidentified, they are also
 //! scanned jointly on a grid across their bounds ([`GridScan`]), and each one's range is the
 //! union of the line scans' and the grid's.
 
@@ -276,6 +280,20 @@ pub fn identify(
             cov[i][j] = (inflate2 * c + unshared[i][j]) * range[i] * range[j];
         }
     }
+    // An identified variable's curvature is local: a second valley as good (a lens decentre's
+    // mirror image) is found only by scanning its axis across the box (module notes).
+    for i in 0..n {
+        if !identified[i] {
+            continue;
+        }
+        let half = 2.0 * cov[i][i].max(0.0).sqrt() / range[i];
+        let axis: Vec<f64> = (0..n).map(|j| if j == i { 1.0 } else { 0.0 }).collect();
+        let line = scan(p, u, &axis, a[i][i].max(0.0).sqrt(), at, rays, seed, count)?;
+        if second_valley(&line, u[i], half, i, p.free[i].lo, range[i]) {
+            identified[i] = false;
+            unidentified.push(line);
+        }
+    }
     let stderr: Vec<f64> = (0..n)
         .map(|i| {
             if identified[i] {
@@ -394,6 +412,16 @@ fn grid_scan(
         range_lo,
         range_hi,
     })
+}
+
+/// Whether the scan along variable `i`'s axis has an equally good point (Δχ² within the
+/// limit) farther from the optimum `ui` (unit box) than `half`, the 95 % half-width its
+/// curvature gives: another valley the local curvature cannot see.
+fn second_valley(line: &Unidentified, ui: f64, half: f64, i: usize, lo: f64, width: f64) -> bool {
+    line.scan_values
+        .iter()
+        .zip(&line.scan_delta_chi2)
+        .any(|(x, d)| *d <= line.delta_chi2_limit && ((x[i] - lo) / width - ui).abs() > half)
 }
 
 /// The scan along direction `v` from `u` (module notes).
