@@ -127,12 +127,14 @@ pub fn run(args: &ToleranceArgs) -> Result<()> {
         quality: args.quality,
     };
     if o.quality {
+        set.refuse_attenuator(&tol_text, "a trial recorded and solved through its bench")?;
         check_quality_names(&doc, &set, &tol_text)?;
     }
     if args.budget {
         return run_budget(args, (&doc, &set, &o), tol_path, resolve);
     }
     if let Some(k) = args.trial {
+        set.refuse_attenuator(&tol_text, "a trial's bench file")?;
         let run = format!(
             "spibench tolerance {name} --tolerances {} --seed {seed} --rays {rays}",
             tol_path.display()

@@ -202,6 +202,7 @@ impl Prepared {
             ) => {
                 let text = crate::scene::read_text(path)?;
                 let set = crate::scene::tolerance::ToleranceSet::parse(&text, path, &doc)?;
+                set.refuse_attenuator(&text, "a dataset's benches")?;
                 Some(DrawnBenches {
                     doc: doc.clone(),
                     set,

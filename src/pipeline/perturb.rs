@@ -3,13 +3,21 @@
 //! optimiser ([`crate::pipeline::optimise`]). The `tolerance` job traces such benches for its
 //! Monte Carlo; the `dataset` job measures objects through them. Trials are independent of each
 //! other: any subset (a shard) draws the same benches as the full run.
+//!
+//! A variable attenuator ([`Attenuator`]) is the one compensator that is not a bench variable:
+//! it scales the light reaching one diode, so it is set in closed form from the trial's traced
+//! imbalance ([`attenuator_transmissions`]) and applied to that trace's metrics
+//! ([`attenuated`]) without a trace of its own.
 
 use crate::error::Result;
-use crate::pipeline::evaluate::EvaluateOptions;
+use crate::pipeline::evaluate::{EvaluateOptions, Evaluation};
 use crate::pipeline::optimise::{AlignOptions, Free, Objective, search, settings as free_settings};
 use crate::rng;
 use crate::scene::doc::BenchDoc;
-use crate::scene::tolerance::{CompensatorObjective, Distribution, ToleranceSet};
+use crate::scene::tolerance::{
+    Attenuator, AttenuatorArm, CompensatorObjective, Distribution, ToleranceSet,
+};
+use crate::transport::metrics::TracedValue;
 
 /// A salt that separates the tolerance draws' streams from the rays' streams of the same seed.
 const DRAW_SALT: u64 = 0x70_1e_7a_4c_e5_d7_a3_11;
@@ -121,4 +129,95 @@ pub fn trial_doc(
         d = d.with(&free_settings(&free, &a.best_values))?;
     }
     Ok((d, deviations, comp))
+}
+
+/// The transmissions [T₊, T₋] a variable attenuator ([`Attenuator`]) is set to on a bench whose
+/// electrical imbalance is `imbalance` (ι′ = (a − b)/(a + b), a = s₊k₊ and b = s₋k₋ the arms'
+/// photocurrents per unit of light): the stronger arm's current is brought down to the
+/// weaker's, T = b/a (or a/b), which nulls ι′, and where that would take T below
+/// `min_transmission` the attenuator stops there. An attenuator in one named arm does nothing
+/// when that arm is the weaker (it cannot add light). A ι′ that is not a number, or at ±1 (one
+/// arm dark), leaves both at 1.
+pub fn attenuator_transmissions(imbalance: f64, a: &Attenuator) -> [f64; 2] {
+    if !(imbalance.is_finite() && imbalance.abs() < 1.0) || imbalance == 0.0 {
+        return [1.0; 2];
+    }
+    let plus_stronger = imbalance > 0.0;
+    let acts = match a.arm {
+        AttenuatorArm::Stronger => true,
+        AttenuatorArm::Plus => plus_stronger,
+        AttenuatorArm::Minus => !plus_stronger,
+    };
+    if !acts {
+        return [1.0; 2];
+    }
+    // weaker / stronger = (1 − |ι′|)/(1 + |ι′|).
+    let i = imbalance.abs();
+    let t = ((1.0 - i) / (1.0 + i)).max(a.min_transmission);
+    if plus_stronger { [t, 1.0] } else { [1.0, t] }
+}
+
+/// The electrical imbalance after the transmissions `t` = [T₊, T₋]:
+/// (T₊(1 + ι′) − T₋(1 − ι′))/(T₊(1 + ι′) + T₋(1 − ι′)); 0 where the attenuator could reach the
+/// balance, else the residual at its darkest setting (smaller than |ι′|).
+pub fn attenuated_imbalance(imbalance: f64, t: [f64; 2]) -> f64 {
+    let (a, b) = (t[0] * (1.0 + imbalance), t[1] * (1.0 - imbalance));
+    if t == [1.0; 2] {
+        return imbalance;
+    }
+    (a - b) / (a + b)
+}
+
+/// Bench `e` (traced from `doc`) with the transmissions `t` = [T₊, T₋] in front of its
+/// diodes: every metric as the same trace gives it with all light reaching diode ± scaled by
+/// T± — k±, k′, the imbalance, the detected powers, the cross-talk ratios, and the offsets b±
+/// less the diodes' dark currents (the filter covers the diode, so the ambient light on it is
+/// attenuated too; the dark current is not light) — each with its Monte Carlo influence
+/// carried through ([`TracedValue::scaled`], [`TracedValue::map2`]), and the bench's CMRR
+/// from the new imbalance. The light at the pattern (x) and the arrivals do not change. With
+/// t = [1, 1], `e` itself, bit for bit.
+pub fn attenuated(doc: &BenchDoc, e: &Evaluation, t: [f64; 2]) -> Evaluation {
+    if t == [1.0; 2] {
+        return e.clone();
+    }
+    use crate::quantities::BenchMetric as M;
+    let dark = [
+        doc.file.detectors.plus.dark_current_a.0,
+        doc.file.detectors.minus.dark_current_a.0,
+    ];
+    let m = &e.metrics;
+    let mut out = e.metrics.clone();
+    let [tp, tm] = t;
+    out.values[M::KPlus] = m[M::KPlus].scaled(tp);
+    out.values[M::KMinus] = m[M::KMinus].scaled(tm);
+    let (kp, km) = (&m[M::KPlus], &m[M::KMinus]);
+    out.values[M::KPrime] = TracedValue::map2(kp, km, tp * kp.value + tm * km.value, tp, tm);
+    // ι = (u − v)/(u + v), u = T₊k₊, v = T₋k₋: ∂ι/∂k₊ = 2T₊v/(u + v)², ∂ι/∂k₋ = −2T₋u/(u + v)².
+    let (u, v) = (tp * kp.value, tm * km.value);
+    let d2 = (u + v) * (u + v);
+    out.values[M::Imbalance] =
+        TracedValue::map2(kp, km, (u - v) / (u + v), 2.0 * tp * v / d2, -2.0 * tm * u / d2);
+    out.values[M::BPlus] = m[M::BPlus].scaled(tp).plus((1.0 - tp) * dark[0]);
+    out.values[M::BMinus] = m[M::BMinus].scaled(tm).plus((1.0 - tm) * dark[1]);
+    let (bp, bm) = (&m[M::BPlus], &m[M::BMinus]);
+    out.values[M::BMinusMinusBPlus] = TracedValue::map2(
+        bm,
+        bp,
+        tm * bm.value + (1.0 - tm) * dark[1] - tp * bp.value - (1.0 - tp) * dark[0],
+        tm,
+        -tp,
+    );
+    out.values[M::PowerPlusW] = m[M::PowerPlusW].scaled(tp);
+    out.values[M::PowerMinusW] = m[M::PowerMinusW].scaled(tm);
+    // Light of state + that reaches diode −, over what reaches diode +; and the reverse.
+    out.values[M::LeakPlus] = m[M::LeakPlus].scaled(tm / tp);
+    out.values[M::LeakMinus] = m[M::LeakMinus].scaled(tp / tm);
+    let cmrr = e
+        .responsivity_scale
+        .map(|s| crate::transport::metrics::cmrr_db(&out[M::Imbalance], s));
+    Evaluation {
+        metrics: out,
+        cmrr,
+        ..e.clone()
+    }
 }

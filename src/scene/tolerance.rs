@@ -126,18 +126,74 @@ struct ToleranceSpec {
     fixed: bool,
 }
 
-/// One compensator as written: a bench variable the builder adjusts after assembly.
+/// One compensator as written: a bench variable the builder adjusts after assembly (`path`
+/// and `range`), or a compensator of another kind (`kind`).
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct CompensatorSpec {
     /// A bench variable: a field path or a rigid-body move.
-    path: String,
+    #[serde(default)]
+    path: Option<String>,
     /// The adjustment range, as a deviation from the nominal value.
-    range: RangeSpec,
+    #[serde(default)]
+    range: Option<RangeSpec>,
+    /// A compensator that is not a bench variable (a variable attenuator).
+    #[serde(default)]
+    kind: Option<CompensatorKind>,
     /// What the adjustment optimises.
     #[serde(default)]
     objective: CompensatorObjective,
 }
+
+/// A compensator that is not a bench variable.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub enum CompensatorKind {
+    /// A continuously variable neutral attenuator (an ND wheel) in front of one diode
+    /// ([`Attenuator`]).
+    Attenuator {
+        /// The arm it sits in (default: the stronger one of each built bench).
+        #[serde(default)]
+        arm: AttenuatorArm,
+        /// The least transmission it can be set to, in (0, 1).
+        #[serde(deserialize_with = "via::<Finite, _, _>")]
+        min_transmission: f64,
+    },
+}
+
+/// The arm of a variable attenuator.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize, Serialize)]
+pub enum AttenuatorArm {
+    /// In front of the + diode.
+    Plus,
+    /// In front of the − diode.
+    Minus,
+    /// In front of whichever diode gives the larger current in the built bench (the lab puts
+    /// the filter where it is needed after assembly).
+    #[default]
+    Stronger,
+}
+
+/// A validated variable neutral attenuator: transmission T ∈ [`min_transmission`, 1] in front
+/// of a diode, set after assembly in closed form to null the electrical imbalance
+/// ([`crate::pipeline::perturb::attenuator_transmissions`]). It scales all light reaching that
+/// diode (not its dark current), so it needs no trace of its own.
+///
+/// [`min_transmission`]: Attenuator::min_transmission
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Attenuator {
+    pub arm: AttenuatorArm,
+    pub min_transmission: f64,
+}
+
+/// The recorded values of a trial with an attenuator: the transmission set in front of each
+/// diode (1 where there is none), and the electrical imbalance and k′ before it was set.
+pub const ATTENUATOR_VALUES: [&str; 4] = [
+    "attenuator_transmission_plus",
+    "attenuator_transmission_minus",
+    "imbalance_electrical_unattenuated",
+    "k_prime_unattenuated",
+];
 
 /// A limit as written in a file (the name `Limit` is the one a file may write before it).
 #[derive(Debug, Clone, Deserialize)]
@@ -288,6 +344,8 @@ pub struct ToleranceSet {
     pub path: PathBuf,
     pub tolerances: Vec<Tolerance>,
     pub compensators: Vec<Compensator>,
+    /// The variable attenuator among the compensators, if the file has one.
+    pub attenuator: Option<Attenuator>,
     pub limits: Vec<ToleranceLimit>,
     pub quality: Option<QualityLimit>,
 }
@@ -370,24 +428,57 @@ impl ToleranceSet {
             });
         }
         let mut compensators: Vec<Compensator> = Vec::new();
-        for c in &spec.compensators {
-            if compensators.iter().any(|u| u.path == c.path) {
+        let mut attenuator = None;
+        for (n, c) in spec.compensators.iter().enumerate() {
+            let (var, r) = match (&c.kind, &c.path, c.range) {
+                (Some(CompensatorKind::Attenuator { arm, min_transmission }), None, None) => {
+                    let a = (*arm, *min_transmission);
+                    attenuator = Some(check_attenuator(a, c.objective, attenuator.is_some())
+                        .map_err(|m| {
+                            let e = Error::field(format!("compensators[{n}].kind"), m).in_file(path);
+                            crate::scene::locate::at(
+                                e,
+                                text,
+                                crate::scene::locate::first_key(text, "kind"),
+                            )
+                        })?);
+                    continue;
+                }
+                (None, Some(p), Some(r)) => (p, r),
+                _ => {
+                    let e = Error::field(
+                        format!("compensators[{n}]"),
+                        "a compensator is either a bench variable (`path` and `range`) or \
+                         `kind: Attenuator(..)` alone"
+                            .to_string(),
+                    )
+                    .in_file(path);
+                    let at = c
+                        .path
+                        .as_deref()
+                        .and_then(|p| crate::scene::locate::string_literal(text, p))
+                        .or_else(|| crate::scene::locate::first_key(text, "compensators"));
+                    return Err(crate::scene::locate::at(e, text, at));
+                }
+            };
+            let (c_path, c_range) = (var.clone(), r);
+            if compensators.iter().any(|u| u.path == c_path) {
                 return Err(locate(
-                    &c.path,
+                    &c_path,
                     "path",
-                    format!("`{}` is listed twice among the compensators", c.path),
+                    format!("`{c_path}` is listed twice among the compensators"),
                 ));
             }
-            let (min, max) = range(&c.path, c.range)?;
+            let (min, max) = range(&c_path, c_range)?;
             if min == max {
                 return Err(locate(
-                    &c.path,
+                    &c_path,
                     "range",
-                    format!("`{}`: a compensator needs a range of nonzero width", c.path),
+                    format!("`{c_path}`: a compensator needs a range of nonzero width"),
                 ));
             }
             compensators.push(Compensator {
-                path: c.path.clone(),
+                path: c_path,
                 min,
                 max,
                 objective: c.objective,
@@ -436,6 +527,7 @@ impl ToleranceSet {
             path: path.to_path_buf(),
             tolerances,
             compensators,
+            attenuator,
             limits,
             quality: spec.quality,
         })
@@ -494,6 +586,29 @@ impl ToleranceSet {
         Ok(())
     }
 
+    /// An error, at the attenuator's line of `text` (the file's text), for a use that cannot
+    /// hold the attenuator, which is set on a trial's traced metrics and is no part of its
+    /// bench document: `what` says which (a dataset's benches, a trial's bench file, the
+    /// image-quality stages). Ok where the file has none.
+    pub fn refuse_attenuator(&self, text: &str, what: &str) -> Result<()> {
+        if self.attenuator.is_none() {
+            return Ok(());
+        }
+        let e = Error::field(
+            "compensators.kind",
+            format!(
+                "the attenuator is set on each trial's traced metrics and is not a part of the \
+                 bench, so {what} cannot have it: use a tolerance file without it"
+            ),
+        )
+        .in_file(&self.path);
+        Err(crate::scene::locate::at(
+            e,
+            text,
+            crate::scene::locate::first_key(text, "kind"),
+        ))
+    }
+
     /// The budget's cost rules with every fixed tolerance's scale bounds pinned to 1
     /// ([`Tolerance::scale_bounds`]); `costs` holds one rule per tolerance, in file order.
     pub fn pin_fixed(
@@ -523,6 +638,34 @@ impl ToleranceSet {
         }
         s
     }
+}
+
+/// The attenuator as validated: `min_transmission` in (0, 1), the objective `Balance` (a
+/// neutral attenuator can only lose light), at most one (`seen`: one came before).
+fn check_attenuator(
+    (arm, t): (AttenuatorArm, f64),
+    objective: CompensatorObjective,
+    seen: bool,
+) -> std::result::Result<Attenuator, String> {
+    if seen {
+        return Err("a tolerance file may have one attenuator: it balances the arms alone, on \
+                    whichever arm it sits"
+            .into());
+    }
+    if objective != CompensatorObjective::Balance {
+        return Err("an attenuator can only balance the arms (`objective: Balance`): it takes \
+                    light away, never adds it"
+            .into());
+    }
+    if !(t > 0.0 && t < 1.0) {
+        return Err(format!(
+            "`min_transmission` must lie in (0, 1) (the attenuator's darkest setting), got {t}"
+        ));
+    }
+    Ok(Attenuator {
+        arm,
+        min_transmission: t,
+    })
 }
 
 /// One Monte Carlo trial as recorded.

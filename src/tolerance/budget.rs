@@ -587,7 +587,7 @@ fn loss_shares(surface: &Surface, samples: &Samples, scales: &[f64]) -> Vec<f64>
         let mut part = vec![0.0; n];
         for (k, l) in &surface.limits {
             let m = &surface.metrics[*k];
-            if l.holds(m.at(&x)) {
+            if l.holds(m.judged(&x)) {
                 continue;
             }
             for (i, p) in part.iter_mut().enumerate() {
@@ -645,6 +645,7 @@ pub(crate) fn linear_model(
             })
             .collect(),
         compensators: Vec::new(),
+        attenuator: None,
         limits: vec![limit.clone()],
         quality: None,
     };
@@ -656,6 +657,7 @@ pub(crate) fn linear_model(
             lin: lin.to_vec(),
             quad: vec![0.0; lin.len()],
             cross: Vec::new(),
+            attenuator: None,
         }],
         limits: vec![(0, limit)],
         unmodelled: Vec::new(),

@@ -427,6 +427,7 @@ mod tests {
             path: "t.ron".into(),
             tolerances: Vec::new(),
             compensators: Vec::new(),
+            attenuator: None,
             limits: vec![ToleranceLimit {
                 metric: BenchMetric::Imbalance.into(),
                 min: None,

@@ -43,11 +43,38 @@ pub struct MetricSurface {
     pub quad: Vec<f64>,
     /// Cross terms cᵢⱼ·xᵢxⱼ.
     pub cross: Vec<(usize, usize, f64)>,
+    /// For the electrical imbalance of a file with a variable attenuator: the attenuator, set
+    /// on each sample as on each traced trial. The surface then models ι′ before it
+    /// ([`MetricSurface::judged`] applies it), and is refitted on the trials' values before it.
+    pub attenuator: Option<crate::scene::tolerance::Attenuator>,
 }
 
 impl MetricSurface {
     fn term(&self, i: usize, x: f64) -> f64 {
         self.lin[i] * x + self.quad[i] * x * x
+    }
+
+    /// The value a limit judges at deviations `x`: the surface, with the attenuator set on it
+    /// where there is one (`crate::pipeline::perturb::attenuator_transmissions`, in closed
+    /// form as in every trial).
+    pub fn judged(&self, x: &[f64]) -> f64 {
+        let v = self.at(x);
+        match &self.attenuator {
+            None => v,
+            Some(a) => {
+                use crate::pipeline::perturb::{attenuated_imbalance, attenuator_transmissions};
+                attenuated_imbalance(v, attenuator_transmissions(v, a))
+            }
+        }
+    }
+
+    /// The recorded value the surface is refitted on: with an attenuator, the one before it.
+    fn refit_name(&self) -> String {
+        if self.attenuator.is_some() {
+            format!("{}_unattenuated", self.recorded)
+        } else {
+            self.recorded.clone()
+        }
     }
 
     /// The surface at deviations `x`.
@@ -151,6 +178,7 @@ impl Surface {
                         lin,
                         quad,
                         cross: Vec::new(),
+                        attenuator: set.attenuator.filter(|_| name == IMBALANCE_ELECTRICAL),
                     });
                     metrics.len() - 1
                 }
@@ -166,7 +194,7 @@ impl Surface {
 
     /// Whether deviations `x` meet every modelled limit.
     pub fn passes(&self, x: &[f64]) -> bool {
-        let v: Vec<f64> = self.metrics.iter().map(|m| m.at(x)).collect();
+        let v: Vec<f64> = self.metrics.iter().map(|m| m.judged(x)).collect();
         self.limits.iter().all(|(k, l)| l.holds(v[*k]))
     }
 
@@ -197,7 +225,7 @@ impl Surface {
             .collect();
         let mut added = 0;
         for m in &mut self.metrics {
-            let name = m.recorded.clone();
+            let name = m.refit_name();
             let data: Vec<(Vec<f64>, f64)> = trials
                 .iter()
                 .filter(|r| r.error.is_none())
@@ -392,7 +420,7 @@ impl Samples {
             for ((xi, u), s) in x.iter_mut().zip(row.iter()).zip(scales) {
                 *xi = u * s;
             }
-            let v: Vec<f64> = surface.metrics.iter().map(|m| m.at(&x)).collect();
+            let v: Vec<f64> = surface.metrics.iter().map(|m| m.judged(&x)).collect();
             let mut p = 1.0;
             for ((k, l), w) in surface.limits.iter().zip(width) {
                 let margin = margin(l, v[*k]);

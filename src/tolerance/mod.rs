@@ -28,7 +28,8 @@ use crate::pipeline::evaluate::{EvaluateOptions, Evaluation, evaluate};
 use crate::quantities::{BenchMetric, ImageScore, Quantity};
 use crate::scene::doc::BenchDoc;
 use crate::scene::tolerance::{
-    IMBALANCE_ELECTRICAL, SensitivityRecord, ToleranceLimit, ToleranceSet, TrialRecord, value_of,
+    ATTENUATOR_VALUES, IMBALANCE_ELECTRICAL, SensitivityRecord, ToleranceLimit, ToleranceSet,
+    TrialRecord, value_of,
 };
 
 pub use crate::pipeline::evaluate::{quality_key, values};
@@ -277,11 +278,15 @@ pub fn trial(
     let needed_travel = needed_travel(doc, set, o, i, &compensators);
     let t1 = std::time::Instant::now();
     let p = evaluate(&d, Vec::new(), o)?;
+    let values = match &set.attenuator {
+        None => recorded((&d, &p), (doc, nominal)),
+        Some(a) => attenuated_values(&d, &p, (doc, nominal), a),
+    };
     let rec = TrialRecord {
         index: i,
         deviations,
         compensators,
-        values: recorded((&d, &p), (doc, nominal)),
+        values,
         error: None,
         needed_travel,
     };
@@ -292,6 +297,29 @@ pub fn trial(
             trace_s: t1.elapsed().as_secs_f64(),
         },
     ))
+}
+
+/// The recorded values of trial bench `p` (traced from `d`) with the attenuator `a` set on it
+/// ([`crate::pipeline::perturb::attenuator_transmissions`] of its electrical imbalance; no
+/// trace): [`recorded`] of the attenuated bench, then the transmissions set and the electrical
+/// imbalance and k′ before they were ([`ATTENUATOR_VALUES`]). Electronics that are not valid
+/// (no electrical imbalance) leave the attenuator open.
+fn attenuated_values(
+    d: &BenchDoc,
+    p: &Evaluation,
+    nominal: (&BenchDoc, &Evaluation),
+    a: &crate::scene::tolerance::Attenuator,
+) -> Vec<(String, f64)> {
+    use crate::pipeline::perturb::{attenuated, attenuator_transmissions};
+    let before = p.electrical_imbalance().map_or(f64::NAN, |e| e.value);
+    let t = attenuator_transmissions(before, a);
+    let q = attenuated(d, p, t);
+    let mut v = recorded((d, &q), nominal);
+    let k_prime = p.metrics[BenchMetric::KPrime].value;
+    for (name, x) in ATTENUATOR_VALUES.iter().zip([t[0], t[1], before, k_prime]) {
+        v.push((name.to_string(), x));
+    }
+    v
 }
 
 /// How much wider a compensator's range is made, about its centre, to find the travel a trial
@@ -811,6 +839,7 @@ pub fn is_value_name(name: &str) -> bool {
     if base.parse::<Quantity>().is_ok_and(|q| q.is_traced())
         || name == "arrivals"
         || base == IMBALANCE_ELECTRICAL
+        || ATTENUATOR_VALUES.contains(&name)
     {
         return true;
     }

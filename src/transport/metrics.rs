@@ -73,6 +73,31 @@ impl TracedValue {
         }
     }
 
+    /// c·self for an exact factor c (an attenuator's transmission): value and influence scale
+    /// alike.
+    pub fn scaled(&self, c: f64) -> TracedValue {
+        TracedValue {
+            value: c * self.value,
+            psi: self.psi.iter().map(|p| c * p).collect(),
+        }
+    }
+
+    /// f(a, b) of two metrics of one trace by the delta method: value `f`, influence
+    /// ∂f/∂a·ψ_a + ∂f/∂b·ψ_b (`dfa`, `dfb` at the traced values), batch by batch. A linear
+    /// combination (such as k′ = k₊ + k₋) is exact; a ratio is linearised as
+    /// [`TracedValue::ratio`] is, so a function of k± gives the imbalance's own influence.
+    pub fn map2(a: &TracedValue, b: &TracedValue, f: f64, dfa: f64, dfb: f64) -> TracedValue {
+        TracedValue {
+            value: f,
+            psi: a
+                .psi
+                .iter()
+                .zip(&b.psi)
+                .map(|(x, y)| dfa * x + dfb * y)
+                .collect(),
+        }
+    }
+
     /// This metric plus a constant.
     pub fn plus(mut self, c: f64) -> TracedValue {
         self.value += c;

@@ -55,6 +55,20 @@ fn distribution_ron(d: &Distribution) -> String {
     }
 }
 
+/// The attenuator's entry among the compensators, as a tolerance file writes it.
+pub fn attenuator_ron(a: &crate::scene::tolerance::Attenuator) -> String {
+    use crate::scene::tolerance::AttenuatorArm;
+    let arm = match a.arm {
+        AttenuatorArm::Plus => "Plus",
+        AttenuatorArm::Minus => "Minus",
+        AttenuatorArm::Stronger => "Stronger",
+    };
+    format!(
+        "        (kind: Attenuator(arm: {arm}, min_transmission: {}), objective: Balance),\n",
+        num(a.min_transmission)
+    )
+}
+
 /// `budget.ron`: the file's tolerances with the budget's ranges, its compensators, limits and
 /// quality limit as they were; comments give the outcome and, per tolerance, its scale and its
 /// share of the yield loss.
@@ -109,6 +123,9 @@ pub fn budget_ron(set: &ToleranceSet, b: &BudgetOutcome, run: &BudgetRun) -> Str
             c.path,
             range_ron(c.min, c.max)
         );
+    }
+    if let Some(a) = &set.attenuator {
+        t += &attenuator_ron(a);
     }
     t += "    ],\n    limits: [\n";
     for l in &set.limits {
