@@ -150,7 +150,7 @@ pub fn run(args: &ToleranceArgs) -> Result<()> {
     eprintln!(
         "{name}: {} tolerance(s), {} compensator(s); {} rays per trace (seed {}){}",
         set.tolerances.len(),
-        set.compensators.len(),
+        set.compensator_count(),
         rays,
         seed,
         if args.quality { ", full pipeline" } else { "" }

@@ -221,3 +221,61 @@ pub fn attenuated(doc: &BenchDoc, e: &Evaluation, t: [f64; 2]) -> Evaluation {
         ..e.clone()
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn att(arm: AttenuatorArm, min_transmission: f64) -> Attenuator {
+        Attenuator {
+            arm,
+            min_transmission,
+        }
+    }
+
+    /// Within its range the attenuator nulls ι′ on either side (in the stronger arm); beyond it
+    /// it stops at its darkest setting and leaves the residual of that setting,
+    /// (T(1 + ι′) − (1 − ι′))/(T(1 + ι′) + (1 − ι′)) for a stronger + arm.
+    #[test]
+    fn the_attenuator_nulls_the_imbalance_within_its_range_and_leaves_the_bound_beyond() {
+        let a = att(AttenuatorArm::Stronger, 0.5);
+        // (1 − 1/3)/(1 + 1/3) = 0.5: the widest ι′ it balances.
+        for i in [-0.333, -0.2, -0.01, 1e-9, 0.05, 0.2, 0.333] {
+            let t = attenuator_transmissions(i, &a);
+            assert!(t.iter().all(|x| (0.5..=1.0).contains(x)), "{i}: {t:?}");
+            assert_eq!(t.iter().filter(|x| **x < 1.0).count(), 1, "{i}: {t:?}");
+            assert!(attenuated_imbalance(i, t).abs() < 1e-15, "{i}: {t:?}");
+        }
+        assert_eq!(attenuator_transmissions(0.2, &a)[1], 1.0);
+        assert_eq!(attenuator_transmissions(-0.2, &a)[0], 1.0);
+        for i in [0.5f64, -0.5, 0.9] {
+            let t = attenuator_transmissions(i, &a);
+            assert_eq!(t.iter().copied().fold(1.0, f64::min), 0.5, "{i}");
+            let bound = (0.5 * (1.0 + i.abs()) - (1.0 - i.abs())) / (0.5 * (1.0 + i.abs()) + (1.0 - i.abs()));
+            let after = attenuated_imbalance(i, t);
+            assert!((after.abs() - bound).abs() < 1e-15 && after.signum() == i.signum(), "{i}");
+            assert!(after.abs() < i.abs());
+        }
+        // 0.5 at ι′ = 0.5: (0.75 − 0.5)/(0.75 + 0.5) = 0.2.
+        assert!((attenuated_imbalance(0.5, attenuator_transmissions(0.5, &a)) - 0.2).abs() < 1e-15);
+        // Balanced, not a number, or one arm dark: nothing to do.
+        for i in [0.0, f64::NAN, 1.0, -1.0] {
+            assert_eq!(attenuator_transmissions(i, &a), [1.0; 2], "{i}");
+        }
+    }
+
+    /// An attenuator in one named arm acts only when that arm is the stronger: it cannot add
+    /// light to the weaker one.
+    #[test]
+    fn an_attenuator_in_one_arm_cannot_help_the_other() {
+        let plus = att(AttenuatorArm::Plus, 0.2);
+        let minus = att(AttenuatorArm::Minus, 0.2);
+        assert_eq!(attenuator_transmissions(-0.1, &plus), [1.0; 2]);
+        assert_eq!(attenuated_imbalance(-0.1, [1.0; 2]), -0.1);
+        assert_eq!(attenuator_transmissions(0.1, &minus), [1.0; 2]);
+        let t = attenuator_transmissions(0.1, &plus);
+        assert!((t[0] - 0.9 / 1.1).abs() < 1e-15 && t[1] == 1.0);
+        let t = attenuator_transmissions(-0.1, &minus);
+        assert!(t[0] == 1.0 && (t[1] - 0.9 / 1.1).abs() < 1e-15);
+    }
+}

@@ -586,6 +586,11 @@ impl ToleranceSet {
         Ok(())
     }
 
+    /// The compensators of the file, the attenuator included.
+    pub fn compensator_count(&self) -> usize {
+        self.compensators.len() + usize::from(self.attenuator.is_some())
+    }
+
     /// An error, at the attenuator's line of `text` (the file's text), for a use that cannot
     /// hold the attenuator, which is set on a trial's traced metrics and is no part of its
     /// bench document: `what` says which (a dataset's benches, a trial's bench file, the
@@ -863,6 +868,30 @@ mod tests {
                  fixed: 1)])",
                 &["fixed"][..],
             ),
+            (
+                "(tolerances: [], compensators: [\n\n(kind: Attenuator(min_transmission: 1.5))])",
+                &["line 3", "compensators[0].kind", "min_transmission", "(0, 1)"][..],
+            ),
+            (
+                "(tolerances: [], compensators: [\n(kind: Attenuator(min_transmission: 0.5), \
+                 objective: Power)])",
+                &["line 2", "only balance"][..],
+            ),
+            (
+                "(tolerances: [], compensators: [(kind: Attenuator(min_transmission: 0.5)),\n\
+                 (kind: Attenuator(arm: Plus, min_transmission: 0.5))])",
+                &["compensators[1].kind", "one attenuator"][..],
+            ),
+            (
+                "(tolerances: [], compensators: [(kind: Attenuator(arm: Both, \
+                 min_transmission: 0.5))])",
+                &["Both"][..],
+            ),
+            (
+                "(tolerances: [], compensators: [(kind: Attenuator(min_transmission: 0.5), \
+                 path: \"chart.despace_mm\", range: PlusMinus(1.0))])",
+                &["compensators[0]", "either a bench variable"][..],
+            ),
         ] {
             let e = parse(text).unwrap_err();
             assert!(e.is_user_error(), "{e}");
@@ -871,6 +900,38 @@ mod tests {
                 assert!(s.contains(f), "{text}: {s} lacks {f}");
             }
         }
+    }
+
+    /// The attenuator is a compensator of its own kind: the stronger arm by default, counted
+    /// among the compensators, and refused where a bench document must hold it.
+    #[test]
+    fn an_attenuator_reads_as_a_compensator_kind() {
+        let text = "(tolerances: [],\n compensators: [\n  (kind: Attenuator(min_transmission: \
+                    0.5), objective: Balance),\n  (path: \"chart.despace_mm\", range: \
+                    PlusMinus(0.5))])";
+        let s = parse(text).unwrap();
+        assert_eq!(
+            s.attenuator,
+            Some(Attenuator {
+                arm: AttenuatorArm::Stronger,
+                min_transmission: 0.5
+            })
+        );
+        assert_eq!((s.compensators.len(), s.compensator_count()), (1, 2));
+        let e = s.refuse_attenuator(text, "a dataset's benches").unwrap_err();
+        assert!(e.is_user_error());
+        let m = e.to_string();
+        assert!(m.contains("line 3") && m.contains("a dataset's benches"), "{m}");
+        let plain = parse("(tolerances: [])").unwrap();
+        assert!(plain.refuse_attenuator("", "x").is_ok() && plain.attenuator.is_none());
+        let p = Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("scenes/tolerances/paper_bench_balanced.ron");
+        let b = ToleranceSet::read(&p, &doc()).unwrap();
+        let plain = ToleranceSet::read(&p.with_file_name("paper_bench.ron"), &doc()).unwrap();
+        // The same 27 tolerances and limits as the compensator-free file, and the attenuator.
+        assert_eq!((b.tolerances.len(), &b.tolerances, &b.limits), (27, &plain.tolerances, &plain.limits));
+        assert_eq!(b.attenuator.map(|a| a.min_transmission), Some(0.5));
+        assert!(b.compensators.is_empty());
     }
 
     #[test]

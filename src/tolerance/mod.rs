@@ -484,6 +484,8 @@ pub struct Analysis {
     pub tails: Vec<summaries::TailRow>,
     /// Each compensator's settled moves: mean, SD, extremes, how often at a bound.
     pub compensators: Vec<summaries::CompensatorRow>,
+    /// The variable attenuator's settings and the signal they cost (None without one).
+    pub attenuator: Option<summaries::AttenuatorRow>,
     /// The tolerances that cause the failing trials, most first (`summaries::failure_causes`;
     /// empty without the sensitivity table).
     pub failure_causes: Vec<summaries::FailureCause>,
@@ -538,6 +540,7 @@ pub fn analyse(
         rss: sensitivity.map_or_else(Vec::new, |sens| rss_rows(set, &ok, sens)),
         tails,
         compensators: summaries::compensators(&set.compensators, &ok),
+        attenuator: summaries::attenuator(set.attenuator.as_ref(), &ok),
         failure_causes: sensitivity.map_or_else(Vec::new, |sens| {
             summaries::failure_causes(&set.tolerances, &set.limits, &ok, sens)
         }),

@@ -529,3 +529,55 @@ mod tests {
         assert_eq!(rows[1].beyond_limits, None);
     }
 }
+
+/// The variable attenuator over the good trials: where it was set, how far, how often it ran
+/// out of range (its darkest setting, the balance not reached), and the signal it cost.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct AttenuatorRow {
+    pub arm: crate::scene::tolerance::AttenuatorArm,
+    pub min_transmission: f64,
+    /// Good trials that record the attenuator.
+    pub trials: usize,
+    /// Trials in which it was set in front of the + diode, and of the − diode (T < 1).
+    pub in_plus: usize,
+    pub in_minus: usize,
+    /// Trials in which it stopped at `min_transmission`: the arms could not be balanced.
+    pub at_min: usize,
+    /// The transmission set (T of the attenuated arm, 1 where neither was): mean and least.
+    pub transmission_mean: f64,
+    pub transmission_min: f64,
+    /// Mean k′ over the trials before the attenuator was set and after.
+    pub k_prime_mean_before: f64,
+    pub k_prime_mean_after: f64,
+}
+
+/// The attenuator's row (None without one, or without a good trial that records it).
+pub fn attenuator(
+    a: Option<&crate::scene::tolerance::Attenuator>,
+    ok: &[&TrialRecord],
+) -> Option<AttenuatorRow> {
+    let a = a?;
+    let [tp, tm, _, kp0] = crate::scene::tolerance::ATTENUATOR_VALUES;
+    let rows: Vec<(f64, f64, f64, f64)> = ok
+        .iter()
+        .filter_map(|r| Some((r.value(tp)?, r.value(tm)?, r.value(kp0)?, r.value("k_prime")?)))
+        .collect();
+    if rows.is_empty() {
+        return None;
+    }
+    let n = rows.len() as f64;
+    let t: Vec<f64> = rows.iter().map(|r| r.0.min(r.1)).collect();
+    let mean = |f: &dyn Fn(&(f64, f64, f64, f64)) -> f64| rows.iter().map(f).sum::<f64>() / n;
+    Some(AttenuatorRow {
+        arm: a.arm,
+        min_transmission: a.min_transmission,
+        trials: rows.len(),
+        in_plus: rows.iter().filter(|r| r.0 < 1.0).count(),
+        in_minus: rows.iter().filter(|r| r.1 < 1.0).count(),
+        at_min: t.iter().filter(|&&x| x <= a.min_transmission).count(),
+        transmission_mean: t.iter().sum::<f64>() / n,
+        transmission_min: t.iter().copied().fold(f64::INFINITY, f64::min),
+        k_prime_mean_before: mean(&|r| r.2),
+        k_prime_mean_after: mean(&|r| r.3),
+    })
+}

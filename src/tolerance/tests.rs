@@ -281,3 +281,63 @@ fn a_compensator_out_of_travel_records_the_travel_it_would_need() {
     assert_eq!(a.compensators[0].short.len(), 1);
     assert_eq!(a.compensators[0].short[0].needed, t.needed);
 }
+
+/// The attenuator on a traced bench: in front of a diode it acts on the current as that
+/// diode's responsivity scale does on the light (ι′ of the attenuated bench with scales s
+/// equals ι′ of the plain bench with s₊T₊, its standard error too, by the delta method on
+/// either side), k± and the powers scale by T±, k′ is their sum, b± keep their dark current,
+/// and the trial's record holds ι′ = 0 with the transmissions set and the values before.
+#[test]
+fn the_attenuator_acts_on_the_traced_metrics_as_a_scale_on_the_diodes_light() {
+    use crate::pipeline::perturb::attenuated;
+    use crate::scene::tolerance::ATTENUATOR_VALUES;
+    let doc = symmetric();
+    let o = opts(2);
+    let d = doc
+        .with(&[("detectors.plus.decenter_mm.x".into(), 0.45)])
+        .unwrap();
+    let p = evaluate(&d, Vec::new(), &o).unwrap();
+    let s = p.responsivity_scale.unwrap();
+    let t = [0.8, 1.0];
+    let q = attenuated(&d, &p, t);
+    let (e_att, e_scaled) = (
+        q.electrical_imbalance().unwrap(),
+        crate::transport::metrics::electrical_imbalance(
+            &p.metrics[BenchMetric::Imbalance],
+            [s[0] * t[0], s[1] * t[1]],
+        ),
+    );
+    assert!((e_att.value - e_scaled.value).abs() < 1e-12, "{e_att:?} {e_scaled:?}");
+    assert!((e_att.stderr() / e_scaled.stderr() - 1.0).abs() < 1e-9);
+    let m = |e: &crate::pipeline::evaluate::Evaluation, k: BenchMetric| e.metrics[k].value;
+    assert!((m(&q, BenchMetric::KPlus) - 0.8 * m(&p, BenchMetric::KPlus)).abs() < 1e-15);
+    assert_eq!(m(&q, BenchMetric::KMinus), m(&p, BenchMetric::KMinus));
+    let kp = m(&q, BenchMetric::KPlus) + m(&q, BenchMetric::KMinus);
+    assert!((m(&q, BenchMetric::KPrime) / kp - 1.0).abs() < 1e-12);
+    assert!(q.metrics[BenchMetric::KPrime].stderr() <= p.metrics[BenchMetric::KPrime].stderr());
+    let dark = d.file.detectors.plus.dark_current_a.0;
+    let b = |e: &crate::pipeline::evaluate::Evaluation| e.metrics[BenchMetric::BPlus].value;
+    assert!((b(&q) - dark - 0.8 * (b(&p) - dark)).abs() <= 1e-12 * b(&p).abs());
+    // [1, 1] is the bench itself, bit for bit.
+    assert_eq!(attenuated(&d, &p, [1.0; 2]).metrics, p.metrics);
+
+    // A trial with the attenuator: the file's one tolerance set to this decentre.
+    let text = "(tolerances: [(path: \"detectors.plus.decenter_mm.x\", range: Between(0.45, 0.45))],\n\
+                compensators: [(kind: Attenuator(min_transmission: 0.5), objective: Balance)],\n\
+                limits: [(metric: \"imbalance\", abs_max: 0.01)])";
+    let s = set(&doc, text);
+    let nom = nominal(&doc, &o).unwrap();
+    let (r, _) = trial(&doc, &s, &nom, &o, 0).unwrap();
+    let before = p.electrical_imbalance().unwrap().value;
+    assert!(before.abs() > 0.01, "{before}");
+    assert!(r.value("imbalance_electrical").unwrap().abs() < 1e-12, "{r:?}");
+    let v: Vec<f64> = ATTENUATOR_VALUES.iter().map(|k| r.value(k).unwrap()).collect();
+    let want = crate::pipeline::perturb::attenuator_transmissions(before, s.attenuator.as_ref().unwrap());
+    assert_eq!(v[..2], want);
+    assert_eq!(v[2], before);
+    assert_eq!(v[3], m(&p, BenchMetric::KPrime));
+    assert!(r.value("k_prime").unwrap() < v[3]);
+    let a = analyse(&s, &[r], None);
+    let row = a.attenuator.unwrap();
+    assert_eq!((row.trials, row.at_min, row.in_plus + row.in_minus), (1, 0, 1));
+}

@@ -126,6 +126,7 @@ pub fn write(
         quality: s.quality,
         tolerances: &set.tolerances,
         compensators: &set.compensators,
+        attenuator: &set.attenuator,
         limits: &set.limits,
         quality_limit: &set.quality,
         nominal: Row::from_values(&s.nominal, &s.nominal),
@@ -210,7 +211,42 @@ pub fn card(summary: &serde_json::Value) -> crate::outputs::card::Card {
             .map(|k| format!("{m}/{k}"));
         c.line(summary, "compensator", &keys, compensator_text);
     }
+    let keys = [
+        "trials",
+        "in_plus",
+        "in_minus",
+        "at_min",
+        "min_transmission",
+        "transmission_mean",
+        "transmission_min",
+        "k_prime_mean_before",
+        "k_prime_mean_after",
+    ]
+    .map(|k| format!("/analysis/attenuator/{k}"));
+    if summary.pointer("/analysis/attenuator/trials").is_some() {
+        c.line(summary, "attenuator", &keys, attenuator_text);
+    }
     c
+}
+
+/// "set in 38 of 40 trials (+ 30, − 8), mean T 0.80, least 0.50, at its darkest (0.5) in 2
+/// ⚠; k′ 0.253 → 0.231 (−8.7 %)".
+fn attenuator_text(v: &[serde_json::Value]) -> String {
+    use crate::outputs::card::num;
+    let (p, m) = (v[1].as_u64().unwrap_or(0), v[2].as_u64().unwrap_or(0));
+    let at = v[3].as_u64().unwrap_or(0);
+    let (k0, k1) = (num(&v[7]), num(&v[8]));
+    format!(
+        "set in {} of {} trials (+ {p}, − {m}), mean T {:.3}, least {:.3}, at its darkest ({}) \
+         in {at}{}; k′ {k0:.4} → {k1:.4} ({:+.1} %)",
+        p + m,
+        v[0],
+        num(&v[5]),
+        num(&v[6]),
+        v[4],
+        if at > 0 { " ⚠" } else { "" },
+        100.0 * (k1 / k0 - 1.0)
+    )
 }
 
 /// The string values of `v`, in order.
@@ -423,6 +459,8 @@ struct ToleranceSummary<'a> {
     quality: bool,
     tolerances: &'a [Tolerance],
     compensators: &'a [Compensator],
+    /// The variable attenuator among the compensators (null without one).
+    attenuator: &'a Option<crate::scene::tolerance::Attenuator>,
     limits: &'a [ToleranceLimit],
     quality_limit: &'a Option<QualityLimit>,
     /// The nominal bench's metric row (differences against itself).

@@ -60,7 +60,7 @@ pub(super) fn intro_block(s: &ShardFile, set: &ToleranceSet, analysis: &Analysis
         s.scene,
         set.tolerances.len(),
         s.tolerances_path,
-        set.compensators.len(),
+        set.compensator_count(),
         s.rays,
         s.seed,
         s.records.len(),
