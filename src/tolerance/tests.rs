@@ -294,7 +294,10 @@ fn the_attenuator_acts_on_the_traced_metrics_as_a_scale_on_the_diodes_light() {
     let doc = symmetric();
     let o = opts(2);
     let d = doc
-        .with(&[("detectors.plus.decenter_mm.x".into(), 0.45)])
+        .with(&[
+            ("detectors.plus.decenter_mm.x".into(), 0.45),
+            ("electronics.detector.responsivity_scale_minus".into(), 0.899),
+        ])
         .unwrap();
     let p = evaluate(&d, Vec::new(), &o).unwrap();
     let s = p.responsivity_scale.unwrap();
@@ -321,8 +324,10 @@ fn the_attenuator_acts_on_the_traced_metrics_as_a_scale_on_the_diodes_light() {
     // [1, 1] is the bench itself, bit for bit.
     assert_eq!(attenuated(&d, &p, [1.0; 2]).metrics, p.metrics);
 
-    // A trial with the attenuator: the file's one tolerance set to this decentre.
-    let text = "(tolerances: [(path: \"detectors.plus.decenter_mm.x\", range: Between(0.45, 0.45))],\n\
+    // A trial with the attenuator: the file's tolerances set to this bench (the − diode 10 %
+    // less responsive than its nominal 0.999).
+    let text = "(tolerances: [(path: \"detectors.plus.decenter_mm.x\", range: Between(0.45, 0.45)),\n\
+                (path: \"electronics.detector.responsivity_scale_minus\", range: Between(-0.1, -0.1))],\n\
                 compensators: [(kind: Attenuator(min_transmission: 0.5), objective: Balance)],\n\
                 limits: [(metric: \"imbalance\", abs_max: 0.01)])";
     let s = set(&doc, text);
