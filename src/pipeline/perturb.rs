@@ -195,8 +195,13 @@ pub fn attenuated(doc: &BenchDoc, e: &Evaluation, t: [f64; 2]) -> Evaluation {
     // ι = (u − v)/(u + v), u = T₊k₊, v = T₋k₋: ∂ι/∂k₊ = 2T₊v/(u + v)², ∂ι/∂k₋ = −2T₋u/(u + v)².
     let (u, v) = (tp * kp.value, tm * km.value);
     let d2 = (u + v) * (u + v);
-    out.values[M::Imbalance] =
-        TracedValue::map2(kp, km, (u - v) / (u + v), 2.0 * tp * v / d2, -2.0 * tm * u / d2);
+    out.values[M::Imbalance] = TracedValue::map2(
+        kp,
+        km,
+        (u - v) / (u + v),
+        2.0 * tp * v / d2,
+        -2.0 * tm * u / d2,
+    );
     out.values[M::BPlus] = m[M::BPlus].scaled(tp).plus((1.0 - tp) * dark[0]);
     out.values[M::BMinus] = m[M::BMinus].scaled(tm).plus((1.0 - tm) * dark[1]);
     let (bp, bm) = (&m[M::BPlus], &m[M::BMinus]);
@@ -251,9 +256,13 @@ mod tests {
         for i in [0.5f64, -0.5, 0.9] {
             let t = attenuator_transmissions(i, &a);
             assert_eq!(t.iter().copied().fold(1.0, f64::min), 0.5, "{i}");
-            let bound = (0.5 * (1.0 + i.abs()) - (1.0 - i.abs())) / (0.5 * (1.0 + i.abs()) + (1.0 - i.abs()));
+            let bound = (0.5 * (1.0 + i.abs()) - (1.0 - i.abs()))
+                / (0.5 * (1.0 + i.abs()) + (1.0 - i.abs()));
             let after = attenuated_imbalance(i, t);
-            assert!((after.abs() - bound).abs() < 1e-15 && after.signum() == i.signum(), "{i}");
+            assert!(
+                (after.abs() - bound).abs() < 1e-15 && after.signum() == i.signum(),
+                "{i}"
+            );
             assert!(after.abs() < i.abs());
         }
         // 0.5 at ι′ = 0.5: (0.75 − 0.5)/(0.75 + 0.5) = 0.2.

@@ -431,17 +431,26 @@ impl ToleranceSet {
         let mut attenuator = None;
         for (n, c) in spec.compensators.iter().enumerate() {
             let (var, r) = match (&c.kind, &c.path, c.range) {
-                (Some(CompensatorKind::Attenuator { arm, min_transmission }), None, None) => {
+                (
+                    Some(CompensatorKind::Attenuator {
+                        arm,
+                        min_transmission,
+                    }),
+                    None,
+                    None,
+                ) => {
                     let a = (*arm, *min_transmission);
-                    attenuator = Some(check_attenuator(a, c.objective, attenuator.is_some())
-                        .map_err(|m| {
-                            let e = Error::field(format!("compensators[{n}].kind"), m).in_file(path);
+                    attenuator = Some(
+                        check_attenuator(a, c.objective, attenuator.is_some()).map_err(|m| {
+                            let e =
+                                Error::field(format!("compensators[{n}].kind"), m).in_file(path);
                             crate::scene::locate::at(
                                 e,
                                 text,
                                 crate::scene::locate::first_key(text, "kind"),
                             )
-                        })?);
+                        })?,
+                    );
                     continue;
                 }
                 (None, Some(p), Some(r)) => (p, r),
@@ -653,14 +662,18 @@ fn check_attenuator(
     seen: bool,
 ) -> std::result::Result<Attenuator, String> {
     if seen {
-        return Err("a tolerance file may have one attenuator: it balances the arms alone, on \
+        return Err(
+            "a tolerance file may have one attenuator: it balances the arms alone, on \
                     whichever arm it sits"
-            .into());
+                .into(),
+        );
     }
     if objective != CompensatorObjective::Balance {
-        return Err("an attenuator can only balance the arms (`objective: Balance`): it takes \
+        return Err(
+            "an attenuator can only balance the arms (`objective: Balance`): it takes \
                     light away, never adds it"
-            .into());
+                .into(),
+        );
     }
     if !(t > 0.0 && t < 1.0) {
         return Err(format!(
@@ -870,7 +883,12 @@ mod tests {
             ),
             (
                 "(tolerances: [], compensators: [\n\n(kind: Attenuator(min_transmission: 1.5))])",
-                &["line 3", "compensators[0].kind", "min_transmission", "(0, 1)"][..],
+                &[
+                    "line 3",
+                    "compensators[0].kind",
+                    "min_transmission",
+                    "(0, 1)",
+                ][..],
             ),
             (
                 "(tolerances: [], compensators: [\n(kind: Attenuator(min_transmission: 0.5), \
@@ -918,10 +936,15 @@ mod tests {
             })
         );
         assert_eq!((s.compensators.len(), s.compensator_count()), (1, 2));
-        let e = s.refuse_attenuator(text, "a dataset's benches").unwrap_err();
+        let e = s
+            .refuse_attenuator(text, "a dataset's benches")
+            .unwrap_err();
         assert!(e.is_user_error());
         let m = e.to_string();
-        assert!(m.contains("line 3") && m.contains("a dataset's benches"), "{m}");
+        assert!(
+            m.contains("line 3") && m.contains("a dataset's benches"),
+            "{m}"
+        );
         let plain = parse("(tolerances: [])").unwrap();
         assert!(plain.refuse_attenuator("", "x").is_ok() && plain.attenuator.is_none());
         let p = Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -929,7 +952,10 @@ mod tests {
         let b = ToleranceSet::read(&p, &doc()).unwrap();
         let plain = ToleranceSet::read(&p.with_file_name("paper_bench.ron"), &doc()).unwrap();
         // The same 27 tolerances and limits as the compensator-free file, and the attenuator.
-        assert_eq!((b.tolerances.len(), &b.tolerances, &b.limits), (27, &plain.tolerances, &plain.limits));
+        assert_eq!(
+            (b.tolerances.len(), &b.tolerances, &b.limits),
+            (27, &plain.tolerances, &plain.limits)
+        );
         assert_eq!(b.attenuator.map(|a| a.min_transmission), Some(0.5));
         assert!(b.compensators.is_empty());
     }

@@ -560,14 +560,22 @@ pub fn attenuator(
     let [tp, tm, _, kp0] = crate::scene::tolerance::ATTENUATOR_VALUES;
     let rows: Vec<(f64, f64, f64, f64)> = ok
         .iter()
-        .filter_map(|r| Some((r.value(tp)?, r.value(tm)?, r.value(kp0)?, r.value("k_prime")?)))
+        .filter_map(|r| {
+            Some((
+                r.value(tp)?,
+                r.value(tm)?,
+                r.value(kp0)?,
+                r.value("k_prime")?,
+            ))
+        })
         .collect();
     if rows.is_empty() {
         return None;
     }
     let n = rows.len() as f64;
     let t: Vec<f64> = rows.iter().map(|r| r.0.min(r.1)).collect();
-    let mean = |f: &dyn Fn(&(f64, f64, f64, f64)) -> f64| rows.iter().map(f).sum::<f64>() / n;
+    let k_before = rows.iter().map(|r| r.2).sum::<f64>() / n;
+    let k_after = rows.iter().map(|r| r.3).sum::<f64>() / n;
     Some(AttenuatorRow {
         arm: a.arm,
         min_transmission: a.min_transmission,
@@ -577,7 +585,7 @@ pub fn attenuator(
         at_min: t.iter().filter(|&&x| x <= a.min_transmission).count(),
         transmission_mean: t.iter().sum::<f64>() / n,
         transmission_min: t.iter().copied().fold(f64::INFINITY, f64::min),
-        k_prime_mean_before: mean(&|r| r.2),
-        k_prime_mean_after: mean(&|r| r.3),
+        k_prime_mean_before: k_before,
+        k_prime_mean_after: k_after,
     })
 }

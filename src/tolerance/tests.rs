@@ -296,7 +296,10 @@ fn the_attenuator_acts_on_the_traced_metrics_as_a_scale_on_the_diodes_light() {
     let d = doc
         .with(&[
             ("detectors.plus.decenter_mm.x".into(), 0.45),
-            ("electronics.detector.responsivity_scale_minus".into(), 0.899),
+            (
+                "electronics.detector.responsivity_scale_minus".into(),
+                0.899,
+            ),
         ])
         .unwrap();
     let p = evaluate(&d, Vec::new(), &o).unwrap();
@@ -310,7 +313,10 @@ fn the_attenuator_acts_on_the_traced_metrics_as_a_scale_on_the_diodes_light() {
             [s[0] * t[0], s[1] * t[1]],
         ),
     );
-    assert!((e_att.value - e_scaled.value).abs() < 1e-12, "{e_att:?} {e_scaled:?}");
+    assert!(
+        (e_att.value - e_scaled.value).abs() < 1e-12,
+        "{e_att:?} {e_scaled:?}"
+    );
     assert!((e_att.stderr() / e_scaled.stderr() - 1.0).abs() < 1e-9);
     let m = |e: &crate::pipeline::evaluate::Evaluation, k: BenchMetric| e.metrics[k].value;
     assert!((m(&q, BenchMetric::KPlus) - 0.8 * m(&p, BenchMetric::KPlus)).abs() < 1e-15);
@@ -335,14 +341,24 @@ fn the_attenuator_acts_on_the_traced_metrics_as_a_scale_on_the_diodes_light() {
     let (r, _) = trial(&doc, &s, &nom, &o, 0).unwrap();
     let before = p.electrical_imbalance().unwrap().value;
     assert!(before.abs() > 0.01, "{before}");
-    assert!(r.value("imbalance_electrical").unwrap().abs() < 1e-12, "{r:?}");
-    let v: Vec<f64> = ATTENUATOR_VALUES.iter().map(|k| r.value(k).unwrap()).collect();
-    let want = crate::pipeline::perturb::attenuator_transmissions(before, s.attenuator.as_ref().unwrap());
+    assert!(
+        r.value("imbalance_electrical").unwrap().abs() < 1e-12,
+        "{r:?}"
+    );
+    let v: Vec<f64> = ATTENUATOR_VALUES
+        .iter()
+        .map(|k| r.value(k).unwrap())
+        .collect();
+    let want =
+        crate::pipeline::perturb::attenuator_transmissions(before, s.attenuator.as_ref().unwrap());
     assert_eq!(v[..2], want);
     assert_eq!(v[2], before);
     assert_eq!(v[3], m(&p, BenchMetric::KPrime));
     assert!(r.value("k_prime").unwrap() < v[3]);
     let a = analyse(&s, &[r], None);
     let row = a.attenuator.unwrap();
-    assert_eq!((row.trials, row.at_min, row.in_plus + row.in_minus), (1, 0, 1));
+    assert_eq!(
+        (row.trials, row.at_min, row.in_plus + row.in_minus),
+        (1, 0, 1)
+    );
 }

@@ -271,13 +271,20 @@ fn an_attenuator_balances_every_trial_and_travels_with_the_budget() {
     let mc = dir.join("mc");
     let o = run(&["--trials", "20"], &mc);
     assert!(o.status.success(), "{}", stderr(&o));
-    assert!(crate::common::stdout(&o).contains("attenuator"), "{}", crate::common::stdout(&o));
+    assert!(
+        crate::common::stdout(&o).contains("attenuator"),
+        "{}",
+        crate::common::stdout(&o)
+    );
     crate::outputs_schema::check_file(&mc.join("summary.json"), "ToleranceSummary");
     let s = read_json(&mc.join("summary.json"));
     assert_eq!(s["attenuator"]["arm"], "Stronger", "{}", s["attenuator"]);
     let a = &s["analysis"]["attenuator"];
     assert_eq!(a["trials"], 20, "{a}");
-    assert!(a["k_prime_mean_after"].as_f64() < a["k_prime_mean_before"].as_f64(), "{a}");
+    assert!(
+        a["k_prime_mean_after"].as_f64() < a["k_prime_mean_before"].as_f64(),
+        "{a}"
+    );
     for r in s["trial_rows"].as_array().unwrap() {
         let v = &r["values"];
         let before = v["imbalance_electrical_unattenuated"].as_f64().unwrap();
@@ -286,18 +293,26 @@ fn an_attenuator_balances_every_trial_and_travels_with_the_budget() {
             .unwrap()
             .min(v["attenuator_transmission_minus"].as_f64().unwrap());
         assert!(before.abs() > 0.01 && t < 1.0, "{v}");
-        assert!(v["imbalance_electrical"].as_f64().unwrap().abs() < 1e-9, "{v}");
+        assert!(
+            v["imbalance_electrical"].as_f64().unwrap().abs() < 1e-9,
+            "{v}"
+        );
     }
     assert_eq!(s["analysis"]["yields"][0]["passed"], 20);
 
     let out = dir.join("budget");
-    let o = run(&["--budget", "--target-yield", "0.9", "--trials", "40"], &out);
+    let o = run(
+        &["--budget", "--target-yield", "0.9", "--trials", "40"],
+        &out,
+    );
     assert!(o.status.success(), "{}", stderr(&o));
     let b = read_json(&out.join("summary.json"));
     assert_eq!(b["reached"], true, "{b}");
     let text = std::fs::read_to_string(out.join("budget.ron")).unwrap();
     assert!(
-        text.contains("(kind: Attenuator(arm: Stronger, min_transmission: 0.5), objective: Balance)"),
+        text.contains(
+            "(kind: Attenuator(arm: Stronger, min_transmission: 0.5), objective: Balance)"
+        ),
         "{text}"
     );
     let back = dir.join("back");
@@ -320,13 +335,20 @@ fn an_attenuator_balances_every_trial_and_travels_with_the_budget() {
         &[],
     );
     assert!(o.status.success(), "{}", stderr(&o));
-    assert_eq!(read_json(&back.join("summary.json"))["analysis"]["attenuator"]["trials"], 10);
+    assert_eq!(
+        read_json(&back.join("summary.json"))["analysis"]["attenuator"]["trials"],
+        10
+    );
 
     for (extra, frag) in [
         (&["--quality"][..], "recorded and solved"),
         (&["--trial", "2"][..], "a trial's bench file"),
     ] {
         let o = run(extra, &dir.join("refused"));
-        crate::common::assert_input_error(&o, &["attenuated.ron", "line 8", frag], &dir.join("refused"));
+        crate::common::assert_input_error(
+            &o,
+            &["attenuated.ron", "line 8", frag],
+            &dir.join("refused"),
+        );
     }
 }
