@@ -374,12 +374,15 @@ pub(super) fn wls(cols: &[Vec<f64>], y: &[f64], w: &[f64]) -> Result<Vec<f64>> {
         .collect();
     let mut a = vec![vec![0.0; k]; k];
     let mut b = vec![0.0; k];
+    let mut x = vec![0.0; k];
     for n in 0..y.len() {
         let wn = w[n];
         if wn == 0.0 {
             continue;
         }
-        let x: Vec<f64> = (0..k).map(|i| cols[i][n] / norm[i]).collect();
+        for i in 0..k {
+            x[i] = cols[i][n] / norm[i];
+        }
         for i in 0..k {
             if x[i] == 0.0 {
                 continue;

@@ -103,17 +103,20 @@ fn a_consistent_gain_prior_recovers_the_scales_and_the_lamp_power() {
 
 /// What the prior is for: a model whose − arm collects 20 % less light than the bench's is
 /// explained exactly by free channel scales (the − scales take the loss), but not under a 1 %
-/// prior on the gains, where the arms' ratio must come from the light: the misfit is of the
-/// order of (0.2/0.01)²·(contrasts' share of the − arm's deviation).
+/// prior on the gains, where the arms' ratio must come from the light. The held fit costs at
+/// most the prior's penalty at the free fit's scales, Σ(ρ − ρ̄)²/(τ·ρ̄)² (keeping the free
+/// scales is one of the fits it chooses among; ≈ 4·0.125²/(0.01·1.125)² ≈ 494 for scales
+/// exactly (1, 1.25, 1, 1.25), less where the noise moves the RF pair), and more than five of
+/// χ²'s own standard deviations, 5·√(2·dof) ≈ 96, where the frames (noise 10⁻⁴ V) pin the
+/// scales to about the prior's width.
 #[test]
 fn a_gain_prior_keeps_an_arm_s_loss_out_of_its_gains() {
     use super::gains::GainPrior;
     let want = [3e3, 2.9e3, 0.01, 1e4, 0.02, 1.1e4, -0.03];
-    let prior = GainPrior {
-        nominal: [want[0], want[1], want[3], want[5]],
-        tolerance: 0.01,
-    };
-    let (mut model, measured) = synthetic(1e-3);
+    let tolerance = 0.01;
+    let nominal = [want[0], want[1], want[3], want[5]];
+    let prior = GainPrior { nominal, tolerance };
+    let (mut model, measured) = synthetic(1e-4);
     for l in &mut model.light_a[0] {
         l[1] *= 0.8;
     }
@@ -123,11 +126,24 @@ fn a_gain_prior_keeps_an_arm_s_loss_out_of_its_gains() {
         (0.7..1.3).contains(&r),
         "free scales absorb the loss: χ²/dof {r}"
     );
+    let rho: Vec<f64> = [0, 1, 3, 5]
+        .iter()
+        .zip(nominal)
+        .map(|(&at, n)| free.nuisances[at] / n)
+        .collect();
+    let mean = rho.iter().sum::<f64>() / 4.0;
+    let penalty: f64 = rho
+        .iter()
+        .map(|p| ((p - mean) / (tolerance * mean)).powi(2))
+        .sum();
     let held = profile(&model, &measured, Some(&prior)).unwrap();
+    let excess = held.chi2 - free.chi2;
+    let spread = (2.0 * free.dof(0) as f64).sqrt();
     assert!(
-        held.chi2 > 200.0,
-        "the prior holds the gains: χ² {}",
-        held.chi2
+        excess > 5.0 * spread && excess <= penalty * (1.0 + 1e-9),
+        "the prior holds the gains: χ² {} against {} free, penalty {penalty}",
+        held.chi2,
+        free.chi2
     );
 }
 
