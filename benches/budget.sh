@@ -17,8 +17,8 @@
 # budget.md, "The shipped tolerance files").
 #
 # Printed: the load average before and after (other work on the machine slows every run
-# alike), each run's wall time, the trials the budget traced (baseline, rounds and the loosening
-# pass), its time per traced trial against the Monte Carlo's, its outcome (the geometric-mean
+# alike), each run's wall time, the trials the budget traced (baseline, rounds, the loosening
+# pass and the baseline scaled to the target) and how many were decided at the first stage, its time per traced trial against the Monte Carlo's, its outcome (the geometric-mean
 # scales and total costs of the joint and one-at-a-time budgets, their confirmed yields and
 # lower bounds, why the rounds stopped and what the loosening pass did), with READBACK the
 # read-back yield and its one-sided 95 % Wilson lower bound, and whether the budget stayed under
@@ -88,7 +88,11 @@ import json, math, sys
 out, t0, t1, t2, t3 = sys.argv[1], *map(float, sys.argv[2:6])
 base, readback = int(sys.argv[6]), int(sys.argv[7])
 s = json.load(open(f"{out}/budget/summary.json"))
-traced = s["trials"] * (len(s["rounds"]) + 1)
+scaled = s.get("baseline_at_target")
+traced = s["trials"] * (len(s["rounds"]) + 1 + (scaled["attempts"] if scaled else 0))
+confs = [s["baseline"]["confirmation"]] + [r["confirmation"] for r in s["rounds"]] + (
+    [scaled["budget"]["confirmation"]] if scaled else [])
+staged = sum((c or {}).get("first_stage", 0) for c in confs)
 mc, bud = t1 - t0, t2 - t1
 print(f"rays per trace {s['rays']}; target {s['target_yield']} at confidence {s['confidence']}")
 if base > 0:
@@ -97,8 +101,13 @@ if base > 0:
 print(f"budget: {bud:.0f} s ({bud / 60:.1f} min), {traced} trials traced "
       f"({bud / traced:.2f} s per trial, the sensitivity table included)"
       + (f", = {bud / (mc / base):.0f} Monte Carlo trials' time" if base > 0 else ""))
-for name in ("joint", "baseline"):
-    f = s[name]
+print(f"  staged trials: of the confirmations summarised, {staged} decided at the first stage "
+      f"(rays / 8)")
+named = [("joint", s["joint"]), ("baseline", s["baseline"])]
+if scaled:
+    named.append((f"baseline scaled x {scaled['factor']:.3f} to the target "
+                  f"({scaled['attempts']} confirmation(s))", scaled["budget"]))
+for name, f in named:
     c = f["confirmation"] or {}
     print(f"  {name}: geometric-mean scale {f['geometric_mean_scale']:.4f}, total cost "
           f"{f['total_cost']:.2f}, confirmed {c.get('passed')}/{c.get('trials')} "

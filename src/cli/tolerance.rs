@@ -421,9 +421,14 @@ fn run_budget(
         confirmations: Vec::new(),
     };
     let prior = read_resumed(&args.resume, &trials_file, set)?;
-    // The rounds, the baseline's confirmation and the loosening pass's, each `--trials`
-    // trials (a resume's traced ones not counted apart: an estimate errs high).
-    let all_trials = args.trials.saturating_mul(b.max_rounds as u64 + 2);
+    // The rounds, the baseline's confirmation, the loosening pass's and up to three of the
+    // baseline scaled to the target, each `--trials` trials, each at the full rays (a resume's
+    // traced ones not counted apart, staged trials counted whole: an estimate errs high).
+    let all_trials = args.trials.saturating_mul(
+        b.max_rounds as u64
+            + 2
+            + crate::tolerance::budget_baseline::SCALED_BASELINE_ATTEMPTS as u64,
+    );
     args.work
         .check(&work(set, all_trials, shard, o.rays, resolve.as_ref()))?;
     let out = OutputDir::create(&args.opts.out_or("out/tolerance"))?;
@@ -574,9 +579,23 @@ fn finish_budget(
             outcome.reason.as_deref().unwrap_or("unknown")
         ),
     };
+    let scaled = outcome
+        .baseline_at_target
+        .as_ref()
+        .map_or(String::new(), |s| {
+            format!(
+                "; scaled × {:.3} to the target {:.4}, yield {:.4}",
+                s.factor,
+                s.budget.geometric_mean_scale,
+                s.budget
+                    .confirmation
+                    .as_ref()
+                    .map_or(f64::NAN, |c| c.fraction)
+            )
+        });
     println!(
-        "budget {status}; geometric-mean scale {:.4} (one at a time {:.4}, yield {:.4}); wrote {} \
-         ({files} files, {:.1} s)",
+        "budget {status}; geometric-mean scale {:.4} (one at a time {:.4}, yield {:.4}{scaled}); \
+         wrote {} ({files} files, {:.1} s)",
         j.geometric_mean_scale,
         outcome.baseline.geometric_mean_scale,
         outcome

@@ -721,6 +721,10 @@ pub struct TrialRecord {
     /// travel the same adjustment needs when allowed more (`crate::tolerance::trial`).
     #[serde(default)]
     pub needed_travel: Vec<NeededTravel>,
+    /// The rays it was traced with, where fewer than the run's: a budget confirmation's trial
+    /// kept at its first stage (`crate::tolerance::staged`); absent otherwise.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rays: Option<u64>,
 }
 
 /// A compensator that ended a trial at a limit of its travel, and the travel it would need.

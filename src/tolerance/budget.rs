@@ -42,6 +42,15 @@
 //!    trials ([`super::budget_loosen::LOOSEN_INDEX_BASE`]) and becomes the joint budget only if
 //!    its lower bound reaches Y. Its round is the last of `rounds` (`Rounds::loosened`).
 //!
+//! 7. **The one-at-a-time budget at the target** ([`super::budget_baseline`]): where the
+//!    baseline missed Y, it is scaled down uniformly until a confirmation on fresh trials meets
+//!    it, so that the joint budget's looseness is compared with a baseline that also reaches
+//!    the target.
+//!
+//! Where a run's trials can be judged from a shorter trace (no geometric compensator, no
+//! `--quality`), every confirmation's trial is staged ([`super::staged`]): traced first at an
+//! eighth of the rays and kept where its verdict stands at four standard errors.
+//!
 //! A round that passes after several were tried is the cheapest of the passing rounds: each
 //! bound is its own round's, from fresh trials, but choosing among passing rounds is a mild
 //! selection the independent check (`spibench tolerance` on the budget file, another seed)
@@ -61,6 +70,7 @@ use super::budget_search::{
 };
 use super::budget_surface::{Samples, Surface, fraction_needed, soft_widths, wilson_lower};
 
+use super::budget_baseline::{self, Scaled, ScaledBaseline};
 use super::budget_loosen;
 
 /// How the lower bound of a confirmation's yield is computed (named in `summary.json`).
@@ -116,6 +126,8 @@ pub struct Confirmation {
     pub trials: usize,
     pub passed: usize,
     pub failed_trials: usize,
+    /// Trials whose verdict stood at the first stage's rays (`super::staged`; 0 unstaged).
+    pub first_stage: usize,
     pub fraction: f64,
     /// The one-sided Wilson lower bound at the run's confidence.
     pub lower_bound: f64,
@@ -187,6 +199,9 @@ pub struct BudgetOutcome {
     /// that did, or the best found.
     pub joint: BudgetFigures,
     pub baseline: BudgetFigures,
+    /// The baseline scaled down uniformly until its confirmation meets the target, where it
+    /// missed (`super::budget_baseline`): the fair comparison for the joint budget.
+    pub baseline_at_target: Option<ScaledBaseline>,
     pub rounds: Vec<Round>,
     /// The surface yield with every tolerance at one common scale λ: (λ, Ŷ).
     pub common_scale: Vec<(f64, f64)>,
@@ -397,6 +412,7 @@ pub fn budget(
     let (set, costs, b) = (inputs.set, inputs.costs, run.b);
     check_options(b)?;
     let costs = &set.pin_fixed(costs);
+    let stage = super::staged::first_stage(inputs.doc, set, run.o)?;
     let job = Job {
         doc: inputs.doc,
         set,
@@ -406,6 +422,7 @@ pub fn budget(
         progress,
         prior: run.prior,
         shard: run.shard,
+        stage: stage.as_ref(),
     };
     // Every value a trial records, the electrical imbalance ι′ included: the surface models ι′
     // only where the nominal bench records it, and the confirmations judge ι′ (with `values`
@@ -426,6 +443,7 @@ pub fn budget(
     let mut traced = Vec::new();
     // The baseline first: its trials are the first calibration of the joint search's surface.
     let (base_scales, base_c) = baseline(&job, &base, (&lo, &hi), &mut traced)?;
+    let mut scaled = None;
     let search = match (fraction, &base_c) {
         (Some(_), Some(_)) => {
             let aim = Aim {
@@ -445,6 +463,31 @@ pub fn budget(
                     &mut search,
                     &mut traced,
                 )?;
+            }
+            if !search.incomplete {
+                let r = budget_baseline::after_search(
+                    &job,
+                    &search.surface,
+                    &samples,
+                    costs,
+                    (&lo, &hi),
+                    &aim,
+                    (&base_scales, base_c.as_ref()),
+                    &mut traced,
+                )?;
+                match r {
+                    Scaled::Incomplete => {
+                        search.incomplete = true;
+                        search.stop = format!(
+                            "shard {}/{} stopped at the one-at-a-time budget scaled to the target",
+                            run.shard.0, run.shard.1
+                        );
+                    }
+                    Scaled::Skipped(why) => {
+                        search.stop += &format!("; one-at-a-time budget not scaled: {why}")
+                    }
+                    Scaled::Done(b) => scaled = Some(b),
+                }
             }
             search
         }
@@ -470,7 +513,7 @@ pub fn budget(
         &samples,
         (lo, hi),
         needed,
-        (search, baseline),
+        (search, baseline, scaled),
         traced,
     ))
 }
@@ -497,7 +540,7 @@ fn outcome(
     samples: &Samples,
     (lo, hi): (Vec<f64>, Vec<f64>),
     needed: f64,
-    (search, baseline): (Rounds, BudgetFigures),
+    (search, baseline, baseline_at_target): (Rounds, BudgetFigures, Option<ScaledBaseline>),
     traced: Vec<TracedConfirmation>,
 ) -> BudgetOutcome {
     let (set, costs, surface) = (inputs.set, inputs.costs, &search.surface);
@@ -560,6 +603,7 @@ fn outcome(
         rows,
         joint,
         baseline,
+        baseline_at_target,
         rounds: search.rounds,
         common_scale,
         unmodelled_limits: surface.unmodelled.clone(),

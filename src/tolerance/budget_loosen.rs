@@ -406,6 +406,7 @@ mod tests {
             trials: n,
             passed,
             failed_trials: 0,
+            first_stage: 0,
             fraction: passed as f64 / n as f64,
             lower_bound: wilson_lower(passed, n, c),
         }

@@ -126,6 +126,8 @@ pub struct Job<'a> {
     /// (I, N): with N > 1, of a confirmation `prior` does not complete, only the trials whose
     /// offset k (index − first) has k ≡ I (mod N) are traced, and the search stops there.
     pub shard: (u64, u64),
+    /// The trials' first stage, where they are staged (`super::staged`).
+    pub stage: Option<&'a super::staged::FirstStage>,
 }
 
 /// Whether a trial meets every limit of the file: every metric limit, and with `quality` the
@@ -175,7 +177,10 @@ pub fn confirm(
         } else if job.shard.1 > 1 && (i - first) % job.shard.1 != job.shard.0 {
             missing = true;
         } else {
-            records.push(super::trial(job.doc, &b, job.nominal, job.o, i)?.0);
+            records.push(match job.stage {
+                Some(st) => super::staged::trial(job.doc, &b, (job.nominal, st), job.o, i)?,
+                None => super::trial(job.doc, &b, job.nominal, job.o, i)?.0,
+            });
         }
     }
     let passed = records
@@ -183,6 +188,7 @@ pub fn confirm(
         .filter(|r| passes(job.set, job.o.quality, r))
         .count();
     let failed = records.iter().filter(|r| r.error.is_some()).count();
+    let first_stage = records.iter().filter(|r| r.rays.is_some()).count();
     traced.push(TracedConfirmation {
         first_index: first,
         scales: scales.to_vec(),
@@ -200,12 +206,18 @@ pub fn confirm(
         ));
         return Ok(None);
     }
-    (job.progress)(&format!("trials {first}…: {passed} of {n} pass{from}"));
+    let staged = job.stage.map_or(String::new(), |st| {
+        format!(" ({first_stage} decided at {} rays)", st.rays)
+    });
+    (job.progress)(&format!(
+        "trials {first}…: {passed} of {n} pass{staged}{from}"
+    ));
     Ok(Some(Confirmation {
         first_index: first,
         trials: n as usize,
         passed,
         failed_trials: failed,
+        first_stage,
         fraction: passed as f64 / n.max(1) as f64,
         lower_bound: wilson_lower(passed, n as usize, job.b.confidence),
     }))
@@ -445,6 +457,7 @@ mod tests {
             compensators: Vec::new(),
             values: v.iter().map(|(k, x)| (k.to_string(), *x)).collect(),
             needed_travel: Vec::new(),
+            rays: None,
             error: None,
         };
         let good = rec(&[

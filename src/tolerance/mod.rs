@@ -35,9 +35,11 @@ use crate::scene::tolerance::{
 pub use crate::pipeline::evaluate::{quality_key, values};
 
 pub mod budget;
+pub mod budget_baseline;
 pub mod budget_loosen;
 pub mod budget_search;
 pub mod budget_surface;
+pub mod staged;
 pub mod summaries;
 pub mod work;
 pub use crate::pipeline::perturb::{TrialBench, draw, trial_doc};
@@ -266,6 +268,7 @@ pub fn trial(
                     values: Vec::new(),
                     error: Some(e.to_string()),
                     needed_travel: Vec::new(),
+                    rays: None,
                 },
                 TrialTiming {
                     compensators_s: (t1 - t0).as_secs_f64(),
@@ -289,6 +292,7 @@ pub fn trial(
         values,
         error: None,
         needed_travel,
+        rays: None,
     };
     Ok((
         rec,
@@ -302,8 +306,9 @@ pub fn trial(
 /// The recorded values of trial bench `p` (traced from `d`) with the attenuator `a` set on it
 /// ([`crate::pipeline::perturb::attenuator_transmissions`] of its electrical imbalance; no
 /// trace): [`recorded`] of the attenuated bench, then the transmissions set and the electrical
-/// imbalance and k′ before they were ([`ATTENUATOR_VALUES`]). Electronics that are not valid
-/// (no electrical imbalance) leave the attenuator open.
+/// imbalance and k′ before they were ([`ATTENUATOR_VALUES`]), and that imbalance's standard error
+/// ([`staged::IMBALANCE_UNATTENUATED_STDERR`]). Electronics that are not valid (no electrical
+/// imbalance) leave the attenuator open.
 fn attenuated_values(
     d: &BenchDoc,
     p: &Evaluation,
@@ -311,7 +316,8 @@ fn attenuated_values(
     a: &crate::scene::tolerance::Attenuator,
 ) -> Vec<(String, f64)> {
     use crate::pipeline::perturb::{attenuated, attenuator_transmissions};
-    let before = p.electrical_imbalance().map_or(f64::NAN, |e| e.value);
+    let e = p.electrical_imbalance();
+    let before = e.as_ref().map_or(f64::NAN, |e| e.value);
     let t = attenuator_transmissions(before, a);
     let q = attenuated(d, p, t);
     let mut v = recorded((d, &q), nominal);
@@ -319,6 +325,10 @@ fn attenuated_values(
     for (name, x) in ATTENUATOR_VALUES.iter().zip([t[0], t[1], before, k_prime]) {
         v.push((name.to_string(), x));
     }
+    v.push((
+        staged::IMBALANCE_UNATTENUATED_STDERR.to_string(),
+        e.map_or(f64::NAN, |e| e.stderr()),
+    ));
     v
 }
 
@@ -843,6 +853,7 @@ pub fn is_value_name(name: &str) -> bool {
         || name == "arrivals"
         || base == IMBALANCE_ELECTRICAL
         || ATTENUATOR_VALUES.contains(&name)
+        || name == staged::IMBALANCE_UNATTENUATED_STDERR
     {
         return true;
     }

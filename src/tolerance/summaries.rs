@@ -468,6 +468,7 @@ mod tests {
             values: Vec::new(),
             error: None,
             needed_travel: Vec::new(),
+            rays: None,
         };
         let recs = [rec(-1.0), rec(0.2), rec(1.0), rec(0.9)];
         let ok: Vec<&TrialRecord> = recs.iter().collect();
@@ -505,6 +506,7 @@ mod tests {
             values: vec![("imbalance".into(), v), ("k_prime".into(), 1.0 + v)],
             error: None,
             needed_travel: Vec::new(),
+            rays: None,
         };
         let recs: Vec<TrialRecord> = (0..101).map(|i| rec((i as f64 - 50.0) / 1000.0)).collect();
         let ok: Vec<&TrialRecord> = recs.iter().collect();

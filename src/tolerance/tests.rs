@@ -233,6 +233,7 @@ fn the_electrical_imbalance_moves_by_the_responsivity_mismatch() {
         values: w,
         error: None,
         needed_travel: Vec::new(),
+        rays: None,
     };
     let a = analyse(&set, &[rec], None);
     assert_eq!(a.yields[0].passed, 0);
@@ -361,4 +362,62 @@ fn the_attenuator_acts_on_the_traced_metrics_as_a_scale_on_the_diodes_light() {
         (row.trials, row.at_min, row.in_plus + row.in_minus),
         (1, 0, 1)
     );
+}
+
+/// A staged trial (`staged::trial`) reaches the verdict of the trial traced at the run's rays:
+/// kept at its first stage only where that verdict stands at four standard errors, and
+/// otherwise the full trace itself, bit for bit. The symmetric bench, twice: with the + diode up
+/// to 2.5 mm off (its spot leaves the diode) and the − diode's responsivity ±0.7 behind a
+/// variable attenuator at T ≥ 0.5 (|ι′| ≤ 0.342 is brought within 0.01: trials on both sides
+/// of its reach, far from it), and with no attenuator and the responsivity ±0.03, whose ι′ of
+/// about ±0.015 falls near the limit (trials the first stage cannot decide).
+#[test]
+fn a_staged_trial_keeps_the_verdict_of_the_full_trace() {
+    use crate::tolerance::budget_search::passes;
+    let doc = symmetric();
+    let files = [
+        "(tolerances: [(path: \"detectors.plus.decenter_mm.x\", range: PlusMinus(2.5)),\n\
+         (path: \"electronics.detector.responsivity_scale_minus\", range: PlusMinus(0.7))],\n\
+         compensators: [(kind: Attenuator(min_transmission: 0.5), objective: Balance)],\n\
+         limits: [(metric: \"imbalance\", abs_max: 0.01)])",
+        "(tolerances: [(path: \"electronics.detector.responsivity_scale_minus\", range: PlusMinus(0.03))],\n\
+         limits: [(metric: \"imbalance\", abs_max: 0.01)])",
+    ];
+    let rays = staged::MIN_FIRST_STAGE_BATCHES * staged::FIRST_STAGE_DIVISOR * 1024;
+    let o = ToleranceOptions {
+        rays,
+        seed: 3,
+        quality: false,
+    };
+    let nom = nominal(&doc, &o).unwrap();
+    let (mut kept, mut retraced, mut verdicts) = (0, 0, [0, 0]);
+    for text in files {
+        let s = set(&doc, text);
+        let stage = staged::first_stage(&doc, &s, &o).unwrap().unwrap();
+        assert_eq!(stage.rays, rays / staged::FIRST_STAGE_DIVISOR);
+        for i in 0..8 {
+            let st = staged::trial(&doc, &s, (&nom, &stage), &o, i).unwrap();
+            let (full, _) = trial(&doc, &s, &nom, &o, i).unwrap();
+            let v = passes(&s, false, &full);
+            assert_eq!(passes(&s, false, &st), v, "trial {i}: {st:?} {full:?}");
+            verdicts[v as usize] += 1;
+            match st.rays {
+                Some(r) => {
+                    assert_eq!(r, stage.rays);
+                    kept += 1;
+                }
+                None => {
+                    assert_eq!(st, full);
+                    retraced += 1;
+                }
+            }
+        }
+        // With --quality a trial is not staged.
+        assert!(!staged::applies(&s, true));
+    }
+    assert!(
+        kept >= 6 && retraced >= 1,
+        "{kept} kept, {retraced} traced again"
+    );
+    assert!(verdicts[0] > 0 && verdicts[1] > 0, "{verdicts:?}");
 }

@@ -94,9 +94,11 @@ pub fn budget_ron(set: &ToleranceSet, b: &BudgetOutcome, run: &BudgetRun) -> Str
         ),
     };
     t += &format!(
-        "// Geometric-mean scale {:.4} (the one-at-a-time inverse limits: {:.4}).\n(\n    \
+        "// Geometric-mean scale {:.4} (the one-at-a-time inverse limits: {:.4}{}).\n(\n    \
          tolerances: [\n",
-        b.joint.geometric_mean_scale, b.baseline.geometric_mean_scale
+        b.joint.geometric_mean_scale,
+        b.baseline.geometric_mean_scale,
+        scaled_note(b)
     );
     for (tol, r) in set.tolerances.iter().zip(&b.rows) {
         t += &format!(
@@ -149,6 +151,24 @@ pub fn budget_ron(set: &ToleranceSet, b: &BudgetOutcome, run: &BudgetRun) -> Str
     t
 }
 
+/// The one-at-a-time budget scaled to the target, for a line of text ("" where it was not).
+fn scaled_note(b: &BudgetOutcome) -> String {
+    b.baseline_at_target.as_ref().map_or(String::new(), |s| {
+        format!(
+            "; scaled × {:.3} to the target: {:.4}, {}",
+            s.factor,
+            s.budget.geometric_mean_scale,
+            s.budget
+                .confirmation
+                .as_ref()
+                .map_or("not confirmed".into(), |c| format!(
+                    "{} of {} pass, lower bound {:.4}",
+                    c.passed, c.trials, c.lower_bound
+                ))
+        )
+    })
+}
+
 /// One point of the common-scale curve.
 #[derive(Serialize)]
 struct ScalePoint {
@@ -182,6 +202,7 @@ struct BudgetSummary<'a> {
     tolerances: &'a [BudgetRow],
     joint: &'a BudgetFigures,
     baseline: &'a BudgetFigures,
+    baseline_at_target: Option<&'a crate::tolerance::budget_baseline::ScaledBaseline>,
     rounds: &'a [Round],
     common_scale: Vec<ScalePoint>,
     files: &'a [String],
@@ -255,6 +276,7 @@ pub fn write_budget(
         tolerances: &b.rows,
         joint: &b.joint,
         baseline: &b.baseline,
+        baseline_at_target: b.baseline_at_target.as_ref(),
         rounds: &b.rounds,
         common_scale: b
             .common_scale
@@ -348,6 +370,9 @@ fn yield_figure(
     ];
     series.extend(point("joint budget", &b.joint));
     series.extend(point("one at a time", &b.baseline));
+    if let Some(sb) = &b.baseline_at_target {
+        series.extend(point("one at a time, scaled to the target", &sb.budget));
+    }
     let plot = LinePlot {
         title: String::new(),
         x_label: "common scale of every tolerance's range (log scale)".into(),
@@ -420,7 +445,12 @@ fn report_blocks(b: &BudgetOutcome, set: &ToleranceSet, fig: Block) -> Vec<Block
         .map(String::from)
         .to_vec(),
         rows: [("joint", &b.joint), ("one at a time", &b.baseline)]
-            .iter()
+            .into_iter()
+            .chain(
+                b.baseline_at_target
+                    .as_ref()
+                    .map(|s| ("one at a time, scaled to the target", &s.budget)),
+            )
             .map(|(name, f)| {
                 vec![
                     name.to_string(),

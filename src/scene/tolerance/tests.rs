@@ -197,6 +197,7 @@ fn shard_files_read_back_bit_for_bit() {
                 needed: 2.25,
                 beyond: false,
             }],
+            rays: Some(3072),
         }],
     };
     let text = shard_to_ron(&s).unwrap();
