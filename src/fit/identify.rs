@@ -39,7 +39,7 @@
 //! [`SCAN_POINTS`] across its bounds, the others held): a scanned point within Δχ² of the
 //! optimum but beyond the 95 % half-width its curvature gives is another valley as good (the
 //! mirror image −d of a lens decentre d), which the local curvature cannot see, and the
-//! variable is then reported unidentified with the scan's range. Where two or three variables are unidentified, they are also
+//! variable is then reported unidentified with the scan's range. Where two to four variables are unidentified, they are also
 //! scanned jointly on a grid across their bounds ([`GridScan`]), and each one's range is the
 //! union of the line scans' and the grid's.
 
@@ -75,16 +75,20 @@ pub struct Unidentified {
 }
 
 /// Grid points per variable of the joint scan of k unidentified variables ([`grid_scan`]):
-/// 7² = 49 traces for two, 5³ = 125 for three; none beyond three (the line scans alone).
+/// 7² = 49 traces for two, 5³ = 125 for three, 4⁴ = 256 for four; none beyond four (the line
+/// scans alone). Four came from the coverage benches: a bench with four unidentified variables
+/// ended with narrow ranges beside the truth when only the line scans covered it
+/// (docs/guide/11-fitting.md).
 pub fn grid_points(k: usize) -> Option<usize> {
     match k {
         2 => Some(7),
         3 => Some(5),
+        4 => Some(4),
         _ => None,
     }
 }
 
-/// The joint scan of the unidentified variables, where there are two or three: a line scan
+/// The joint scan of the unidentified variables, where there are two to four: a line scan
 /// follows one direction through the optimum, and where two directions are both free the
 /// equally good region is a patch of their plane that a true bench can lie in off both lines
 /// (a lens decentred in x and in y). Each unidentified variable takes [`grid_points`] values
@@ -115,7 +119,7 @@ pub struct Identification {
     pub singular_values: Vec<f64>,
     pub identified: Vec<bool>,
     pub unidentified: Vec<Unidentified>,
-    /// The joint scan of the unidentified variables, where there are two or three.
+    /// The joint scan of the unidentified variables, where there are two to four.
     pub grid: Option<GridScan>,
 }
 

@@ -97,7 +97,7 @@ pub struct FitSummary {
     pub singular_values: Vec<f64>,
     pub correlation: Vec<Vec<Option<f64>>>,
     pub unidentified: Vec<Unidentified>,
-    /// The joint scan of two or three unidentified variables.
+    /// The joint scan of two to four unidentified variables.
     pub unidentified_grid: Option<crate::fit::identify::GridScan>,
     pub history: Vec<FitStep>,
     /// How many starts Levenberg–Marquardt ran from, and each.
