@@ -92,7 +92,7 @@ scaled = s.get("baseline_at_target")
 traced = s["trials"] * (len(s["rounds"]) + 1 + (scaled["attempts"] if scaled else 0))
 confs = [s["baseline"]["confirmation"]] + [r["confirmation"] for r in s["rounds"]] + (
     [scaled["budget"]["confirmation"]] if scaled else [])
-staged = sum((c or {}).get("first_stage", 0) for c in confs)
+staged = sum((c or {}).get("first_stage_trials", 0) for c in confs)
 mc, bud = t1 - t0, t2 - t1
 print(f"rays per trace {s['rays']}; target {s['target_yield']} at confidence {s['confidence']}")
 if base > 0:

@@ -127,7 +127,7 @@ pub struct Confirmation {
     pub passed: usize,
     pub failed_trials: usize,
     /// Trials whose verdict stood at the first stage's rays (`super::staged`; 0 unstaged).
-    pub first_stage: usize,
+    pub first_stage_trials: usize,
     pub fraction: f64,
     /// The one-sided Wilson lower bound at the run's confidence.
     pub lower_bound: f64,
@@ -655,6 +655,37 @@ fn loss_shares(surface: &Surface, samples: &Samples, scales: &[f64]) -> Vec<f64>
         .iter()
         .map(|t| if failing > 0 { t / failing as f64 } else { 0.0 })
         .collect()
+}
+
+#[cfg(test)]
+/// A test fixture shared by `budget_loosen`'s and `budget_baseline`'s tests: a synthetic
+/// confirmation: `n` trials drawn as traced trials are (`perturb::draw` at the
+/// indices from `first`), judged on the `truth` model, with the one-sided Wilson bound.
+pub(crate) fn synthetic_confirm(
+    set: &ToleranceSet,
+    truth: &Surface,
+    (first, n, c): (u64, usize, f64),
+    scales: &[f64],
+) -> Confirmation {
+    let passed = (first..first + n as u64)
+        .filter(|i| {
+            let x: Vec<f64> = crate::pipeline::perturb::draw(set, 5, *i)
+                .iter()
+                .zip(scales)
+                .map(|((_, d), s)| d * s)
+                .collect();
+            truth.passes(&x)
+        })
+        .count();
+    Confirmation {
+        first_index: first,
+        trials: n,
+        passed,
+        failed_trials: 0,
+        first_stage_trials: 0,
+        fraction: passed as f64 / n as f64,
+        lower_bound: wilson_lower(passed, n, c),
+    }
 }
 
 /// A test fixture shared by this module's and `budget_loosen`'s tests: tolerances over ±1

@@ -172,7 +172,7 @@ pub fn after_search(
 mod tests {
     use super::*;
     use crate::scene::tolerance::Distribution;
-    use crate::tolerance::budget_surface::wilson_lower;
+    use crate::tolerance::budget::synthetic_confirm;
 
     /// Four tolerances acting linearly (0.02, 0.04, 0.04, 0.04 per unit of the range) on a
     /// metric limited to ±0.01: alone each reaches the limit at scale 0.5 or 0.25, together at
@@ -195,27 +195,7 @@ mod tests {
         let base = [0.5, 0.25, 0.25, 0.25];
         let (lo, hi) = (vec![0.01; 4], vec![1.0; 4]);
         let costs = vec![ToleranceCost::default(); 4];
-        let judge = |first: u64, s: &[f64]| {
-            let passed = (first..first + n as u64)
-                .filter(|i| {
-                    let x: Vec<f64> = crate::pipeline::perturb::draw(&set, 5, *i)
-                        .iter()
-                        .zip(s)
-                        .map(|((_, d), k)| d * k)
-                        .collect();
-                    surface.passes(&x)
-                })
-                .count();
-            Confirmation {
-                first_index: first,
-                trials: n,
-                passed,
-                failed_trials: 0,
-                first_stage: 0,
-                fraction: passed as f64 / n as f64,
-                lower_bound: wilson_lower(passed, n, 0.95),
-            }
-        };
+        let judge = |first: u64, s: &[f64]| synthetic_confirm(&set, &surface, (first, n, 0.95), s);
         let c0 = judge(1 << 40, &base);
         assert!(c0.lower_bound < 0.95, "{c0:?}");
         let needed = crate::tolerance::budget_surface::fraction_needed(0.95, 0.95, n).unwrap();
@@ -223,24 +203,27 @@ mod tests {
             needed,
             margin: (needed * (1.0 - needed) / n as f64).sqrt(),
         };
+        let scale = |base_c: &Confirmation, confirm: &mut ConfirmAt| {
+            scale_with(
+                &surface,
+                &samples,
+                &costs,
+                (&lo, &hi),
+                &aim,
+                0.95,
+                (&base, Some(base_c)),
+                confirm,
+            )
+            .unwrap()
+        };
         let mut factors = Vec::new();
-        let out = scale_with(
-            &surface,
-            &samples,
-            &costs,
-            (&lo, &hi),
-            &aim,
-            0.95,
-            (&base, Some(&c0)),
-            &mut |k, s| {
-                factors.push(s[0] / base[0]);
-                Ok(Some(judge(
-                    SCALED_BASELINE_INDEX_BASE + k as u64 * n as u64,
-                    s,
-                )))
-            },
-        )
-        .unwrap();
+        let out = scale(&c0, &mut |k, s| {
+            factors.push(s[0] / base[0]);
+            Ok(Some(judge(
+                SCALED_BASELINE_INDEX_BASE + k as u64 * n as u64,
+                s,
+            )))
+        });
         let Scaled::Done(b) = out else {
             panic!("{out:?}")
         };
@@ -259,17 +242,7 @@ mod tests {
             lower_bound: 0.96,
             ..c0.clone()
         };
-        let skipped = scale_with(
-            &surface,
-            &samples,
-            &costs,
-            (&lo, &hi),
-            &aim,
-            0.95,
-            (&base, Some(&pass)),
-            &mut |_, _| panic!("nothing to confirm"),
-        )
-        .unwrap();
+        let skipped = scale(&pass, &mut |_, _| panic!("nothing to confirm"));
         assert!(matches!(skipped, Scaled::Skipped(_)));
     }
 }

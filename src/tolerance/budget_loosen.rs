@@ -356,8 +356,8 @@ pub fn after_rounds(
 mod tests {
     use super::*;
     use crate::scene::tolerance::{Distribution, ToleranceSet};
-    use crate::tolerance::budget::{allocate, inverse_limit};
-    use crate::tolerance::budget_surface::{fraction_needed, wilson_lower};
+    use crate::tolerance::budget::{allocate, inverse_limit, synthetic_confirm};
+    use crate::tolerance::budget_surface::fraction_needed;
 
     const LIMIT: f64 = 0.01;
 
@@ -381,35 +381,6 @@ mod tests {
             &lin,
             LIMIT,
         )
-    }
-
-    /// A synthetic confirmation: `n` trials drawn as traced trials are (`perturb::draw` at the
-    /// indices from `first`), judged on the `truth` model, with the one-sided Wilson bound.
-    fn synthetic_confirm(
-        set: &ToleranceSet,
-        truth: &Surface,
-        (first, n, c): (u64, usize, f64),
-        scales: &[f64],
-    ) -> Confirmation {
-        let passed = (first..first + n as u64)
-            .filter(|i| {
-                let x: Vec<f64> = crate::pipeline::perturb::draw(set, 5, *i)
-                    .iter()
-                    .zip(scales)
-                    .map(|((_, d), s)| d * s)
-                    .collect();
-                truth.passes(&x)
-            })
-            .count();
-        Confirmation {
-            first_index: first,
-            trials: n,
-            passed,
-            failed_trials: 0,
-            first_stage: 0,
-            fraction: passed as f64 / n as f64,
-            lower_bound: wilson_lower(passed, n, c),
-        }
     }
 
     fn round_of(scales: Vec<f64>, costs: &[ToleranceCost], c: Confirmation) -> Round {

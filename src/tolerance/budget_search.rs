@@ -217,7 +217,7 @@ pub fn confirm(
         trials: n as usize,
         passed,
         failed_trials: failed,
-        first_stage,
+        first_stage_trials: first_stage,
         fraction: passed as f64 / n.max(1) as f64,
         lower_bound: wilson_lower(passed, n as usize, job.b.confidence),
     }))
