@@ -29,13 +29,54 @@ pub struct Expected {
     pub measurement: f64,
     /// E[χ²] from the model trace's noise.
     pub trace: f64,
-    /// The standard deviation of χ².
+    /// The standard deviation of χ²: the larger of the two estimates below.
     pub sd: f64,
+    /// sd(χ²) from the trace's batches (module notes): exact for Gaussian batch means.
+    pub sd_batches: f64,
+    /// The sample standard deviation of χ² at the optimum over [`REPLICAS`] traces on seeds
+    /// of their own, each computed as the fit computes its own (the variance scale calibrated
+    /// on it, the nuisances profiled): the spread itself, where the batches' formula misses
+    /// part of it (0 until measured).
+    pub sd_replicas: f64,
 }
+
+/// Independent traces at the optimum whose χ² spread measures sd(χ²) ([`Expected::sd_replicas`]).
+pub const REPLICAS: u64 = 8;
+
+/// Added to the fit's seed for the replica traces (far from the selection traces' and from
+/// any seed a user counts through).
+pub const REPLICA_SEED_BASE: u64 = 0x4e91_1ca0_0000;
 
 impl Expected {
     pub fn mean(&self) -> f64 {
         self.measurement + self.trace
+    }
+
+    /// The upper edge of the sampling band, mean + 2 sd: a χ² above it was not explained
+    /// within the noise, so the fit is in a valley the frames do not prefer (or the model
+    /// lacks something).
+    pub fn upper(&self) -> f64 {
+        self.mean() + 2.0 * self.sd
+    }
+
+    /// With the spread measured on independent traces at the optimum (`chi2`: their χ²
+    /// values): `sd` becomes the larger of the two estimates. The batches' formula holds the
+    /// weights fixed, while each trace's weights come from its own estimate of the variance
+    /// scale (about a hundred batches: some 14 % of error), which moves χ² too; on one
+    /// coverage bench the formula gave half the spread measured (docs/guide/11-fitting.md).
+    pub fn with_replicas(self, chi2: &[f64]) -> Expected {
+        let n = chi2.len();
+        if n < 2 || chi2.iter().any(|c| !c.is_finite()) {
+            return self;
+        }
+        let mean = chi2.iter().sum::<f64>() / n as f64;
+        let var = chi2.iter().map(|c| (c - mean).powi(2)).sum::<f64>() / (n - 1) as f64;
+        let sd_replicas = var.sqrt();
+        Expected {
+            sd: self.sd_batches.max(sd_replicas),
+            sd_replicas,
+            ..self
+        }
     }
 }
 
@@ -130,5 +171,7 @@ pub fn expected(p: &Problem, prof: &Profiled, jac: &[Vec<f64>], batches: &BatchF
         measurement,
         trace,
         sd,
+        sd_batches: sd,
+        sd_replicas: 0.0,
     }
 }

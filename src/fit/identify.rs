@@ -39,9 +39,11 @@
 //! [`SCAN_POINTS`] across its bounds, the others held): a scanned point within Δχ² of the
 //! optimum but beyond the 95 % half-width its curvature gives is another valley as good (the
 //! mirror image −d of a lens decentre d), which the local curvature cannot see, and the
-//! variable is then reported unidentified with the scan's range. Where two to four variables are unidentified, they are also
-//! scanned jointly on a grid across their bounds ([`GridScan`]), and each one's range is the
-//! union of the line scans' and the grid's.
+//! variable is then reported unidentified with the scan's range. Where two to four variables
+//! are unidentified, they are also scanned jointly on a grid across their bounds
+//! ([`GridScan`]), and each one's range is the union of the line scans' and the grid's; where
+//! χ² lies above its band, every free variable is ([`joint_grid`]), for a better start and
+//! failing one for the ranges.
 
 // Dense matrices indexed both ways: index loops read as the formulas do.
 #![allow(clippy::needless_range_loop)]
@@ -119,30 +121,40 @@ pub struct Identification {
     pub singular_values: Vec<f64>,
     pub identified: Vec<bool>,
     pub unidentified: Vec<Unidentified>,
-    /// The joint scan of the unidentified variables, where there are two to four.
+    /// The joint scan of the unidentified variables, where there are two to four; or, where χ²
+    /// ended above its band, of every free variable ([`joint_grid`]).
     pub grid: Option<GridScan>,
+    /// The equally good Δχ² at the optimum ([`At::limit`]).
+    pub limit: f64,
 }
 
 impl Identification {
-    /// A scanned point clearly better than the optimum (by more than a scan's Δχ² limit): the
-    /// optimum was a local one.
+    /// A scanned point clearly better than the optimum (by more than the equally good Δχ²):
+    /// the optimum was a local one.
     pub fn better_point(&self) -> Option<Vec<f64>> {
-        let lines = self.unidentified.iter().flat_map(|u| {
-            u.scan_values
-                .iter()
-                .zip(&u.scan_delta_chi2)
-                .filter(|(_, d)| **d < -u.delta_chi2_limit)
-        });
-        let grid = self.grid.iter().flat_map(|g| {
-            g.scan_values
-                .iter()
-                .zip(&g.scan_delta_chi2)
-                .filter(|(_, d)| **d < -g.delta_chi2_limit)
-        });
-        lines
-            .chain(grid)
-            .min_by(|a, b| a.1.total_cmp(b.1))
-            .map(|(x, _)| x.clone())
+        lowest_where(self.scanned(), |d| d < -self.limit)
+    }
+
+    /// The lowest point below the optimum (Δχ² < 0) among the scans made at it and `extra`,
+    /// another grid traced about the same optimum ([`joint_grid`]).
+    pub fn lowest_below(&self, extra: Option<&GridScan>) -> Option<Vec<f64>> {
+        let extra = extra
+            .into_iter()
+            .flat_map(|g| g.scan_values.iter().zip(&g.scan_delta_chi2));
+        lowest_where(self.scanned().chain(extra), |d| d < 0.0)
+    }
+
+    /// Every point scanned at the optimum (line scans and the joint grid), with its Δχ².
+    fn scanned(&self) -> impl Iterator<Item = (&Vec<f64>, &f64)> {
+        let lines = self
+            .unidentified
+            .iter()
+            .flat_map(|u| u.scan_values.iter().zip(&u.scan_delta_chi2));
+        let grid = self
+            .grid
+            .iter()
+            .flat_map(|g| g.scan_values.iter().zip(&g.scan_delta_chi2));
+        lines.chain(grid)
     }
 
     /// Variable i's range of equally good values (its units) about the fitted value `x`: the
@@ -335,7 +347,51 @@ pub fn identify(
         identified,
         unidentified,
         grid,
+        limit: at.limit(),
     })
+}
+
+/// The joint scan of every free variable about an optimum whose χ² lies above its sampling
+/// band (`at.chi2` above [`super::chi2::Expected::upper`]): the fit is then in a valley the
+/// frames do not prefer, and a line scan follows one direction while the true bench can lie
+/// off it (a lens tilt and a decentre of the same lens, one identified and one not). Each
+/// variable at [`grid_points`] levels across its bounds (13, the line scans' density, for one
+/// variable); None where the identification's own grid already covers them all, or beyond four.
+#[allow(clippy::too_many_arguments)]
+pub fn joint_grid(
+    p: &Problem,
+    u: &[f64],
+    id: &Identification,
+    at: At,
+    rays: u64,
+    seed: u64,
+    count: &(dyn Fn() + Sync),
+) -> Result<Option<GridScan>> {
+    let n = u.len();
+    if id.grid.as_ref().is_some_and(|g| g.variables.len() == n) {
+        return Ok(None);
+    }
+    let points = if n == 1 {
+        Some(SCAN_POINTS)
+    } else {
+        grid_points(n)
+    };
+    let Some(points) = points else {
+        return Ok(None);
+    };
+    let all: Vec<usize> = (0..n).collect();
+    Ok(Some(grid_scan(p, u, &all, points, at, rays, seed, count)?))
+}
+
+/// The scanned point of lowest Δχ² among those whose Δχ² passes `keep`.
+fn lowest_where<'a>(
+    points: impl Iterator<Item = (&'a Vec<f64>, &'a f64)>,
+    keep: impl Fn(f64) -> bool,
+) -> Option<Vec<f64>> {
+    points
+        .filter(|(_, d)| keep(**d))
+        .min_by(|a, b| a.1.total_cmp(b.1))
+        .map(|(x, _)| x.clone())
 }
 
 /// Per scanned variable, the levels (0 … `points` − 1) its equally good grid points span: the

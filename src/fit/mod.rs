@@ -20,6 +20,14 @@
 //! column ([`step`]). The first stage traces a quarter of the rays, from each of up to three
 //! coarse starts in distinct valleys ([`start`]); the second, from the lowest first-stage
 //! optimum, all of them.
+//!
+//! At the optimum the fit is identified ([`identify`]), and χ² is set against what a correct
+//! model gives ([`chi2`]: the mean from the noise, the spread from the batches and from
+//! [`chi2::REPLICAS`] traces on seeds of their own, the larger kept). It goes on from a scanned
+//! point (at most [`MAX_RESTARTS`] times) that is clearly better (below by more than the
+//! equally good Δχ²) or, when χ² lies above its band's upper edge, from any lower one, all the
+//! free variables then scanned on one grid as well ([`identify::joint_grid`]): a χ² the
+//! noise does not explain says the optimum is in a valley the frames do not prefer.
 
 pub mod chi2;
 pub mod gains;
@@ -483,18 +491,33 @@ pub fn fit(
         let jacobian = p.jacobian(&u, rays, req.seed, &count)?;
         let jac = &jacobian.cols;
         let chi2_dof = prof.chi2 / dof.max(1) as f64;
-        let expected = chi2::expected(&p, &prof, jac, &batches);
+        let replicas = replica_chi2(&p, &x, rays, req.seed, &count)?;
+        let expected = chi2::expected(&p, &prof, jac, &batches).with_replicas(&replicas);
         let at = identify::At {
             chi2: prof.chi2,
             chi2_dof,
             chi2_sd: expected.sd,
         };
-        let id = identify::identify(
+        let mut id = identify::identify(
             &p, &u, &jacobian, &prof, &batches, at, rays, req.seed, &count,
         )?;
         // A scan that found a clearly better point: the optimum was local; go on from there.
-        match id.better_point() {
-            Some(x) if restarts < 2 => {
+        // A χ² above its sampling band says the same of any lower point, all the variables
+        // then scanned jointly too; where none is lower (or no restart is left) that grid
+        // gives the ranges.
+        let better = id.better_point();
+        let joint = if better.is_none() && prof.chi2 > expected.upper() {
+            identify::joint_grid(&p, &u, &id, at, rays, req.seed, &count)?
+        } else {
+            None
+        };
+        let next = better.or_else(|| {
+            (prof.chi2 > expected.upper())
+                .then(|| id.lowest_below(joint.as_ref()))
+                .flatten()
+        });
+        match next {
+            Some(x) if restarts < MAX_RESTARTS => {
                 restarts += 1;
                 let stage = stages.len();
                 u = levenberg_marquardt(
@@ -507,7 +530,12 @@ pub fn fit(
                     &count,
                 )?;
             }
-            _ => break (u, prof, id, expected),
+            _ => {
+                if joint.is_some() {
+                    id.grid = joint;
+                }
+                break (u, prof, id, expected);
+            }
         }
     };
     let x = p.to_values(&u);
@@ -605,6 +633,36 @@ fn multi_start(
         .collect();
     Ok((u, history, record))
 }
+
+/// χ² at `x` on [`chi2::REPLICAS`] traces of seeds of their own, each as the fit computes its
+/// own: the variance scale calibrated on that trace ([`Problem::calibrate`]), so that their
+/// spread is the sampling spread of the χ² the fit reports, weights' estimate included. The
+/// fit's own scale is kept.
+fn replica_chi2(
+    p: &Problem,
+    x: &[f64],
+    rays: u64,
+    seed: u64,
+    count: &(dyn Fn() + Sync),
+) -> Result<Vec<f64>> {
+    let kept = p.scale.get();
+    let out = (0..chi2::REPLICAS)
+        .map(|k| {
+            let s = seed.wrapping_add(chi2::REPLICA_SEED_BASE + k);
+            let c = p
+                .calibrate(x, rays, s)?
+                .map_or(f64::INFINITY, |(q, _)| q.chi2);
+            count();
+            Ok(c)
+        })
+        .collect();
+    p.scale.set(kept);
+    out
+}
+
+/// The most times the fit goes on from a better scanned point than its optimum
+/// ([`identify::Identification::better_point`], [`identify::joint_grid`]).
+pub const MAX_RESTARTS: usize = 2;
 
 /// Independent traces a start's end is judged by ([`selection_chi2`]).
 pub const SELECTION_SEEDS: u64 = 3;

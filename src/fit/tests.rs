@@ -223,3 +223,89 @@ fn the_unshared_sigma_reduces_to_independent_noise() {
     assert!((unshared_sigma(at(0.8, 200.0), 40.0) - want).abs() < 1e-15);
     assert!(unshared_sigma(at(0.8, 0.0), 0.0).is_infinite());
 }
+
+/// Where the fit goes on from: a scanned point beats the optimum outright only by more than the
+/// equally good Δχ² (`better_point`), while above the χ² band any point below the optimum is a
+/// start (`lowest_below`), an extra grid's included; nothing below gives None.
+#[test]
+fn a_restart_needs_a_clear_gain_inside_the_band_and_any_gain_above_it() {
+    use super::identify::{GridScan, Identification, Unidentified};
+    let line = Unidentified {
+        singular_value: 1.0,
+        direction: vec![1.0, 0.0],
+        range_lo: vec![0.0, 0.0],
+        range_hi: vec![1.0, 0.0],
+        scan_values: vec![vec![0.0, 0.0], vec![0.5, 0.0], vec![1.0, 0.0]],
+        scan_delta_chi2: vec![30.0, -40.0, 5.0],
+        delta_chi2_limit: 100.0,
+    };
+    let grid = |values: Vec<Vec<f64>>, d: Vec<f64>| GridScan {
+        variables: vec![0, 1],
+        scan_values: values,
+        scan_delta_chi2: d,
+        delta_chi2_limit: 100.0,
+        range_lo: vec![0.0, 0.0],
+        range_hi: vec![1.0, 1.0],
+    };
+    let id = Identification {
+        stderr: vec![f64::NAN; 2],
+        correlation: vec![vec![1.0, 0.0], vec![0.0, 1.0]],
+        singular_values: vec![1.0, 0.0],
+        identified: vec![false, true],
+        unidentified: vec![line],
+        grid: None,
+        limit: 100.0,
+    };
+    // −40 is within the limit of 100: not clearly better, but below the optimum.
+    assert_eq!(id.better_point(), None);
+    assert_eq!(id.lowest_below(None), Some(vec![0.5, 0.0]));
+    // A grid traced about the optimum with a lower point wins; one without does not.
+    let extra = grid(vec![vec![0.2, 0.8], vec![0.9, 0.1]], vec![-75.0, 12.0]);
+    assert_eq!(id.lowest_below(Some(&extra)), Some(vec![0.2, 0.8]));
+    let higher = grid(vec![vec![0.2, 0.8]], vec![3.0]);
+    assert_eq!(id.lowest_below(Some(&higher)), Some(vec![0.5, 0.0]));
+    // The identification's own grid 150 below: clearly better.
+    let deep = Identification {
+        grid: Some(grid(vec![vec![0.7, 0.3]], vec![-150.0])),
+        ..id.clone()
+    };
+    assert_eq!(deep.better_point(), Some(vec![0.7, 0.3]));
+    // Nothing below the optimum anywhere.
+    let flat = Identification {
+        unidentified: Vec::new(),
+        ..id
+    };
+    assert_eq!(flat.lowest_below(Some(&higher)), None);
+}
+
+/// The replicas' spread replaces the batches' sd(χ²) only where it is larger; it is the sample
+/// standard deviation (n − 1), and fewer than two finite replicas leave the estimate alone.
+#[test]
+fn replicas_raise_the_chi2_spread_only_above_the_batch_estimate() {
+    use super::chi2::Expected;
+    let e = Expected {
+        measurement: 40.0,
+        trace: 1900.0,
+        sd: 225.0,
+        sd_batches: 225.0,
+        sd_replicas: 0.0,
+    };
+    // Sample sd of [2000, 2400, 2800, 3200] about 2600: √((2·600² + 2·200²)/3) = 516.40.
+    let wide = e.with_replicas(&[2000.0, 2400.0, 2800.0, 3200.0]);
+    let want = (((600.0f64).powi(2) * 2.0 + (200.0f64).powi(2) * 2.0) / 3.0).sqrt();
+    assert!(
+        (wide.sd_replicas - want).abs() < 1e-9,
+        "{}",
+        wide.sd_replicas
+    );
+    assert_eq!(wide.sd, wide.sd_replicas);
+    assert_eq!(wide.sd_batches, 225.0);
+    assert_eq!(wide.upper(), 1940.0 + 2.0 * want);
+    let narrow = e.with_replicas(&[2100.0, 2150.0, 2200.0]);
+    assert!((narrow.sd_replicas - 50.0).abs() < 1e-9);
+    assert_eq!(narrow.sd, 225.0);
+    for few in [&[2100.0][..], &[2100.0, f64::INFINITY]] {
+        let same = e.with_replicas(few);
+        assert_eq!((same.sd, same.sd_replicas), (225.0, 0.0));
+    }
+}

@@ -317,6 +317,9 @@ fn report_html(summary: &FitSummary, svg: &str) -> String {
         summary.seed,
         summary.evaluations
     );
+    if let Some(w) = band_warning(summary) {
+        let _ = write!(h, "<p><strong>{w}.</strong></p>");
+    }
     h.push_str(
         "<h2>Fitted variables</h2><table><tr><th>variable</th><th>value</th><th>± SE</th>\
          <th>range (95 % or equally good)</th><th>identified</th></tr>",
@@ -401,6 +404,23 @@ pub fn write(
     .to_vec())
 }
 
+/// What a χ²/dof outside its sampling band says, or None inside it.
+fn band_warning(s: &FitSummary) -> Option<String> {
+    let [lo, hi] = s.chi2_band_per_dof;
+    let why = if s.chi2_per_dof > hi {
+        "the fit stopped in a valley the frames do not prefer, or the bench lacks what made \
+         them (another --seed or more --rays tells which)"
+    } else if s.chi2_per_dof < lo {
+        "the frames' noise is overstated (noise_v), or the model's traces share more than \
+         their batches say"
+    } else {
+        return None;
+    };
+    Some(format!(
+        "χ²/dof outside its sampling band [{lo:.3}, {hi:.3}]: {why}"
+    ))
+}
+
 /// The lines `fit` prints.
 pub fn printed(f: &Fit, doc: &BenchDoc, measured: &Measured) -> Vec<String> {
     let s = summarize(f, doc, measured);
@@ -408,6 +428,9 @@ pub fn printed(f: &Fit, doc: &BenchDoc, measured: &Measured) -> Vec<String> {
         "χ²/dof = {:.3} ({} values, {} dof; nominal bench χ² {:.1})",
         s.chi2_per_dof, s.values_used, s.dof, s.chi2_nominal
     )];
+    if let Some(w) = band_warning(&s) {
+        lines.push(w);
+    }
     for v in &s.variables {
         lines.push(match v.stderr {
             Some(se) if v.identified => format!("{:<36} {:>10.4} ± {:.4}", v.path, v.value, se),

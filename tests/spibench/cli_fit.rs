@@ -167,6 +167,48 @@ fn fit_recovers_an_arm_lens_decentre_and_refuses_bad_input() {
     refused(&free, &flagged, "every frame is flagged");
 }
 
+/// Honest where the frames cannot know: the + diode decentred by 0.3 mm, inside the plateau
+/// where its whole spot stays on the 5 mm photodiode, changes no frame beyond the noise. The fit
+/// must call it unidentified (no standard error) and give a range of equally good values that
+/// holds the true decentre, rather than a value.
+#[test]
+fn a_diode_inside_its_plateau_is_unidentified_and_its_range_holds_the_truth() {
+    let dir = TempDir::new("fit-plateau");
+    let scene = small_paper_scene(&dir);
+    let truth = 0.3;
+    let measured = measure(&dir, &scene, &["detectors.plus.decenter_mm.x=0.3"], "diode");
+    let out = dir.join("fit");
+    let o = fit(
+        &scene,
+        &measured,
+        &[
+            "--free",
+            "detectors.plus.decenter_mm.x=-1:1",
+            "--rays",
+            "30000",
+            "-q",
+        ],
+        &out,
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let sm = read_json(&out.join("summary.json"));
+    let v = &sm["variables"][0];
+    assert_eq!(v["identified"], false, "{sm}");
+    assert!(v["stderr"].is_null(), "{sm}");
+    let (lo, hi) = (
+        v["range_lo"].as_f64().unwrap(),
+        v["range_hi"].as_f64().unwrap(),
+    );
+    assert!(
+        lo <= truth && truth <= hi,
+        "range [{lo}, {hi}] against {truth}"
+    );
+    // A plateau, not a narrow valley: the range spans at least 40 % of the box (measured: the
+    // whole box, −1 to 1 mm, at χ²/dof 1.08).
+    assert!(hi - lo >= 0.8, "range [{lo}, {hi}]");
+    assert_eq!(sm["unidentified"].as_array().map(Vec::len), Some(1), "{sm}");
+}
+
 fn copy_dir(from: &Path, to: &Path) {
     std::fs::create_dir_all(to).unwrap();
     for name in ["summary.json", "frames.csv"] {
