@@ -62,7 +62,7 @@ impl Expected {
     /// With the spread measured on independent traces at the optimum (`chi2`: their χ²
     /// values): `sd` becomes the larger of the two estimates. The batches' formula holds the
     /// weights fixed, while each trace's weights come from its own estimate of the variance
-    /// scale (about a hundred batches: some 14 % of error), which moves χ² too; on one
+    /// scale (about a hundred batches at 10⁵ rays: some 14 % of error), which moves χ² too; on one
     /// coverage bench the formula gave half the spread measured (docs/guide/11-fitting.md).
     pub fn with_replicas(self, chi2: &[f64]) -> Expected {
         let n = chi2.len();

@@ -501,21 +501,8 @@ pub fn fit(
         let mut id = identify::identify(
             &p, &u, &jacobian, &prof, &batches, at, rays, req.seed, &count,
         )?;
-        // A scan that found a clearly better point: the optimum was local; go on from there.
-        // A χ² above its sampling band says the same of any lower point, all the variables
-        // then scanned jointly too; where none is lower (or no restart is left) that grid
-        // gives the ranges.
-        let better = id.better_point();
-        let joint = if better.is_none() && prof.chi2 > expected.upper() {
-            identify::joint_grid(&p, &u, &id, at, rays, req.seed, &count)?
-        } else {
-            None
-        };
-        let next = better.or_else(|| {
-            (prof.chi2 > expected.upper())
-                .then(|| id.lowest_below(joint.as_ref()))
-                .flatten()
-        });
+        let above = prof.chi2 > expected.upper();
+        let (next, joint) = go_on_from(&p, &u, &id, at, above, rays, req.seed, &count)?;
         match next {
             Some(x) if restarts < MAX_RESTARTS => {
                 restarts += 1;
@@ -632,6 +619,32 @@ fn multi_start(
         })
         .collect();
     Ok((u, history, record))
+}
+
+/// Where the fit goes on from after identifying the optimum `u`, and the joint grid it traced
+/// to decide. A scan that found a clearly better point: the optimum was local. A χ² above its
+/// sampling band (`above`) says the same of any lower point, every free variable then scanned
+/// jointly too ([`identify::joint_grid`]); where none is lower, or no restart is left, that
+/// grid gives the ranges.
+#[allow(clippy::too_many_arguments)]
+fn go_on_from(
+    p: &Problem,
+    u: &[f64],
+    id: &Identification,
+    at: identify::At,
+    above: bool,
+    rays: u64,
+    seed: u64,
+    count: &(dyn Fn() + Sync),
+) -> Result<(Option<Vec<f64>>, Option<identify::GridScan>)> {
+    if let Some(x) = id.better_point() {
+        return Ok((Some(x), None));
+    }
+    if !above {
+        return Ok((None, None));
+    }
+    let joint = identify::joint_grid(p, u, id, at, rays, seed, count)?;
+    Ok((id.lowest_below(joint.as_ref()), joint))
 }
 
 /// χ² at `x` on [`chi2::REPLICAS`] traces of seeds of their own, each as the fit computes its
