@@ -19,6 +19,9 @@ pub struct MeasuredSequence {
     pub sequence: Sequence,
     /// [RF, MONITOR+, MONITOR−] of every frame (V).
     pub values: Vec<[f64; 3]>,
+    /// Each frame's start in its record (s, from the trigger): where the slow processes of
+    /// the record (the room light's flicker) are in their cycle.
+    pub start_s: Vec<f64>,
     /// A frame intake flagged (clipped, irregular period, missing pulse): left out of the fit.
     pub flagged: Vec<bool>,
     pub patterns_sha256: String,
@@ -97,6 +100,7 @@ pub fn read_measured(dir: &Path) -> Result<Measured> {
         sequences.push(MeasuredSequence {
             sequence,
             values: Vec::new(),
+            start_s: Vec::new(),
             flagged: Vec::new(),
             patterns_sha256: sha,
         });
@@ -167,7 +171,13 @@ fn read_frames(path: &Path, sequences: &mut [MeasuredSequence]) -> Result<()> {
                 .filter(|x| x.is_finite())
                 .ok_or_else(|| bad(format!("value {:?} is not a finite number", &row[4 + k])))?;
         }
+        let start = row[2]
+            .parse::<f64>()
+            .ok()
+            .filter(|x| x.is_finite())
+            .ok_or_else(|| bad(format!("start_s {:?} is not a finite number", &row[2])))?;
         q.values.push(v);
+        q.start_s.push(start);
         q.flagged.push(!row[7].trim().is_empty());
     }
     Ok(())

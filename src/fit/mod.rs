@@ -126,6 +126,8 @@ pub struct Fit {
     pub evaluations: usize,
     /// What a correct model's χ² should be at these rays ([`chi2`]).
     pub chi2_expected: chi2::Expected,
+    /// The records' slow terms fitted with the nuisances.
+    pub slow: model::SlowTerms,
     /// The Monte Carlo variance scale at the optimum ([`model::VarianceScale`]).
     pub variance_scale: model::VarianceScale,
     /// The starts Levenberg–Marquardt ran from ([`start`]), in the order run.
@@ -184,6 +186,8 @@ pub struct Problem<'a> {
     pub steps: std::cell::RefCell<Vec<f64>>,
     /// The detector gains' prior ([`gains`]), or None where they are free.
     pub prior: Option<gains::GainPrior>,
+    /// The records' slow terms, fitted with the offsets ([`model::SlowTerms`]).
+    pub slow: model::SlowTerms,
 }
 
 impl Problem<'_> {
@@ -202,7 +206,7 @@ impl Problem<'_> {
         );
         // A bench whose arm sees no light at all cannot be profiled: no better than a bench
         // that does not build.
-        Ok(model::profile(&frames, self.measured, self.prior.as_ref()).ok())
+        Ok(model::profile(&frames, self.measured, self.prior.as_ref(), &self.slow).ok())
     }
 
     /// The χ² at `x` traced with (rays, seed), infinite where the bench does not build or
@@ -248,9 +252,11 @@ impl Problem<'_> {
         let scale = batches.scale(&unit, self.measured);
         self.scale.set(scale);
         let frames = model::model_frames(t, &self.bits, self.measured, &scale);
-        Ok(model::profile(&frames, self.measured, self.prior.as_ref())
-            .ok()
-            .map(|p| (p, batches)))
+        Ok(
+            model::profile(&frames, self.measured, self.prior.as_ref(), &self.slow)
+                .ok()
+                .map(|p| (p, batches)),
+        )
     }
 
     pub fn to_values(&self, u: &[f64]) -> Vec<f64> {
@@ -283,7 +289,8 @@ impl Problem<'_> {
             self.measured,
             &self.scale.get(),
         );
-        let Ok(prof) = model::profile(&frames, self.measured, self.prior.as_ref()) else {
+        let Ok(prof) = model::profile(&frames, self.measured, self.prior.as_ref(), &self.slow)
+        else {
             return Ok(None);
         };
         Ok(Some(step::Sampled {
@@ -463,6 +470,7 @@ pub fn fit(
             nominal: nominal_scales,
             tolerance,
         }),
+        slow: model::SlowTerms::of(&scene.settings.drift),
     };
     let rays = req.rays.max(2 * crate::trace::RAYS_PER_BATCH);
     let stages = [(rays / 4).max(2 * crate::trace::RAYS_PER_BATCH), rays];
@@ -553,6 +561,7 @@ pub fn fit(
         best,
         evaluations: evals.load(std::sync::atomic::Ordering::Relaxed),
         chi2_expected,
+        slow: p.slow.clone(),
         variance_scale: p.scale.get(),
         starts,
     })

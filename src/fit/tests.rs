@@ -3,7 +3,7 @@
 //! χ²/dof near 1.
 
 use super::measured::{Measured, MeasuredSequence};
-use super::model::{ModelFrames, profile};
+use super::model::{ModelFrames, SlowTerms, profile};
 use crate::acquisition::Sequence;
 
 fn synthetic(noise: f64) -> (ModelFrames, Measured) {
@@ -47,6 +47,7 @@ fn synthetic(noise: f64) -> (ModelFrames, Measured) {
         sequences: vec![MeasuredSequence {
             sequence: Sequence::Base,
             values,
+            start_s: (0..m).map(|i| 44e-6 * i as f64).collect(),
             flagged: vec![false; m],
             patterns_sha256: String::new(),
         }],
@@ -59,14 +60,14 @@ fn synthetic(noise: f64) -> (ModelFrames, Measured) {
 #[test]
 fn profiled_nuisances_are_recovered_and_chi2_follows_the_noise() {
     let (model, measured) = synthetic(0.0);
-    let p = profile(&model, &measured, None).unwrap();
+    let p = profile(&model, &measured, None, &SlowTerms::default()).unwrap();
     let want = [3e3, 2.9e3, 0.01, 1e4, 0.02, 1.1e4, -0.03];
     for (a, b) in p.nuisances.iter().zip(want) {
         assert!((a - b).abs() <= 1e-6 * b.abs().max(1.0), "{a} vs {b}");
     }
     assert!(p.chi2 < 1e-6, "{}", p.chi2);
     let (model, measured) = synthetic(1e-3);
-    let p = profile(&model, &measured, None).unwrap();
+    let p = profile(&model, &measured, None, &SlowTerms::default()).unwrap();
     let dof = (3 * 64 - 7) as f64;
     let r = p.chi2 / dof;
     assert!((0.7..1.3).contains(&r), "χ²/dof {r}");
@@ -84,7 +85,7 @@ fn a_consistent_gain_prior_recovers_the_scales_and_the_lamp_power() {
         tolerance: 0.05,
     };
     let (model, measured) = synthetic(0.0);
-    let p = profile(&model, &measured, Some(&prior)).unwrap();
+    let p = profile(&model, &measured, Some(&prior), &SlowTerms::default()).unwrap();
     for (a, b) in p.nuisances.iter().zip(want) {
         assert!((a - b).abs() <= 1e-6 * b.abs().max(1.0), "{a} vs {b}");
     }
@@ -96,7 +97,7 @@ fn a_consistent_gain_prior_recovers_the_scales_and_the_lamp_power() {
     assert_eq!(p.linear_parameters(), 7);
     assert_eq!(p.dof(2), 3 * 64 + PRIOR_ROWS - 7 - 2);
     let (model, measured) = synthetic(1e-3);
-    let p = profile(&model, &measured, Some(&prior)).unwrap();
+    let p = profile(&model, &measured, Some(&prior), &SlowTerms::default()).unwrap();
     let r = p.chi2 / p.dof(0) as f64;
     assert!((0.7..1.3).contains(&r), "χ²/dof {r}");
 }
@@ -120,7 +121,7 @@ fn a_gain_prior_keeps_an_arm_s_loss_out_of_its_gains() {
     for l in &mut model.light_a[0] {
         l[1] *= 0.8;
     }
-    let free = profile(&model, &measured, None).unwrap();
+    let free = profile(&model, &measured, None, &SlowTerms::default()).unwrap();
     let r = free.chi2 / free.dof(0) as f64;
     assert!(
         (0.7..1.3).contains(&r),
@@ -136,7 +137,7 @@ fn a_gain_prior_keeps_an_arm_s_loss_out_of_its_gains() {
         .iter()
         .map(|p| ((p - mean) / (tolerance * mean)).powi(2))
         .sum();
-    let held = profile(&model, &measured, Some(&prior)).unwrap();
+    let held = profile(&model, &measured, Some(&prior), &SlowTerms::default()).unwrap();
     let excess = held.chi2 - free.chi2;
     let spread = (2.0 * free.dof(0) as f64).sqrt();
     assert!(

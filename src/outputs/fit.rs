@@ -94,6 +94,9 @@ pub struct FitSummary {
     pub prior_rows: usize,
     pub variables: Vec<FittedVariable>,
     pub nuisances: Vec<Nuisance>,
+    /// Each record's slow terms (the ambient light's drift between records, the room light's
+    /// flicker), fitted with the nuisances.
+    pub slow_terms: SlowTermsSummary,
     pub singular_values: Vec<f64>,
     pub correlation: Vec<Vec<Option<f64>>>,
     pub unidentified: Vec<Unidentified>,
@@ -104,6 +107,20 @@ pub struct FitSummary {
     pub starts_run: usize,
     pub starts: Vec<StartSummary>,
     pub adjustment: Option<AdjustmentSummary>,
+}
+
+/// The records' slow terms in `summary.json`.
+#[derive(Debug, Serialize)]
+pub struct SlowTermsSummary {
+    /// The hum frequencies fitted (Hz): the bench's flicker and ripple.
+    pub hum_hz: Vec<f64>,
+    /// Per record (in `records`' order), its offset shift per channel [RF, MONITOR+,
+    /// MONITOR−] against the first record's (V).
+    pub offset_shift_v: Vec<[f64; 3]>,
+    /// Per record, per hum frequency, each channel's amplitude (V).
+    pub hum_amplitude_v: Vec<Vec<[f64; 3]>>,
+    /// The records' sequences.
+    pub records: Vec<String>,
 }
 
 /// One start of the fit in `summary.json`.
@@ -189,6 +206,7 @@ pub fn summarize(f: &Fit, doc: &BenchDoc, measured: &Measured) -> FitSummary {
             .into_iter()
             .map(|(name, value)| Nuisance { name, value })
             .collect(),
+        slow_terms: slow_terms(f, measured),
         singular_values: id.singular_values.clone(),
         correlation: id
             .correlation
@@ -402,6 +420,21 @@ pub fn write(
     ]
     .map(String::from)
     .to_vec())
+}
+
+fn slow_terms(f: &Fit, measured: &Measured) -> SlowTermsSummary {
+    let records = measured.sequences.len();
+    let (offset_shift_v, hum_amplitude_v) = f.slow.split(records, &f.best.profiled.slow);
+    SlowTermsSummary {
+        hum_hz: f.slow.hum_hz.clone(),
+        offset_shift_v,
+        hum_amplitude_v,
+        records: measured
+            .sequences
+            .iter()
+            .map(|q| q.sequence.key().to_string())
+            .collect(),
+    }
 }
 
 /// What a χ²/dof outside its sampling band says, or None inside it.
