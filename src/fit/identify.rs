@@ -39,11 +39,15 @@
 //! [`SCAN_POINTS`] across its bounds, the others held): a scanned point within Δχ² of the
 //! optimum but beyond the 95 % half-width its curvature gives is another valley as good (the
 //! mirror image −d of a lens decentre d), which the local curvature cannot see, and the
-//! variable is then reported unidentified with the scan's range. Where two to four variables
-//! are unidentified, they are also scanned jointly on a grid across their bounds
-//! ([`GridScan`]), and each one's range is the union of the line scans' and the grid's; where
-//! χ² lies above its band, every free variable is ([`joint_grid`]), for a better start and
-//! failing one for the ranges.
+//! variable is then reported unidentified with the scan's range. Where any variable is
+//! unidentified and there are two to four, all of them are also scanned jointly on a grid
+//! across their bounds ([`GridScan`]; with more, the two to four unidentified ones): each
+//! unidentified variable's range is the union of the line scans' and the grid's, and an
+//! identified one with an equally good grid point beyond its 95 % half-width and a grid step
+//! is another valley's too (a mirror image can be joint: both lenses' decentres flipped
+//! together, which no axis through the optimum reaches), reported unidentified. Where χ² lies
+//! above its band, every free variable is scanned so ([`joint_grid`]) if it was not, for a
+//! better start and failing one for the ranges.
 
 // Dense matrices indexed both ways: index loops read as the formulas do.
 #![allow(clippy::needless_range_loop)]
@@ -76,7 +80,7 @@ pub struct Unidentified {
     pub delta_chi2_limit: f64,
 }
 
-/// Grid points per variable of the joint scan of k unidentified variables ([`grid_scan`]):
+/// Grid points per variable of the joint scan of k variables ([`grid_scan`]):
 /// 7² = 49 traces for two, 5³ = 125 for three, 4⁴ = 256 for four; none beyond four (the line
 /// scans alone). Four came from the coverage benches: a bench with four unidentified variables
 /// ended with narrow ranges beside the truth when only the line scans covered it
@@ -90,16 +94,16 @@ pub fn grid_points(k: usize) -> Option<usize> {
     }
 }
 
-/// The joint scan of the unidentified variables, where there are two to four: a line scan
-/// follows one direction through the optimum, and where two directions are both free the
-/// equally good region is a patch of their plane that a true bench can lie in off both lines
-/// (a lens decentred in x and in y). Each unidentified variable takes [`grid_points`] values
-/// across its bounds, the others held at the optimum, every combination traced (common random
-/// numbers, the fit's rays); a variable's range holds every grid point within the same Δχ² as
-/// the line scans', one grid step beyond each end.
+/// The joint scan of two to four variables (module notes): a line scan follows one direction
+/// through the optimum, and where two directions are both free the equally good region is a
+/// patch of their plane that a true bench can lie in off both lines (a lens decentred in x and
+/// in y). Each scanned variable takes [`grid_points`] values across its bounds, the others
+/// held at the optimum, every combination traced (common random numbers, the fit's rays); a
+/// variable's range holds every grid point within the same Δχ² as the line scans', one grid
+/// step beyond each end.
 #[derive(Debug, Clone, serde::Serialize)]
 pub struct GridScan {
-    /// The unidentified variables scanned (indices into the free variables).
+    /// The variables scanned (indices into the free variables).
     pub variables: Vec<usize>,
     /// Each grid point: the free variables' values, and χ² − χ²_best (null where the bench
     /// does not build).
@@ -121,8 +125,9 @@ pub struct Identification {
     pub singular_values: Vec<f64>,
     pub identified: Vec<bool>,
     pub unidentified: Vec<Unidentified>,
-    /// The joint scan of the unidentified variables, where there are two to four; or, where χ²
-    /// ended above its band, of every free variable ([`joint_grid`]).
+    /// The joint scan (module notes): of every free variable where one is unidentified and
+    /// there are two to four, or where χ² ended above its band ([`joint_grid`]); else of the
+    /// two to four unidentified ones.
     pub grid: Option<GridScan>,
     /// The equally good Δχ² at the optimum ([`At::limit`]).
     pub limit: f64,
@@ -335,11 +340,25 @@ pub fn identify(
                 .collect()
         })
         .collect();
-    let free: Vec<usize> = (0..n).filter(|&i| !identified[i]).collect();
-    let grid = match grid_points(free.len()) {
-        Some(g) => Some(grid_scan(p, u, &free, g, at, rays, seed, count)?),
+    // The joint scan: every free variable where one is unidentified and there are two to
+    // four (a mirror valley can be joint: each lens decentre flipped together, no axis through
+    // the optimum reaching it), else the unidentified ones where there are two to four.
+    let unknown: Vec<usize> = (0..n).filter(|&i| !identified[i]).collect();
+    let scanned: Vec<usize> = match grid_points(n) {
+        Some(_) if !unknown.is_empty() => (0..n).collect(),
+        _ => unknown,
+    };
+    let grid = match grid_points(scanned.len()) {
+        Some(g) => Some(grid_scan(p, u, &scanned, g, at, rays, seed, count)?),
         None => None,
     };
+    let mut stderr = stderr;
+    if let Some(g) = &grid {
+        for i in joint_second_valleys(p, u, g, &identified, &stderr) {
+            identified[i] = false;
+            stderr[i] = f64::NAN;
+        }
+    }
     Ok(Identification {
         stderr,
         correlation,
@@ -472,6 +491,36 @@ fn grid_scan(
         range_lo,
         range_hi,
     })
+}
+
+/// The identified variables of the joint scan `g` that have an equally good grid point (Δχ²
+/// within the limit of the lowest seen) farther from the optimum `u` than their 95 %
+/// half-width (2 standard errors) and one grid step: another valley, joint with the other
+/// variables' (both lens decentres flipped), which neither the curvature nor an axis scan
+/// sees.
+fn joint_second_valleys(
+    p: &Problem,
+    u: &[f64],
+    g: &GridScan,
+    identified: &[bool],
+    stderr: &[f64],
+) -> Vec<usize> {
+    let floor = g.scan_delta_chi2.iter().copied().fold(0.0, f64::min);
+    let points = grid_points(g.variables.len()).unwrap_or(2);
+    g.variables
+        .iter()
+        .copied()
+        .filter(|&i| identified[i])
+        .filter(|&i| {
+            let f = &p.free[i];
+            let here = f.lo + u[i] * (f.hi - f.lo);
+            let reach = 2.0 * stderr[i] + (f.hi - f.lo) / (points - 1) as f64;
+            g.scan_values
+                .iter()
+                .zip(&g.scan_delta_chi2)
+                .any(|(x, d)| d - floor <= g.delta_chi2_limit && (x[i] - here).abs() > reach)
+        })
+        .collect()
 }
 
 /// Whether the scan along variable `i`'s axis has an equally good point (Δχ² within the
