@@ -354,7 +354,7 @@ pub fn identify(
     };
     let mut stderr = stderr;
     if let Some(g) = &grid {
-        for i in joint_second_valleys(p, u, g, &identified, &stderr) {
+        for i in joint_second_valleys(p.free, u, g, &identified, &stderr) {
             identified[i] = false;
             stderr[i] = f64::NAN;
         }
@@ -498,8 +498,8 @@ fn grid_scan(
 /// half-width (2 standard errors) and one grid step: another valley, joint with the other
 /// variables' (both lens decentres flipped), which neither the curvature nor an axis scan
 /// sees.
-fn joint_second_valleys(
-    p: &Problem,
+pub fn joint_second_valleys(
+    free: &[crate::pipeline::optimise::Free],
     u: &[f64],
     g: &GridScan,
     identified: &[bool],
@@ -512,7 +512,7 @@ fn joint_second_valleys(
         .copied()
         .filter(|&i| identified[i])
         .filter(|&i| {
-            let f = &p.free[i];
+            let f = &free[i];
             let here = f.lo + u[i] * (f.hi - f.lo);
             let reach = 2.0 * stderr[i] + (f.hi - f.lo) / (points - 1) as f64;
             g.scan_values

@@ -366,3 +366,40 @@ fn the_records_offset_shifts_and_hum_are_fitted() {
     let without = profile(&model, &measured, None, &SlowTerms::default()).unwrap();
     assert!(without.chi2 > 1e6, "{}", without.chi2);
 }
+
+/// A joint mirror valley: two lens decentres fitted at (−3, −3) mm with the second identified
+/// at ± 0.4 mm; a 7 × 7 grid point equally good at (+1, +1) mm lies 4 mm away, beyond
+/// 2 SE + one grid step (1.8 mm), so the second is another valley's too. The same point beyond
+/// the limit, or one within reach, leaves it identified.
+#[test]
+fn an_equally_good_joint_grid_point_far_off_unidentifies_a_variable() {
+    use super::identify::{GridScan, joint_second_valleys};
+    use crate::pipeline::optimise::Free;
+    let lens = |path: &str| Free {
+        path: path.into(),
+        lo: -3.0,
+        hi: 3.0,
+    };
+    let free = [lens("a"), lens("b")];
+    let u = [0.0, 0.0];
+    let grid = |point: [f64; 2], d: f64| GridScan {
+        variables: vec![0, 1],
+        scan_values: vec![vec![-3.0, -3.0], point.to_vec()],
+        scan_delta_chi2: vec![0.0, d],
+        delta_chi2_limit: 100.0,
+        range_lo: vec![-3.0, -3.0],
+        range_hi: vec![3.0, 3.0],
+    };
+    let identified = [false, true];
+    let stderr = [f64::NAN, 0.4];
+    assert_eq!(
+        joint_second_valleys(&free, &u, &grid([1.0, 1.0], 60.0), &identified, &stderr),
+        vec![1]
+    );
+    assert!(
+        joint_second_valleys(&free, &u, &grid([1.0, 1.0], 160.0), &identified, &stderr).is_empty()
+    );
+    assert!(
+        joint_second_valleys(&free, &u, &grid([1.0, -1.5], 10.0), &identified, &stderr).is_empty()
+    );
+}
