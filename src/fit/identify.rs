@@ -340,25 +340,8 @@ pub fn identify(
                 .collect()
         })
         .collect();
-    // The joint scan: every free variable where one is unidentified and there are two to
-    // four (a mirror valley can be joint: each lens decentre flipped together, no axis through
-    // the optimum reaching it), else the unidentified ones where there are two to four.
-    let unknown: Vec<usize> = (0..n).filter(|&i| !identified[i]).collect();
-    let scanned: Vec<usize> = match grid_points(n) {
-        Some(_) if !unknown.is_empty() => (0..n).collect(),
-        _ => unknown,
-    };
-    let grid = match grid_points(scanned.len()) {
-        Some(g) => Some(grid_scan(p, u, &scanned, g, at, rays, seed, count)?),
-        None => None,
-    };
     let mut stderr = stderr;
-    if let Some(g) = &grid {
-        for i in joint_second_valleys(p.free, u, g, &identified, &stderr) {
-            identified[i] = false;
-            stderr[i] = f64::NAN;
-        }
-    }
+    let grid = joint_scan(p, u, &mut identified, &mut stderr, at, rays, seed, count)?;
     Ok(Identification {
         stderr,
         correlation,
@@ -368,6 +351,39 @@ pub fn identify(
         grid,
         limit: at.limit(),
     })
+}
+
+/// The identification's joint scan (module notes): every free variable where one is
+/// unidentified and there are two to four (a mirror valley can be joint: each lens decentre
+/// flipped together, no axis through the optimum reaching it), else the unidentified ones
+/// where there are two to four; None otherwise. An identified variable with a joint second
+/// valley ([`joint_second_valleys`]) is marked unidentified, its standard error NaN.
+#[allow(clippy::too_many_arguments)]
+fn joint_scan(
+    p: &Problem,
+    u: &[f64],
+    identified: &mut [bool],
+    stderr: &mut [f64],
+    at: At,
+    rays: u64,
+    seed: u64,
+    count: &(dyn Fn() + Sync),
+) -> Result<Option<GridScan>> {
+    let n = u.len();
+    let unknown: Vec<usize> = (0..n).filter(|&i| !identified[i]).collect();
+    let scanned: Vec<usize> = match grid_points(n) {
+        Some(_) if !unknown.is_empty() => (0..n).collect(),
+        _ => unknown,
+    };
+    let Some(points) = grid_points(scanned.len()) else {
+        return Ok(None);
+    };
+    let g = grid_scan(p, u, &scanned, points, at, rays, seed, count)?;
+    for i in joint_second_valleys(p.free, u, &g, points, identified, stderr) {
+        identified[i] = false;
+        stderr[i] = f64::NAN;
+    }
+    Ok(Some(g))
 }
 
 /// The joint scan of every free variable about an optimum whose χ² lies above its sampling
@@ -493,20 +509,20 @@ fn grid_scan(
     })
 }
 
-/// The identified variables of the joint scan `g` that have an equally good grid point (Δχ²
-/// within the limit of the lowest seen) farther from the optimum `u` than their 95 %
-/// half-width (2 standard errors) and one grid step: another valley, joint with the other
-/// variables' (both lens decentres flipped), which neither the curvature nor an axis scan
-/// sees.
+/// The identified variables of the joint scan `g` (`points` levels a variable) that have an
+/// equally good grid point (Δχ² within the limit of the lowest seen) farther from the optimum
+/// `u` than their 95 % half-width (2 standard errors) and one grid step: another valley, joint
+/// with the other variables' (both lens decentres flipped), which neither the curvature nor an
+/// axis scan sees.
 pub fn joint_second_valleys(
     free: &[crate::pipeline::optimise::Free],
     u: &[f64],
     g: &GridScan,
+    points: usize,
     identified: &[bool],
     stderr: &[f64],
 ) -> Vec<usize> {
     let floor = g.scan_delta_chi2.iter().copied().fold(0.0, f64::min);
-    let points = grid_points(g.variables.len()).unwrap_or(2);
     g.variables
         .iter()
         .copied()

@@ -18,11 +18,11 @@
 //! a cosine per channel), without which the model misses what an acquisition adds: with the
 //! model's trace the same as the recorded bench's (the same rays and seed, so that no trace
 //! noise is left), χ² was 369 against the 111 the measured noise gives (3 120 values at
-//! 300 000 rays); with them, 107. Left free, a change that only scales one arm's light (a uniform loss of
-//! collection) is indistinguishable from that arm's gain, and the frames constrain only the
-//! shape of each arm's per-unit collection map over the chart; a prior on the four scales
-//! about the lamp's common unknown power ([`super::gains`], the default) lets the arms' ratio
-//! speak too. The fit reports directions the frames do not fix as unidentified.
+//! 300 000 rays); with them, 107. Left free, a change that only scales one arm's light (a
+//! uniform loss of collection) is indistinguishable from that arm's gain, and the frames
+//! constrain only the shape of each arm's per-unit collection map over the chart; a prior on
+//! the four scales about the lamp's common unknown power ([`super::gains`], the default) lets
+//! the arms' ratio speak too. The fit reports directions the frames do not fix as unidentified.
 //!
 //! Each frame value is weighted by 1 / (σ_c² + Σ_k a_k²·var u_k(f)): the measured noise of its
 //! channel plus the model's Monte Carlo variance carried through the fitted scales, so that
@@ -441,20 +441,37 @@ impl SlowTerms {
         SlowTerms { hum_hz }
     }
 
+    /// How many slow-term columns `records` records have.
+    fn columns(&self, records: usize) -> usize {
+        3 * records.saturating_sub(1) + 6 * records * self.hum_hz.len()
+    }
+
+    /// Where, among the slow-term columns, record `r`'s offset shift on channel `o` is (None
+    /// for the first record, the reference).
+    fn shift_at(r: usize, o: usize) -> Option<usize> {
+        (r > 0).then(|| 3 * (r - 1) + o)
+    }
+
+    /// Where record `r`'s sine on channel `o` at hum frequency `h` is (its cosine follows).
+    fn hum_at(&self, records: usize, r: usize, h: usize, o: usize) -> usize {
+        3 * records.saturating_sub(1) + 6 * (r * self.hum_hz.len() + h) + 2 * o
+    }
+
     /// The fitted slow terms of `records` records from their coefficients (the columns after
     /// the seven nuisances, [`free_columns`]' order): each record's offset shift per channel
     /// (V; zero for the first) and, per hum frequency, each channel's amplitude √(s² + c²) (V).
     pub fn split(&self, records: usize, coef: &[f64]) -> (Vec<[f64; 3]>, Vec<Vec<[f64; 3]>>) {
-        let shifts = 3 * records.saturating_sub(1);
         let shift = (0..records)
-            .map(|r| [0, 1, 2].map(|o| if r == 0 { 0.0 } else { coef[3 * (r - 1) + o] }))
+            .map(|r| [0, 1, 2].map(|o| Self::shift_at(r, o).map_or(0.0, |at| coef[at])))
             .collect();
         let hum = (0..records)
             .map(|r| {
                 (0..self.hum_hz.len())
                     .map(|h| {
-                        let at = shifts + 6 * (r * self.hum_hz.len() + h);
-                        [0, 1, 2].map(|o| coef[at + 2 * o].hypot(coef[at + 2 * o + 1]))
+                        [0, 1, 2].map(|o| {
+                            let at = self.hum_at(records, r, h, o);
+                            coef[at].hypot(coef[at + 1])
+                        })
                     })
                     .collect()
             })
@@ -493,7 +510,7 @@ fn flatten(model: &ModelFrames, measured: &Measured, slow: &SlowTerms) -> Flat {
                 y[o].push(v[o]);
             }
             record.push(s);
-            t.push(q.start_s.get(f).copied().unwrap_or(0.0));
+            t.push(q.start_s[f]);
         }
     }
     Flat {
@@ -544,9 +561,8 @@ impl Flat {
 /// then for each record a sine and a cosine at each hum frequency.
 pub(super) fn free_columns(flat: &Flat) -> Vec<Vec<f64>> {
     let n = flat.frames();
-    let hum = &flat.slow.hum_hz;
-    let shifts = 3 * flat.records.saturating_sub(1);
-    let mut cols = vec![vec![0.0; 3 * n]; 7 + shifts + 6 * flat.records * hum.len()];
+    let slow = &flat.slow;
+    let mut cols = vec![vec![0.0; 3 * n]; 7 + slow.columns(flat.records)];
     for i in 0..n {
         let (up, um) = (flat.u[0][i], flat.u[1][i]);
         cols[0][3 * i] = up;
@@ -558,12 +574,12 @@ pub(super) fn free_columns(flat: &Flat) -> Vec<Vec<f64>> {
         cols[6][3 * i + 2] = 1.0;
         let r = flat.record[i];
         for o in 0..3 {
-            if r > 0 {
-                cols[7 + 3 * (r - 1) + o][3 * i + o] = 1.0;
+            if let Some(at) = SlowTerms::shift_at(r, o) {
+                cols[7 + at][3 * i + o] = 1.0;
             }
-            for (h, hz) in hum.iter().enumerate() {
+            for (h, hz) in slow.hum_hz.iter().enumerate() {
                 let phase = std::f64::consts::TAU * hz * flat.t[i];
-                let at = 7 + shifts + 6 * (r * hum.len() + h) + 2 * o;
+                let at = 7 + slow.hum_at(flat.records, r, h, o);
                 cols[at][3 * i + o] = phase.sin();
                 cols[at + 1][3 * i + o] = phase.cos();
             }

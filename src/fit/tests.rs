@@ -393,13 +393,15 @@ fn an_equally_good_joint_grid_point_far_off_unidentifies_a_variable() {
     let identified = [false, true];
     let stderr = [f64::NAN, 0.4];
     assert_eq!(
-        joint_second_valleys(&free, &u, &grid([1.0, 1.0], 60.0), &identified, &stderr),
+        joint_second_valleys(&free, &u, &grid([1.0, 1.0], 60.0), 7, &identified, &stderr),
         vec![1]
     );
     assert!(
-        joint_second_valleys(&free, &u, &grid([1.0, 1.0], 160.0), &identified, &stderr).is_empty()
+        joint_second_valleys(&free, &u, &grid([1.0, 1.0], 160.0), 7, &identified, &stderr)
+            .is_empty()
     );
     assert!(
-        joint_second_valleys(&free, &u, &grid([1.0, -1.5], 10.0), &identified, &stderr).is_empty()
+        joint_second_valleys(&free, &u, &grid([1.0, -1.5], 10.0), 7, &identified, &stderr)
+            .is_empty()
     );
 }
